@@ -1,0 +1,1 @@
+# failure models shipped with pyroute_rel (data, not code)

@@ -1,0 +1,60 @@
+"""Domain errors of pyroute_rel, all in one place.
+
+Every error a user can cause (a bad scenario, polar, weather file or failure model) is one of these. Each
+subclasses a built-in so callers may catch ``ValueError`` as usual; the CLI turns any :class:`PyrouteError`
+into one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "PyrouteError",
+    "ScenarioError",
+    "PolarError",
+    "WeatherError",
+    "WeatherCoverageError",
+    "FailureModelError",
+    "GridError",
+    "ConvergenceError",
+    "NoFeasibleRouteError",
+]
+
+
+class PyrouteError(Exception):
+    """Base class of every error pyroute_rel raises on purpose."""
+
+
+class ScenarioError(PyrouteError, ValueError):
+    """A scenario (TOML file or dict) is malformed: unknown key, wrong type, value out of range."""
+
+
+class PolarError(PyrouteError, ValueError):
+    """A polar table is malformed: ragged rows, non-increasing axes, negative or non-numeric speeds."""
+
+
+class WeatherError(PyrouteError, ValueError):
+    """A weather source is unusable: unreadable file, missing variable, unknown units, NaN-only field."""
+
+
+class WeatherCoverageError(WeatherError):
+    """A route or departure lies outside the time or space covered by a weather source."""
+
+
+class FailureModelError(PyrouteError, ValueError):
+    """A failure model is malformed: missing CPT, probabilities not summing to 1, unknown quantity."""
+
+
+class GridError(PyrouteError, ValueError):
+    """A grid cannot be built from the given settings (too few nodes, zero spacing, start = finish)."""
+
+
+class ConvergenceError(PyrouteError, ValueError):
+    """Grid-convergence input is unusable (fewer than three grids, non-positive spacing, ...)."""
+
+
+class NoFeasibleRouteError(PyrouteError, RuntimeError):
+    """No route on the graph reaches the finish: every path has a forbidden arc.
+
+    The message says at which rank the front of reachable nodes died and which criteria (failure
+    criteria, polar limits, land, zones, missing weather) forbade the arcs there.
+    """

@@ -1,0 +1,308 @@
+"""The great-circle rank digraph (Philpott & Mason 2001; Dickson et al. 2018, section 2.2).
+
+``n_ranks`` ranks are laid at equal steps along the great circle from start to finish. Each rank is a
+line of ``n_nodes`` nodes on the great circle *perpendicular* to the route at the rank's centre, spaced
+``spacing_km`` apart, with the route's great circle on the middle node when ``n_nodes`` is odd. Arcs join
+each node to nodes of the next rank; the start joins the first rank and the last rank joins the finish.
+
+Two settings are independent (unlike the paper's square grid, where both equal route length / (n_ranks+1)):
+
+- the **rank spacing** (distance between consecutive ranks along the route) follows from ``n_ranks``;
+- the **lateral spacing** ``spacing_km`` between nodes of a rank, and so the domain half-width
+  ``(n_nodes - 1) / 2 * spacing_km``.
+
+Arcs may be **banded**: with ``max_deviation_deg`` an arc may deviate at most that angle from the rank
+direction, so node ``i`` of one rank joins only nodes ``j`` with
+``|j - i| * spacing_km <= tan(max_deviation_deg) * rank_spacing_km`` (``2k + 1`` nodes instead of all ``n``).
+Without it every node joins every node of the next rank, as in the paper.
+
+Arc storage: for each destination node ``j`` of a rank, ``src_index[j, w]`` (``w < width``) is a source node
+of the previous rank and ``arc_valid[j, w]`` says whether that arc exists. The same lateral pattern serves
+every pair of consecutive ranks, so the DP gathers over a dense ``(n_nodes, width)`` array per rank.
+
+References
+----------
+Philpott, A. and Mason, A. (2001). Optimising yacht routes under uncertainty. Proc. 15th Chesapeake Sailing
+Yacht Symposium.
+Dickson, T., Blake, J. and Sear, D. (2018). Reliability informed routing for Autonomous Sailing Craft.
+Proc. International Robotic Sailing Conference 2018.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from . import geodesy
+from .errors import GridError
+
+if TYPE_CHECKING:
+    import networkx as nx
+
+__all__ = ["Grid", "make_grid", "START", "FINISH"]
+
+#: networkx node labels of the start and finish nodes; other nodes are ``(rank, node)`` tuples.
+START = "start"
+FINISH = "finish"
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True, eq=False)
+class Grid:
+    """A rank digraph between a start and a finish. Build it with :func:`make_grid`.
+
+    Attributes
+    ----------
+    start, finish : (lon, lat) [deg].
+    lon_deg, lat_deg : Node positions, shape (n_ranks, n_nodes) [deg]; node 0 lies to port (left) of the
+        route's direction, node n_nodes - 1 to starboard.
+    offset_km : Signed lateral offset of each node index from the great circle [km], shape (n_nodes,)
+        (positive to starboard).
+    route_length_km : Great-circle distance start → finish [km].
+    rank_spacing_km : Distance between consecutive ranks along the great circle [km].
+    spacing_km : Lateral spacing between nodes of a rank [km].
+    max_deviation_deg : Maximum angle of an arc from the rank direction [deg], or None (all-to-all).
+    band : Largest index offset |j - i| of an arc between consecutive ranks.
+    src_index, arc_valid : Arc pattern between consecutive ranks, shape (n_nodes, width).
+    start_valid, finish_valid : Which first-rank nodes the start joins / last-rank nodes join the finish.
+    """
+
+    start: tuple[float, float]
+    finish: tuple[float, float]
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    offset_km: FloatArray
+    route_length_km: float
+    rank_spacing_km: float
+    spacing_km: float
+    max_deviation_deg: float | None
+    band: int
+    src_index: IntArray
+    arc_valid: BoolArray
+    start_valid: BoolArray
+    finish_valid: BoolArray
+    _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def n_ranks(self) -> int:
+        """Number of ranks."""
+        return int(self.lon_deg.shape[0])
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes per rank."""
+        return int(self.lon_deg.shape[1])
+
+    @property
+    def width(self) -> int:
+        """Number of candidate source nodes per destination node (columns of ``src_index``)."""
+        return int(self.src_index.shape[1])
+
+    @property
+    def half_width_km(self) -> float:
+        """Distance from the great circle to the outermost node of a rank [km]."""
+        return float(np.max(np.abs(self.offset_km)))
+
+    @property
+    def aspect(self) -> float:
+        """Rank spacing / lateral spacing (1 for the paper's square grid)."""
+        return self.rank_spacing_km / self.spacing_km
+
+    @property
+    def n_arcs(self) -> int:
+        """Number of arcs in the digraph, start and finish arcs included."""
+        inner = int(self.arc_valid.sum()) * (self.n_ranks - 1)
+        return inner + int(self.start_valid.sum()) + int(self.finish_valid.sum())
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready summary of the grid's geometry."""
+        return {
+            "n_ranks": self.n_ranks,
+            "n_nodes": self.n_nodes,
+            "spacing_km": self.spacing_km,
+            "rank_spacing_km": self.rank_spacing_km,
+            "half_width_km": self.half_width_km,
+            "max_deviation_deg": self.max_deviation_deg,
+            "band": self.band,
+            "n_arcs": self.n_arcs,
+        }
+
+    def arcs(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, IntArray, BoolArray]:
+        """Arcs into rank ``k`` (``k = 0`` from the start; ``k = n_ranks`` into the finish).
+
+        Returns ``(lon0, lat0, lon1, lat1, src, valid)``: end points [deg] of shape (n_dst, width), the
+        source node index of each arc, and whether the arc exists.
+        """
+        if k == 0:
+            src = np.zeros((self.n_nodes, 1), dtype=np.intp)
+            lon0 = np.full((self.n_nodes, 1), self.start[0])
+            lat0 = np.full((self.n_nodes, 1), self.start[1])
+            return lon0, lat0, self.lon_deg[0][:, None], self.lat_deg[0][:, None], src, self.start_valid[:, None]
+        if k == self.n_ranks:
+            src = np.arange(self.n_nodes, dtype=np.intp)[None, :]
+            return (
+                self.lon_deg[-1][None, :],
+                self.lat_deg[-1][None, :],
+                np.full((1, self.n_nodes), self.finish[0]),
+                np.full((1, self.n_nodes), self.finish[1]),
+                src,
+                self.finish_valid[None, :],
+            )
+        if not 0 < k < self.n_ranks:
+            raise IndexError(f"rank index must be in [0, {self.n_ranks}] (got {k})")
+        src = self.src_index
+        return (
+            self.lon_deg[k - 1][src],
+            self.lat_deg[k - 1][src],
+            np.broadcast_to(self.lon_deg[k][:, None], src.shape),
+            np.broadcast_to(self.lat_deg[k][:, None], src.shape),
+            src,
+            self.arc_valid,
+        )
+
+    def to_networkx(self, weight: npt.ArrayLike | None = None) -> nx.DiGraph:
+        """Export the digraph to networkx.
+
+        Nodes are ``"start"``, ``"finish"`` and ``(rank, node)`` tuples with ``lon``/``lat`` attributes.
+
+        Parameters
+        ----------
+        weight : Optional arc weights, a sequence of ``n_ranks + 1`` arrays as returned per rank by
+            :func:`pyroute_rel.cost.arc_costs` (shape of :meth:`arcs`' outputs); stored as the edge
+            attribute ``"weight"`` (non-finite weights drop the edge).
+        """
+        import networkx as nx
+
+        g = nx.DiGraph()
+        g.add_node(START, lon=self.start[0], lat=self.start[1])
+        g.add_node(FINISH, lon=self.finish[0], lat=self.finish[1])
+        for r in range(self.n_ranks):
+            for i in range(self.n_nodes):
+                g.add_node((r, i), lon=float(self.lon_deg[r, i]), lat=float(self.lat_deg[r, i]))
+        weights = None if weight is None else list(weight)  # type: ignore[arg-type]
+        for k in range(self.n_ranks + 1):
+            *_, src, valid = self.arcs(k)
+            w = None if weights is None else np.asarray(weights[k], dtype=float)
+            for j, col in zip(*np.nonzero(valid), strict=True):
+                i = int(src[j, col])
+                u = START if k == 0 else (k - 1, i)
+                v = FINISH if k == self.n_ranks else (k, int(j))
+                if w is None:
+                    g.add_edge(u, v)
+                elif np.isfinite(w[j, col]):
+                    g.add_edge(u, v, weight=float(w[j, col]))
+        return g
+
+
+def make_grid(
+    start: tuple[float, float],
+    finish: tuple[float, float],
+    *,
+    n_ranks: int,
+    n_nodes: int,
+    spacing_km: float | None = None,
+    max_deviation_deg: float | None = None,
+) -> Grid:
+    """Build the rank digraph between two points.
+
+    Parameters
+    ----------
+    start, finish : (lon, lat) [deg].
+    n_ranks : Number of ranks (>= 1).
+    n_nodes : Nodes per rank (>= 1; odd puts the great circle on the middle node).
+    spacing_km : Lateral node spacing [km]. Default: the rank spacing, route length / (n_ranks + 1), so
+        the domain is square as in the paper.
+    max_deviation_deg : Largest angle [deg] in (0, 90) between an arc and the rank direction; None joins
+        every node to every node of the next rank. Also limits the start and finish arcs.
+
+    Examples
+    --------
+    >>> g = make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=9, n_nodes=5)
+    >>> g.lon_deg.shape, round(g.rank_spacing_km, 1) == round(g.spacing_km, 1)
+    ((9, 5), True)
+    >>> make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=9, n_nodes=9, max_deviation_deg=50.0).band
+    1
+    """
+    for name, value in (("n_ranks", n_ranks), ("n_nodes", n_nodes)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+            raise GridError(f"{name} must be a whole number >= 1 (got {value!r})")
+    lon_s, lat_s = _checked_point(start, "start")
+    lon_f, lat_f = _checked_point(finish, "finish")
+    length = float(geodesy.distance_km(lon_s, lat_s, lon_f, lat_f))
+    if length < 1e-6:
+        raise GridError(f"start and finish must differ (both at lon {lon_s:g}, lat {lat_s:g})")
+    if length > 0.99 * math.pi * geodesy.EARTH_RADIUS_KM:
+        raise GridError("start and finish are (nearly) antipodal: the great circle between them is not unique")
+    rank_spacing = length / (n_ranks + 1)
+    if spacing_km is None:
+        spacing_km = rank_spacing
+    if not (isinstance(spacing_km, int | float) and math.isfinite(spacing_km) and spacing_km > 0):
+        raise GridError(f"spacing_km must be a positive number of km (got {spacing_km!r})")
+    spacing_km = float(spacing_km)
+    half = (n_nodes - 1) / 2.0 * spacing_km
+    if half > 0.25 * math.pi * geodesy.EARTH_RADIUS_KM:
+        raise GridError(
+            f"grid half-width {half:.0f} km is too wide (ranks would converge): use fewer nodes or a smaller "
+            "spacing_km (at most 5000 km from the great circle)"
+        )
+    if max_deviation_deg is not None:
+        if not (isinstance(max_deviation_deg, int | float) and 0.0 < max_deviation_deg < 90.0):
+            raise GridError(f"max_deviation_deg must be in (0, 90) [deg] (got {max_deviation_deg!r})")
+        band = int(math.floor(math.tan(math.radians(max_deviation_deg)) * rank_spacing / spacing_km + 1e-9))
+        band = min(band, n_nodes - 1)
+    else:
+        band = n_nodes - 1
+
+    fractions = np.arange(1, n_ranks + 1) / (n_ranks + 1)
+    c_lon, c_lat = geodesy.intermediate_point(lon_s, lat_s, lon_f, lat_f, fractions)
+    course = geodesy.initial_bearing_deg(c_lon, c_lat, lon_f, lat_f)
+    offset = (np.arange(n_nodes) - (n_nodes - 1) / 2.0) * spacing_km
+    lon, lat = geodesy.destination_point(
+        c_lon[:, None], c_lat[:, None], (course[:, None] + 90.0) % 360.0, offset[None, :]
+    )
+
+    width = min(2 * band + 1, n_nodes)
+    j = np.arange(n_nodes)
+    first = np.clip(j - band, 0, n_nodes - width)
+    src = first[:, None] + np.arange(width)[None, :]
+    valid = np.abs(src - j[:, None]) <= band
+    if max_deviation_deg is None:
+        start_valid = np.ones(n_nodes, dtype=bool)
+    else:
+        reach = math.tan(math.radians(max_deviation_deg)) * rank_spacing + 1e-6 * spacing_km
+        start_valid = np.abs(offset) <= max(reach, spacing_km / 2.0)
+    return Grid(
+        start=(lon_s, lat_s),
+        finish=(lon_f, lat_f),
+        lon_deg=lon,
+        lat_deg=lat,
+        offset_km=offset,
+        route_length_km=length,
+        rank_spacing_km=rank_spacing,
+        spacing_km=spacing_km,
+        max_deviation_deg=None if max_deviation_deg is None else float(max_deviation_deg),
+        band=band,
+        src_index=src.astype(np.intp),
+        arc_valid=valid,
+        start_valid=start_valid,
+        finish_valid=start_valid.copy(),
+    )
+
+
+def _checked_point(p: Any, name: str) -> tuple[float, float]:
+    try:
+        lon, lat = (float(v) for v in p)
+    except (TypeError, ValueError):
+        raise GridError(f"{name} must be a pair [lon, lat] of numbers [deg] (got {p!r})") from None
+    if not (-180.0 <= lon <= 180.0 and -90.0 <= lat <= 90.0) or not (math.isfinite(lon) and math.isfinite(lat)):
+        raise GridError(f"{name} must have lon in [-180, 180] and lat in [-90, 90] [deg] (got {p!r})")
+    if abs(lat) > 89.0:
+        raise GridError(f"{name} latitude must be within 89 deg of the equator (got {lat:g})")
+    return float(geodesy.wrap_lon(lon)), lat

@@ -1,0 +1,275 @@
+"""Weather sources: the sampling protocol every source implements, and the paper's control scenario.
+
+A weather source answers one question, vectorised: *what are the wind and waves at these points and
+times?* (:meth:`WeatherSource.sample`). The cost function and the solver only ever call that method, so a
+uniform control field, rectangular patches and gridded, time-varying reanalysis data (see
+:mod:`pyroute_rel.weather_io`) all plug into the same solver.
+
+Conventions
+-----------
+- Positions are longitude/latitude [deg], longitude in [-180, 180).
+- Times are ``numpy.datetime64`` (UTC).
+- Wind and wave directions are *from*, clockwise from true north [deg], in [0, 360).
+- Currents are the velocity the water moves *to*: ``current_u_ms`` east, ``current_v_ms`` north [m/s].
+- A value that is unknown at a point (land in an ocean model, outside a file) is NaN; the cost function
+  forbids arcs through NaN weather rather than treating it as calm.
+
+References
+----------
+Dickson, T., Blake, J. and Sear, D. (2018). Reliability informed routing for Autonomous Sailing Craft.
+Proc. International Robotic Sailing Conference 2018, section 3.2 (control weather scenario).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import ScenarioError
+
+__all__ = [
+    "Conditions",
+    "WeatherSource",
+    "Patch",
+    "UniformWeather",
+    "FIELDS",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Fields a control scenario (uniform value or patch) may set, with their units and valid range.
+FIELDS: dict[str, tuple[str, float, float]] = {
+    "tws_kn": ("true wind speed [kn]", 0.0, 200.0),
+    "twd_deg": ("true wind direction, from [deg]", 0.0, 360.0),
+    "hs_m": ("significant wave height [m]", 0.0, 30.0),
+    "wave_dir_deg": ("mean wave direction, from [deg]", 0.0, 360.0),
+    "wave_period_s": ("wave period [s]", 0.0, 40.0),
+    "current_u_ms": ("eastward current, to [m/s]", -10.0, 10.0),
+    "current_v_ms": ("northward current, to [m/s]", -10.0, 10.0),
+}
+
+
+@dataclass(frozen=True)
+class Conditions:
+    """Wind, waves and current at a set of points; every array has the shape of the query.
+
+    Attributes
+    ----------
+    tws_kn : True wind speed [kn].
+    twd_deg : True wind direction, from, clockwise from north [deg].
+    hs_m : Significant wave height [m].
+    wave_dir_deg : Mean wave direction, from, clockwise from north [deg].
+    wave_period_s : Wave period [s]; NaN where the source has none.
+    current_u_ms : Eastward current velocity (to) [m/s]; 0 where the source has none.
+    current_v_ms : Northward current velocity (to) [m/s]; 0 where the source has none.
+    """
+
+    tws_kn: FloatArray
+    twd_deg: FloatArray
+    hs_m: FloatArray
+    wave_dir_deg: FloatArray
+    wave_period_s: FloatArray
+    current_u_ms: FloatArray
+    current_v_ms: FloatArray
+
+    @property
+    def has_current(self) -> bool:
+        """True when any current is non-zero."""
+        return bool(np.any(self.current_u_ms) or np.any(self.current_v_ms))
+
+
+@runtime_checkable
+class WeatherSource(Protocol):
+    """What the router needs from weather: vectorised sampling in space and time.
+
+    ``sample`` must broadcast ``lon_deg``, ``lat_deg`` and ``time`` together and return
+    :class:`Conditions` with arrays of the broadcast shape. Sources that do not vary in time ignore
+    ``time``. ``check_coverage`` raises :class:`~pyroute_rel.errors.WeatherCoverageError` when the
+    box or time window is not covered (a no-op for sources that cover everything).
+    """
+
+    def sample(
+        self,
+        lon_deg: npt.ArrayLike,
+        lat_deg: npt.ArrayLike,
+        time: npt.ArrayLike,
+    ) -> Conditions: ...
+
+    def check_coverage(
+        self,
+        lon_range: tuple[float, float],
+        lat_range: tuple[float, float],
+        time_range: tuple[np.datetime64, np.datetime64],
+    ) -> None: ...
+
+
+@dataclass(frozen=True)
+class Patch:
+    """A rectangular lon/lat box [deg] that overrides some fields of a control scenario.
+
+    The box is closed: a point on its edge is inside. ``lon`` and ``lat`` are ``(min, max)``.
+    ``values`` maps field names of :data:`FIELDS` to the value inside the box.
+    """
+
+    lon: tuple[float, float]
+    lat: tuple[float, float]
+    values: Mapping[str, float]
+    name: str = ""
+
+    def contains(self, lon_deg: FloatArray, lat_deg: FloatArray) -> npt.NDArray[np.bool_]:
+        """Boolean mask of the points inside the box."""
+        return (
+            (lon_deg >= self.lon[0])
+            & (lon_deg <= self.lon[1])
+            & (lat_deg >= self.lat[0])
+            & (lat_deg <= self.lat[1])
+        )
+
+
+@dataclass(frozen=True)
+class UniformWeather:
+    """The paper's control scenario: uniform, steady wind and waves, overridden inside patches.
+
+    Parameters
+    ----------
+    tws_kn : True wind speed [kn].
+    twd_deg : True wind direction, from [deg].
+    hs_m : Significant wave height [m].
+    wave_dir_deg : Mean wave direction, from [deg].
+    wave_period_s : Wave period [s] (NaN: unknown).
+    current_u_ms, current_v_ms : Uniform current, to [m/s].
+    patches : Rectangular overrides, applied in order (a later patch wins where two overlap).
+
+    Examples
+    --------
+    >>> w = UniformWeather(tws_kn=15.0, twd_deg=0.0, hs_m=1.0, wave_dir_deg=0.0,
+    ...                    patches=(Patch(lon=(-45.0, -35.0), lat=(28.0, 38.0), values={"hs_m": 4.0}),))
+    >>> c = w.sample([-40.0, -20.0], [33.0, 33.0], np.datetime64("2018-06-01T00:00"))
+    >>> c.hs_m.tolist(), c.tws_kn.tolist()
+    ([4.0, 1.0], [15.0, 15.0])
+    """
+
+    tws_kn: float
+    twd_deg: float
+    hs_m: float = 0.0
+    wave_dir_deg: float = 0.0
+    wave_period_s: float = float("nan")
+    current_u_ms: float = 0.0
+    current_v_ms: float = 0.0
+    patches: tuple[Patch, ...] = field(default_factory=tuple)
+
+    @property
+    def steady(self) -> bool:
+        """A control field does not change with time."""
+        return True
+
+    @property
+    def fields(self) -> frozenset[str]:
+        """Every field of :class:`Conditions` is defined everywhere."""
+        return frozenset(FIELDS)
+
+    def sample(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> Conditions:
+        """Sample the control field at points; ``time`` is accepted for the protocol and ignored."""
+        lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
+        shape = np.broadcast_shapes(lon.shape, np.shape(time))
+        lon = np.broadcast_to(lon, shape)
+        lat = np.broadcast_to(lat, shape)
+        out = {name: np.full(shape, float(getattr(self, name))) for name in FIELDS}
+        for patch in self.patches:
+            inside = patch.contains(lon, lat)
+            if not inside.any():
+                continue
+            for name, value in patch.values.items():
+                out[name][inside] = value
+        return Conditions(**out)
+
+    def check_coverage(
+        self,
+        lon_range: tuple[float, float],
+        lat_range: tuple[float, float],
+        time_range: tuple[np.datetime64, np.datetime64],
+    ) -> None:
+        """A control field covers everything."""
+        return None
+
+    @classmethod
+    def from_mapping(cls, table: Mapping[str, Any], *, where: str = "[weather]") -> UniformWeather:
+        """Build from a scenario's ``[weather]`` table (``kind = "uniform"``) with ``[[weather.patch]]``.
+
+        Raises :class:`~pyroute_rel.errors.ScenarioError` naming the field on any bad value.
+        """
+        values: dict[str, float] = {}
+        for key, value in table.items():
+            if key in ("kind", "patch"):
+                continue
+            if key not in FIELDS:
+                raise ScenarioError(
+                    f"{where}: unknown key {key!r} (expected one of {', '.join(['kind', 'patch', *FIELDS])})"
+                )
+            values[key] = _checked_value(key, value, where)
+        for required in ("tws_kn", "twd_deg"):
+            if required not in values:
+                raise ScenarioError(f"{where}: missing {required!r} ({FIELDS[required][0]})")
+        raw_patches = table.get("patch", [])
+        if not isinstance(raw_patches, Sequence) or isinstance(raw_patches, str):
+            raise ScenarioError(f"{where}.patch must be an array of tables ([[weather.patch]])")
+        patches = tuple(_parse_patch(p, f"{where}.patch[{i}]") for i, p in enumerate(raw_patches))
+        return cls(**values, patches=patches)  # type: ignore[arg-type]
+
+
+def _checked_value(key: str, value: Any, where: str) -> float:
+    label, lo, hi = FIELDS[key]
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ScenarioError(f"{where}.{key} must be a number ({label}) (got {value!r})")
+    v = float(value)
+    if not np.isfinite(v) or not lo <= v <= hi:
+        raise ScenarioError(f"{where}.{key} must be in [{lo:g}, {hi:g}] ({label}) (got {value!r})")
+    if key.endswith("_deg"):
+        v = v % 360.0
+    return v
+
+
+def _range(value: Any, where: str, lo: float, hi: float) -> tuple[float, float]:
+    if (
+        not isinstance(value, Sequence)
+        or isinstance(value, str)
+        or len(value) != 2
+        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+    ):
+        raise ScenarioError(f"{where} must be a pair [min, max] of numbers [deg] (got {value!r})")
+    a, b = float(value[0]), float(value[1])
+    if not (lo <= a < b <= hi):
+        raise ScenarioError(f"{where} must satisfy {lo:g} <= min < max <= {hi:g} [deg] (got {value!r})")
+    return a, b
+
+
+def _parse_patch(raw: Any, where: str) -> Patch:
+    if not isinstance(raw, Mapping):
+        raise ScenarioError(f"{where} must be a table with lon, lat and field values (got {raw!r})")
+    values: dict[str, float] = {}
+    name = ""
+    for key, value in raw.items():
+        if key in ("lon", "lat"):
+            continue
+        if key == "name":
+            name = str(value)
+            continue
+        if key not in FIELDS:
+            raise ScenarioError(
+                f"{where}: unknown key {key!r} (expected lon, lat, name or one of {', '.join(FIELDS)})"
+            )
+        values[key] = _checked_value(key, value, where)
+    if "lon" not in raw or "lat" not in raw:
+        raise ScenarioError(f"{where} needs both lon = [min, max] and lat = [min, max] [deg]")
+    if not values:
+        raise ScenarioError(f"{where} overrides no field (give at least one of {', '.join(FIELDS)})")
+    return Patch(
+        lon=_range(raw["lon"], f"{where}.lon", -180.0, 180.0),
+        lat=_range(raw["lat"], f"{where}.lat", -90.0, 90.0),
+        values=values,
+        name=name,
+    )
