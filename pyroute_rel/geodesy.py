@@ -29,6 +29,7 @@ __all__ = [
     "cross_track_km",
     "along_track_km",
     "wrap_lon",
+    "to_xyz",
     "angle_diff_deg",
     "geodesic_distance_km",
 ]
@@ -115,7 +116,12 @@ def initial_bearing_deg(
     return np.degrees(np.arctan2(y, x)) % 360.0
 
 
-def _to_xyz(lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> FloatArray:
+def to_xyz(lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> FloatArray:
+    """Unit vectors (x towards lon 0 on the equator, z towards the north pole), shape (..., 3).
+
+    >>> to_xyz(90.0, 0.0).round(12).tolist()
+    [0.0, 1.0, 0.0]
+    """
     lmb = np.radians(np.asarray(lon_deg, dtype=float))
     phi = np.radians(np.asarray(lat_deg, dtype=float))
     cphi = np.cos(phi)
@@ -150,8 +156,8 @@ def intermediate_point(
     >>> round(float(lon), 9), round(float(lat), 9)
     (45.0, 0.0)
     """
-    a = _to_xyz(lon1_deg, lat1_deg)
-    b = _to_xyz(lon2_deg, lat2_deg)
+    a = to_xyz(lon1_deg, lat1_deg)
+    b = to_xyz(lon2_deg, lat2_deg)
     f = np.asarray(fraction, dtype=float)[..., None]
     omega = np.arccos(np.clip(np.sum(a * b, axis=-1), -1.0, 1.0))[..., None]
     with np.errstate(invalid="ignore", divide="ignore"):

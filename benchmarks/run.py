@@ -1,0 +1,130 @@
+"""Benchmarks of pyroute_rel's hot paths. Run: ``python benchmarks/run.py [--quick] [--only NAME ...]``.
+
+Each case runs in a fresh subprocess so that its peak memory (max RSS) is its own. Targets come from the
+issues; a case prints PASS/FAIL against its target, and the script exits non-zero if any target is missed
+(timings are machine-dependent: this is a benchmark, not a unit test, and CI does not run it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "microtransat_control.toml"
+
+CASES: dict[str, tuple[str, float | None, str]] = {}
+
+
+def case(name: str, target_s: float | None, what: str):
+    def deco(code: str) -> str:
+        CASES[name] = (textwrap.dedent(code), target_s, what)
+        return code
+
+    return deco
+
+
+PRELUDE = """
+import json, resource, time, sys
+import numpy as np
+from pyroute_rel.scenario import load_scenario
+from pyroute_rel.solve import forward_dp
+def rss_mb():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+def best_of(fn, n=3):
+    ts = []
+    for _ in range(n):
+        t0 = time.perf_counter(); out = fn(); ts.append(time.perf_counter() - t0)
+    return min(ts), out
+"""
+
+for n in (80, 160, 320):
+    case(f"dp_all_to_all_{n}", 1.0 if n == 160 else None,
+         f"paper's square all-to-all grid {n}x{n}, apf 1, DP + arc costs (issue 2: 160x160 under 1 s)")(f"""
+sc = load_scenario({str(EXAMPLE)!r}).with_options(n_nodes={n}, n_ranks={n}, failure_model="none")
+grid = sc.make_grid(); problem = sc.problem()
+rss0 = rss_mb()
+t, res = best_of(lambda: forward_dp(grid, problem), n=3 if {n} <= 160 else 1)
+print(json.dumps({{"seconds": t, "arcs": res.arcs_evaluated, "arcs_per_s": res.arcs_evaluated / t,
+                  "peak_rss_mb": rss_mb(), "voyage_h": res.finish_h}}))
+""")
+
+case("dp_failure_model_160", None,
+     "160x160 with the dickson2018 failure model at apf 0.5 (issue 3: at most 1.5x the time without)")(f"""
+sc0 = load_scenario({str(EXAMPLE)!r}).with_options(failure_model="none")
+sc1 = load_scenario({str(EXAMPLE)!r}).with_options(apf=0.5)
+g = sc0.make_grid(); p0 = sc0.problem(); p1 = sc1.problem()
+t0, r0 = best_of(lambda: forward_dp(g, p0))
+t1, r1 = best_of(lambda: forward_dp(g, p1))
+print(json.dumps({{"seconds": t1, "without_model_s": t0, "ratio": t1 / t0, "arcs_per_s": r1.arcs_evaluated / t1,
+                  "peak_rss_mb": rss_mb(), "voyage_h": r1.finish_h, "target_ratio": 1.5, "pass_ratio": t1 / t0 <= 1.5}}))
+""")
+
+case("bbn_table_vs_pgmpy", None, "compiled failure table vs one pgmpy VariableElimination query per arc")("""
+from pyroute_rel.failure import load_failure_model
+m = load_failure_model("dickson2018")
+rng = np.random.default_rng(0)
+q = {"hs_m": rng.uniform(0, 6, 1_000_000), "awd_deg": rng.uniform(0, 180, 1_000_000)}
+t_gather, _ = best_of(lambda: m.p_fail(q))
+from pgmpy.inference import VariableElimination
+from pyroute_rel.failure import build_network
+net = build_network(m)
+ve = VariableElimination(net)
+nodes = [c.node for c in m.criteria]
+t0 = time.perf_counter(); nq = 200
+for i in range(nq):
+    ev = {c.node: c.states[i % len(c.states)] for c in m.criteria}
+    ve.query([m.target], evidence=ev, show_progress=False)
+t_query = (time.perf_counter() - t0) / nq
+per_arc = t_gather / 1_000_000
+print(json.dumps({"seconds": t_gather, "per_arc_gather_s": per_arc, "per_query_pgmpy_s": t_query,
+                  "speedup": t_query / per_arc, "pass_ratio": t_query / per_arc >= 1000, "peak_rss_mb": rss_mb()}))
+""")
+
+
+def run_case(name: str) -> dict:
+    code, target, what = CASES[name]
+    proc = subprocess.run([sys.executable, "-c", PRELUDE + code], capture_output=True, text=True, cwd=ROOT)
+    if proc.returncode != 0:
+        return {"name": name, "error": proc.stderr.strip().splitlines()[-1] if proc.stderr else "failed"}
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    out["name"], out["what"], out["target_s"] = name, what, target
+    ok = out.get("pass_ratio", True)
+    if target is not None:
+        ok = ok and out["seconds"] <= target
+    out["pass"] = bool(ok)
+    return out
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--only", nargs="*", help="case names (default: all)")
+    ap.add_argument("--json", action="store_true", help="print one JSON list")
+    args = ap.parse_args()
+    names = args.only or list(CASES)
+    results = []
+    for name in names:
+        if name not in CASES:
+            print(f"unknown case {name!r}; known: {', '.join(CASES)}", file=sys.stderr)
+            return 2
+        r = run_case(name)
+        results.append(r)
+        if not args.json:
+            if "error" in r:
+                print(f"{name:28s} ERROR {r['error']}")
+                continue
+            extra = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in r.items()
+                              if k not in ("name", "what", "pass", "target_s"))
+            verdict = "PASS" if r["pass"] else "FAIL"
+            print(f"{name:28s} {verdict}  {extra}\n{'':28s} ({r['what']})")
+    if args.json:
+        print(json.dumps(results, indent=1))
+    return 0 if all(r.get("pass", False) for r in results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,202 @@
+"""The ``pyroute-rel`` command: a thin layer over the public API.
+
+Exit codes: 0 success; 1 the run worked but a gate failed (e.g. ``gci study --max-gci``); 2 a user error
+(bad scenario, polar, weather, failure model, no feasible route) reported in one line on stderr;
+3 an unexpected internal error (with a request to report it; ``--debug`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+from . import __version__
+from .errors import PyrouteError
+
+__all__ = ["main", "build_parser"]
+
+EXIT_OK, EXIT_GATE, EXIT_USER, EXIT_INTERNAL = 0, 1, 2, 3
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with exit code 2 and one line for usage errors (its default is also 2)."""
+
+    def error(self, message: str) -> Any:  # type: ignore[override]
+        self.exit(EXIT_USER, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--debug", action="store_true", help="show tracebacks of errors")
+
+
+def _csv_ints(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated whole numbers (got {text!r})") from None
+    if not values:
+        raise argparse.ArgumentTypeError("expected at least one number")
+    return values
+
+
+def _csv_floats(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.replace(" ", ",").split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated numbers (got {text!r})") from None
+    if not values:
+        raise argparse.ArgumentTypeError("expected at least one number")
+    return values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``pyroute-rel``."""
+    parser = _Parser(prog="pyroute-rel", description="Reliability-informed routing for autonomous sailing craft.")
+    parser.add_argument("--version", action="version", version=f"pyroute-rel {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    r = sub.add_parser("route", help="route a scenario", description="Route a scenario TOML file.")
+    r.add_argument("scenario", help="scenario TOML file")
+    r.add_argument("--n-nodes", type=int, help="nodes per rank (overrides [grid].n_nodes)")
+    r.add_argument("--n-ranks", type=int, help="number of ranks (overrides [grid].n_ranks)")
+    r.add_argument("--spacing-km", type=float, help="lateral node spacing [km] (overrides [grid].spacing_km)")
+    r.add_argument("--max-deviation", type=float, dest="max_deviation_deg",
+                   help="largest arc angle from the rank direction [deg] (overrides [grid].max_deviation_deg)")
+    r.add_argument("--samples", type=int, dest="samples_per_arc", help="weather samples per arc")
+    r.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1]")
+    r.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
+    r.add_argument("--out", help="folder for route.geojson, route.gpx, route.csv, summary.json, route.png")
+    r.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    _add_common(r)
+    r.set_defaults(func=_cmd_route)
+
+    f = sub.add_parser("failure", help="show a failure model and its compiled table",
+                       description="Show a failure model (criteria, network, compiled P(fail | evidence)).")
+    f.add_argument("model", nargs="?", help="shipped model name or model file (omit to list shipped models)")
+    f.add_argument("--json", action="store_true", help="print the model as one JSON object")
+    _add_common(f)
+    f.set_defaults(func=_cmd_failure)
+
+    try:
+        from .cli_gci import add_gci_parser
+    except ImportError:  # pragma: no cover - gci module not installed
+        pass
+    else:
+        add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
+    return parser
+
+
+def _cmd_route(args: argparse.Namespace) -> int:
+    from .scenario import load_scenario
+
+    scenario = load_scenario(args.scenario).with_options(
+        n_nodes=args.n_nodes, n_ranks=args.n_ranks, apf=args.apf, failure_model=args.failure_model,
+        spacing_km=args.spacing_km, max_deviation_deg=args.max_deviation_deg, samples_per_arc=args.samples_per_arc,
+    )
+    t0 = time.perf_counter()
+    route = scenario.route(progress=not args.quiet)
+    elapsed = time.perf_counter() - t0
+    summary = route.summary()
+    summary["runtime_s"] = elapsed
+    if args.out:
+        from .route import write_outputs
+
+        write_outputs(route, args.out, extra={"runtime_s": elapsed})
+    if route.touches_edge:
+        print("pyroute-rel: warning: the route uses the outermost nodes of the grid; widen it (more nodes or a "
+              "larger spacing_km) to check that a wider detour is not faster", file=sys.stderr)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(_route_text(route, elapsed, args.out))
+    return EXIT_OK
+
+
+def _route_text(route: Any, elapsed: float, out: str | None) -> str:
+    s = route.summary()
+    days, hours = divmod(route.voyage_time_h, 24.0)
+    lines = [
+        f"voyage time      {route.voyage_time_h:.2f} h ({int(days)} d {hours:.1f} h)",
+        f"distance         {route.distance_nm:.1f} nm",
+        f"departure        {s['departure']}",
+        f"arrival          {s['arrival']}",
+        f"grid             {route.grid.n_ranks} ranks x {route.grid.n_nodes} nodes, lateral spacing "
+        f"{route.grid.spacing_km:.2f} km, rank spacing {route.grid.rank_spacing_km:.2f} km",
+        f"arcs             {s['arcs']['evaluated']} evaluated, {s['arcs']['forbidden']} forbidden",
+        f"failure model    {s.get('failure_model') or 'none'} (apf {s.get('apf', 1.0):g}): max leg p_f "
+        f"{route.max_failure_probability:.3f}, voyage p_f {route.voyage_failure_probability:.3f}",
+        f"runtime          {elapsed:.2f} s",
+    ]
+    if out:
+        lines.append(f"outputs          {Path(out)}/ (route.geojson, route.gpx, route.csv, summary.json, route.png)")
+    return "\n".join(lines)
+
+
+def _cmd_failure(args: argparse.Namespace) -> int:
+    from .failure import list_failure_models, load_failure_model
+
+    if args.model is None:
+        names = list_failure_models()
+        print(json.dumps({"models": names}) if args.json else "\n".join(names))
+        return EXIT_OK
+    model = load_failure_model(args.model)
+    info = model.describe()
+    if args.json:
+        print(json.dumps(info))
+        return EXIT_OK
+    print(f"model: {info['model']}  ({info.get('path', '')})")
+    if info.get("description"):
+        print(info["description"])
+    print("criteria:")
+    for c in model.criteria:
+        print(f"  {c.describe()}")
+    net = info.get("network", {})
+    if net:
+        print("network: " + ", ".join(f"{a} -> {b}" for a, b in net.get("edges", [])))
+    print("P(fail | evidence):")
+    for row in info["table"]:
+        ev = ", ".join(f"{k}={v}" for k, v in row["evidence"].items())
+        print(f"  {ev:<50s} {row['p_fail']:.4f}")
+    return EXIT_OK
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``pyroute-rel``; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    func: Callable[[argparse.Namespace], int] = args.func
+    try:
+        return func(args)
+    except PyrouteError as exc:
+        if getattr(args, "debug", False):
+            raise
+        msg = " ".join(str(exc).split())
+        print(f"pyroute-rel: error: {msg}", file=sys.stderr)
+        return EXIT_USER
+    except BrokenPipeError:  # e.g. piped into `head`: not an error of ours
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_OK
+    except KeyboardInterrupt:
+        print("pyroute-rel: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an unexpected failure: say how to report it
+        if getattr(args, "debug", False):
+            raise
+        print(
+            f"pyroute-rel: internal error: {exc.__class__.__name__}: {exc}. This is a bug: please report it with the "
+            "command, the scenario file and the output of the same command with --debug.",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

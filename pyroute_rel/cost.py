@@ -1,0 +1,337 @@
+"""Arc cost: the paper's Algorithm 1, vectorised over every arc into one rank.
+
+For each arc (a great-circle segment between two nodes) and a departure time:
+
+1. the arc is split into ``samples`` equal sub-segments; wind, waves and current are sampled at each
+   sub-segment's midpoint, with the heading the great circle has there;
+2. quantities the failure model needs (Hs, apparent wave direction, TWS, TWA, wave period) give the
+   failure probability ``p_f`` of each sample; the arc's ``p_f`` is the largest along it;
+3. the arc is **forbidden** (infinite time) when ``p_f > apf`` (so ``apf = 1`` accepts any risk and
+   ``apf = 0`` only risk-free arcs), when the polar gives no speed, when the weather is missing (NaN)
+   anywhere along it, or when the current makes the course impossible to hold;
+4. otherwise its time [h] is the sum over sub-segments of length [nm] / speed over ground [kn].
+
+Time along an arc: with steady weather (``weather.steady``) every sample uses the departure time. With
+time-varying weather each sample is taken at the time the craft reaches it, found in two passes
+(departure time first, then the elapsed time those speeds imply).
+
+Currents (the water's velocity *to*, east/north [m/s]) add to the boat's velocity through the water.
+The boat heads off the course by the angle that cancels the cross-course current,
+``sin(heading - course) = -c_cross / v``, and makes good ``v cos(heading - course) + c_along`` over the
+ground; the polar speed ``v`` is taken at the corrected heading (one fixed-point step). An arc whose
+cross current exceeds the boat speed, or whose speed made good is not positive, is forbidden.
+
+References
+----------
+Dickson, T., Blake, J. and Sear, D. (2018). Reliability informed routing for Autonomous Sailing Craft,
+Algorithm 1. Proc. International Robotic Sailing Conference 2018.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from . import geodesy
+from .polar import Polar, boat_speed_kn
+from .weather import Conditions, WeatherSource
+
+if TYPE_CHECKING:
+    from .failure import FailureModel
+
+__all__ = [
+    "ArcCosts",
+    "ArcGeometry",
+    "arc_geometry",
+    "geometry_from_xyz",
+    "arc_costs",
+    "geometry_costs",
+    "arc_quantities",
+    "REASONS",
+    "KN_PER_MS",
+]
+
+#: Knots per metre per second (1 kn = 1852 m / 3600 s).
+KN_PER_MS = 3600.0 / 1852.0
+
+#: Bit flags saying why an arc is forbidden.
+REASONS: dict[str, int] = {
+    "polar": 1,  # the polar gives no speed (in irons, or outside the table with beyond="forbid")
+    "weather": 2,  # wind or a field the failure model needs is NaN (land cell, outside the data)
+    "failure": 4,  # p_f > apf
+    "current": 8,  # the current makes the course impossible to hold
+    "obstacle": 16,  # land, coastal margin or exclusion zone
+}
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ArcCosts:
+    """Costs of a block of arcs; every array has the block's shape.
+
+    Attributes
+    ----------
+    time_h : Time to sail the arc [h]; ``inf`` where forbidden.
+    p_f : Largest failure probability along the arc (0 without a failure model; NaN where weather is missing).
+    reason : Bit flags of :data:`REASONS` (0 where the arc is allowed).
+    """
+
+    time_h: FloatArray
+    p_f: FloatArray
+    reason: npt.NDArray[np.uint8]
+
+
+def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[str, FloatArray]:
+    """Environmental quantities seen by a craft on a heading (inputs of failure criteria).
+
+    Parameters
+    ----------
+    conditions : Weather at the points.
+    heading_deg : The craft's heading, clockwise from north [deg].
+
+    Returns
+    -------
+    ``hs_m`` [m], ``awd_deg`` apparent wave direction [deg] in [0, 180] (0 = head seas: waves from
+    dead ahead), ``tws_kn`` [kn], ``twa_deg`` true wind angle [deg] in [0, 180], ``wave_period_s`` [s].
+
+    >>> from pyroute_rel.weather import UniformWeather
+    >>> c = UniformWeather(tws_kn=10.0, twd_deg=0.0, hs_m=2.0, wave_dir_deg=240.0).sample(0.0, 0.0, 0)
+    >>> q = arc_quantities(c, 250.0)
+    >>> float(q["awd_deg"]), float(q["twa_deg"])
+    (10.0, 110.0)
+    """
+    return {
+        "hs_m": conditions.hs_m,
+        "awd_deg": geodesy.angle_diff_deg(conditions.wave_dir_deg, heading_deg),
+        "tws_kn": conditions.tws_kn,
+        "twa_deg": geodesy.angle_diff_deg(conditions.twd_deg, heading_deg),
+        "wave_period_s": conditions.wave_period_s,
+    }
+
+
+@dataclass(frozen=True)
+class ArcGeometry:
+    """Where and on which course each arc is sampled; depends only on the grid (cache it).
+
+    Attributes
+    ----------
+    lon_deg, lat_deg : Sample points (sub-segment midpoints) [deg], shape (..., samples).
+    course_deg : Great-circle course at each sample point [deg], shape (..., samples).
+    seg_nm : Length of each sub-segment [nm], shape (..., 1).
+    """
+
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    course_deg: FloatArray
+    seg_nm: FloatArray
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Shape of the block of arcs (without the samples axis)."""
+        return tuple(self.lon_deg.shape[:-1])
+
+    @property
+    def samples(self) -> int:
+        """Sub-segments per arc."""
+        return int(self.lon_deg.shape[-1])
+
+
+def arc_geometry(
+    lon0_deg: npt.ArrayLike,
+    lat0_deg: npt.ArrayLike,
+    lon1_deg: npt.ArrayLike,
+    lat1_deg: npt.ArrayLike,
+    *,
+    samples: int = 1,
+) -> ArcGeometry:
+    """Sample points, courses and sub-segment lengths of great-circle arcs (broadcast over the inputs).
+
+    >>> g = arc_geometry(0.0, 0.0, 2.0, 0.0, samples=2)
+    >>> g.lon_deg.round(6).tolist(), g.course_deg.round(6).tolist(), round(float(g.seg_nm[0]), 3)
+    ([0.5, 1.5], [90.0, 90.0], 60.04)
+    """
+    a = geodesy.to_xyz(lon0_deg, lat0_deg)
+    b = geodesy.to_xyz(lon1_deg, lat1_deg)
+    return geometry_from_xyz(a, b, samples=samples)
+
+
+def geometry_from_xyz(a_xyz: FloatArray, b_xyz: FloatArray, *, samples: int = 1) -> ArcGeometry:
+    """:func:`arc_geometry` from unit vectors of the end points (shape (..., 3), broadcast together).
+
+    Sample points by spherical linear interpolation; the course at a point p towards b is
+    ``atan2(b . east(p), b . north(p))``; the arc length is the central angle times the Earth radius.
+    """
+    a, b = np.broadcast_arrays(a_xyz, b_xyz)
+    dot = np.clip(np.einsum("...i,...i->...", a, b), -1.0, 1.0)
+    chord = np.sqrt(np.einsum("...i,...i->...", a - b, a - b))
+    omega = 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
+    seg_nm = (omega * (geodesy.EARTH_RADIUS_KM / geodesy.KM_PER_NM) / samples)[..., None]
+    if samples == 1:
+        p = (a + b)[..., None, :]
+        p = p / np.sqrt(np.einsum("...i,...i->...", p, p))[..., None]
+    else:
+        frac = (np.arange(samples) + 0.5) / samples
+        om = omega[..., None]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            so = np.sin(om)
+            small = om < 1e-9
+            wa = np.where(small, 1.0 - frac, np.sin((1.0 - frac) * om) / np.where(small, 1.0, so))
+            wb = np.where(small, frac, np.sin(frac * om) / np.where(small, 1.0, so))
+        p = wa[..., None] * a[..., None, :] + wb[..., None] * b[..., None, :]
+    del dot
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    bx, by, bz = b[..., None, 0], b[..., None, 1], b[..., None, 2]
+    rho2 = x * x + y * y
+    course = np.degrees(np.arctan2(x * by - y * bx, rho2 * bz - z * (x * bx + y * by))) % 360.0
+    lon = np.degrees(np.arctan2(y, x))
+    lat = np.degrees(np.arctan2(z, np.sqrt(rho2)))
+    return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm)
+
+
+def arc_costs(
+    lon0_deg: npt.ArrayLike,
+    lat0_deg: npt.ArrayLike,
+    lon1_deg: npt.ArrayLike,
+    lat1_deg: npt.ArrayLike,
+    t0_h: npt.ArrayLike,
+    *,
+    departure: np.datetime64,
+    weather: WeatherSource,
+    polar: Polar,
+    failure: FailureModel | None = None,
+    apf: float = 1.0,
+    samples: int = 1,
+    beyond: str = "clamp",
+) -> ArcCosts:
+    """Cost of sailing great-circle arcs, vectorised (Algorithm 1 of Dickson et al. 2018).
+
+    Parameters
+    ----------
+    lon0_deg, lat0_deg, lon1_deg, lat1_deg : Arc end points [deg]; broadcast together.
+    t0_h : Departure time of each arc, hours after ``departure`` [h] (finite).
+    departure : Time origin (UTC).
+    weather : Any :class:`~pyroute_rel.weather.WeatherSource`.
+    polar : Boat polar.
+    failure : Compiled failure model, or None (no failure model: ``p_f = 0``).
+    apf : Acceptable probability of failure in [0, 1]; arcs with ``p_f > apf`` are forbidden.
+    samples : Sub-segments per arc (>= 1).
+    beyond : Polar behaviour outside its table, ``"clamp"`` or ``"forbid"``.
+
+    Returns
+    -------
+    ArcCosts
+
+    Examples
+    --------
+    >>> from pyroute_rel.polar import get_polar
+    >>> from pyroute_rel.weather import UniformWeather
+    >>> w = UniformWeather(tws_kn=12.0, twd_deg=0.0)  # 12 kn from the north: an eastward arc has TWA 90
+    >>> c = arc_costs(0.0, 0.0, 1.0, 0.0, 0.0, departure=np.datetime64("2018-06-01T00:00"),
+    ...               weather=w, polar=get_polar("maribot_vane"))
+    >>> round(float(c.time_h), 3)  # 60.04 nm at 4.1667 kn (bilinear between TWA 85 and 100)
+    14.409
+    """
+    geom = arc_geometry(lon0_deg, lat0_deg, lon1_deg, lat1_deg, samples=samples)
+    t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape) if geom.shape else np.asarray(t0_h, float)
+    return geometry_costs(geom, t0, departure=departure, weather=weather, polar=polar, failure=failure,
+                          apf=apf, beyond=beyond)
+
+
+def geometry_costs(
+    geom: ArcGeometry,
+    t0_h: npt.ArrayLike,
+    *,
+    departure: np.datetime64,
+    weather: WeatherSource,
+    polar: Polar,
+    failure: FailureModel | None = None,
+    apf: float = 1.0,
+    beyond: str = "clamp",
+) -> ArcCosts:
+    """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid)."""
+    steady = bool(getattr(weather, "steady", False))
+    shape = geom.shape
+    samples = geom.samples
+
+    def evaluate(time_h: FloatArray | None) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8]]:
+        time = departure if time_h is None else _to_datetime(departure, time_h)
+        cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
+        return _sample_costs(cond, geom.course_deg, geom.seg_nm, polar, failure, apf, beyond)
+
+    if steady:
+        dt, p_f, reason = evaluate(None)
+    else:
+        t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (samples,))
+        dt, p_f, reason = evaluate(t_samples)
+        elapsed = np.cumsum(dt, axis=-1) - 0.5 * dt
+        elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
+        dt, p_f, reason = evaluate(t_samples + elapsed)
+    if samples == 1:
+        return ArcCosts(time_h=dt[..., 0], p_f=p_f[..., 0], reason=reason[..., 0])
+    with np.errstate(invalid="ignore"):
+        time_h = dt.sum(axis=-1)
+        arc_p = p_f.max(axis=-1)
+    arc_reason = np.bitwise_or.reduce(reason, axis=-1)
+    time_h = np.where(arc_reason != 0, np.inf, time_h)
+    return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason.astype(np.uint8))
+
+
+def _to_datetime(departure: np.datetime64, time_h: FloatArray) -> npt.NDArray[np.datetime64]:
+    ms = np.where(np.isfinite(time_h), time_h, 0.0) * 3.6e6
+    return np.datetime64(departure, "ms") + ms.astype("timedelta64[ms]")
+
+
+def _sample_costs(
+    cond: Conditions,
+    course_deg: FloatArray,
+    seg_nm: FloatArray,
+    polar: Polar,
+    failure: FailureModel | None,
+    apf: float,
+    beyond: str,
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8]]:
+    """Per-sample time [h], p_f and reason flags."""
+    reason = np.zeros(course_deg.shape, dtype=np.uint8)
+    heading = course_deg
+    current = cond.has_current
+    if current:
+        cu = cond.current_u_ms * KN_PER_MS
+        cv = cond.current_v_ms * KN_PER_MS
+        crs = np.radians(course_deg)
+        c_along = cu * np.sin(crs) + cv * np.cos(crs)
+        c_cross = cu * np.cos(crs) - cv * np.sin(crs)  # to starboard of the course
+        v0 = boat_speed_kn(polar, geodesy.angle_diff_deg(cond.twd_deg, heading), cond.tws_kn, beyond=beyond)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            drift = np.degrees(np.arcsin(np.clip(-c_cross / v0, -1.0, 1.0)))
+        heading = (course_deg + np.where(np.isfinite(drift), drift, 0.0)) % 360.0
+    twa = geodesy.angle_diff_deg(cond.twd_deg, heading)
+    v = boat_speed_kn(polar, twa, cond.tws_kn, beyond=beyond)
+    if current:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = -c_cross / v
+            cannot = ~(np.abs(ratio) <= 1.0)
+            sog = v * np.sqrt(np.clip(1.0 - ratio**2, 0.0, 1.0)) + c_along
+        cannot &= np.isfinite(v) & (v > 0)
+        cannot |= np.isfinite(sog) & (sog <= 0) & (v > 0)
+        reason |= np.where(cannot, REASONS["current"], 0).astype(np.uint8)
+    else:
+        sog = v
+    missing = ~np.isfinite(cond.tws_kn) | ~np.isfinite(cond.twd_deg)
+    reason |= np.where(~missing & ~(v > 0), REASONS["polar"], 0).astype(np.uint8)
+    if failure is not None:
+        q = arc_quantities(cond, heading)
+        p = np.asarray(failure.p_fail({name: q[name] for name in failure.quantities}), dtype=float)
+        p = np.broadcast_to(p, course_deg.shape)
+        missing |= np.isnan(p)
+        reason |= np.where(p > apf, REASONS["failure"], 0).astype(np.uint8)
+    else:
+        p = np.zeros(course_deg.shape)
+    reason |= np.where(missing, REASONS["weather"], 0).astype(np.uint8)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dt = seg_nm / sog
+    dt = np.where(reason != 0, np.inf, dt)
+    return dt, p, reason

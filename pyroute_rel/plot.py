@@ -1,0 +1,173 @@
+"""Maps of routes (matplotlib, imported lazily; the Agg backend when saving to a file).
+
+The failure shading shows where the failure model's criteria fire for a craft sailing the local great-circle
+course towards the finish (criteria such as the apparent wave direction depend on the heading, so the
+shading is indicative: the router evaluates every arc with its own heading).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import geodesy
+from .cost import arc_quantities
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from .failure import FailureModel
+    from .grid import Grid
+    from .route import Route
+    from .weather import WeatherSource
+
+__all__ = ["plot_route", "plot_routes", "failure_field"]
+
+_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    if not os.environ.get("MPLBACKEND"):
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def failure_field(
+    grid: Grid, weather: WeatherSource, failure: FailureModel, *, time: Any = None, n: int = 200
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Failure probability and fired-criteria count on a lon/lat mesh covering the grid.
+
+    Returns ``(lon [deg], lat [deg], p_f, n_fired)`` 2-D arrays; the heading at each point is the
+    great-circle course towards the finish.
+    """
+    lon = np.linspace(grid.lon_deg.min(), grid.lon_deg.max(), n)
+    lat = np.linspace(grid.lat_deg.min(), grid.lat_deg.max(), n)
+    glon, glat = np.meshgrid(lon, lat)
+    heading = geodesy.initial_bearing_deg(glon, glat, grid.finish[0], grid.finish[1])
+    t = np.datetime64("2000-01-01") if time is None else time
+    cond = weather.sample(glon, glat, t)
+    q = arc_quantities(cond, heading)
+    need = {k: q[k] for k in failure.quantities}
+    p = np.asarray(failure.p_fail(need), dtype=float)
+    fired = np.asarray(failure.fired(need)).sum(axis=0)
+    return glon, glat, p, fired
+
+
+def _draw_grid_outline(ax: Axes, grid: Grid) -> None:
+    edge_lon = np.concatenate([grid.lon_deg[:, 0], grid.lon_deg[::-1, -1], grid.lon_deg[:1, 0]])
+    edge_lat = np.concatenate([grid.lat_deg[:, 0], grid.lat_deg[::-1, -1], grid.lat_deg[:1, 0]])
+    ax.plot(edge_lon, edge_lat, color="0.6", lw=0.8, ls="--", label="grid extent")
+    gc_lon, gc_lat = geodesy.intermediate_point(*grid.start, *grid.finish, np.linspace(0, 1, 100))
+    ax.plot(gc_lon, gc_lat, color="0.4", lw=0.8, ls=":", label="great circle")
+
+
+def _draw_patches(ax: Axes, weather: Any) -> None:
+    from matplotlib.patches import Rectangle
+
+    for i, patch in enumerate(getattr(weather, "patches", ())):
+        label = patch.name or f"patch {i + 1}"
+        desc = ", ".join(f"{k}={v:g}" for k, v in patch.values.items())
+        ax.add_patch(Rectangle((patch.lon[0], patch.lat[0]), patch.lon[1] - patch.lon[0],
+                               patch.lat[1] - patch.lat[0], fill=False, ec="k", lw=1.0))
+        ax.annotate(f"{label}\n{desc}", (patch.lon[0], patch.lat[1]), xytext=(2, -2), textcoords="offset points",
+                    va="top", fontsize=7)
+
+
+def _draw_coast(ax: Axes, grid: Grid) -> None:
+    try:
+        from .obstacles import land_geometry
+    except ImportError:
+        return
+    try:
+        land = land_geometry((float(grid.lon_deg.min()) - 2, float(grid.lat_deg.min()) - 2,
+                              float(grid.lon_deg.max()) + 2, float(grid.lat_deg.max()) + 2))
+    except Exception:  # the map is still useful without a coastline
+        return
+    import shapely
+
+    for poly in getattr(land, "geoms", [land]):
+        if poly.is_empty or not hasattr(poly, "exterior"):
+            continue
+        x, y = shapely.get_coordinates(poly.exterior).T
+        ax.fill(x, y, color="0.85", ec="0.5", lw=0.4, zorder=0)
+
+
+def plot_routes(
+    routes: Sequence[Route],
+    *,
+    labels: Sequence[str] | None = None,
+    weather: WeatherSource | None = None,
+    failure: FailureModel | None = None,
+    zones: Sequence[Any] = (),
+    title: str | None = None,
+    path: str | os.PathLike[str] | None = None,
+    coast: bool = True,
+) -> Figure:
+    """Draw one or more routes over the grid extent, the weather patches and the failure-criteria shading.
+
+    With ``path`` the PNG is written atomically and the figure closed.
+    """
+    plt = _pyplot()
+    grid = routes[0].grid
+    fig, ax = plt.subplots(figsize=(9, 6.5), dpi=110)
+    if failure is not None and weather is not None:
+        glon, glat, p, fired = failure_field(grid, weather, failure)
+        levels = np.arange(0.5, max(int(np.nanmax(fired)), 1) + 1.5)
+        if np.nanmax(fired) > 0:
+            cs = ax.contourf(glon, glat, fired, levels=levels, cmap="Reds", alpha=0.45)
+            cb = fig.colorbar(cs, ax=ax, shrink=0.7)
+            cb.set_label(f"criteria of '{failure.name}' fired (course heading)")
+    if coast:
+        _draw_coast(ax, grid)
+    for zone in zones:
+        import shapely
+
+        geom = getattr(zone, "geometry", zone)
+        for poly in getattr(geom, "geoms", [geom]):
+            x, y = shapely.get_coordinates(poly.exterior).T
+            ax.fill(x, y, color="tab:purple", alpha=0.25, lw=0.8, ec="tab:purple")
+    _draw_grid_outline(ax, grid)
+    if weather is not None:
+        _draw_patches(ax, weather)
+    labels = list(labels) if labels is not None else [f"route {i + 1}" for i in range(len(routes))]
+    for i, (route, label) in enumerate(zip(routes, labels, strict=True)):
+        ax.plot(route.lon_deg, route.lat_deg, color=_COLOURS[i % len(_COLOURS)], lw=1.6,
+                label=f"{label}: {route.voyage_time_h:.1f} h")
+    ax.plot(*grid.start, "k^", ms=7, label="start")
+    ax.plot(*grid.finish, "ks", ms=7, label="finish")
+    ax.set_xlabel("longitude [deg]")
+    ax.set_ylabel("latitude [deg]")
+    mid_lat = 0.5 * (grid.lat_deg.min() + grid.lat_deg.max())
+    ax.set_aspect(1.0 / np.cos(np.radians(mid_lat)))
+    ax.grid(True, lw=0.3)
+    ax.legend(fontsize=7, loc="lower left")
+    ax.set_title(title or f"{grid.n_ranks} ranks x {grid.n_nodes} nodes")
+    fig.tight_layout()
+    if path is not None:
+        from .route import atomic_write
+
+        p = Path(path)
+        atomic_write(p, lambda tmp: fig.savefig(tmp, format="png"))
+        plt.close(fig)
+    return fig
+
+
+def plot_route(route: Route, *, path: str | os.PathLike[str] | None = None, title: str | None = None) -> Figure:
+    """Map of one route with the scenario's patches and failure shading (when the route knows them)."""
+    extra = route.meta.get("weather_object")
+    failure = route.meta.get("failure_object")
+    t = title or (
+        f"{route.voyage_time_h:.1f} h, apf {route.meta.get('apf', 1.0):g}, "
+        f"max p_f {route.max_failure_probability:.2f}"
+    )
+    return plot_routes([route], labels=["route"], weather=extra, failure=failure, title=t, path=path,
+                       zones=route.meta.get("zones_object", ()))

@@ -1,0 +1,310 @@
+"""The Route result: track, per-leg conditions and failure probabilities, and its exports.
+
+Voyage failure probability
+--------------------------
+Each leg's ``p_f`` is the failure model's probability for the worst conditions met along that leg. The
+voyage failure probability is ``1 - prod(1 - p_f_leg)``: it assumes that failures on different legs are
+independent events, which overstates the risk when the same weather system is met over many consecutive
+legs (the legs are then strongly correlated) and depends on the grid's leg length. Treat it as an
+indicator for comparing routes on the same grid, not as a calibrated probability; the maximum leg
+``p_f`` (which the ``apf`` constraint bounds) does not depend on the grid.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from . import geodesy
+from .cost import arc_quantities
+
+if TYPE_CHECKING:
+    from .grid import Grid
+    from .solve import DPResult, RoutingProblem
+
+__all__ = ["Route", "build_route", "atomic_write", "write_outputs", "OUTPUT_FILES"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Files written by :func:`write_outputs`.
+OUTPUT_FILES = ("route.geojson", "route.gpx", "route.csv", "summary.json", "route.png")
+
+LEG_FIELDS = (
+    "distance_nm", "time_h", "sog_kn", "course_deg", "tws_kn", "twd_deg", "twa_deg",
+    "hs_m", "wave_dir_deg", "awd_deg", "p_f",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Route:
+    """A routed voyage.
+
+    Attributes
+    ----------
+    lon_deg, lat_deg : Track points [deg]: start, one node per rank, finish.
+    elapsed_h : Time at each track point since departure [h].
+    departure : Departure time (UTC).
+    legs : Per-leg arrays (one fewer than points): ``distance_nm`` [nm], ``time_h`` [h], ``sog_kn`` mean speed
+        over ground [kn], ``course_deg`` [deg], and at the leg's midpoint and mid-time ``tws_kn``, ``twd_deg``,
+        ``twa_deg``, ``hs_m``, ``wave_dir_deg``, ``awd_deg``; ``p_f`` the leg's largest failure probability.
+    nodes : Node index on each rank.
+    grid : The grid routed on.
+    dp : The raw DP result.
+    meta : Scenario details for reports (polar, failure model, apf, ...).
+    """
+
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    elapsed_h: FloatArray
+    departure: np.datetime64
+    legs: dict[str, FloatArray]
+    nodes: npt.NDArray[np.intp]
+    grid: Grid
+    dp: DPResult
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def voyage_time_h(self) -> float:
+        """Voyage time [h]."""
+        return float(self.elapsed_h[-1])
+
+    @property
+    def distance_nm(self) -> float:
+        """Sailed great-circle distance along the track [nm]."""
+        return float(self.legs["distance_nm"].sum())
+
+    @property
+    def time(self) -> npt.NDArray[np.datetime64]:
+        """UTC time at each track point."""
+        return np.datetime64(self.departure, "s") + np.round(self.elapsed_h * 3600.0).astype("timedelta64[s]")
+
+    @property
+    def arrival(self) -> np.datetime64:
+        """Arrival time (UTC)."""
+        return self.time[-1]
+
+    @property
+    def max_failure_probability(self) -> float:
+        """Largest leg failure probability."""
+        return float(np.max(self.legs["p_f"]))
+
+    @property
+    def voyage_failure_probability(self) -> float:
+        """``1 - prod(1 - p_f)`` over legs (legs assumed independent; see the module notes)."""
+        return float(1.0 - np.prod(1.0 - self.legs["p_f"]))
+
+    @property
+    def touches_edge(self) -> bool:
+        """True when the track uses an outermost node of a rank (the grid may be too narrow)."""
+        n = self.grid.n_nodes
+        return n > 2 and bool(np.any((self.nodes == 0) | (self.nodes == n - 1)))
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON contract of ``pyroute-rel route --json`` (see the README)."""
+        times = self.time
+        p_point = np.concatenate([[0.0], self.legs["p_f"]])
+        return {
+            "voyage_time_h": self.voyage_time_h,
+            "distance_nm": self.distance_nm,
+            "departure": _iso(times[0]),
+            "arrival": _iso(times[-1]),
+            "grid": {
+                "n_ranks": self.grid.n_ranks,
+                "n_nodes": self.grid.n_nodes,
+                "spacing_km": self.grid.spacing_km,
+                "rank_spacing_km": self.grid.rank_spacing_km,
+                "max_deviation_deg": self.grid.max_deviation_deg,
+                "touches_edge": self.touches_edge,
+            },
+            "arcs": {
+                "evaluated": self.dp.arcs_evaluated,
+                "forbidden": self.dp.arcs_forbidden,
+                "forbidden_by_reason": self.dp.forbidden_by_reason,
+            },
+            "max_failure_probability": self.max_failure_probability,
+            "voyage_failure_probability": self.voyage_failure_probability,
+            **{k: v for k, v in self.meta.items() if not k.endswith("_object")},
+            "track": [
+                {"lon": float(lo), "lat": float(la), "time": _iso(t), "p_f": float(p)}
+                for lo, la, t, p in zip(self.lon_deg, self.lat_deg, times, p_point, strict=True)
+            ],
+        }
+
+    # ---- exports -------------------------------------------------------------------------------------------
+    def to_geojson(self) -> dict[str, Any]:
+        """GeoJSON FeatureCollection: the track as a LineString plus one Point per track point."""
+        times = self.time
+        line = {
+            "type": "Feature",
+            "geometry": {"type": "LineString", "coordinates": [[float(a), float(b)] for a, b in
+                                                                zip(self.lon_deg, self.lat_deg, strict=True)]},
+            "properties": {
+                "name": "route",
+                "voyage_time_h": self.voyage_time_h,
+                "distance_nm": self.distance_nm,
+                "departure": _iso(times[0]),
+                "arrival": _iso(times[-1]),
+                "max_failure_probability": self.max_failure_probability,
+                "voyage_failure_probability": self.voyage_failure_probability,
+            },
+        }
+        points = []
+        for i in range(len(self.lon_deg)):
+            props: dict[str, Any] = {"index": i, "time": _iso(times[i]), "elapsed_h": float(self.elapsed_h[i])}
+            if i < len(self.lon_deg) - 1:
+                props.update({f"leg_{k}": _num(v[i]) for k, v in self.legs.items()})
+            points.append({
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": [float(self.lon_deg[i]), float(self.lat_deg[i])]},
+                "properties": props,
+            })
+        return {"type": "FeatureCollection", "features": [line, *points]}
+
+    def to_gpx(self) -> str:
+        """GPX 1.1 document with the route as a track (opens in OpenCPN and most chart plotters)."""
+        times = self.time
+        out = io.StringIO()
+        out.write('<?xml version="1.0" encoding="UTF-8"?>\n')
+        out.write('<gpx version="1.1" creator="pyroute_rel" xmlns="http://www.topografix.com/GPX/1/1">\n')
+        out.write("  <trk>\n    <name>pyroute_rel route</name>\n    <trkseg>\n")
+        for lo, la, t in zip(self.lon_deg, self.lat_deg, times, strict=True):
+            out.write(f'      <trkpt lat="{la:.6f}" lon="{lo:.6f}"><time>{_iso(t)}</time></trkpt>\n')
+        out.write("    </trkseg>\n  </trk>\n</gpx>\n")
+        return out.getvalue()
+
+    def to_csv(self) -> str:
+        """CSV, one row per track point; leg columns describe the leg that starts at the point."""
+        times = self.time
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(["index", "lon_deg", "lat_deg", "time_utc", "elapsed_h", *(f"leg_{k}" for k in LEG_FIELDS)])
+        for i in range(len(self.lon_deg)):
+            legs = [_fmt(self.legs[k][i]) if i < len(self.lon_deg) - 1 else "" for k in LEG_FIELDS]
+            w.writerow([i, f"{self.lon_deg[i]:.6f}", f"{self.lat_deg[i]:.6f}", _iso(times[i]),
+                        f"{self.elapsed_h[i]:.6f}", *legs])
+        return buf.getvalue()
+
+
+def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
+    """Turn a DP result into a Route, recomputing every leg from its end points."""
+    from .solve import path_costs
+
+    nodes = result.path()
+    elapsed, costs = path_costs(grid, problem, nodes)
+    ranks = np.arange(grid.n_ranks)
+    lon = np.concatenate([[grid.start[0]], grid.lon_deg[ranks, nodes], [grid.finish[0]]])
+    lat = np.concatenate([[grid.start[1]], grid.lat_deg[ranks, nodes], [grid.finish[1]]])
+    dist = geodesy.distance_nm(lon[:-1], lat[:-1], lon[1:], lat[1:])
+    mlon, mlat = geodesy.intermediate_point(lon[:-1], lat[:-1], lon[1:], lat[1:], 0.5)
+    course = geodesy.initial_bearing_deg(mlon, mlat, lon[1:], lat[1:])
+    mid_h = elapsed[:-1] + 0.5 * costs.time_h
+    if getattr(problem.weather, "steady", False):
+        cond = problem.weather.sample(mlon, mlat, problem.departure)
+    else:
+        ms = (mid_h * 3.6e6).astype("timedelta64[ms]")
+        cond = problem.weather.sample(mlon, mlat, np.datetime64(problem.departure, "ms") + ms)
+    q = arc_quantities(cond, course)
+    legs = {
+        "distance_nm": dist,
+        "time_h": costs.time_h,
+        "sog_kn": dist / costs.time_h,
+        "course_deg": course,
+        "tws_kn": np.asarray(cond.tws_kn, dtype=float),
+        "twd_deg": np.asarray(cond.twd_deg, dtype=float),
+        "twa_deg": q["twa_deg"],
+        "hs_m": np.asarray(cond.hs_m, dtype=float),
+        "wave_dir_deg": np.asarray(cond.wave_dir_deg, dtype=float),
+        "awd_deg": q["awd_deg"],
+        "p_f": np.asarray(costs.p_f, dtype=float),
+    }
+    meta: dict[str, Any] = {
+        "apf": float(problem.apf),
+        "failure_model": None if problem.failure is None else problem.failure.name,
+        "polar": problem.polar.name,
+        "samples_per_arc": problem.samples,
+        "weather_object": problem.weather,
+        "failure_object": problem.failure,
+    }
+    return Route(
+        lon_deg=lon, lat_deg=lat, elapsed_h=elapsed, departure=np.datetime64(problem.departure, "s"),
+        legs=legs, nodes=nodes, grid=grid, dp=result, meta=meta,
+    )
+
+
+def _iso(t: np.datetime64) -> str:
+    return str(np.datetime_as_string(np.datetime64(t, "s"), unit="s")) + "Z"
+
+
+def _num(x: Any) -> float | None:
+    v = float(x)
+    return v if np.isfinite(v) else None
+
+
+def _fmt(x: Any) -> str:
+    v = float(x)
+    return f"{v:.6g}" if np.isfinite(v) else ""
+
+
+def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], None]) -> None:
+    """Write a file atomically: ``writer`` writes a temporary file in the same folder, then it is renamed.
+
+    A failure inside ``writer`` leaves neither a partial file nor the temporary file behind.
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        writer(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _write_text(path: Path, text: str) -> None:
+    atomic_write(path, lambda p: p.write_text(text, encoding="utf-8"))
+
+
+def write_outputs(route: Route, out_dir: str | os.PathLike[str], *, plot: bool = True,
+                  extra: dict[str, Any] | None = None) -> list[Path]:
+    """Write ``route.geojson``, ``route.gpx``, ``route.csv``, ``summary.json`` and ``route.png`` to a folder.
+
+    All files are first rendered into a temporary folder inside ``out_dir`` and moved into place only when
+    every one succeeded, so a failure leaves no partial or stale set of outputs.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".pyroute-rel-", dir=out))
+    try:
+        summary = route.summary()
+        if extra:
+            summary.update(extra)
+        (staging / "route.geojson").write_text(json.dumps(route.to_geojson(), indent=1), encoding="utf-8")
+        (staging / "route.gpx").write_text(route.to_gpx(), encoding="utf-8")
+        (staging / "route.csv").write_text(route.to_csv(), encoding="utf-8")
+        (staging / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
+        names = ["route.geojson", "route.gpx", "route.csv", "summary.json"]
+        if plot:
+            from .plot import plot_route
+
+            plot_route(route, path=staging / "route.png")
+            names.append("route.png")
+        written = []
+        for name in names:
+            os.replace(staging / name, out / name)
+            written.append(out / name)
+        return written
+    finally:
+        for p in staging.glob("*"):
+            p.unlink(missing_ok=True)
+        staging.rmdir()

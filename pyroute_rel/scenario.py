@@ -1,0 +1,297 @@
+"""Scenario files (TOML): what to route, on which grid, with which boat, weather and failure model.
+
+A scenario has these tables (unknown tables or keys are refused with the file and key named)::
+
+    [route]    start = [lon, lat]  finish = [lon, lat]  departure = "2018-06-01T00:00:00Z"
+    [grid]     n_ranks = 160  n_nodes = 160  spacing_km = 36.0 (optional)  max_deviation_deg = 60 (optional)
+               samples_per_arc = 1 (optional)
+    [boat]     polar = "maribot_vane" | "path/to/file.pol"   beyond = "clamp" | "forbid"
+    [weather]  kind = "uniform" (tws_kn, twd_deg, hs_m, wave_dir_deg, ... and [[weather.patch]] boxes)
+               kind = "file"    (paths = [...], see pyroute_rel.weather_io)
+    [failure]  model = "dickson2018" | "path/to/model.toml" | "none"   apf = 1.0
+
+Paths are relative to the scenario file's folder.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .errors import PyrouteError, ScenarioError
+from .grid import Grid, make_grid
+from .polar import BEYOND_MODES, Polar, get_polar
+from .solve import RoutingProblem, solve
+from .weather import UniformWeather, WeatherSource
+
+if TYPE_CHECKING:
+    from .failure import FailureModel
+    from .route import Route
+
+__all__ = ["Scenario", "load_scenario", "scenario_from_mapping", "parse_departure", "WEATHER_KINDS"]
+
+#: Allowed keys per table.
+SCHEMA: dict[str, dict[str, str]] = {
+    "route": {"start": "[lon, lat] [deg]", "finish": "[lon, lat] [deg]", "departure": "ISO 8601 UTC time"},
+    "grid": {
+        "n_ranks": "whole number >= 1",
+        "n_nodes": "whole number >= 1",
+        "spacing_km": "lateral node spacing [km]",
+        "max_deviation_deg": "largest arc angle from the rank direction [deg]",
+        "samples_per_arc": "weather samples per arc",
+    },
+    "boat": {"polar": "built-in name or polar file", "beyond": f"one of {list(BEYOND_MODES)}"},
+    "weather": {},  # validated by the weather kind
+    "failure": {"model": "model name, model file, or 'none'", "apf": "probability in [0, 1]"},
+}
+WEATHER_KINDS = ("uniform", "file")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. Build with :func:`load_scenario` or :func:`scenario_from_mapping`."""
+
+    source: str
+    start: tuple[float, float]
+    finish: tuple[float, float]
+    departure: np.datetime64
+    n_ranks: int
+    n_nodes: int
+    spacing_km: float | None
+    max_deviation_deg: float | None
+    samples_per_arc: int
+    polar: Polar
+    beyond: str
+    weather: WeatherSource
+    failure_model: str | None
+    apf: float
+    base_dir: Path
+
+    def with_options(self, **changes: Any) -> Scenario:
+        """A copy with some settings changed (validated like the file's)."""
+        checked: dict[str, Any] = {}
+        for key, value in changes.items():
+            if value is None:
+                continue
+            if key in ("n_ranks", "n_nodes"):
+                checked[key] = _int(value, f"--{key.replace('_', '-')}", 1)
+            elif key == "apf":
+                checked[key] = _prob(value, "--apf")
+            elif key == "failure_model":
+                checked[key] = None if str(value).lower() == "none" else str(value)
+            elif key in ("spacing_km", "max_deviation_deg", "samples_per_arc", "beyond", "departure"):
+                checked[key] = value
+            else:
+                raise ScenarioError(f"unknown scenario option {key!r}")
+        return replace(self, **checked)
+
+    def make_grid(self) -> Grid:
+        """The scenario's rank digraph."""
+        return make_grid(
+            self.start, self.finish, n_ranks=self.n_ranks, n_nodes=self.n_nodes,
+            spacing_km=self.spacing_km, max_deviation_deg=self.max_deviation_deg,
+        )
+
+    def load_failure(self) -> FailureModel | None:
+        """The compiled failure model, or None."""
+        if self.failure_model is None:
+            return None
+        from .failure import load_failure_model
+
+        name = self.failure_model
+        candidate = self.base_dir / name
+        if ("/" in name or name.endswith(".toml")) and candidate.exists():
+            name = str(candidate)
+        return load_failure_model(name)
+
+    def problem(self, *, failure: FailureModel | None = None, blocked: Any = None) -> RoutingProblem:
+        """The routing problem (weather, polar, failure model, apf)."""
+        return RoutingProblem(
+            departure=self.departure, weather=self.weather, polar=self.polar,
+            failure=failure if failure is not None else self.load_failure(), apf=self.apf,
+            samples=self.samples_per_arc, beyond=self.beyond, blocked=blocked,
+        )
+
+    def route(self, *, progress: bool = False) -> Route:
+        """Route the scenario (forward DP on its grid)."""
+        grid = self.make_grid()
+        route = solve(grid, self.problem(), progress=progress)
+        route.meta["scenario"] = self.source
+        return route
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario TOML file.
+
+    Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file and the field for any problem.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ScenarioError(f"{p}: scenario file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{p}: cannot read scenario file ({exc.__class__.__name__}: {exc})") from None
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{p}: not valid TOML ({exc})") from None
+    return scenario_from_mapping(table, base_dir=p.parent, source=str(p))
+
+
+def scenario_from_mapping(table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<scenario>") -> Scenario:
+    """Validate a scenario given as nested mappings (the parsed TOML)."""
+    try:
+        return _parse(table, Path(base_dir), source)
+    except PyrouteError as exc:
+        msg = str(exc)
+        if not msg.startswith(source):
+            raise type(exc)(f"{source}: {msg}") from None
+        raise
+
+
+def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
+    for key in table:
+        if key not in SCHEMA:
+            raise ScenarioError(f"unknown table [{key}] (expected {', '.join(f'[{k}]' for k in SCHEMA)})")
+    for name, spec in SCHEMA.items():
+        sub = table.get(name, {})
+        if not isinstance(sub, Mapping):
+            raise ScenarioError(f"[{name}] must be a table")
+        if spec:
+            for key in sub:
+                if key not in spec:
+                    raise ScenarioError(f"[{name}]: unknown key {key!r} (expected one of {', '.join(spec)})")
+    route = table.get("route", {})
+    for key in ("start", "finish"):
+        if key not in route:
+            raise ScenarioError(f"[route].{key} is missing ({SCHEMA['route'][key]})")
+    start = _point(route["start"], "[route].start")
+    finish = _point(route["finish"], "[route].finish")
+    if abs(start[0] - finish[0]) < 1e-9 and abs(start[1] - finish[1]) < 1e-9:
+        raise ScenarioError(f"[route].start equals [route].finish ({list(start)}): nothing to route")
+    departure = parse_departure(route.get("departure", "2018-06-01T00:00:00Z"), "[route].departure")
+
+    grid = table.get("grid", {})
+    n_ranks = _int(grid.get("n_ranks", 160), "[grid].n_ranks", 1)
+    n_nodes = _int(grid.get("n_nodes", 160), "[grid].n_nodes", 1)
+    spacing = grid.get("spacing_km")
+    if spacing is not None:
+        spacing = _positive(spacing, "[grid].spacing_km")
+    dev = grid.get("max_deviation_deg")
+    if dev is not None:
+        dev = _number(dev, "[grid].max_deviation_deg")
+        if not 0.0 < dev < 90.0:
+            raise ScenarioError(f"[grid].max_deviation_deg must be in (0, 90) [deg] (got {dev:g})")
+    samples = _int(grid.get("samples_per_arc", 1), "[grid].samples_per_arc", 1)
+    if samples > 64:
+        raise ScenarioError(f"[grid].samples_per_arc must be at most 64 (got {samples})")
+
+    boat = table.get("boat", {})
+    polar_name = boat.get("polar", "maribot_vane")
+    if not isinstance(polar_name, str):
+        raise ScenarioError(f"[boat].polar must be a built-in name or a file path (got {polar_name!r})")
+    polar = get_polar(polar_name, base_dir=base_dir)
+    beyond = boat.get("beyond", "clamp")
+    if beyond not in BEYOND_MODES:
+        raise ScenarioError(f"[boat].beyond must be one of {list(BEYOND_MODES)} (got {beyond!r})")
+
+    weather = _weather(table.get("weather"), base_dir)
+
+    failure = table.get("failure", {})
+    model = failure.get("model", None)
+    if model is not None and not isinstance(model, str):
+        raise ScenarioError(f"[failure].model must be a model name or path (got {model!r})")
+    if model is not None and model.lower() == "none":
+        model = None
+    apf = _prob(failure.get("apf", 1.0), "[failure].apf")
+    return Scenario(
+        source=source, start=start, finish=finish, departure=departure, n_ranks=n_ranks, n_nodes=n_nodes,
+        spacing_km=spacing, max_deviation_deg=dev, samples_per_arc=samples, polar=polar, beyond=beyond,
+        weather=weather, failure_model=model, apf=apf, base_dir=base_dir,
+    )
+
+
+def _weather(raw: Any, base_dir: Path) -> WeatherSource:
+    if raw is None:
+        raise ScenarioError("[weather] is missing (kind = \"uniform\" with tws_kn and twd_deg, or kind = \"file\")")
+    if not isinstance(raw, Mapping):
+        raise ScenarioError("[weather] must be a table")
+    kind = raw.get("kind", "uniform")
+    if kind == "uniform":
+        return UniformWeather.from_mapping(raw)
+    if kind == "file":
+        from .weather_io import weather_from_mapping
+
+        return weather_from_mapping(raw, base_dir=base_dir)
+    raise ScenarioError(f"[weather].kind must be one of {list(WEATHER_KINDS)} (got {kind!r})")
+
+
+def parse_departure(value: Any, where: str = "departure") -> np.datetime64:
+    """Parse an ISO 8601 time (``Z`` or ``+00:00`` offsets; naive times are taken as UTC)."""
+    import datetime as dt
+
+    if isinstance(value, dt.datetime):
+        t = value
+    elif isinstance(value, str):
+        try:
+            t = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
+        except ValueError:
+            raise ScenarioError(
+                f"{where} must be an ISO 8601 time such as '2018-06-01T00:00:00Z' (got {value!r})"
+            ) from None
+    else:
+        raise ScenarioError(f"{where} must be an ISO 8601 time string (got {value!r})")
+    if t.tzinfo is not None:
+        t = t.astimezone(dt.UTC).replace(tzinfo=None)
+    return np.datetime64(t, "s")
+
+
+def _number(v: Any, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)):
+        raise ScenarioError(f"{where} must be a number (got {v!r})")
+    return float(v)
+
+
+def _positive(v: Any, where: str) -> float:
+    x = _number(v, where)
+    if x <= 0:
+        raise ScenarioError(f"{where} must be positive (got {v!r})")
+    return x
+
+
+def _prob(v: Any, where: str) -> float:
+    try:
+        x = float(v) if isinstance(v, str) else _number(v, where)
+    except ValueError:
+        raise ScenarioError(f"{where} must be a probability in [0, 1] (got {v!r})") from None
+    if not 0.0 <= x <= 1.0 or isinstance(v, bool):
+        raise ScenarioError(f"{where} must be a probability in [0, 1] (got {v!r})")
+    return x
+
+
+def _int(v: Any, where: str, lo: int) -> int:
+    if isinstance(v, str) and v.strip().lstrip("-").isdigit():
+        v = int(v)
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise ScenarioError(f"{where} must be a whole number (got {v!r})")
+    if v < lo:
+        raise ScenarioError(f"{where} must be >= {lo} (got {v})")
+    return int(v)
+
+
+def _point(v: Any, where: str) -> tuple[float, float]:
+    if not isinstance(v, list | tuple) or len(v) != 2:
+        raise ScenarioError(f"{where} must be [lon, lat] in degrees (got {v!r})")
+    lon, lat = _number(v[0], f"{where}[0] (lon)"), _number(v[1], f"{where}[1] (lat)")
+    if not -180.0 <= lon <= 180.0:
+        raise ScenarioError(f"{where} longitude must be in [-180, 180] [deg] (got {lon:g})")
+    if not -90.0 <= lat <= 90.0:
+        raise ScenarioError(f"{where} latitude must be in [-90, 90] [deg] (got {lat:g})")
+    return lon, lat

@@ -1,0 +1,384 @@
+"""Forward recursive dynamic program over the rank digraph (earliest arrival, back-pointers).
+
+Equation (3) of Dickson et al. (2018) is a backward recursion over (node, time) pairs. On a rank digraph
+it is solved forward, rank by rank: the earliest arrival at node ``j`` of rank ``k + 1`` is
+
+    T[k+1, j] = min over arcs (i, j) of  T[k, i] + c(i, j, T[k, i])
+
+where ``c(i, j, t)`` is the arc's sailing time when leaving ``i`` at time ``t`` (:func:`~pyroute_rel.cost.arc_costs`).
+Every arc is evaluated exactly once, vectorised over all arcs into a rank.
+
+When is earliest arrival optimal?
+    Always with steady weather (the graph is then a plain shortest-path problem, and the result equals
+    networkx's Dijkstra on the exported graph). With time-varying weather it is exactly optimal when arc
+    costs satisfy the FIFO property -- leaving later never arrives earlier, ``t + c(i, j, t)``
+    non-decreasing in ``t`` -- which holds for slowly varying wind but not, for example, when an arc is
+    forbidden now and open later (a storm that passes). :func:`solve_time_expanded` handles that case
+    exactly on a time grid, including waiting at a node.
+
+References
+----------
+Bellman, R. (1957). Dynamic Programming. Princeton University Press.
+Philpott, A. and Mason, A. (2001). Optimising yacht routes under uncertainty. 15th Chesapeake Sailing Yacht Symp.
+Dickson, T., Blake, J. and Sear, D. (2018). Reliability informed routing for Autonomous Sailing Craft, eq. (3).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from . import geodesy
+from .cost import REASONS, ArcCosts, ArcGeometry, arc_costs, arc_quantities, geometry_costs, geometry_from_xyz
+from .errors import NoFeasibleRouteError, ScenarioError
+from .grid import Grid
+from .polar import BEYOND_MODES, Polar
+from .weather import WeatherSource
+
+if TYPE_CHECKING:
+    from .failure import FailureModel
+    from .route import Route
+
+__all__ = ["solve", "DPResult", "forward_dp", "RoutingProblem"]
+
+FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
+
+#: Callback giving, for arcs into rank k (shape of ``grid.arcs(k)``), which are blocked by obstacles.
+ArcMask = Callable[[int, npt.NDArray[np.datetime64] | None], BoolArray]
+
+
+@dataclass(frozen=True)
+class RoutingProblem:
+    """Everything the solver needs besides the grid; validated once here.
+
+    Parameters
+    ----------
+    departure : Departure time (UTC).
+    weather : Weather source.
+    polar : Boat polar.
+    failure : Compiled failure model or None.
+    apf : Acceptable probability of failure in [0, 1].
+    samples : Sub-segments per arc for weather sampling (>= 1).
+    beyond : Polar behaviour outside its table (``"clamp"`` or ``"forbid"``).
+    blocked : Optional obstacle mask callback ``(k, departure_times) -> bool array`` for arcs into rank k.
+    """
+
+    departure: np.datetime64
+    weather: WeatherSource
+    polar: Polar
+    failure: FailureModel | None = None
+    apf: float = 1.0
+    samples: int = 1
+    beyond: str = "clamp"
+    blocked: ArcMask | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.apf, int | float) and 0.0 <= float(self.apf) <= 1.0):
+            raise ScenarioError(f"apf must be a probability in [0, 1] (got {self.apf!r})")
+        if isinstance(self.samples, bool) or not isinstance(self.samples, int) or not 1 <= self.samples <= 64:
+            raise ScenarioError(f"samples_per_arc must be a whole number in [1, 64] (got {self.samples!r})")
+        if self.beyond not in BEYOND_MODES:
+            raise ScenarioError(f"beyond must be one of {list(BEYOND_MODES)} (got {self.beyond!r})")
+
+    def geometry_costs(self, geom: ArcGeometry, t0_h: Any) -> ArcCosts:
+        """Arc costs on precomputed geometry."""
+        return geometry_costs(
+            geom, t0_h, departure=self.departure, weather=self.weather, polar=self.polar, failure=self.failure,
+            apf=float(self.apf), beyond=self.beyond,
+        )
+
+    def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
+        """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`)."""
+        return arc_costs(
+            lon0, lat0, lon1, lat1, t0_h,
+            departure=self.departure, weather=self.weather, polar=self.polar, failure=self.failure,
+            apf=float(self.apf), samples=self.samples, beyond=self.beyond,
+        )
+
+
+@dataclass
+class DPResult:
+    """Raw output of the forward DP.
+
+    Attributes
+    ----------
+    arrival_h : Earliest arrival time at every node, shape (n_ranks, n_nodes) [h after departure];
+        ``inf`` where unreachable.
+    back : Source node index on the previous rank for every node, shape (n_ranks, n_nodes) (-1 where
+        unreachable; rank 0's source is the start).
+    finish_h : Earliest arrival at the finish [h] (inf when unreachable).
+    finish_back : Last-rank node the finish is reached from (-1 when unreachable).
+    arcs_evaluated : Arcs whose cost was computed (from reachable nodes).
+    arcs_forbidden : Of those, how many were forbidden.
+    forbidden_by_reason : Forbidden arc counts per :data:`~pyroute_rel.cost.REASONS` name (an arc may count
+        under several).
+    dead_rank : First rank (0..n_ranks, n_ranks = finish) with no reachable node, or None.
+    """
+
+    arrival_h: FloatArray
+    back: npt.NDArray[np.intp]
+    finish_h: float
+    finish_back: int
+    arcs_evaluated: int
+    arcs_forbidden: int
+    forbidden_by_reason: dict[str, int]
+    dead_rank: int | None
+
+    def path(self) -> npt.NDArray[np.intp]:
+        """Node index on each rank of the optimal path (follows back-pointers from the finish)."""
+        n_ranks = self.arrival_h.shape[0]
+        nodes = np.empty(n_ranks, dtype=np.intp)
+        node = self.finish_back
+        for k in range(n_ranks - 1, -1, -1):
+            nodes[k] = node
+            node = int(self.back[k, node])
+        return nodes
+
+
+def forward_dp(
+    grid: Grid,
+    problem: RoutingProblem,
+    *,
+    progress: bool = False,
+    cost_hook: Callable[[int, ArcCosts], None] | None = None,
+) -> DPResult:
+    """Run the forward DP (earliest arrival per node) without building a Route.
+
+    ``cost_hook(k, costs)`` is called with the costs of the arcs into rank k (for tests and diagnostics).
+    """
+    n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
+    arrival = np.full((n_ranks, n_nodes), np.inf)
+    back = np.full((n_ranks, n_nodes), -1, dtype=np.intp)
+    finish_h, finish_back = np.inf, -1
+    evaluated = 0
+    forbidden = 0
+    by_reason = dict.fromkeys(REASONS, 0)
+    dead: int | None = None
+    t_prev = np.zeros(1)
+    bar = _progress_bar(n_ranks + 1, enabled=progress)
+    try:
+        for k in range(n_ranks + 1):
+            src, valid = _pattern(grid, k)
+            t0 = t_prev[src]
+            live = valid & np.isfinite(t0)
+            t0 = np.where(live, t0, 0.0)
+            costs = problem.geometry_costs(grid_geometry(grid, k, problem.samples), t0)
+            reason = np.where(live, costs.reason, 0).astype(np.uint8)
+            time_h = costs.time_h
+            if problem.blocked is not None:
+                times = None if getattr(problem.weather, "steady", False) else _times(problem.departure, t0)
+                hit = problem.blocked(k, times) & live
+                reason = reason | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
+                time_h = np.where(hit, np.inf, time_h)
+            if cost_hook is not None:
+                cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costs.p_f, reason=reason))
+            total = np.where(live, t0 + time_h, np.inf)
+            evaluated += int(live.sum())
+            bad = live & (reason != 0)
+            forbidden += int(bad.sum())
+            if bad.any():
+                for name, bit in REASONS.items():
+                    by_reason[name] += int(np.count_nonzero(bad & (reason & bit != 0)))
+            best = np.argmin(total, axis=1)
+            t_new = np.take_along_axis(total, best[:, None], axis=1)[:, 0]
+            src_best = np.take_along_axis(src, best[:, None], axis=1)[:, 0]
+            if k < n_ranks:
+                arrival[k] = t_new
+                back[k] = np.where(np.isfinite(t_new), src_best, -1)
+                t_prev = t_new
+            else:
+                finish_h = float(t_new[0])
+                finish_back = int(src_best[0]) if np.isfinite(finish_h) else -1
+            bar.update(1)
+            if not np.isfinite(t_new).any():
+                dead = k
+                break
+    finally:
+        bar.close()
+    return DPResult(
+        arrival_h=arrival,
+        back=back,
+        finish_h=finish_h,
+        finish_back=finish_back,
+        arcs_evaluated=evaluated,
+        arcs_forbidden=forbidden,
+        forbidden_by_reason=by_reason,
+        dead_rank=dead,
+    )
+
+
+def solve(
+    grid: Grid,
+    problem: RoutingProblem,
+    *,
+    progress: bool = False,
+) -> Route:
+    """Find the minimum-time route on the grid that respects the failure model (forward DP).
+
+    Raises
+    ------
+    NoFeasibleRouteError
+        When every path has a forbidden arc; the message says at which rank the front of reachable nodes
+        died and which criteria forbade the arcs there.
+    """
+    from .route import build_route
+
+    result = forward_dp(grid, problem, progress=progress)
+    if result.dead_rank is not None or not np.isfinite(result.finish_h):
+        raise NoFeasibleRouteError(explain_infeasible(grid, problem, result))
+    return build_route(grid, problem, result)
+
+
+def _pattern(grid: Grid, k: int) -> tuple[npt.NDArray[np.intp], BoolArray]:
+    if k == 0:
+        return np.zeros((grid.n_nodes, 1), dtype=np.intp), grid.start_valid[:, None]
+    if k == grid.n_ranks:
+        return np.arange(grid.n_nodes, dtype=np.intp)[None, :], grid.finish_valid[None, :]
+    return grid.src_index, grid.arc_valid
+
+
+def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
+    """Sampling geometry of the arcs into rank k, computed once per grid and cached on it."""
+    key = f"geometry:{samples}"
+    cache = grid._cache.setdefault(key, {})
+    geom = cache.get(k)
+    if geom is None:
+        xyz = grid._cache.get("xyz")
+        if xyz is None:
+            xyz = grid._cache["xyz"] = geodesy.to_xyz(grid.lon_deg, grid.lat_deg)
+        if k == 0:
+            a = geodesy.to_xyz(*grid.start)[None, None, :]
+            b = xyz[0][:, None, :]
+        elif k == grid.n_ranks:
+            a = xyz[-1][None, :, :]
+            b = geodesy.to_xyz(*grid.finish)[None, None, :]
+        else:
+            a = xyz[k - 1][grid.src_index]
+            b = xyz[k][:, None, :]
+        geom = geometry_from_xyz(a, b, samples=samples)
+        cache[k] = geom
+    return geom
+
+
+def _times(departure: np.datetime64, t_h: FloatArray) -> npt.NDArray[np.datetime64]:
+    ms = np.where(np.isfinite(t_h), t_h, 0.0) * 3.6e6
+    return np.datetime64(departure, "ms") + ms.astype("timedelta64[ms]")
+
+
+def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) -> str:
+    """One-line explanation of why no route exists: where the front died and what forbade the arcs."""
+    k = result.dead_rank if result.dead_rank is not None else grid.n_ranks
+    lon0, lat0, lon1, lat1, src, valid = grid.arcs(k)
+    t_prev = np.zeros(1) if k == 0 else result.arrival_h[k - 1]
+    t0 = t_prev[src]
+    live = valid & np.isfinite(t0)
+    t0 = np.where(live, t0, 0.0)
+    costs = problem.costs(lon0, lat0, lon1, lat1, t0)
+    reason = np.where(live, costs.reason, 0)
+    if problem.blocked is not None:
+        times = None if getattr(problem.weather, "steady", False) else _times(problem.departure, t0)
+        reason = reason | np.where(problem.blocked(k, times) & live, REASONS["obstacle"], 0)
+    where = "the finish" if k == grid.n_ranks else f"rank {k + 1} of {grid.n_ranks}"
+    along = grid.rank_spacing_km * (k + 1)
+    mid = grid.n_nodes // 2
+    pos = (
+        f"lon {grid.finish[0]:.2f}, lat {grid.finish[1]:.2f}"
+        if k == grid.n_ranks
+        else f"near lon {grid.lon_deg[k, mid]:.2f}, lat {grid.lat_deg[k, mid]:.2f}"
+    )
+    n_live = int(live.sum())
+    parts: list[str] = []
+    failure_arcs = live & (reason & REASONS["failure"] != 0)
+    if problem.failure is not None and failure_arcs.any():
+        counts = _criteria_counts(grid, problem, k, t0, failure_arcs)
+        crit = ", ".join(f"{name} on {n} arcs" for name, n in counts.items() if n)
+        parts.append(f"failure model {problem.failure.name!r} (p_f > apf {problem.apf:g}: {crit})")
+    labels = {
+        "polar": "no boat speed in the polar",
+        "weather": "missing weather data (NaN)",
+        "current": "current too strong to hold the course",
+        "obstacle": "land or exclusion zones",
+    }
+    for name, label in labels.items():
+        n = int(np.count_nonzero(live & (reason & REASONS[name] != 0)))
+        if n:
+            parts.append(f"{label} on {n} arcs")
+    if n_live == 0:
+        detail = "no arc into it starts from a reachable node"
+    else:
+        detail = f"all {n_live} arcs into it from reachable nodes are forbidden: " + "; ".join(parts)
+    hint = ""
+    if problem.failure is not None and failure_arcs.any():
+        hint = " (raise --apf, or widen the grid to go around)"
+    return f"no feasible route: the front died at {where} ({along:.0f} km along the route, {pos}); {detail}{hint}"
+
+
+def _criteria_counts(
+    grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray, arcs: BoolArray
+) -> dict[str, int]:
+    """How many of the given arcs have each failure criterion fired somewhere along them."""
+    model = problem.failure
+    assert model is not None
+    lon0, lat0, lon1, lat1, _, _ = grid.arcs(k)
+    sel = np.nonzero(arcs)
+    a = [np.asarray(np.broadcast_to(x, arcs.shape))[sel] for x in (lon0, lat0, lon1, lat1, t0)]
+    frac = (np.arange(problem.samples) + 0.5) / problem.samples
+    lon_s, lat_s = geodesy.intermediate_point(a[0][:, None], a[1][:, None], a[2][:, None], a[3][:, None], frac)
+    course = geodesy.initial_bearing_deg(lon_s, lat_s, a[2][:, None], a[3][:, None])
+    time = problem.departure if getattr(problem.weather, "steady", False) else _times(
+        problem.departure, np.broadcast_to(a[4][:, None], lon_s.shape)
+    )
+    cond = problem.weather.sample(lon_s, lat_s, time)
+    q = arc_quantities(cond, course)
+    fired = np.asarray(model.fired({name: q[name] for name in model.quantities}))
+    per_arc = fired.any(axis=-1)
+    return {c.describe(): int(per_arc[i].sum()) for i, c in enumerate(model.criteria)}
+
+
+class _NullBar:
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def _progress_bar(total: int, *, enabled: bool) -> Any:
+    """A tqdm bar on a terminal (stderr is a TTY), nothing otherwise."""
+    if not enabled or not sys.stderr.isatty():
+        return _NullBar()
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc="routing", unit="rank", leave=False, file=sys.stderr)
+
+
+def path_costs(grid: Grid, problem: RoutingProblem, nodes: Sequence[int]) -> tuple[FloatArray, ArcCosts]:
+    """Recompute the legs of a path (start, node per rank, finish) from their end points.
+
+    Returns the elapsed time at each point [h] (n_ranks + 2 values) and the legs' :class:`ArcCosts`.
+    Each leg departs at the arrival time of the previous one, so the result is independent of the DP.
+    """
+    lon = np.concatenate([[grid.start[0]], grid.lon_deg[np.arange(grid.n_ranks), nodes], [grid.finish[0]]])
+    lat = np.concatenate([[grid.start[1]], grid.lat_deg[np.arange(grid.n_ranks), nodes], [grid.finish[1]]])
+    n_legs = len(lon) - 1
+    elapsed = np.zeros(n_legs + 1)
+    times = np.empty(n_legs)
+    p_f = np.empty(n_legs)
+    reason = np.empty(n_legs, dtype=np.uint8)
+    steady = bool(getattr(problem.weather, "steady", False))
+    if steady:
+        c = problem.costs(lon[:-1], lat[:-1], lon[1:], lat[1:], np.zeros(n_legs))
+        times, p_f, reason = c.time_h, c.p_f, c.reason
+        elapsed[1:] = np.cumsum(times)
+    else:
+        for i in range(n_legs):
+            c = problem.costs(lon[i], lat[i], lon[i + 1], lat[i + 1], elapsed[i])
+            times[i], p_f[i], reason[i] = float(c.time_h), float(c.p_f), int(c.reason)
+            elapsed[i + 1] = elapsed[i] + times[i]
+    return elapsed, ArcCosts(time_h=times, p_f=p_f, reason=reason)

@@ -1,0 +1,166 @@
+"""The forward DP is exact on its graph: networkx, brute force, and independent leg recomputation."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+import pytest
+from pyproj import Geod
+
+from pyroute_rel import geodesy
+from pyroute_rel.cost import arc_costs
+from pyroute_rel.errors import NoFeasibleRouteError
+from pyroute_rel.grid import FINISH, START, make_grid
+from pyroute_rel.polar import Polar, boat_speed_kn, get_polar
+from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs, solve
+from pyroute_rel.weather import Conditions, Patch, UniformWeather
+
+DEP = np.datetime64("2018-06-01T00:00:00")
+START_PT, FINISH_PT = (-12.0, 45.0), (-60.0, 17.5)
+SPHERE = Geod(a=geodesy.EARTH_RADIUS_KM * 1000.0, b=geodesy.EARTH_RADIUS_KM * 1000.0)
+
+
+def random_polar(rng: np.random.Generator) -> Polar:
+    twa = np.array([0.0, 30.0, 45.0, 60.0, 90.0, 120.0, 150.0, 180.0])
+    tws = np.array([0.0, 6.0, 12.0, 20.0, 30.0])
+    speed = rng.uniform(0.5, 8.0, (twa.size, tws.size))
+    speed[0] = 0.0
+    speed[:, 0] = 0.0
+    return Polar(name="random", twa_deg=twa, tws_kn=tws, speed_kn=speed)
+
+
+def random_weather(rng: np.random.Generator) -> UniformWeather:
+    patches = tuple(
+        Patch(lon=(lo, lo + rng.uniform(3, 10)), lat=(la, la + rng.uniform(3, 10)),
+              values={"tws_kn": float(rng.uniform(2, 25)), "twd_deg": float(rng.uniform(0, 360))})
+        for lo, la in zip(rng.uniform(-55, -20, 3), rng.uniform(20, 40, 3), strict=True)
+    )
+    return UniformWeather(tws_kn=float(rng.uniform(5, 20)), twd_deg=float(rng.uniform(0, 360)), patches=patches)
+
+
+def weights_by_rank(grid, problem) -> list[np.ndarray]:
+    """Every arc's cost from the cost function directly (static weather: independent of departure time)."""
+    out = []
+    for k in range(grid.n_ranks + 1):
+        lon0, lat0, lon1, lat1, _, valid = grid.arcs(k)
+        c = arc_costs(lon0, lat0, lon1, lat1, 0.0, departure=DEP, weather=problem.weather, polar=problem.polar,
+                      failure=problem.failure, apf=problem.apf, samples=problem.samples)
+        out.append(np.where(valid, c.time_h, np.inf))
+    return out
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("shape,dev", [((5, 5), None), ((7, 6), None), ((9, 9), 60.0), ((12, 11), 40.0)])
+def test_dp_equals_networkx_dijkstra(seed: int, shape: tuple[int, int], dev: float | None) -> None:
+    rng = np.random.default_rng(seed)
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=shape[0], n_nodes=shape[1], max_deviation_deg=dev,
+                     spacing_km=float(rng.uniform(40, 200)))
+    problem = RoutingProblem(departure=DEP, weather=random_weather(rng), polar=random_polar(rng),
+                             samples=int(rng.integers(1, 4)))
+    result = forward_dp(grid, problem)
+    g = grid.to_networkx(weights_by_rank(grid, problem))
+    try:
+        ref = nx.shortest_path_length(g, START, FINISH, weight="weight")
+    except nx.NetworkXNoPath:
+        ref = np.inf
+    assert result.finish_h == pytest.approx(ref, rel=1e-12)
+    if np.isfinite(ref):
+        route = solve(grid, problem)
+        assert route.voyage_time_h == pytest.approx(ref, rel=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_dp_equals_brute_force_on_tiny_grids(seed: int) -> None:
+    rng = np.random.default_rng(100 + seed)
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=4, n_nodes=4, spacing_km=float(rng.uniform(100, 400)))
+    problem = RoutingProblem(departure=DEP, weather=random_weather(rng), polar=random_polar(rng), samples=2)
+    best = np.inf
+    for path in itertools.product(range(grid.n_nodes), repeat=grid.n_ranks):
+        elapsed, _ = path_costs(grid, problem, list(path))
+        best = min(best, elapsed[-1])
+    assert forward_dp(grid, problem).finish_h == pytest.approx(best, rel=1e-12)
+
+
+@dataclass(frozen=True)
+class VeeringWind:
+    """Wind that veers slowly with time (a time-varying source; FIFO holds for slow change)."""
+
+    steady = False
+
+    def sample(self, lon_deg, lat_deg, time) -> Conditions:
+        lon, lat, t = np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float),
+                                          (np.asarray(time) - DEP) / np.timedelta64(1, "h"))
+        z = np.zeros(lon.shape)
+        return Conditions(tws_kn=12.0 + 2.0 * np.sin(t / 400.0), twd_deg=(10.0 * t / 100.0) % 360.0, hs_m=z + 1.0,
+                          wave_dir_deg=z, wave_period_s=z * np.nan, current_u_ms=z, current_v_ms=z)
+
+    def check_coverage(self, *args) -> None:
+        return None
+
+
+def test_time_dependent_dp_equals_brute_force_when_fifo() -> None:
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=4, n_nodes=4, spacing_km=150.0)
+    problem = RoutingProblem(departure=DEP, weather=VeeringWind(), polar=get_polar("maribot_vane"), samples=2)
+    # premise: FIFO holds on every arc (leaving later never arrives earlier), checked on a time grid
+    t = np.linspace(0.0, 1500.0, 151)
+    for k in range(grid.n_ranks + 1):
+        lon0, lat0, lon1, lat1, _, valid = grid.arcs(k)
+        arrive = np.stack([tt + problem.costs(lon0, lat0, lon1, lat1, tt).time_h for tt in t])
+        assert np.all(np.diff(arrive[:, valid], axis=0) > 0)
+    best = min(path_costs(grid, problem, list(p))[0][-1]
+               for p in itertools.product(range(grid.n_nodes), repeat=grid.n_ranks))
+    result = forward_dp(grid, problem)
+    assert result.finish_h == pytest.approx(best, rel=1e-9)
+    # and the weather really changes the answer: the same wind frozen at departure routes differently
+    frozen = UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=1.0)
+    assert abs(forward_dp(grid, RoutingProblem(departure=DEP, weather=frozen, polar=problem.polar,
+                                               samples=2)).finish_h - best) > 1.0
+
+
+def test_route_legs_recomputed_independently_sum_to_voyage_time() -> None:
+    """Each leg from its end points with pyproj (distance, midpoint, heading) and the polar's table."""
+    polar = get_polar("maribot_vane")
+    w = UniformWeather(tws_kn=15.0, twd_deg=0.0, hs_m=1.0,
+                       patches=(Patch(lon=(-45.0, -35.0), lat=(28.0, 38.0), values={"tws_kn": 6.0}),))
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=30, n_nodes=31)
+    route = solve(grid, RoutingProblem(departure=DEP, weather=w, polar=polar))
+    total = 0.0
+    for i in range(len(route.lon_deg) - 1):
+        lo0, la0, lo1, la1 = route.lon_deg[i], route.lat_deg[i], route.lon_deg[i + 1], route.lat_deg[i + 1]
+        _, _, d_m = SPHERE.inv(lo0, la0, lo1, la1)
+        (mlo, mla), = SPHERE.npts(lo0, la0, lo1, la1, 1)
+        heading, _, _ = SPHERE.inv(mlo, mla, lo1, la1)
+        inside = -45.0 <= mlo <= -35.0 and 28.0 <= mla <= 38.0
+        tws = 6.0 if inside else 15.0
+        twa = abs((0.0 - heading + 180.0) % 360.0 - 180.0)
+        speed = float(boat_speed_kn(polar, twa, tws))
+        total += d_m / 1852.0 / speed
+        assert route.legs["time_h"][i] == pytest.approx(d_m / 1852.0 / speed, rel=1e-9)
+    assert route.voyage_time_h == pytest.approx(total, rel=1e-9)
+    assert route.elapsed_h[-1] == pytest.approx(route.dp.finish_h, rel=1e-12)
+    assert route.time[-1] == route.arrival
+
+
+def test_infinite_arcs_are_never_chosen_and_infeasible_is_explained() -> None:
+    polar = get_polar("maribot_vane")
+    # a wall of calm (no boat speed) across the whole grid between 29 and 33 N; arcs are sampled densely
+    # enough (8 samples) that none can hop over it
+    wall = Patch(lon=(-80.0, 10.0), lat=(29.0, 33.0), values={"tws_kn": 0.0})
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=20, n_nodes=9)
+    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=(wall,)),
+                             polar=polar, samples=8)
+    with pytest.raises(NoFeasibleRouteError, match=r"front died at rank \d+ of 20.*no boat speed in the polar"):
+        solve(grid, problem)
+    # a partial wall with a gap: the route goes through the gap, never through a zero-speed arc
+    left = Patch(lon=(-80.0, -36.0), lat=(29.0, 33.0), values={"tws_kn": 0.0})
+    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=(left,)),
+                             polar=polar, samples=8)
+    route = solve(grid, problem)
+    assert np.all(np.isfinite(route.legs["time_h"]))
+    frac = (np.arange(8) + 0.5) / 8
+    mlon, mlat = geodesy.intermediate_point(route.lon_deg[:-1, None], route.lat_deg[:-1, None],
+                                            route.lon_deg[1:, None], route.lat_deg[1:, None], frac)
+    assert not np.any(left.contains(mlon, mlat))
