@@ -267,7 +267,8 @@ def geometry_costs(
     else:
         t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (samples,))
         dt, p_f, reason = evaluate(t_samples)
-        elapsed = np.cumsum(dt, axis=-1) - 0.5 * dt
+        with np.errstate(invalid="ignore"):
+            elapsed = np.cumsum(dt, axis=-1) - 0.5 * dt
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
         dt, p_f, reason = evaluate(t_samples + elapsed)
     if samples == 1:

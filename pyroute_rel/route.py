@@ -40,7 +40,7 @@ FloatArray = npt.NDArray[np.float64]
 OUTPUT_FILES = ("route.geojson", "route.gpx", "route.csv", "summary.json", "route.png")
 
 LEG_FIELDS = (
-    "distance_nm", "time_h", "sog_kn", "course_deg", "tws_kn", "twd_deg", "twa_deg",
+    "wait_h", "distance_nm", "time_h", "sog_kn", "course_deg", "tws_kn", "twd_deg", "twa_deg",
     "hs_m", "wave_dir_deg", "awd_deg", "p_f",
 )
 
@@ -200,14 +200,15 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
     from .solve import path_costs
 
     nodes = result.path()
-    elapsed, costs = path_costs(grid, problem, nodes)
+    waits = result.waits()
+    elapsed, costs = path_costs(grid, problem, nodes, waits)
     ranks = np.arange(grid.n_ranks)
     lon = np.concatenate([[grid.start[0]], grid.lon_deg[ranks, nodes], [grid.finish[0]]])
     lat = np.concatenate([[grid.start[1]], grid.lat_deg[ranks, nodes], [grid.finish[1]]])
     dist = geodesy.distance_nm(lon[:-1], lat[:-1], lon[1:], lat[1:])
     mlon, mlat = geodesy.intermediate_point(lon[:-1], lat[:-1], lon[1:], lat[1:], 0.5)
     course = geodesy.initial_bearing_deg(mlon, mlat, lon[1:], lat[1:])
-    mid_h = elapsed[:-1] + 0.5 * costs.time_h
+    mid_h = elapsed[:-1] + waits + 0.5 * costs.time_h
     if getattr(problem.weather, "steady", False):
         cond = problem.weather.sample(mlon, mlat, problem.departure)
     else:
@@ -217,7 +218,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
     legs = {
         "distance_nm": dist,
         "time_h": costs.time_h,
-        "sog_kn": dist / costs.time_h,
+        "sog_kn": dist / costs.time_h,  # while sailing (waits excluded)
         "course_deg": course,
         "tws_kn": np.asarray(cond.tws_kn, dtype=float),
         "twd_deg": np.asarray(cond.twd_deg, dtype=float),
@@ -226,6 +227,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         "wave_dir_deg": np.asarray(cond.wave_dir_deg, dtype=float),
         "awd_deg": q["awd_deg"],
         "p_f": np.asarray(costs.p_f, dtype=float),
+        "wait_h": waits,
     }
     meta: dict[str, Any] = {
         "apf": float(problem.apf),

@@ -25,6 +25,7 @@ Dickson, T., Blake, J. and Sear, D. (2018). Reliability informed routing for Aut
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -67,6 +68,10 @@ class RoutingProblem:
     samples : Sub-segments per arc for weather sampling (>= 1).
     beyond : Polar behaviour outside its table (``"clamp"`` or ``"forbid"``).
     blocked : Optional obstacle mask callback ``(k, departure_times) -> bool array`` for arcs into rank k.
+    time_step_h : None (default) for continuous time: the plain earliest-arrival DP. A step [h] switches to
+        the time-expanded DP: times live on the lattice ``0, step, 2 step, ...`` (arrivals are rounded *up*
+        to it, so every reported time is achievable) and the craft may wait at a node.
+    max_wait_h : Longest wait at one node [h] (multiples of ``time_step_h``; 0 = never wait).
     """
 
     departure: np.datetime64
@@ -77,14 +82,39 @@ class RoutingProblem:
     samples: int = 1
     beyond: str = "clamp"
     blocked: ArcMask | None = field(default=None, repr=False)
+    time_step_h: float | None = None
+    max_wait_h: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.time_step_h is not None and not (
+            isinstance(self.time_step_h, int | float) and 0.0 < float(self.time_step_h) <= 48.0
+        ):
+            raise ScenarioError(f"time_step_h must be in (0, 48] [h] (got {self.time_step_h!r})")
+        if not (isinstance(self.max_wait_h, int | float) and 0.0 <= float(self.max_wait_h) <= 24.0 * 60):
+            raise ScenarioError(f"max_wait_h must be in [0, 1440] [h] (got {self.max_wait_h!r})")
+        if self.max_wait_h > 0 and self.time_step_h is None:
+            raise ScenarioError("max_wait_h > 0 needs time_step_h (waiting is modelled on a time lattice)")
         if not (isinstance(self.apf, int | float) and 0.0 <= float(self.apf) <= 1.0):
             raise ScenarioError(f"apf must be a probability in [0, 1] (got {self.apf!r})")
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) or not 1 <= self.samples <= 64:
             raise ScenarioError(f"samples_per_arc must be a whole number in [1, 64] (got {self.samples!r})")
         if self.beyond not in BEYOND_MODES:
             raise ScenarioError(f"beyond must be one of {list(BEYOND_MODES)} (got {self.beyond!r})")
+
+    @property
+    def n_wait(self) -> int:
+        """Number of wait steps considered at each node (0: no waiting)."""
+        if self.time_step_h is None:
+            return 0
+        return int(math.floor(self.max_wait_h / self.time_step_h + 1e-9))
+
+    def arrive(self, t_h: Any) -> Any:
+        """Arrival time on the time lattice (rounded up), or unchanged in continuous time."""
+        if self.time_step_h is None:
+            return t_h
+        step = float(self.time_step_h)
+        with np.errstate(invalid="ignore"):
+            return np.ceil(np.asarray(t_h) / step - 1e-9) * step
 
     def geometry_costs(self, geom: ArcGeometry, t0_h: Any) -> ArcCosts:
         """Arc costs on precomputed geometry."""
@@ -119,6 +149,8 @@ class DPResult:
     forbidden_by_reason : Forbidden arc counts per :data:`~pyroute_rel.cost.REASONS` name (an arc may count
         under several).
     dead_rank : First rank (0..n_ranks, n_ranks = finish) with no reachable node, or None.
+    wait_h : Wait at the source node before the best arc into each node, shape (n_ranks + 1, n_nodes) [h]
+        (row n_ranks, column 0: before the arc into the finish); zeros without waiting.
     """
 
     arrival_h: FloatArray
@@ -129,6 +161,15 @@ class DPResult:
     arcs_forbidden: int
     forbidden_by_reason: dict[str, int]
     dead_rank: int | None
+    wait_h: FloatArray | None = None
+
+    def waits(self) -> FloatArray:
+        """Wait before each leg of the optimal path [h] (n_ranks + 1 values)."""
+        nodes = self.path()
+        n_ranks = self.arrival_h.shape[0]
+        if self.wait_h is None:
+            return np.zeros(n_ranks + 1)
+        return np.concatenate([self.wait_h[np.arange(n_ranks), nodes], [self.wait_h[n_ranks, 0]]])
 
     def path(self) -> npt.NDArray[np.intp]:
         """Node index on each rank of the optimal path (follows back-pointers from the finish)."""
@@ -161,24 +202,37 @@ def forward_dp(
     by_reason = dict.fromkeys(REASONS, 0)
     dead: int | None = None
     t_prev = np.zeros(1)
+    wait_into = np.zeros((n_ranks + 1, n_nodes)) if problem.n_wait else None
     bar = _progress_bar(n_ranks + 1, enabled=progress)
     try:
         for k in range(n_ranks + 1):
             src, valid = _pattern(grid, k)
-            t0 = t_prev[src]
-            live = valid & np.isfinite(t0)
-            t0 = np.where(live, t0, 0.0)
-            costs = problem.geometry_costs(grid_geometry(grid, k, problem.samples), t0)
-            reason = np.where(live, costs.reason, 0).astype(np.uint8)
-            time_h = costs.time_h
-            if problem.blocked is not None:
-                times = None if getattr(problem.weather, "steady", False) else _times(problem.departure, t0)
-                hit = problem.blocked(k, times) & live
-                reason = reason | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
-                time_h = np.where(hit, np.inf, time_h)
-            if cost_hook is not None:
-                cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costs.p_f, reason=reason))
-            total = np.where(live, t0 + time_h, np.inf)
+            t_src = t_prev[src]
+            live = valid & np.isfinite(t_src)
+            t_src = np.where(live, t_src, 0.0)
+            geom = grid_geometry(grid, k, problem.samples)
+            step = problem.time_step_h or 0.0
+            total = np.full(live.shape, np.inf)
+            wait = np.zeros(live.shape)
+            reason = np.zeros(live.shape, dtype=np.uint8)
+            for w in range(problem.n_wait + 1):
+                t0 = t_src + w * step
+                costs = problem.geometry_costs(geom, t0)
+                r_w = np.where(live, costs.reason, 0).astype(np.uint8)
+                time_h = costs.time_h
+                if problem.blocked is not None:
+                    times = None if getattr(problem.weather, "steady", False) else _times(problem.departure, t0)
+                    hit = problem.blocked(k, times) & live
+                    r_w = r_w | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
+                    time_h = np.where(hit, np.inf, time_h)
+                if cost_hook is not None and w == 0:
+                    cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costs.p_f, reason=r_w))
+                tot_w = np.where(live, problem.arrive(t0 + time_h), np.inf)
+                better = tot_w < total
+                total = np.where(better, tot_w, total)
+                wait = np.where(better, w * step, wait)
+                # an arc counts as forbidden when it is forbidden at every departure time tried
+                reason = r_w if w == 0 else np.where(np.isfinite(total), 0, reason | r_w).astype(np.uint8)
             evaluated += int(live.sum())
             bad = live & (reason != 0)
             forbidden += int(bad.sum())
@@ -188,6 +242,8 @@ def forward_dp(
             best = np.argmin(total, axis=1)
             t_new = np.take_along_axis(total, best[:, None], axis=1)[:, 0]
             src_best = np.take_along_axis(src, best[:, None], axis=1)[:, 0]
+            if wait_into is not None:
+                wait_into[k, : len(best)] = np.take_along_axis(wait, best[:, None], axis=1)[:, 0]
             if k < n_ranks:
                 arrival[k] = t_new
                 back[k] = np.where(np.isfinite(t_new), src_best, -1)
@@ -210,6 +266,7 @@ def forward_dp(
         arcs_forbidden=forbidden,
         forbidden_by_reason=by_reason,
         dead_rank=dead,
+        wait_h=wait_into,
     )
 
 
@@ -358,27 +415,32 @@ def _progress_bar(total: int, *, enabled: bool) -> Any:
     return tqdm(total=total, desc="routing", unit="rank", leave=False, file=sys.stderr)
 
 
-def path_costs(grid: Grid, problem: RoutingProblem, nodes: Sequence[int]) -> tuple[FloatArray, ArcCosts]:
+def path_costs(
+    grid: Grid, problem: RoutingProblem, nodes: Sequence[int], waits: Sequence[float] | None = None
+) -> tuple[FloatArray, ArcCosts]:
     """Recompute the legs of a path (start, node per rank, finish) from their end points.
 
-    Returns the elapsed time at each point [h] (n_ranks + 2 values) and the legs' :class:`ArcCosts`.
-    Each leg departs at the arrival time of the previous one, so the result is independent of the DP.
+    ``waits`` [h] (n_ranks + 1 values) is the wait at each leg's start before sailing it. Returns the arrival
+    time at each point [h after departure] (n_ranks + 2 values; on the time lattice when the problem has
+    one) and the legs' :class:`ArcCosts`. Legs are chained one after the other, independently of the DP.
     """
     lon = np.concatenate([[grid.start[0]], grid.lon_deg[np.arange(grid.n_ranks), nodes], [grid.finish[0]]])
     lat = np.concatenate([[grid.start[1]], grid.lat_deg[np.arange(grid.n_ranks), nodes], [grid.finish[1]]])
     n_legs = len(lon) - 1
+    wait = np.zeros(n_legs) if waits is None else np.asarray(waits, dtype=float)
     elapsed = np.zeros(n_legs + 1)
     times = np.empty(n_legs)
     p_f = np.empty(n_legs)
     reason = np.empty(n_legs, dtype=np.uint8)
     steady = bool(getattr(problem.weather, "steady", False))
-    if steady:
+    if steady and problem.time_step_h is None:
         c = problem.costs(lon[:-1], lat[:-1], lon[1:], lat[1:], np.zeros(n_legs))
         times, p_f, reason = c.time_h, c.p_f, c.reason
         elapsed[1:] = np.cumsum(times)
     else:
         for i in range(n_legs):
-            c = problem.costs(lon[i], lat[i], lon[i + 1], lat[i + 1], elapsed[i])
+            t0 = elapsed[i] + wait[i]
+            c = problem.costs(lon[i], lat[i], lon[i + 1], lat[i + 1], t0)
             times[i], p_f[i], reason[i] = float(c.time_h), float(c.p_f), int(c.reason)
-            elapsed[i + 1] = elapsed[i] + times[i]
+            elapsed[i + 1] = problem.arrive(t0 + times[i])
     return elapsed, ArcCosts(time_h=times, p_f=p_f, reason=reason)

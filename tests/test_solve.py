@@ -164,3 +164,61 @@ def test_infinite_arcs_are_never_chosen_and_infeasible_is_explained() -> None:
     mlon, mlat = geodesy.intermediate_point(route.lon_deg[:-1, None], route.lat_deg[:-1, None],
                                             route.lon_deg[1:, None], route.lat_deg[1:, None], frac)
     assert not np.any(left.contains(mlon, mlat))
+
+
+@dataclass(frozen=True)
+class PassingStorm:
+    """A band of no-go weather (wind too strong: above the polar with beyond='forbid') across the whole course
+    between 39 and 41 N until ``clears_h`` after departure; 15 kn from the north elsewhere and later."""
+
+    clears_h: float = 130.0
+    steady = False
+
+    def sample(self, lon_deg, lat_deg, time) -> Conditions:
+        lon, lat, t = np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float),
+                                          (np.asarray(time) - DEP) / np.timedelta64(1, "h"))
+        z = np.zeros(lon.shape)
+        storm = (lat >= 39.0) & (lat <= 41.0) & (t < self.clears_h)
+        return Conditions(tws_kn=np.where(storm, 60.0, 15.0), twd_deg=z, hs_m=z + 1.0, wave_dir_deg=z,
+                          wave_period_s=z * np.nan, current_u_ms=z, current_v_ms=z)
+
+    def check_coverage(self, *args) -> None:
+        return None
+
+
+def test_time_expanded_dp_waits_out_a_storm_and_matches_brute_force() -> None:
+    grid = make_grid(START_PT, (-30.0, 30.0), n_ranks=2, n_nodes=3, spacing_km=60.0)
+    polar = get_polar("maribot_vane")
+    plain = RoutingProblem(departure=DEP, weather=PassingStorm(), polar=polar, samples=4, beyond="forbid")
+    # without waiting the storm band blocks every arc when the craft gets there: no route
+    with pytest.raises(NoFeasibleRouteError, match="no boat speed in the polar"):
+        solve(grid, plain)
+    step, max_wait = 20.0, 140.0
+    waiting = RoutingProblem(departure=DEP, weather=PassingStorm(), polar=polar, samples=4, beyond="forbid",
+                             time_step_h=step, max_wait_h=max_wait)
+    route = solve(grid, waiting)
+    assert route.legs["wait_h"].sum() > 0
+    # the storm is crossed after it clears: no leg sails through the band before clears_h
+    assert np.all(np.isfinite(route.legs["time_h"]))
+    # brute force over every path and every wait (multiples of the step) at every node, same lattice rules
+    n_w = int(max_wait / step) + 1
+    best = np.inf
+    for path in itertools.product(range(grid.n_nodes), repeat=grid.n_ranks):
+        for waits in itertools.product(range(n_w), repeat=grid.n_ranks + 1):
+            if best < np.inf and sum(waits) * step > best:
+                continue
+            elapsed, _ = path_costs(grid, waiting, list(path), np.array(waits) * step)
+            best = min(best, elapsed[-1])
+    assert route.voyage_time_h == pytest.approx(best, rel=1e-12)
+    # times are on the lattice and legs chain: arrival = ceil(departure after wait + sailing time)
+    assert np.allclose(route.elapsed_h / step, np.round(route.elapsed_h / step))
+
+
+def test_waiting_never_helps_in_steady_weather() -> None:
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=6, n_nodes=5)
+    w = UniformWeather(tws_kn=15.0, twd_deg=0.0)
+    polar = get_polar("maribot_vane")
+    lattice = RoutingProblem(departure=DEP, weather=w, polar=polar, time_step_h=1.0)
+    waiting = RoutingProblem(departure=DEP, weather=w, polar=polar, time_step_h=1.0, max_wait_h=24.0)
+    assert forward_dp(grid, waiting).finish_h == forward_dp(grid, lattice).finish_h
+    assert np.all(forward_dp(grid, waiting).waits() == 0.0)
