@@ -60,8 +60,9 @@ sc1 = load_scenario({str(EXAMPLE)!r}).with_options(apf=0.5)
 g = sc0.make_grid(); p0 = sc0.problem(); p1 = sc1.problem()
 t0, r0 = best_of(lambda: forward_dp(g, p0))
 t1, r1 = best_of(lambda: forward_dp(g, p1))
-print(json.dumps({{"seconds": t1, "without_model_s": t0, "ratio": t1 / t0, "arcs_per_s": r1.arcs_evaluated / t1,
-                  "peak_rss_mb": rss_mb(), "voyage_h": r1.finish_h, "target_ratio": 1.5, "pass_ratio": t1 / t0 <= 1.5}}))
+print(json.dumps({{"seconds": t1, "without_model_s": t0, "ratio": t1 / t0,
+                  "arcs_per_s": r1.arcs_evaluated / t1, "peak_rss_mb": rss_mb(), "voyage_h": r1.finish_h,
+                  "target_ratio": 1.5, "pass_ratio": t1 / t0 <= 1.5}}))
 """)
 
 case("bbn_table_vs_pgmpy", None, "compiled failure table vs one pgmpy VariableElimination query per arc")("""

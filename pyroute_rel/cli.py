@@ -15,6 +15,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from . import __version__
 from .errors import PyrouteError
 
@@ -71,6 +73,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--samples", type=int, dest="samples_per_arc", help="weather samples per arc")
     r.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1]")
     r.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
+    r.add_argument("--time-step", type=float, dest="time_step_h",
+                   help="time-expanded DP on this time lattice [h] (exact without FIFO; allows waiting)")
+    r.add_argument("--max-wait", type=float, dest="max_wait_h", help="longest wait at a node [h] (needs --time-step)")
+    r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument("--out", help="folder for route.geojson, route.gpx, route.csv, summary.json, route.png")
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     _add_common(r)
@@ -98,7 +104,10 @@ def _cmd_route(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario).with_options(
         n_nodes=args.n_nodes, n_ranks=args.n_ranks, apf=args.apf, failure_model=args.failure_model,
         spacing_km=args.spacing_km, max_deviation_deg=args.max_deviation_deg, samples_per_arc=args.samples_per_arc,
+        time_step_h=args.time_step_h, max_wait_h=args.max_wait_h,
     )
+    if args.departures:
+        return _departure_sweep(scenario, args)
     t0 = time.perf_counter()
     route = scenario.route(progress=not args.quiet)
     elapsed = time.perf_counter() - t0
@@ -115,6 +124,47 @@ def _cmd_route(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         print(_route_text(route, elapsed, args.out))
+    return EXIT_OK
+
+
+def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
+    """Route one scenario for several departure times (planning): a table, or JSON with --json."""
+    from .errors import NoFeasibleRouteError
+    from .scenario import parse_departure
+    from .solve import forward_dp
+
+    times = [parse_departure(t.strip(), "--departures") for t in args.departures.split(",") if t.strip()]
+    grid = scenario.make_grid()
+    failure = scenario.load_failure()
+    rows = []
+    for dep in times:
+        sc = scenario.with_options(departure=str(dep))
+        problem = sc.problem(failure=failure)
+        res = forward_dp(grid, problem)
+        row: dict[str, Any] = {"departure": str(dep) + "Z", "voyage_time_h": None, "feasible": False}
+        if np.isfinite(res.finish_h):
+            from .route import build_route
+
+            route = build_route(grid, problem, res)
+            row.update({"voyage_time_h": route.voyage_time_h, "feasible": True, "arrival": route.summary()["arrival"],
+                        "max_failure_probability": route.max_failure_probability})
+        else:
+            from .solve import explain_infeasible
+
+            row["reason"] = explain_infeasible(grid, problem, res)
+        rows.append(row)
+    if args.json:
+        print(json.dumps({"departures": rows}))
+    else:
+        print(f"{'departure':<22} {'voyage [h]':>11} {'arrival':<22} {'max p_f':>8}")
+        for r in rows:
+            if r["feasible"]:
+                print(f"{r['departure']:<22} {r['voyage_time_h']:>11.2f} {r['arrival']:<22} "
+                      f"{r['max_failure_probability']:>8.3f}")
+            else:
+                print(f"{r['departure']:<22} {'no route':>11}  {r['reason']}")
+    if not any(r["feasible"] for r in rows):
+        raise NoFeasibleRouteError("no departure time has a feasible route")
     return EXIT_OK
 
 

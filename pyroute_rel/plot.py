@@ -78,8 +78,10 @@ def _draw_patches(ax: Axes, weather: Any) -> None:
         desc = ", ".join(f"{k}={v:g}" for k, v in patch.values.items())
         ax.add_patch(Rectangle((patch.lon[0], patch.lat[0]), patch.lon[1] - patch.lon[0],
                                patch.lat[1] - patch.lat[0], fill=False, ec="k", lw=1.0))
-        ax.annotate(f"{label}\n{desc}", (patch.lon[0], patch.lat[1]), xytext=(2, -2), textcoords="offset points",
-                    va="top", fontsize=7)
+        # label each box at a different corner so nested boxes stay readable
+        corner = (patch.lon[0], patch.lat[1]) if i % 2 == 0 else (patch.lon[0], patch.lat[0])
+        ax.annotate(f"{label}: {desc}", corner, xytext=(1, 2 if i % 2 == 0 else -2), textcoords="offset points",
+                    va="bottom" if i % 2 == 0 else "top", fontsize=6.5)
 
 
 def _draw_coast(ax: Axes, grid: Grid) -> None:

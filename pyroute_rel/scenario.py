@@ -38,7 +38,13 @@ __all__ = ["Scenario", "load_scenario", "scenario_from_mapping", "parse_departur
 
 #: Allowed keys per table.
 SCHEMA: dict[str, dict[str, str]] = {
-    "route": {"start": "[lon, lat] [deg]", "finish": "[lon, lat] [deg]", "departure": "ISO 8601 UTC time"},
+    "route": {
+        "start": "[lon, lat] [deg]",
+        "finish": "[lon, lat] [deg]",
+        "departure": "ISO 8601 UTC time",
+        "time_step_h": "time lattice of the time-expanded DP [h]",
+        "max_wait_h": "longest wait at a node [h] (needs time_step_h)",
+    },
     "grid": {
         "n_ranks": "whole number >= 1",
         "n_nodes": "whole number >= 1",
@@ -72,6 +78,8 @@ class Scenario:
     failure_model: str | None
     apf: float
     base_dir: Path
+    time_step_h: float | None = None
+    max_wait_h: float = 0.0
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's)."""
@@ -85,7 +93,10 @@ class Scenario:
                 checked[key] = _prob(value, "--apf")
             elif key == "failure_model":
                 checked[key] = None if str(value).lower() == "none" else str(value)
-            elif key in ("spacing_km", "max_deviation_deg", "samples_per_arc", "beyond", "departure"):
+            elif key == "departure":
+                checked[key] = parse_departure(value, "--departures")
+            elif key in ("spacing_km", "max_deviation_deg", "samples_per_arc", "beyond", "time_step_h",
+                         "max_wait_h"):
                 checked[key] = value
             else:
                 raise ScenarioError(f"unknown scenario option {key!r}")
@@ -115,7 +126,8 @@ class Scenario:
         return RoutingProblem(
             departure=self.departure, weather=self.weather, polar=self.polar,
             failure=failure if failure is not None else self.load_failure(), apf=self.apf,
-            samples=self.samples_per_arc, beyond=self.beyond, blocked=blocked,
+            samples=self.samples_per_arc, beyond=self.beyond, blocked=blocked, time_step_h=self.time_step_h,
+            max_wait_h=self.max_wait_h,
         )
 
     def route(self, *, progress: bool = False) -> Route:
@@ -145,7 +157,9 @@ def load_scenario(path: str | Path) -> Scenario:
     return scenario_from_mapping(table, base_dir=p.parent, source=str(p))
 
 
-def scenario_from_mapping(table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<scenario>") -> Scenario:
+def scenario_from_mapping(
+    table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<scenario>"
+) -> Scenario:
     """Validate a scenario given as nested mappings (the parsed TOML)."""
     try:
         return _parse(table, Path(base_dir), source)
@@ -177,6 +191,15 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     if abs(start[0] - finish[0]) < 1e-9 and abs(start[1] - finish[1]) < 1e-9:
         raise ScenarioError(f"[route].start equals [route].finish ({list(start)}): nothing to route")
     departure = parse_departure(route.get("departure", "2018-06-01T00:00:00Z"), "[route].departure")
+    step = route.get("time_step_h")
+    if step is not None:
+        step = _positive(step, "[route].time_step_h")
+    max_wait = route.get("max_wait_h", 0.0)
+    max_wait = _number(max_wait, "[route].max_wait_h")
+    if max_wait < 0:
+        raise ScenarioError(f"[route].max_wait_h must be >= 0 [h] (got {max_wait:g})")
+    if max_wait > 0 and step is None:
+        raise ScenarioError("[route].max_wait_h needs [route].time_step_h (waiting is modelled on a time lattice)")
 
     grid = table.get("grid", {})
     n_ranks = _int(grid.get("n_ranks", 160), "[grid].n_ranks", 1)
@@ -214,7 +237,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     return Scenario(
         source=source, start=start, finish=finish, departure=departure, n_ranks=n_ranks, n_nodes=n_nodes,
         spacing_km=spacing, max_deviation_deg=dev, samples_per_arc=samples, polar=polar, beyond=beyond,
-        weather=weather, failure_model=model, apf=apf, base_dir=base_dir,
+        weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
     )
 
 

@@ -1,0 +1,113 @@
+"""The pyroute-rel command: JSON contract, output files, exit codes and one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pyroute_rel.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "microtransat_control.toml"
+SMALL = ["--n-nodes", "21", "--n-ranks", "21"]
+
+
+def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = main(args)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_route_json_contract(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(["route", str(EXAMPLE), *SMALL, "--json", "--quiet"], capsys)
+    assert code == 0, err
+    d = json.loads(out)
+    for key, typ in [("voyage_time_h", float), ("distance_nm", float), ("departure", str), ("arrival", str),
+                     ("max_failure_probability", float), ("voyage_failure_probability", float)]:
+        assert isinstance(d[key], typ), key
+    assert d["grid"]["n_ranks"] == 21 and d["grid"]["n_nodes"] == 21 and d["grid"]["spacing_km"] > 0
+    assert d["arcs"]["evaluated"] == 21 + 20 * 21 * 21 + 21
+    assert d["departure"] == "2018-06-01T00:00:00Z"
+    track = d["track"]
+    assert len(track) == 23 and track[0]["lon"] == -12.0 and track[-1]["lat"] == 17.5
+    assert set(track[0]) == {"lon", "lat", "time", "p_f"}
+    assert track[-1]["time"] == d["arrival"]
+
+
+def test_route_out_writes_every_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    code, stdout, err = run(["route", str(EXAMPLE), *SMALL, "--out", str(out), "--quiet"], capsys)
+    assert code == 0, err
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["route.csv", "route.geojson", "route.gpx", "route.png", "summary.json"]
+    assert (out / "route.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    gj = json.loads((out / "route.geojson").read_text())
+    assert gj["features"][0]["geometry"]["type"] == "LineString"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["voyage_time_h"] == pytest.approx(float(gj["features"][0]["properties"]["voyage_time_h"]))
+    import xml.etree.ElementTree as ET
+
+    ns = {"g": "http://www.topografix.com/GPX/1/1"}
+    pts = ET.parse(out / "route.gpx").getroot().findall(".//g:trkpt", ns)
+    assert len(pts) == len(summary["track"])
+    rows = (out / "route.csv").read_text().splitlines()
+    assert len(rows) == len(summary["track"]) + 1 and rows[0].startswith("index,lon_deg,lat_deg,time_utc")
+    assert "voyage time" in stdout
+
+
+def write(tmp_path: Path, text: str, name: str = "s.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+GOOD = EXAMPLE.read_text()
+
+
+@pytest.mark.parametrize(
+    "make,message",
+    [
+        (lambda d: d / "missing.toml", "scenario file not found"),
+        (lambda d: write(d, GOOD.replace("n_nodes = 160", "n_nodez = 160")), "unknown key 'n_nodez'"),
+        (lambda d: write(d, GOOD.replace("finish = [-60.0, 17.5]", "finish = [-12.0, 45.0]")), "equals"),
+        (lambda d: write(d, GOOD.replace('departure = "2018-06-01T00:00:00Z"', 'departure = "June 1st"')),
+         "ISO 8601"),
+        (lambda d: write(d, GOOD.replace("apf = 1.0", "apf = 1.5")), r"\[failure\].apf must be a probability"),
+        (lambda d: write(d, GOOD.replace("start = [-12.0, 45.0]", "start = [-12.0, 95.0]")), "latitude"),
+        (lambda d: write(d, GOOD.replace("n_ranks = 160", "n_ranks = 0")), r"n_ranks must be >= 1"),
+        (lambda d: write(d, GOOD + "\n[extra]\nx = 1\n"), r"unknown table \[extra\]"),
+        (lambda d: write(d, "[route\nstart = 1"), "not valid TOML"),
+        (lambda d: write(d, GOOD.replace('polar = "maribot_vane"', 'polar = "bad.pol"'))
+         and write(d, "TWA\\TWS\t8\t4\n45\t1\t2\n90\t1\t2\n", "bad.pol") and d / "s.toml", "increasing"),
+    ],
+)
+def test_bad_input_exit_2_one_line_no_output(tmp_path: Path, capsys: pytest.CaptureFixture[str], make,
+                                             message: str) -> None:
+    scenario = make(tmp_path)
+    out = tmp_path / "out"
+    code, stdout, err = run(["route", str(scenario), "--out", str(out), "--quiet"], capsys)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("pyroute-rel: error: ")
+    import re
+
+    assert re.search(message, lines[0]), lines[0]
+    assert "Traceback" not in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_usage_error_is_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["route"])
+    assert exc.value.code == 2
+
+
+def test_console_script_runs_as_a_subprocess(tmp_path: Path) -> None:
+    proc = subprocess.run([sys.executable, "-m", "pyroute_rel.cli", "route", str(tmp_path / "nope.toml")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "not found" in proc.stderr
