@@ -65,7 +65,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("route", help="route a scenario", description="Route a scenario TOML file.")
     r.add_argument("scenario", help="scenario TOML file")
-    r.add_argument("--n-nodes", type=int, help="nodes per rank (overrides [grid].n_nodes)")
+    r.add_argument("--layout", choices=("angular", "square"),
+                   help="grid layout: angular (default: lateral refinement, banded arcs) or square (the paper's)")
+    r.add_argument("--n-nodes", type=int,
+                   help="square: nodes per rank; angular: domain width in rank spacings (overrides [grid].n_nodes)")
+    r.add_argument("--aspect", type=float, help="angular: rank spacing / lateral spacing")
+    r.add_argument("--half-width-km", type=float, help="angular: distance from the great circle to the edge [km]")
     r.add_argument("--n-ranks", type=int, help="number of ranks (overrides [grid].n_ranks)")
     r.add_argument("--spacing-km", type=float, help="lateral node spacing [km] (overrides [grid].spacing_km)")
     r.add_argument("--max-deviation", type=float, dest="max_deviation_deg",
@@ -104,7 +109,8 @@ def _cmd_route(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario).with_options(
         n_nodes=args.n_nodes, n_ranks=args.n_ranks, apf=args.apf, failure_model=args.failure_model,
         spacing_km=args.spacing_km, max_deviation_deg=args.max_deviation_deg, samples_per_arc=args.samples_per_arc,
-        time_step_h=args.time_step_h, max_wait_h=args.max_wait_h,
+        time_step_h=args.time_step_h, max_wait_h=args.max_wait_h, layout=args.layout, aspect=args.aspect,
+        half_width_km=args.half_width_km,
     )
     if args.departures:
         return _departure_sweep(scenario, args)

@@ -43,7 +43,7 @@ from .errors import GridError
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["Grid", "make_grid", "START", "FINISH"]
+__all__ = ["Grid", "make_grid", "plan_grid", "LAYOUTS", "START", "FINISH"]
 
 #: networkx node labels of the start and finish nodes; other nodes are ``(rank, node)`` tuples.
 START = "start"
@@ -306,3 +306,82 @@ def _checked_point(p: Any, name: str) -> tuple[float, float]:
     if abs(lat) > 89.0:
         raise GridError(f"{name} latitude must be within 89 deg of the equator (got {lat:g})")
     return float(geodesy.wrap_lon(lon)), lat
+
+
+#: Grid layouts: "square" is the paper's grid; "angular" refines the lateral spacing (see :func:`plan_grid`).
+LAYOUTS = ("angular", "square")
+#: Defaults of the angular layout, chosen by measurement (README, "Convergent discretisation").
+DEFAULT_ASPECT = 8.0
+DEFAULT_MAX_DEVIATION_DEG = 60.0
+DEFAULT_HALF_WIDTH_KM = 1500.0
+DEFAULT_N_RANKS = 160
+
+
+def plan_grid(
+    start: tuple[float, float],
+    finish: tuple[float, float],
+    *,
+    layout: str = "angular",
+    n_ranks: int | None = None,
+    n_nodes: int | None = None,
+    spacing_km: float | None = None,
+    aspect: float | None = None,
+    half_width_km: float | None = None,
+    max_deviation_deg: float | None = None,
+) -> Grid:
+    """Build a grid from user-level settings (what a scenario's ``[grid]`` table says).
+
+    ``layout = "square"`` is the paper's grid: ``n_ranks`` ranks of ``n_nodes`` nodes, lateral spacing equal
+    to the rank spacing unless ``spacing_km`` is given, every node joined to every node of the next rank unless
+    ``max_deviation_deg`` is given.
+
+    ``layout = "angular"`` (default) decouples the two spacings so that refinement converges:
+
+    - rank spacing = route length / (n_ranks + 1) (``n_ranks`` default :data:`DEFAULT_N_RANKS`);
+    - lateral spacing = ``spacing_km``, else rank spacing / ``aspect`` (default :data:`DEFAULT_ASPECT`);
+    - half-width = ``half_width_km``, else the paper's square domain ``(n_nodes - 1) / 2 x rank spacing`` when
+      ``n_nodes`` is given (so a paper-style ``n_nodes = 160`` keeps the paper's domain and refines it
+      laterally), else :data:`DEFAULT_HALF_WIDTH_KM`;
+    - nodes per rank = ``2 ceil(half-width / lateral spacing) + 1`` (the great circle on the middle node);
+    - arcs banded to ``max_deviation_deg`` (default :data:`DEFAULT_MAX_DEVIATION_DEG`).
+
+    Examples
+    --------
+    >>> g = plan_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=20, aspect=4.0, half_width_km=500.0)
+    >>> g.n_nodes, g.band, round(g.aspect, 6)
+    (77, 6, 4.0)
+    """
+    if layout not in LAYOUTS:
+        raise GridError(f"layout must be one of {list(LAYOUTS)} (got {layout!r})")
+    if layout == "square":
+        return make_grid(start, finish, n_ranks=n_ranks or DEFAULT_N_RANKS, n_nodes=n_nodes or DEFAULT_N_RANKS,
+                         spacing_km=spacing_km, max_deviation_deg=max_deviation_deg)
+    n_ranks = DEFAULT_N_RANKS if n_ranks is None else n_ranks
+    if isinstance(n_ranks, bool) or not isinstance(n_ranks, int | np.integer) or n_ranks < 1:
+        raise GridError(f"n_ranks must be a whole number >= 1 (got {n_ranks!r})")
+    length = float(geodesy.distance_km(start[0], start[1], finish[0], finish[1]))
+    rank_spacing = length / (n_ranks + 1)
+    if spacing_km is None:
+        a = DEFAULT_ASPECT if aspect is None else aspect
+        if not (isinstance(a, int | float) and math.isfinite(a) and 0.01 <= a <= 1000.0):
+            raise GridError(f"aspect (rank spacing / lateral spacing) must be in [0.01, 1000] (got {a!r})")
+        spacing_km = rank_spacing / float(a)
+    if half_width_km is None:
+        if n_nodes is not None:
+            if isinstance(n_nodes, bool) or not isinstance(n_nodes, int | np.integer) or n_nodes < 1:
+                raise GridError(f"n_nodes must be a whole number >= 1 (got {n_nodes!r})")
+            half_width_km = (n_nodes - 1) / 2.0 * rank_spacing
+        else:
+            half_width_km = DEFAULT_HALF_WIDTH_KM
+    if not (isinstance(half_width_km, int | float) and math.isfinite(half_width_km) and half_width_km >= 0):
+        raise GridError(f"half_width_km must be a non-negative number of km (got {half_width_km!r})")
+    if not (isinstance(spacing_km, int | float) and math.isfinite(spacing_km) and spacing_km > 0):
+        raise GridError(f"spacing_km must be a positive number of km (got {spacing_km!r})")
+    nodes = 2 * int(math.ceil(half_width_km / spacing_km - 1e-9)) + 1
+    if nodes > 20001:
+        raise GridError(
+            f"{nodes} nodes per rank (half-width {half_width_km:.0f} km at {spacing_km:.3g} km spacing) is too many: "
+            "lower aspect or half_width_km"
+        )
+    dev = DEFAULT_MAX_DEVIATION_DEG if max_deviation_deg is None else max_deviation_deg
+    return make_grid(start, finish, n_ranks=n_ranks, n_nodes=nodes, spacing_km=spacing_km, max_deviation_deg=dev)

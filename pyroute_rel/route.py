@@ -124,6 +124,9 @@ class Route:
                 "spacing_km": self.grid.spacing_km,
                 "rank_spacing_km": self.grid.rank_spacing_km,
                 "max_deviation_deg": self.grid.max_deviation_deg,
+                "aspect": self.grid.aspect,
+                "half_width_km": self.grid.half_width_km,
+                "band": self.grid.band,
                 "touches_edge": self.touches_edge,
             },
             "arcs": {

@@ -3,8 +3,8 @@
 A scenario has these tables (unknown tables or keys are refused with the file and key named)::
 
     [route]    start = [lon, lat]  finish = [lon, lat]  departure = "2018-06-01T00:00:00Z"
-    [grid]     n_ranks = 160  n_nodes = 160  spacing_km = 36.0 (optional)  max_deviation_deg = 60 (optional)
-               samples_per_arc = 1 (optional)
+    [grid]     layout = "angular" | "square"  n_ranks = 160  n_nodes = 160  (all optional; see grid.plan_grid)
+               spacing_km, aspect, half_width_km, max_deviation_deg, samples_per_arc = 1
     [boat]     polar = "maribot_vane" | "path/to/file.pol"   beyond = "clamp" | "forbid"
     [weather]  kind = "uniform" (tws_kn, twd_deg, hs_m, wave_dir_deg, ... and [[weather.patch]] boxes)
                kind = "file"    (paths = [...], see pyroute_rel.weather_io)
@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import PyrouteError, ScenarioError
-from .grid import Grid, make_grid
+from .grid import LAYOUTS, Grid, plan_grid
 from .polar import BEYOND_MODES, Polar, get_polar
 from .solve import RoutingProblem, solve
 from .weather import UniformWeather, WeatherSource
@@ -46,9 +46,12 @@ SCHEMA: dict[str, dict[str, str]] = {
         "max_wait_h": "longest wait at a node [h] (needs time_step_h)",
     },
     "grid": {
+        "layout": "'angular' (default) or 'square' (the paper's grid)",
         "n_ranks": "whole number >= 1",
-        "n_nodes": "whole number >= 1",
+        "n_nodes": "whole number >= 1 (square: nodes per rank; angular: the paper's domain width in rank spacings)",
         "spacing_km": "lateral node spacing [km]",
+        "aspect": "rank spacing / lateral spacing (angular layout)",
+        "half_width_km": "distance from the great circle to the outermost nodes [km] (angular layout)",
         "max_deviation_deg": "largest arc angle from the rank direction [deg]",
         "samples_per_arc": "weather samples per arc",
     },
@@ -67,8 +70,8 @@ class Scenario:
     start: tuple[float, float]
     finish: tuple[float, float]
     departure: np.datetime64
-    n_ranks: int
-    n_nodes: int
+    n_ranks: int | None
+    n_nodes: int | None
     spacing_km: float | None
     max_deviation_deg: float | None
     samples_per_arc: int
@@ -80,6 +83,9 @@ class Scenario:
     base_dir: Path
     time_step_h: float | None = None
     max_wait_h: float = 0.0
+    layout: str = "angular"
+    aspect: float | None = None
+    half_width_km: float | None = None
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's)."""
@@ -95,8 +101,12 @@ class Scenario:
                 checked[key] = None if str(value).lower() == "none" else str(value)
             elif key == "departure":
                 checked[key] = parse_departure(value, "--departures")
+            elif key == "layout":
+                if value not in LAYOUTS:
+                    raise ScenarioError(f"--layout must be one of {list(LAYOUTS)} (got {value!r})")
+                checked[key] = value
             elif key in ("spacing_km", "max_deviation_deg", "samples_per_arc", "beyond", "time_step_h",
-                         "max_wait_h"):
+                         "max_wait_h", "aspect", "half_width_km"):
                 checked[key] = value
             else:
                 raise ScenarioError(f"unknown scenario option {key!r}")
@@ -104,9 +114,10 @@ class Scenario:
 
     def make_grid(self) -> Grid:
         """The scenario's rank digraph."""
-        return make_grid(
-            self.start, self.finish, n_ranks=self.n_ranks, n_nodes=self.n_nodes,
-            spacing_km=self.spacing_km, max_deviation_deg=self.max_deviation_deg,
+        return plan_grid(
+            self.start, self.finish, layout=self.layout, n_ranks=self.n_ranks, n_nodes=self.n_nodes,
+            spacing_km=self.spacing_km, aspect=self.aspect, half_width_km=self.half_width_km,
+            max_deviation_deg=self.max_deviation_deg,
         )
 
     def load_failure(self) -> FailureModel | None:
@@ -202,8 +213,15 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         raise ScenarioError("[route].max_wait_h needs [route].time_step_h (waiting is modelled on a time lattice)")
 
     grid = table.get("grid", {})
-    n_ranks = _int(grid.get("n_ranks", 160), "[grid].n_ranks", 1)
-    n_nodes = _int(grid.get("n_nodes", 160), "[grid].n_nodes", 1)
+    layout = grid.get("layout", "angular")
+    if layout not in LAYOUTS:
+        raise ScenarioError(f"[grid].layout must be one of {list(LAYOUTS)} (got {layout!r})")
+    n_ranks = None if "n_ranks" not in grid else _int(grid["n_ranks"], "[grid].n_ranks", 1)
+    n_nodes = None if "n_nodes" not in grid else _int(grid["n_nodes"], "[grid].n_nodes", 1)
+    aspect = None if "aspect" not in grid else _positive(grid["aspect"], "[grid].aspect")
+    half_width = None if "half_width_km" not in grid else _number(grid["half_width_km"], "[grid].half_width_km")
+    if half_width is not None and half_width < 0:
+        raise ScenarioError(f"[grid].half_width_km must be >= 0 [km] (got {half_width:g})")
     spacing = grid.get("spacing_km")
     if spacing is not None:
         spacing = _positive(spacing, "[grid].spacing_km")
@@ -238,6 +256,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         source=source, start=start, finish=finish, departure=departure, n_ranks=n_ranks, n_nodes=n_nodes,
         spacing_km=spacing, max_deviation_deg=dev, samples_per_arc=samples, polar=polar, beyond=beyond,
         weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
+        layout=layout, aspect=aspect, half_width_km=half_width,
     )
 
 

@@ -13,7 +13,7 @@ from pyroute_rel.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "microtransat_control.toml"
-SMALL = ["--n-nodes", "21", "--n-ranks", "21"]
+SMALL = ["--layout", "square", "--n-nodes", "21", "--n-ranks", "21"]
 
 
 def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
