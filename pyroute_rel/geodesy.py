@@ -32,6 +32,7 @@ __all__ = [
     "to_xyz",
     "angle_diff_deg",
     "geodesic_distance_km",
+    "crossing_fraction",
 ]
 
 #: Mean Earth radius R1 of GRS80 / WGS84 [km].
@@ -261,3 +262,53 @@ def geodesic_distance_km(
     )
     _, _, dist_m = Geod(ellps="WGS84").inv(lon1, lat1, lon2, lat2)
     return np.asarray(dist_m, dtype=float) / 1000.0
+
+
+def crossing_fraction(
+    lon0_deg: npt.ArrayLike,
+    lat0_deg: npt.ArrayLike,
+    lon1_deg: npt.ArrayLike,
+    lat1_deg: npt.ArrayLike,
+    lon_c_deg: float,
+    lat_c_deg: float,
+    lon_d_deg: float,
+    lat_d_deg: float,
+) -> FloatArray:
+    """Where great-circle arcs 0 → 1 cross the great-circle segment c → d: fraction of the arc's length.
+
+    Returns the fraction in [0, 1] along each arc at which it meets the segment, NaN where it does not
+    (parallel arcs included). Both segments must be shorter than half a great circle.
+
+    >>> float(crossing_fraction(-1.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 1.0))  # the equator crosses lon 0 midway
+    0.5
+    >>> bool(np.isnan(crossing_fraction(-1.0, 0.0, -0.5, 0.0, 0.0, -1.0, 0.0, 1.0)))
+    True
+    """
+    a = to_xyz(lon0_deg, lat0_deg)
+    b = to_xyz(lon1_deg, lat1_deg)
+    a, b = np.broadcast_arrays(a, b)
+    c = to_xyz(lon_c_deg, lat_c_deg)
+    d = to_xyz(lon_d_deg, lat_d_deg)
+    n1 = np.cross(a, b)
+    n2 = np.cross(c, d)
+    p = np.cross(n1, n2)
+    norm = np.linalg.norm(p, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        p = p / norm[..., None]
+    # of the two antipodal intersections, keep the one nearer the arc's midpoint
+    mid = a + b
+    p = np.where((np.einsum("...i,...i->...", p, mid) < 0)[..., None], -p, p)
+    tol = 1e-12
+
+    def between(u: FloatArray, v: FloatArray, q: FloatArray, n: FloatArray) -> npt.NDArray[np.bool_]:
+        return (np.einsum("...i,...i->...", np.cross(u, q), n) >= -tol) & (
+            np.einsum("...i,...i->...", np.cross(q, v), n) >= -tol
+        )
+
+    on_both = between(a, b, p, n1) & between(np.broadcast_to(c, a.shape), np.broadcast_to(d, a.shape), p, n2)
+    on_both &= norm > 1e-15
+    ang_ab = np.arctan2(np.linalg.norm(n1, axis=-1), np.einsum("...i,...i->...", a, b))
+    ang_ap = np.arctan2(np.linalg.norm(np.cross(a, p), axis=-1), np.einsum("...i,...i->...", a, p))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = ang_ap / ang_ab
+    return np.where(on_both & np.isfinite(frac), np.clip(frac, 0.0, 1.0), np.nan)

@@ -72,6 +72,10 @@ class Grid:
     band : Largest index offset |j - i| of an arc between consecutive ranks.
     src_index, arc_valid : Arc pattern between consecutive ranks, shape (n_nodes, width).
     start_valid, finish_valid : Which first-rank nodes the start joins / last-rank nodes join the finish.
+    start_lon, start_lat : Start points [deg] (a start line sampled at the lateral spacing), or None for the
+        single point ``start``. The craft may start from any of them at the departure time.
+    finish_line : End points [deg] of a finish line (a great-circle segment through ``finish``), or None.
+        With a line the voyage ends where a route first crosses it.
     """
 
     start: tuple[float, float]
@@ -88,6 +92,9 @@ class Grid:
     arc_valid: BoolArray
     start_valid: BoolArray
     finish_valid: BoolArray
+    start_lon: FloatArray | None = None
+    start_lat: FloatArray | None = None
+    finish_line: tuple[tuple[float, float], tuple[float, float]] | None = None
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -119,7 +126,22 @@ class Grid:
     def n_arcs(self) -> int:
         """Number of arcs in the digraph, start and finish arcs included."""
         inner = int(self.arc_valid.sum()) * (self.n_ranks - 1)
-        return inner + int(self.start_valid.sum()) + int(self.finish_valid.sum())
+        return inner + int(self.start_pattern.sum()) + int(self.finish_valid.sum())
+
+    @property
+    def start_points(self) -> tuple[FloatArray, FloatArray]:
+        """Start points [deg]: the start line's samples, or the single start."""
+        if self.start_lon is None or self.start_lat is None:
+            return np.array([self.start[0]]), np.array([self.start[1]])
+        return self.start_lon, self.start_lat
+
+    @property
+    def start_pattern(self) -> BoolArray:
+        """Which start points join which first-rank nodes, shape (n_nodes, n_start_points)."""
+        n_start = self.start_points[0].size
+        if n_start == 1:
+            return self.start_valid[:, None]
+        return np.ones((self.n_nodes, n_start), dtype=bool)
 
     def describe(self) -> dict[str, Any]:
         """JSON-ready summary of the grid's geometry."""
@@ -141,10 +163,10 @@ class Grid:
         source node index of each arc, and whether the arc exists.
         """
         if k == 0:
-            src = np.zeros((self.n_nodes, 1), dtype=np.intp)
-            lon0 = np.full((self.n_nodes, 1), self.start[0])
-            lat0 = np.full((self.n_nodes, 1), self.start[1])
-            return lon0, lat0, self.lon_deg[0][:, None], self.lat_deg[0][:, None], src, self.start_valid[:, None]
+            s_lon, s_lat = self.start_points
+            src = np.broadcast_to(np.arange(s_lon.size, dtype=np.intp)[None, :], (self.n_nodes, s_lon.size))
+            return (np.broadcast_to(s_lon[None, :], src.shape), np.broadcast_to(s_lat[None, :], src.shape),
+                    self.lon_deg[0][:, None], self.lat_deg[0][:, None], src, self.start_pattern)
         if k == self.n_ranks:
             src = np.arange(self.n_nodes, dtype=np.intp)[None, :]
             return (
@@ -209,6 +231,8 @@ def make_grid(
     n_nodes: int,
     spacing_km: float | None = None,
     max_deviation_deg: float | None = None,
+    start_line: tuple[tuple[float, float], tuple[float, float]] | None = None,
+    finish_line: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> Grid:
     """Build the rank digraph between two points.
 
@@ -221,6 +245,9 @@ def make_grid(
         the domain is square as in the paper.
     max_deviation_deg : Largest angle [deg] in (0, 90) between an arc and the rank direction; None joins
         every node to every node of the next rank. Also limits the start and finish arcs.
+    start_line : Optional start line ((lon, lat), (lon, lat)) [deg]: the craft may start anywhere on it
+        (sampled at about the lateral spacing); ``start`` is then the grid's origin, usually the line's middle.
+    finish_line : Optional finish line ((lon, lat), (lon, lat)) [deg]; the voyage ends at its first crossing.
 
     Examples
     --------
@@ -278,6 +305,18 @@ def make_grid(
     else:
         reach = math.tan(math.radians(max_deviation_deg)) * rank_spacing + 1e-6 * spacing_km
         start_valid = np.abs(offset) <= max(reach, spacing_km / 2.0)
+    s_lon = s_lat = None
+    if start_line is not None:
+        (a_lon, a_lat), (b_lon, b_lat) = (_checked_point(p, "start_line end") for p in start_line)
+        line_km = float(geodesy.distance_km(a_lon, a_lat, b_lon, b_lat))
+        n_start = int(min(max(2, math.ceil(line_km / spacing_km) + 1), 401))
+        s_lon, s_lat = geodesy.intermediate_point(a_lon, a_lat, b_lon, b_lat, np.linspace(0.0, 1.0, n_start))
+    fin_line = None
+    if finish_line is not None:
+        a, b = (_checked_point(p, "finish_line end") for p in finish_line)
+        if float(geodesy.distance_km(*a, *b)) < 1e-3:
+            raise GridError("finish_line end points must differ")
+        fin_line = (a, b)
     return Grid(
         start=(lon_s, lat_s),
         finish=(lon_f, lat_f),
@@ -293,6 +332,9 @@ def make_grid(
         arc_valid=valid,
         start_valid=start_valid,
         finish_valid=start_valid.copy(),
+        start_lon=s_lon,
+        start_lat=s_lat,
+        finish_line=fin_line,
     )
 
 
@@ -328,6 +370,8 @@ def plan_grid(
     aspect: float | None = None,
     half_width_km: float | None = None,
     max_deviation_deg: float | None = None,
+    start_line: tuple[tuple[float, float], tuple[float, float]] | None = None,
+    finish_line: tuple[tuple[float, float], tuple[float, float]] | None = None,
 ) -> Grid:
     """Build a grid from user-level settings (what a scenario's ``[grid]`` table says).
 
@@ -355,7 +399,8 @@ def plan_grid(
         raise GridError(f"layout must be one of {list(LAYOUTS)} (got {layout!r})")
     if layout == "square":
         return make_grid(start, finish, n_ranks=n_ranks or DEFAULT_N_RANKS, n_nodes=n_nodes or DEFAULT_N_RANKS,
-                         spacing_km=spacing_km, max_deviation_deg=max_deviation_deg)
+                         spacing_km=spacing_km, max_deviation_deg=max_deviation_deg, start_line=start_line,
+                         finish_line=finish_line)
     n_ranks = DEFAULT_N_RANKS if n_ranks is None else n_ranks
     if isinstance(n_ranks, bool) or not isinstance(n_ranks, int | np.integer) or n_ranks < 1:
         raise GridError(f"n_ranks must be a whole number >= 1 (got {n_ranks!r})")
@@ -384,4 +429,5 @@ def plan_grid(
             "lower aspect or half_width_km"
         )
     dev = DEFAULT_MAX_DEVIATION_DEG if max_deviation_deg is None else max_deviation_deg
-    return make_grid(start, finish, n_ranks=n_ranks, n_nodes=nodes, spacing_km=spacing_km, max_deviation_deg=dev)
+    return make_grid(start, finish, n_ranks=n_ranks, n_nodes=nodes, spacing_km=spacing_km, max_deviation_deg=dev,
+                     start_line=start_line, finish_line=finish_line)

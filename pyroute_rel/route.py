@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from .grid import Grid
     from .solve import DPResult, RoutingProblem
 
-__all__ = ["Route", "build_route", "atomic_write", "write_outputs", "OUTPUT_FILES"]
+__all__ = ["Route", "build_route", "join_routes", "atomic_write", "write_outputs", "OUTPUT_FILES"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -200,14 +200,12 @@ class Route:
 
 def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
     """Turn a DP result into a Route, recomputing every leg from its end points."""
-    from .solve import path_costs
+    from .solve import leg_costs
 
     nodes = result.path()
     waits = result.waits()
-    elapsed, costs = path_costs(grid, problem, nodes, waits)
-    ranks = np.arange(grid.n_ranks)
-    lon = np.concatenate([[grid.start[0]], grid.lon_deg[ranks, nodes], [grid.finish[0]]])
-    lat = np.concatenate([[grid.start[1]], grid.lat_deg[ranks, nodes], [grid.finish[1]]])
+    lon, lat = result.points(grid)
+    elapsed, costs = leg_costs(problem, lon, lat, waits)
     dist = geodesy.distance_nm(lon[:-1], lat[:-1], lon[1:], lat[1:])
     mlon, mlat = geodesy.intermediate_point(lon[:-1], lat[:-1], lon[1:], lat[1:], 0.5)
     course = geodesy.initial_bearing_deg(mlon, mlat, lon[1:], lat[1:])
@@ -244,6 +242,30 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         lon_deg=lon, lat_deg=lat, elapsed_h=elapsed, departure=np.datetime64(problem.departure, "s"),
         legs=legs, nodes=nodes, grid=grid, dp=result, meta=meta,
     )
+
+
+def join_routes(routes: list[Route]) -> Route:
+    """One Route from legs sailed one after the other (each starting where and when the previous ended)."""
+    from dataclasses import replace as _replace
+
+    first = routes[0]
+    lon = np.concatenate([first.lon_deg, *(r.lon_deg[1:] for r in routes[1:])])
+    lat = np.concatenate([first.lat_deg, *(r.lat_deg[1:] for r in routes[1:])])
+    offsets = [0.0]
+    for r in routes[:-1]:
+        offsets.append(offsets[-1] + r.voyage_time_h)
+    elapsed = np.concatenate([first.elapsed_h, *(o + r.elapsed_h[1:] for o, r in zip(offsets[1:], routes[1:],
+                                                                                      strict=True))])
+    legs = {k: np.concatenate([r.legs[k] for r in routes]) for k in first.legs}
+    dp = _replace(first.dp, arcs_evaluated=sum(r.dp.arcs_evaluated for r in routes),
+                  arcs_forbidden=sum(r.dp.arcs_forbidden for r in routes),
+                  forbidden_by_reason={k: sum(r.dp.forbidden_by_reason[k] for r in routes)
+                                       for k in first.dp.forbidden_by_reason})
+    meta = dict(first.meta)
+    meta["legs_of_course"] = len(routes)
+    meta["grids_object"] = [r.grid for r in routes]
+    return Route(lon_deg=lon, lat_deg=lat, elapsed_h=elapsed, departure=first.departure, legs=legs,
+                 nodes=np.concatenate([r.nodes for r in routes]), grid=first.grid, dp=dp, meta=meta)
 
 
 def _iso(t: np.datetime64) -> str:

@@ -25,7 +25,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import PyrouteError, ScenarioError
-from .grid import LAYOUTS, Grid, plan_grid
+from .geodesy import along_track_km, cross_track_km, distance_km, intermediate_point
+from .grid import DEFAULT_N_RANKS, LAYOUTS, Grid, plan_grid
 from .polar import BEYOND_MODES, Polar, get_polar
 from .solve import RoutingProblem, solve
 from .weather import UniformWeather, WeatherSource
@@ -42,6 +43,9 @@ SCHEMA: dict[str, dict[str, str]] = {
         "start": "[lon, lat] [deg]",
         "finish": "[lon, lat] [deg]",
         "departure": "ISO 8601 UTC time",
+        "start_line": "[[lon, lat], [lon, lat]] [deg]: start anywhere on this line",
+        "finish_line": "[[lon, lat], [lon, lat]] [deg]: the voyage ends at its first crossing",
+        "waypoints": "[[lon, lat], ...] [deg]: marks to pass, in order",
         "time_step_h": "time lattice of the time-expanded DP [h]",
         "max_wait_h": "longest wait at a node [h] (needs time_step_h)",
     },
@@ -86,6 +90,9 @@ class Scenario:
     layout: str = "angular"
     aspect: float | None = None
     half_width_km: float | None = None
+    start_line: tuple[tuple[float, float], tuple[float, float]] | None = None
+    finish_line: tuple[tuple[float, float], tuple[float, float]] | None = None
+    waypoints: tuple[tuple[float, float], ...] = ()
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's)."""
@@ -113,12 +120,28 @@ class Scenario:
         return replace(self, **checked)
 
     def make_grid(self) -> Grid:
-        """The scenario's rank digraph."""
-        return plan_grid(
-            self.start, self.finish, layout=self.layout, n_ranks=self.n_ranks, n_nodes=self.n_nodes,
-            spacing_km=self.spacing_km, aspect=self.aspect, half_width_km=self.half_width_km,
-            max_deviation_deg=self.max_deviation_deg,
-        )
+        """The scenario's rank digraph (the first leg's when the course has waypoints)."""
+        return self.leg_grids()[0]
+
+    def leg_grids(self) -> list[Grid]:
+        """One grid per leg: start → waypoints → finish. Legs share the rank spacing of the whole course."""
+        marks = [self.start, *self.waypoints, self.finish]
+        lengths = [float(distance_km(*a, *b)) for a, b in zip(marks[:-1], marks[1:], strict=True)]
+        total = sum(lengths)
+        grids = []
+        for i, (a, b) in enumerate(zip(marks[:-1], marks[1:], strict=True)):
+            n_ranks = self.n_ranks
+            n_nodes = self.n_nodes
+            if len(marks) > 2:
+                n = self.n_ranks if self.n_ranks is not None else DEFAULT_N_RANKS
+                n_ranks = max(1, round(n * lengths[i] / total))
+            grids.append(plan_grid(
+                a, b, layout=self.layout, n_ranks=n_ranks, n_nodes=n_nodes, spacing_km=self.spacing_km,
+                aspect=self.aspect, half_width_km=self.half_width_km, max_deviation_deg=self.max_deviation_deg,
+                start_line=self.start_line if i == 0 else None,
+                finish_line=self.finish_line if i == len(marks) - 2 else None,
+            ))
+        return grids
 
     def load_failure(self) -> FailureModel | None:
         """The compiled failure model, or None."""
@@ -142,9 +165,22 @@ class Scenario:
         )
 
     def route(self, *, progress: bool = False) -> Route:
-        """Route the scenario (forward DP on its grid)."""
-        grid = self.make_grid()
-        route = solve(grid, self.problem(), progress=progress)
+        """Route the scenario (forward DP on its grid; leg after leg through waypoints).
+
+        Legs are solved in order, each departing when the previous one arrives at its mark; under FIFO
+        weather this is optimal for the whole course, since the earliest arrival at a mark is best for what
+        follows.
+        """
+        from .route import join_routes
+
+        problem = self.problem()
+        routes = []
+        departure = self.departure
+        for grid in self.leg_grids():
+            leg_problem = replace(problem, departure=departure)
+            routes.append(solve(grid, leg_problem, progress=progress))
+            departure = routes[-1].arrival
+        route = routes[0] if len(routes) == 1 else join_routes(routes)
         route.meta["scenario"] = self.source
         return route
 
@@ -194,11 +230,27 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
                 if key not in spec:
                     raise ScenarioError(f"[{name}]: unknown key {key!r} (expected one of {', '.join(spec)})")
     route = table.get("route", {})
+    start_line = _line(route["start_line"], "[route].start_line") if "start_line" in route else None
+    finish_line = _line(route["finish_line"], "[route].finish_line") if "finish_line" in route else None
+    if "start" not in route and start_line is not None:
+        route = {**route, "start": list(_midpoint(start_line))}
+    if "finish" not in route and finish_line is not None:
+        if "start" not in route:
+            raise ScenarioError("[route].start is missing ([lon, lat] [deg], or a start_line)")
+        route = {**route, "finish": list(_nearest_on_line(finish_line, _point(route["start"], "[route].start")))}
     for key in ("start", "finish"):
         if key not in route:
             raise ScenarioError(f"[route].{key} is missing ({SCHEMA['route'][key]})")
     start = _point(route["start"], "[route].start")
     finish = _point(route["finish"], "[route].finish")
+    if finish_line is not None:
+        off = abs(float(cross_track_km(*finish_line[0], *finish_line[1], *finish)))
+        if off > 1.0:
+            raise ScenarioError(f"[route].finish {list(finish)} must lie on [route].finish_line ({off:.1f} km off it)")
+    raw_wp = route.get("waypoints", [])
+    if not isinstance(raw_wp, list):
+        raise ScenarioError("[route].waypoints must be a list of [lon, lat] points [deg]")
+    waypoints = tuple(_point(p, f"[route].waypoints[{i}]") for i, p in enumerate(raw_wp))
     if abs(start[0] - finish[0]) < 1e-9 and abs(start[1] - finish[1]) < 1e-9:
         raise ScenarioError(f"[route].start equals [route].finish ({list(start)}): nothing to route")
     departure = parse_departure(route.get("departure", "2018-06-01T00:00:00Z"), "[route].departure")
@@ -256,7 +308,8 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         source=source, start=start, finish=finish, departure=departure, n_ranks=n_ranks, n_nodes=n_nodes,
         spacing_km=spacing, max_deviation_deg=dev, samples_per_arc=samples, polar=polar, beyond=beyond,
         weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
-        layout=layout, aspect=aspect, half_width_km=half_width,
+        layout=layout, aspect=aspect, half_width_km=half_width, start_line=start_line, finish_line=finish_line,
+        waypoints=waypoints,
     )
 
 
@@ -326,6 +379,31 @@ def _int(v: Any, where: str, lo: int) -> int:
     if v < lo:
         raise ScenarioError(f"{where} must be >= {lo} (got {v})")
     return int(v)
+
+
+def _line(v: Any, where: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    if not isinstance(v, list | tuple) or len(v) != 2:
+        raise ScenarioError(f"{where} must be [[lon, lat], [lon, lat]] in degrees (got {v!r})")
+    a, b = _point(v[0], f"{where}[0]"), _point(v[1], f"{where}[1]")
+    if a == b:
+        raise ScenarioError(f"{where} end points must differ (got {v!r})")
+    return a, b
+
+
+def _midpoint(line: tuple[tuple[float, float], tuple[float, float]]) -> tuple[float, float]:
+    lon, lat = intermediate_point(*line[0], *line[1], 0.5)
+    return float(lon), float(lat)
+
+
+def _nearest_on_line(
+    line: tuple[tuple[float, float], tuple[float, float]], p: tuple[float, float]
+) -> tuple[float, float]:
+    """The point of a great-circle segment nearest to p (the grid aims there by default)."""
+    (c_lon, c_lat), (d_lon, d_lat) = line
+    length = float(distance_km(c_lon, c_lat, d_lon, d_lat))
+    along = float(along_track_km(c_lon, c_lat, d_lon, d_lat, *p))
+    lon, lat = intermediate_point(c_lon, c_lat, d_lon, d_lat, min(max(along / length, 0.0), 1.0))
+    return float(lon), float(lat)
 
 
 def _point(v: Any, where: str) -> tuple[float, float]:

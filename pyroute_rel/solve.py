@@ -151,6 +151,10 @@ class DPResult:
     dead_rank : First rank (0..n_ranks, n_ranks = finish) with no reachable node, or None.
     wait_h : Wait at the source node before the best arc into each node, shape (n_ranks + 1, n_nodes) [h]
         (row n_ranks, column 0: before the arc into the finish); zeros without waiting.
+    end_rank, end_node, end_src, end_fraction, end_wait_h : With a finish line, the arc on which the voyage
+        ends: it goes into rank ``end_rank`` (``n_ranks`` = the finish point) node ``end_node`` from node
+        ``end_src`` of the previous rank (a start point when ``end_rank`` is 0) and crosses the line at
+        ``end_fraction`` of its length, after a wait of ``end_wait_h``. None without a finish line.
     """
 
     arrival_h: FloatArray
@@ -162,24 +166,62 @@ class DPResult:
     forbidden_by_reason: dict[str, int]
     dead_rank: int | None
     wait_h: FloatArray | None = None
+    end_rank: int | None = None
+    end_node: int = -1
+    end_src: int = -1
+    end_fraction: float = 1.0
+    end_wait_h: float = 0.0
 
     def waits(self) -> FloatArray:
-        """Wait before each leg of the optimal path [h] (n_ranks + 1 values)."""
+        """Wait before each leg of the optimal path [h] (one value per leg)."""
         nodes = self.path()
-        n_ranks = self.arrival_h.shape[0]
+        k_end = len(nodes)
         if self.wait_h is None:
-            return np.zeros(n_ranks + 1)
-        return np.concatenate([self.wait_h[np.arange(n_ranks), nodes], [self.wait_h[n_ranks, 0]]])
+            return np.zeros(k_end + 1)
+        last = self.end_wait_h if self.end_rank is not None else self.wait_h[k_end, 0]
+        return np.concatenate([self.wait_h[np.arange(k_end), nodes], [last]])
 
     def path(self) -> npt.NDArray[np.intp]:
-        """Node index on each rank of the optimal path (follows back-pointers from the finish)."""
+        """Node index on each rank the optimal path visits (follows back-pointers from its end).
+
+        All ranks normally; with a finish line, ranks ``0 .. end_rank - 1``.
+        """
         n_ranks = self.arrival_h.shape[0]
-        nodes = np.empty(n_ranks, dtype=np.intp)
-        node = self.finish_back
-        for k in range(n_ranks - 1, -1, -1):
+        k_end = n_ranks if self.end_rank is None else self.end_rank
+        node = self.finish_back if self.end_rank is None else self.end_src
+        nodes = np.empty(k_end, dtype=np.intp)
+        for k in range(k_end - 1, -1, -1):
             nodes[k] = node
             node = int(self.back[k, node])
         return nodes
+
+    def start_index(self) -> int:
+        """Which start point the optimal path leaves from (0 without a start line)."""
+        nodes = self.path()
+        if len(nodes) == 0:
+            return max(self.end_src, 0)
+        return int(self.back[0, nodes[0]])
+
+    def points(self, grid: Grid) -> tuple[FloatArray, FloatArray]:
+        """Track points [deg] of the optimal path: start point, one node per rank visited, end point."""
+        from . import geodesy as _g
+
+        nodes = self.path()
+        s_lon, s_lat = grid.start_points
+        i0 = self.start_index()
+        ranks = np.arange(len(nodes))
+        lon = [s_lon[i0], *grid.lon_deg[ranks, nodes]]
+        lat = [s_lat[i0], *grid.lat_deg[ranks, nodes]]
+        if self.end_rank is None:
+            lon.append(grid.finish[0])
+            lat.append(grid.finish[1])
+        else:
+            k = self.end_rank
+            dst = grid.finish if k == grid.n_ranks else (grid.lon_deg[k, self.end_node], grid.lat_deg[k, self.end_node])
+            e_lon, e_lat = _g.intermediate_point(lon[-1], lat[-1], dst[0], dst[1], self.end_fraction)
+            lon.append(float(e_lon))
+            lat.append(float(e_lat))
+        return np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
 
 
 def forward_dp(
@@ -201,8 +243,11 @@ def forward_dp(
     forbidden = 0
     by_reason = dict.fromkeys(REASONS, 0)
     dead: int | None = None
-    t_prev = np.zeros(1)
+    t_prev = np.zeros(grid.start_points[0].size)
     wait_into = np.zeros((n_ranks + 1, n_nodes)) if problem.n_wait else None
+    line = grid.finish_line is not None
+    cross_best = np.inf
+    cross_at: tuple[int, int, int, float, float] | None = None
     bar = _progress_bar(n_ranks + 1, enabled=progress)
     try:
         for k in range(n_ranks + 1):
@@ -228,6 +273,13 @@ def forward_dp(
                 if cost_hook is not None and w == 0:
                     cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costs.p_f, reason=r_w))
                 tot_w = np.where(live, problem.arrive(t0 + time_h), np.inf)
+                if line and k < n_ranks:
+                    frac = _crossing(grid, k)
+                    cand = np.where(np.isfinite(frac) & np.isfinite(tot_w), t0 + frac * time_h, np.inf)
+                    if cand.size and np.min(cand) < cross_best:
+                        jj, cc = np.unravel_index(np.argmin(cand), cand.shape)
+                        cross_best = float(cand[jj, cc])
+                        cross_at = (k, int(jj), int(src[jj, cc]), float(frac[jj, cc]), w * step)
                 better = tot_w < total
                 total = np.where(better, tot_w, total)
                 wait = np.where(better, w * step, wait)
@@ -255,8 +307,21 @@ def forward_dp(
             if not np.isfinite(t_new).any():
                 dead = k
                 break
+            if line and k < n_ranks and np.all(t_new >= cross_best):
+                break  # every node of this rank is reached after the line was crossed: nothing can beat it
     finally:
         bar.close()
+    end: dict[str, Any] = {}
+    if line:
+        end = {"end_rank": n_ranks, "end_node": 0, "end_src": finish_back, "end_fraction": 1.0,
+               "end_wait_h": 0.0 if wait_into is None else float(wait_into[n_ranks, 0])}
+        if cross_at is not None and cross_best < finish_h:
+            finish_h = cross_best
+            k_c, j_c, i_c, f_c, w_c = cross_at
+            end = {"end_rank": k_c, "end_node": j_c, "end_src": i_c, "end_fraction": f_c, "end_wait_h": w_c}
+            dead = None
+        elif not np.isfinite(finish_h):
+            end = {}
     return DPResult(
         arrival_h=arrival,
         back=back,
@@ -267,6 +332,7 @@ def forward_dp(
         forbidden_by_reason=by_reason,
         dead_rank=dead,
         wait_h=wait_into,
+        **end,
     )
 
 
@@ -292,9 +358,23 @@ def solve(
     return build_route(grid, problem, result)
 
 
+def _crossing(grid: Grid, k: int) -> FloatArray:
+    """Fraction along each arc into rank k where it crosses the finish line (NaN: no crossing); cached."""
+    cache = grid._cache.setdefault("crossing", {})
+    frac = cache.get(k)
+    if frac is None:
+        lon0, lat0, lon1, lat1, _, _ = grid.arcs(k)
+        assert grid.finish_line is not None
+        (c_lon, c_lat), (d_lon, d_lat) = grid.finish_line
+        frac = geodesy.crossing_fraction(lon0, lat0, lon1, lat1, c_lon, c_lat, d_lon, d_lat)
+        cache[k] = frac
+    return frac
+
+
 def _pattern(grid: Grid, k: int) -> tuple[npt.NDArray[np.intp], BoolArray]:
     if k == 0:
-        return np.zeros((grid.n_nodes, 1), dtype=np.intp), grid.start_valid[:, None]
+        pattern = grid.start_pattern
+        return np.broadcast_to(np.arange(pattern.shape[1], dtype=np.intp)[None, :], pattern.shape), pattern
     if k == grid.n_ranks:
         return np.arange(grid.n_nodes, dtype=np.intp)[None, :], grid.finish_valid[None, :]
     return grid.src_index, grid.arc_valid
@@ -310,7 +390,7 @@ def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
         if xyz is None:
             xyz = grid._cache["xyz"] = geodesy.to_xyz(grid.lon_deg, grid.lat_deg)
         if k == 0:
-            a = geodesy.to_xyz(*grid.start)[None, None, :]
+            a = geodesy.to_xyz(*grid.start_points)[None, :, :]
             b = xyz[0][:, None, :]
         elif k == grid.n_ranks:
             a = xyz[-1][None, :, :]
@@ -332,7 +412,7 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
     """One-line explanation of why no route exists: where the front died and what forbade the arcs."""
     k = result.dead_rank if result.dead_rank is not None else grid.n_ranks
     lon0, lat0, lon1, lat1, src, valid = grid.arcs(k)
-    t_prev = np.zeros(1) if k == 0 else result.arrival_h[k - 1]
+    t_prev = np.zeros(grid.start_points[0].size) if k == 0 else result.arrival_h[k - 1]
     t0 = t_prev[src]
     live = valid & np.isfinite(t0)
     t0 = np.where(live, t0, 0.0)
@@ -426,6 +506,14 @@ def path_costs(
     """
     lon = np.concatenate([[grid.start[0]], grid.lon_deg[np.arange(grid.n_ranks), nodes], [grid.finish[0]]])
     lat = np.concatenate([[grid.start[1]], grid.lat_deg[np.arange(grid.n_ranks), nodes], [grid.finish[1]]])
+    return leg_costs(problem, lon, lat, waits)
+
+
+def leg_costs(
+    problem: RoutingProblem, lon_deg: FloatArray, lat_deg: FloatArray, waits: Sequence[float] | None = None
+) -> tuple[FloatArray, ArcCosts]:
+    """Chain great-circle legs through the given points (see :func:`path_costs`)."""
+    lon, lat = np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float)
     n_legs = len(lon) - 1
     wait = np.zeros(n_legs) if waits is None else np.asarray(waits, dtype=float)
     elapsed = np.zeros(n_legs + 1)

@@ -1,0 +1,78 @@
+"""Courses: start lines, finish lines (the voyage ends at the first crossing) and waypoints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pyroute_rel import geodesy
+from pyroute_rel.errors import ScenarioError
+from pyroute_rel.scenario import scenario_from_mapping
+
+BASE = {
+    "grid": {"n_ranks": 30, "aspect": 4.0, "half_width_km": 900.0},
+    "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+}
+FINISH_LINE = [[-60.0, 10.0], [-60.0, 25.0]]
+START_LINE = [[-16.0, 51.0], [-8.0, 45.0]]
+
+
+def scenario(route: dict, **grid):
+    return scenario_from_mapping({**BASE, "grid": {**BASE["grid"], **grid}, "route": route})
+
+
+def test_finish_line_ends_on_the_line_and_beats_any_point_on_it() -> None:
+    with_line = scenario({"start": [-12.0, 45.0], "finish_line": FINISH_LINE}).route()
+    lon, lat = with_line.lon_deg[-1], with_line.lat_deg[-1]
+    # the last point is on the line (the meridian 60 W between 10 and 25 N) ...
+    assert abs(float(geodesy.cross_track_km(-60.0, 10.0, -60.0, 25.0, lon, lat))) < 1e-6
+    assert 10.0 <= lat <= 25.0
+    # ... and no earlier point is past it (the voyage ends at the first crossing)
+    assert np.all(with_line.lon_deg[:-1] > -60.0)
+    # the grid aims at the line's point nearest the start (25 N here); on that same grid, finishing anywhere on
+    # the line is at least as fast as finishing at the aim point
+    assert with_line.grid.finish == pytest.approx((-60.0, 25.0))
+    to_point = scenario({"start": [-12.0, 45.0], "finish": [-60.0, 25.0]}).route()
+    assert with_line.voyage_time_h <= to_point.voyage_time_h + 1e-9
+    # with the aim point given explicitly the line is still honoured
+    mid = scenario({"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "finish_line": FINISH_LINE}).route()
+    assert abs(float(geodesy.cross_track_km(-60.0, 10.0, -60.0, 25.0, mid.lon_deg[-1], mid.lat_deg[-1]))) < 1e-6
+    # the last leg's recomputed time is consistent with the voyage time
+    assert with_line.elapsed_h[-1] == pytest.approx(with_line.dp.finish_h, rel=1e-9)
+
+
+def test_start_line_starts_on_the_line_and_is_no_slower() -> None:
+    line = scenario({"start_line": START_LINE, "finish": [-60.0, 17.5]}).route()
+    lon, lat = line.lon_deg[0], line.lat_deg[0]
+    assert abs(float(geodesy.cross_track_km(*START_LINE[0], *START_LINE[1], lon, lat))) < 1e-6
+    mid = scenario({"start": [float(v) for v in geodesy.intermediate_point(*START_LINE[0], *START_LINE[1], 0.5)],
+                    "finish": [-60.0, 17.5]}).route()
+    assert line.voyage_time_h <= mid.voyage_time_h + 1e-9
+
+
+def test_waypoints_pass_the_marks_and_add_up() -> None:
+    wp = [-30.0, 40.0]
+    whole = scenario({"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "waypoints": [wp]}, n_ranks=40)
+    route = whole.route()
+    hit = np.nonzero(np.isclose(route.lon_deg, wp[0]) & np.isclose(route.lat_deg, wp[1]))[0]
+    assert hit.size == 1
+    # legs solved on their own: the same grids, the second leg departing at the first one's arrival
+    grids = whole.leg_grids()
+    assert len(grids) == 2 and grids[0].finish == (-30.0, 40.0) and grids[1].start == (-30.0, 40.0)
+    from pyroute_rel.solve import solve
+
+    leg1 = solve(grids[0], whole.problem())
+    leg2 = solve(grids[1], whole.with_options(departure=str(leg1.arrival)).problem())
+    assert route.voyage_time_h == pytest.approx(leg1.voyage_time_h + leg2.voyage_time_h, abs=1e-3)
+    assert route.elapsed_h[hit[0]] == pytest.approx(leg1.voyage_time_h, rel=1e-9)
+
+
+@pytest.mark.parametrize("route,match", [
+    ({"start": [-12.0, 45.0], "finish": [-50.0, 17.5], "finish_line": FINISH_LINE}, "must lie on"),
+    ({"start": [-12.0, 45.0], "finish_line": [[-60.0, 10.0], [-60.0, 10.0]]}, "must differ"),
+    ({"start": [-12.0, 45.0], "finish_line": [-60.0, 10.0]}, r"finish_line\[0\] must be \[lon, lat\]"),
+    ({"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "waypoints": [[-30.0, 95.0]]}, r"waypoints\[0\]"),
+])
+def test_bad_courses(route: dict, match: str) -> None:
+    with pytest.raises(ScenarioError, match=match):
+        scenario(route)
