@@ -20,8 +20,6 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
 from pyroute_rel.gci import convergence_study
 from pyroute_rel.grid import make_grid, plan_grid
 from pyroute_rel.scenario import load_scenario
