@@ -126,7 +126,7 @@ def plot_routes(
         levels = np.arange(0.5, max(int(np.nanmax(fired)), 1) + 1.5)
         if np.nanmax(fired) > 0:
             cs = ax.contourf(glon, glat, fired, levels=levels, cmap="Reds", alpha=0.45)
-            cb = fig.colorbar(cs, ax=ax, shrink=0.7)
+            cb = fig.colorbar(cs, ax=ax, shrink=0.7, ticks=np.arange(1, levels.size))
             cb.set_label(f"criteria of '{failure.name}' fired (course heading)")
     if coast:
         _draw_coast(ax, grid)
@@ -148,10 +148,21 @@ def plot_routes(
     ax.plot(*grid.finish, "ks", ms=7, label="finish")
     ax.set_xlabel("longitude [deg]")
     ax.set_ylabel("latitude [deg]")
+    # frame the routes, patches and zones (the grid outline may extend beyond: it is clipped)
+    xs = [np.asarray(r.lon_deg) for r in routes]
+    ys = [np.asarray(r.lat_deg) for r in routes]
+    for patch in getattr(weather, "patches", ()) if weather is not None else ():
+        xs.append(np.asarray(patch.lon))
+        ys.append(np.asarray(patch.lat))
+    x_all, y_all = np.concatenate(xs), np.concatenate(ys)
+    pad_x = max(3.0, 0.15 * float(np.ptp(x_all)))
+    pad_y = max(3.0, 0.15 * float(np.ptp(y_all)))
+    ax.set_xlim(float(x_all.min()) - pad_x, float(x_all.max()) + pad_x)
+    ax.set_ylim(float(y_all.min()) - pad_y, float(y_all.max()) + pad_y)
     mid_lat = 0.5 * (grid.lat_deg.min() + grid.lat_deg.max())
     ax.set_aspect(1.0 / np.cos(np.radians(mid_lat)))
     ax.grid(True, lw=0.3)
-    ax.legend(fontsize=7, loc="lower left")
+    ax.legend(fontsize=7, loc="best")
     ax.set_title(title or f"{grid.n_ranks} ranks x {grid.n_nodes} nodes")
     fig.tight_layout()
     if path is not None:

@@ -18,15 +18,16 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .avoid import Avoid, check_points, obstacle_mask
 from .errors import PyrouteError, ScenarioError
 from .geodesy import along_track_km, cross_track_km, distance_km, intermediate_point
-from .grid import DEFAULT_N_RANKS, LAYOUTS, Grid, plan_grid
+from .grid import DEFAULT_N_RANKS, LAYOUTS, Grid, auto_samples, plan_grid
 from .polar import BEYOND_MODES, Polar, get_polar
 from .solve import RoutingProblem, solve
 from .weather import UniformWeather, WeatherSource
@@ -62,6 +63,12 @@ SCHEMA: dict[str, dict[str, str]] = {
     "boat": {"polar": "built-in name or polar file", "beyond": f"one of {list(BEYOND_MODES)}"},
     "weather": {},  # validated by the weather kind
     "failure": {"model": "model name, model file, or 'none'", "apf": "probability in [0, 1]"},
+    "avoid": {
+        "land": "true (default) or false: forbid arcs over land (offline GSHHG shoreline)",
+        "margin_km": "keep this far from any coast [km]",
+        "resolution": "GSHHG resolution: 'intermediate' (default), 'low', 'high', 'full'",
+        "zones": "GeoJSON files of exclusion zones (relative to the scenario file)",
+    },
 }
 WEATHER_KINDS = ("uniform", "file")
 
@@ -78,7 +85,7 @@ class Scenario:
     n_nodes: int | None
     spacing_km: float | None
     max_deviation_deg: float | None
-    samples_per_arc: int
+    samples_per_arc: int | None
     polar: Polar
     beyond: str
     weather: WeatherSource
@@ -93,6 +100,7 @@ class Scenario:
     start_line: tuple[tuple[float, float], tuple[float, float]] | None = None
     finish_line: tuple[tuple[float, float], tuple[float, float]] | None = None
     waypoints: tuple[tuple[float, float], ...] = ()
+    avoid: Avoid = field(default_factory=Avoid)
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's)."""
@@ -112,6 +120,8 @@ class Scenario:
                 if value not in LAYOUTS:
                     raise ScenarioError(f"--layout must be one of {list(LAYOUTS)} (got {value!r})")
                 checked[key] = value
+            elif key == "land":
+                checked["avoid"] = replace(self.avoid, land=bool(value))
             elif key in ("spacing_km", "max_deviation_deg", "samples_per_arc", "beyond", "time_step_h",
                          "max_wait_h", "aspect", "half_width_km"):
                 checked[key] = value
@@ -144,7 +154,7 @@ class Scenario:
         return grids
 
     def load_failure(self) -> FailureModel | None:
-        """The compiled failure model, or None."""
+        """The compiled failure model, or None. Refuses a model that needs fields the weather lacks."""
         if self.failure_model is None:
             return None
         from .failure import load_failure_model
@@ -153,14 +163,39 @@ class Scenario:
         candidate = self.base_dir / name
         if ("/" in name or name.endswith(".toml")) and candidate.exists():
             name = str(candidate)
-        return load_failure_model(name)
+        model = load_failure_model(name)
+        have = getattr(self.weather, "fields", None)
+        if have is not None:
+            needs = {"hs_m": {"hs_m"}, "awd_deg": {"wave_dir_deg"}, "tws_kn": {"tws_kn"}, "twa_deg": {"twd_deg"},
+                     "wave_period_s": {"wave_period_s"}}
+            missing = sorted({f for q in model.quantities for f in needs.get(q, set())} - set(have))
+            if missing:
+                raise ScenarioError(
+                    f"failure model {model.name!r} needs {', '.join(missing)} but the weather provides only "
+                    f"{', '.join(sorted(have))}: add a file with those fields to [weather].paths or choose "
+                    "another model (--failure-model none)"
+                )
+        return model
 
-    def problem(self, *, failure: FailureModel | None = None, blocked: Any = None) -> RoutingProblem:
-        """The routing problem (weather, polar, failure model, apf)."""
+    def problem(
+        self, *, failure: FailureModel | None = None, blocked: Any = "auto", grid: Grid | None = None
+    ) -> RoutingProblem:
+        """The routing problem (weather, polar, failure model, apf) for a grid (default: the scenario's).
+
+        With ``samples_per_arc`` unset the number of weather samples per arc follows the grid
+        (:func:`~pyroute_rel.grid.auto_samples`).
+        """
+        samples = self.samples_per_arc
+        if grid is None:
+            grid = self.make_grid()
+        if samples is None:
+            samples = auto_samples(grid)
+        if blocked == "auto":
+            blocked = obstacle_mask(grid, self.avoid)
         return RoutingProblem(
             departure=self.departure, weather=self.weather, polar=self.polar,
             failure=failure if failure is not None else self.load_failure(), apf=self.apf,
-            samples=self.samples_per_arc, beyond=self.beyond, blocked=blocked, time_step_h=self.time_step_h,
+            samples=samples, beyond=self.beyond, blocked=blocked, time_step_h=self.time_step_h,
             max_wait_h=self.max_wait_h,
         )
 
@@ -173,15 +208,19 @@ class Scenario:
         """
         from .route import join_routes
 
-        problem = self.problem()
+        check_points([("[route].start", self.start), *((f"[route].waypoints[{i}]", p) for i, p in
+                      enumerate(self.waypoints)), ("[route].finish", self.finish)], self.avoid)
+        failure = self.load_failure()
         routes = []
         departure = self.departure
         for grid in self.leg_grids():
-            leg_problem = replace(problem, departure=departure)
+            leg_problem = replace(self.problem(failure=failure, grid=grid), departure=departure)
             routes.append(solve(grid, leg_problem, progress=progress))
             departure = routes[-1].arrival
         route = routes[0] if len(routes) == 1 else join_routes(routes)
         route.meta["scenario"] = self.source
+        route.meta["zones_object"] = self.avoid.zones
+        route.meta["land"] = self.avoid.land
         return route
 
 
@@ -282,8 +321,8 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         dev = _number(dev, "[grid].max_deviation_deg")
         if not 0.0 < dev < 90.0:
             raise ScenarioError(f"[grid].max_deviation_deg must be in (0, 90) [deg] (got {dev:g})")
-    samples = _int(grid.get("samples_per_arc", 1), "[grid].samples_per_arc", 1)
-    if samples > 64:
+    samples = None if "samples_per_arc" not in grid else _int(grid["samples_per_arc"], "[grid].samples_per_arc", 1)
+    if samples is not None and samples > 64:
         raise ScenarioError(f"[grid].samples_per_arc must be at most 64 (got {samples})")
 
     boat = table.get("boat", {})
@@ -295,7 +334,9 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     if beyond not in BEYOND_MODES:
         raise ScenarioError(f"[boat].beyond must be one of {list(BEYOND_MODES)} (got {beyond!r})")
 
-    weather = _weather(table.get("weather"), base_dir)
+    avoid = _avoid(table.get("avoid", {}), base_dir)
+    bbox = _course_bbox(start, finish, waypoints, start_line, finish_line, grid_table=grid)
+    weather = _weather(table.get("weather"), base_dir, bbox=bbox, departure=departure)
 
     failure = table.get("failure", {})
     model = failure.get("model", None)
@@ -309,11 +350,50 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         spacing_km=spacing, max_deviation_deg=dev, samples_per_arc=samples, polar=polar, beyond=beyond,
         weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
         layout=layout, aspect=aspect, half_width_km=half_width, start_line=start_line, finish_line=finish_line,
-        waypoints=waypoints,
+        waypoints=waypoints, avoid=avoid,
     )
 
 
-def _weather(raw: Any, base_dir: Path) -> WeatherSource:
+def _avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:
+    land = raw.get("land", True)
+    if not isinstance(land, bool):
+        raise ScenarioError(f"[avoid].land must be true or false (got {land!r})")
+    margin = _number(raw.get("margin_km", 0.0), "[avoid].margin_km")
+    if not 0.0 <= margin <= 500.0:
+        raise ScenarioError(f"[avoid].margin_km must be in [0, 500] [km] (got {margin:g})")
+    resolution = raw.get("resolution", "intermediate")
+    from .obstacles import RESOLUTIONS, load_zones
+
+    if resolution not in RESOLUTIONS:
+        raise ScenarioError(f"[avoid].resolution must be one of {list(RESOLUTIONS)} (got {resolution!r})")
+    paths = raw.get("zones", [])
+    if isinstance(paths, str):
+        paths = [paths]
+    if not isinstance(paths, list) or not all(isinstance(p, str) for p in paths):
+        raise ScenarioError(f"[avoid].zones must be a list of GeoJSON file names (got {paths!r})")
+    zones = load_zones(paths, base_dir=base_dir) if paths else ()
+    return Avoid(land=land, margin_km=margin, resolution=resolution, zones=tuple(zones))
+
+
+def _course_bbox(start: Any, finish: Any, waypoints: Any, start_line: Any, finish_line: Any, *,
+                 grid_table: Mapping[str, Any]) -> tuple[float, float, float, float]:
+    """A lon/lat box [deg] sure to hold the grid: the course's points widened by the grid's half-width."""
+    pts = [start, finish, *waypoints, *(start_line or ()), *(finish_line or ())]
+    lon = np.array([p[0] for p in pts])
+    lat = np.array([p[1] for p in pts])
+    length = float(distance_km(*start, *finish))
+    half = grid_table.get("half_width_km")
+    if half is None:
+        n_ranks = grid_table.get("n_ranks", DEFAULT_N_RANKS)
+        n_nodes = grid_table.get("n_nodes")
+        half = 2000.0 if n_nodes is None else (n_nodes - 1) / 2.0 * length / (n_ranks + 1)
+    pad_lat = float(half) / 111.0 + 1.0
+    pad_lon = pad_lat / max(np.cos(np.radians(min(80.0, float(np.max(np.abs(lat))) + pad_lat))), 0.2)
+    return (max(float(lon.min()) - pad_lon, -180.0), max(float(lat.min()) - pad_lat, -89.0),
+            min(float(lon.max()) + pad_lon, 180.0), min(float(lat.max()) + pad_lat, 89.0))
+
+
+def _weather(raw: Any, base_dir: Path, *, bbox: Any = None, departure: Any = None) -> WeatherSource:
     if raw is None:
         raise ScenarioError("[weather] is missing (kind = \"uniform\" with tws_kn and twd_deg, or kind = \"file\")")
     if not isinstance(raw, Mapping):
@@ -324,7 +404,8 @@ def _weather(raw: Any, base_dir: Path) -> WeatherSource:
     if kind == "file":
         from .weather_io import weather_from_mapping
 
-        return weather_from_mapping(raw, base_dir=base_dir)
+        window = None if departure is None else (departure - np.timedelta64(1, "h"), departure + np.timedelta64(120, "D"))
+        return weather_from_mapping(raw, base_dir=base_dir, bbox=bbox, time_window=window)
     raise ScenarioError(f"[weather].kind must be one of {list(WEATHER_KINDS)} (got {kind!r})")
 
 

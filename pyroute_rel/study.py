@@ -136,11 +136,18 @@ def run_study(
     """
     if len(levels) < 3:
         raise ConvergenceError(f"a study needs at least three grids (got {len(levels)})")
-    problem = scenario.problem()
+    from dataclasses import replace
+
+    from .grid import auto_samples
+
+    failure = scenario.load_failure()
     rows = []
     for i, lv in enumerate(levels):
         grid = make_grid(scenario.start, scenario.finish, n_ranks=lv.n_ranks, n_nodes=lv.n_nodes,
                          spacing_km=lv.spacing_km, max_deviation_deg=lv.max_deviation_deg)
+        problem = scenario.problem(failure=failure, grid=grid)
+        if scenario.samples_per_arc is None:
+            problem = replace(problem, samples=auto_samples(grid))
         t0 = time.perf_counter()
         res = forward_dp(grid, problem)
         dt = time.perf_counter() - t0
@@ -152,7 +159,8 @@ def run_study(
         row = {
             "n_ranks": grid.n_ranks, "n_nodes": grid.n_nodes, "h_km": float(h), "spacing_km": grid.spacing_km,
             "rank_spacing_km": grid.rank_spacing_km, "max_deviation_deg": grid.max_deviation_deg,
-            "arcs": res.arcs_evaluated, "voyage_time_h": float(res.finish_h), "runtime_s": dt,
+            "arcs": res.arcs_evaluated, "samples_per_arc": problem.samples, "voyage_time_h": float(res.finish_h),
+            "runtime_s": dt,
         }
         rows.append(row)
         if progress is not None:

