@@ -108,6 +108,7 @@ def obstacle_mask(grid: Grid, avoid: Avoid) -> Any:
             return mask | hit
         return mask
 
+    blocked.grid = grid  # type: ignore[attr-defined]
     return blocked
 
 

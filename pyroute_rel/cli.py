@@ -68,7 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--layout", choices=("angular", "square"),
                    help="grid layout: angular (default: lateral refinement, banded arcs) or square (the paper's)")
     r.add_argument("--n-nodes", type=int,
-                   help="square: nodes per rank; angular: domain width in rank spacings (overrides [grid].n_nodes)")
+                   help="square layout: nodes per rank (overrides [grid].n_nodes; the angular layout derives its own "
+                        "from --half-width-km and --aspect)")
     r.add_argument("--aspect", type=float, help="angular: rank spacing / lateral spacing")
     r.add_argument("--half-width-km", type=float, help="angular: distance from the great circle to the edge [km]")
     r.add_argument("--n-ranks", type=int, help="number of ranks (overrides [grid].n_ranks)")
@@ -81,6 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--time-step", type=float, dest="time_step_h",
                    help="time-expanded DP on this time lattice [h] (exact without FIFO; allows waiting)")
     r.add_argument("--max-wait", type=float, dest="max_wait_h", help="longest wait at a node [h] (needs --time-step)")
+    r.add_argument("--no-land", action="store_true", help="do not avoid land (overrides [avoid].land)")
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument("--out", help="folder for route.geojson, route.gpx, route.csv, summary.json, route.png")
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -110,7 +112,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
         n_nodes=args.n_nodes, n_ranks=args.n_ranks, apf=args.apf, failure_model=args.failure_model,
         spacing_km=args.spacing_km, max_deviation_deg=args.max_deviation_deg, samples_per_arc=args.samples_per_arc,
         time_step_h=args.time_step_h, max_wait_h=args.max_wait_h, layout=args.layout, aspect=args.aspect,
-        half_width_km=args.half_width_km,
+        half_width_km=args.half_width_km, land=False if args.no_land else None,
     )
     if args.departures:
         return _departure_sweep(scenario, args)
@@ -123,6 +125,10 @@ def _cmd_route(args: argparse.Namespace) -> int:
         from .route import write_outputs
 
         write_outputs(route, args.out, extra={"runtime_s": elapsed})
+    if scenario.layout == "angular" and scenario.n_nodes is not None and not args.json:
+        print(f"pyroute-rel: note: n_nodes = {scenario.n_nodes} applies to layout = 'square'; the angular layout "
+              f"used {route.grid.n_nodes} nodes per rank (half-width {route.grid.half_width_km:.0f} km, aspect "
+              f"{route.grid.aspect:g}, arcs within {route.grid.max_deviation_deg:g} deg)", file=sys.stderr)
     if route.touches_edge:
         print("pyroute-rel: warning: the route uses the outermost nodes of the grid; widen it (more nodes or a "
               "larger spacing_km) to check that a wider detour is not faster", file=sys.stderr)

@@ -353,9 +353,9 @@ def _checked_point(p: Any, name: str) -> tuple[float, float]:
 #: Grid layouts: "square" is the paper's grid; "angular" refines the lateral spacing (see :func:`plan_grid`).
 LAYOUTS = ("angular", "square")
 #: Defaults of the angular layout, chosen by measurement (README, "Convergent discretisation").
-DEFAULT_ASPECT = 8.0
-DEFAULT_MAX_DEVIATION_DEG = 60.0
-DEFAULT_HALF_WIDTH_KM = 1500.0
+DEFAULT_ASPECT = 6.0
+DEFAULT_MAX_DEVIATION_DEG = 45.0
+DEFAULT_HALF_WIDTH_KM = 1000.0
 DEFAULT_N_RANKS = 160
 #: Default spacing of weather samples along an arc [km] (see :func:`auto_samples`).
 DEFAULT_SAMPLE_KM = 25.0
@@ -401,9 +401,8 @@ def plan_grid(
 
     - rank spacing = route length / (n_ranks + 1) (``n_ranks`` default :data:`DEFAULT_N_RANKS`);
     - lateral spacing = ``spacing_km``, else rank spacing / ``aspect`` (default :data:`DEFAULT_ASPECT`);
-    - half-width = ``half_width_km``, else the paper's square domain ``(n_nodes - 1) / 2 x rank spacing`` when
-      ``n_nodes`` is given (so a paper-style ``n_nodes = 160`` keeps the paper's domain and refines it
-      laterally), else :data:`DEFAULT_HALF_WIDTH_KM`;
+    - half-width = ``half_width_km``, else :data:`DEFAULT_HALF_WIDTH_KM` (``n_nodes`` belongs to the square
+      layout and is not used here);
     - nodes per rank = ``2 ceil(half-width / lateral spacing) + 1`` (the great circle on the middle node);
     - arcs banded to ``max_deviation_deg`` (default :data:`DEFAULT_MAX_DEVIATION_DEG`).
 
@@ -411,7 +410,7 @@ def plan_grid(
     --------
     >>> g = plan_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=20, aspect=4.0, half_width_km=500.0)
     >>> g.n_nodes, g.band, round(g.aspect, 6)
-    (17, 6, 4.0)
+    (17, 4, 4.0)
     """
     if layout not in LAYOUTS:
         raise GridError(f"layout must be one of {list(LAYOUTS)} (got {layout!r})")
@@ -430,12 +429,7 @@ def plan_grid(
             raise GridError(f"aspect (rank spacing / lateral spacing) must be in [0.01, 1000] (got {a!r})")
         spacing_km = rank_spacing / float(a)
     if half_width_km is None:
-        if n_nodes is not None:
-            if isinstance(n_nodes, bool) or not isinstance(n_nodes, int | np.integer) or n_nodes < 1:
-                raise GridError(f"n_nodes must be a whole number >= 1 (got {n_nodes!r})")
-            half_width_km = (n_nodes - 1) / 2.0 * rank_spacing
-        else:
-            half_width_km = DEFAULT_HALF_WIDTH_KM
+        half_width_km = DEFAULT_HALF_WIDTH_KM
     if not (isinstance(half_width_km, int | float) and math.isfinite(half_width_km) and half_width_km >= 0):
         raise GridError(f"half_width_km must be a non-negative number of km (got {half_width_km!r})")
     if not (isinstance(spacing_km, int | float) and math.isfinite(spacing_km) and spacing_km > 0):

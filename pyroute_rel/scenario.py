@@ -53,7 +53,7 @@ SCHEMA: dict[str, dict[str, str]] = {
     "grid": {
         "layout": "'angular' (default) or 'square' (the paper's grid)",
         "n_ranks": "whole number >= 1",
-        "n_nodes": "whole number >= 1 (square: nodes per rank; angular: the paper's domain width in rank spacings)",
+        "n_nodes": "whole number >= 1: nodes per rank of the square layout (the angular layout derives its own)",
         "spacing_km": "lateral node spacing [km]",
         "aspect": "rank spacing / lateral spacing (angular layout)",
         "half_width_km": "distance from the great circle to the outermost nodes [km] (angular layout)",
@@ -404,7 +404,9 @@ def _weather(raw: Any, base_dir: Path, *, bbox: Any = None, departure: Any = Non
     if kind == "file":
         from .weather_io import weather_from_mapping
 
-        window = None if departure is None else (departure - np.timedelta64(1, "h"), departure + np.timedelta64(120, "D"))
+        window = None
+        if departure is not None:  # the voyage window: from departure, for up to 120 days
+            window = (departure - np.timedelta64(1, "h"), departure + np.timedelta64(120, "D"))
         return weather_from_mapping(raw, base_dir=base_dir, bbox=bbox, time_window=window)
     raise ScenarioError(f"[weather].kind must be one of {list(WEATHER_KINDS)} (got {kind!r})")
 

@@ -236,6 +236,9 @@ def forward_dp(
     ``cost_hook(k, costs)`` is called with the costs of the arcs into rank k (for tests and diagnostics).
     """
     n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
+    if getattr(problem.blocked, "grid", grid) is not grid:
+        raise ValueError("the problem's obstacle mask was built for another grid: build the problem for this grid "
+                         "(Scenario.problem(grid=...))")
     arrival = np.full((n_ranks, n_nodes), np.inf)
     back = np.full((n_ranks, n_nodes), -1, dtype=np.intp)
     finish_h, finish_back = np.inf, -1

@@ -23,7 +23,7 @@ def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, 
 
 
 def test_route_json_contract(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(["route", str(EXAMPLE), *SMALL, "--json", "--quiet"], capsys)
+    code, out, err = run(["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land"], capsys)
     assert code == 0, err
     d = json.loads(out)
     for key, typ in [("voyage_time_h", float), ("distance_nm", float), ("departure", str), ("arrival", str),

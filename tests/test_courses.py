@@ -61,8 +61,10 @@ def test_waypoints_pass_the_marks_and_add_up() -> None:
     assert len(grids) == 2 and grids[0].finish == (-30.0, 40.0) and grids[1].start == (-30.0, 40.0)
     from pyroute_rel.solve import solve
 
-    leg1 = solve(grids[0], whole.problem())
-    leg2 = solve(grids[1], whole.with_options(departure=str(leg1.arrival)).problem())
+    leg1 = solve(grids[0], whole.problem(grid=grids[0]))
+    leg2 = solve(grids[1], whole.with_options(departure=str(leg1.arrival)).problem(grid=grids[1]))
+    with pytest.raises(ValueError, match="another grid"):
+        solve(grids[1], whole.problem(grid=grids[0]))
     assert route.voyage_time_h == pytest.approx(leg1.voyage_time_h + leg2.voyage_time_h, abs=1e-3)
     assert route.elapsed_h[hit[0]] == pytest.approx(leg1.voyage_time_h, rel=1e-9)
 

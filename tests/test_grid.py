@@ -114,11 +114,14 @@ def test_plan_grid_layouts() -> None:
 
     sq = plan_grid(START_PT, FINISH_PT, layout="square", n_ranks=40, n_nodes=41)
     assert (sq.n_ranks, sq.n_nodes, sq.band) == (40, 41, 40) and sq.aspect == pytest.approx(1.0)
-    # angular with a paper-style n_nodes keeps the paper's domain width and refines it laterally
-    ang = plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=41, aspect=4.0, max_deviation_deg=45.0)
+    # angular: the lateral spacing is the rank spacing / aspect, n_nodes (a square-layout setting) is not used
+    ang = plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=41, aspect=4.0, half_width_km=sq.half_width_km,
+                    max_deviation_deg=45.0)
     assert ang.half_width_km == pytest.approx(sq.half_width_km, rel=1e-9)
     assert ang.spacing_km == pytest.approx(sq.spacing_km / 4.0)
     assert ang.n_nodes == 4 * 40 + 1 and ang.band == 4
+    assert plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=41).n_nodes == \
+        plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=7).n_nodes
     # explicit half-width: nodes cover at least it, the great circle on the middle node
     hw = plan_grid(START_PT, FINISH_PT, n_ranks=40, aspect=3.0, half_width_km=1000.0)
     assert hw.half_width_km >= 1000.0 > hw.half_width_km - hw.spacing_km and hw.n_nodes % 2 == 1
