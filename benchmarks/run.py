@@ -87,6 +87,21 @@ print(json.dumps({"seconds": t_gather, "per_arc_gather_s": per_arc, "per_query_p
 """)
 
 
+def _load_case_files() -> None:
+    """Cases also live in ``benchmarks/cases_*.py``: each defines ``CASES = {name: (code, target_s, what)}``
+    (``code`` runs after :data:`PRELUDE` in a fresh interpreter and prints one JSON object whose ``seconds`` is
+    compared with ``target_s``; an optional boolean ``pass_ratio`` must also hold)."""
+    import importlib.util
+
+    for path in sorted(Path(__file__).parent.glob("cases_*.py")):
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        assert spec is not None and spec.loader is not None
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        for name, (code, target, what) in mod.CASES.items():
+            CASES[name] = (textwrap.dedent(code), target, what)
+
+
 def run_case(name: str) -> dict:
     code, target, what = CASES[name]
     proc = subprocess.run([sys.executable, "-c", PRELUDE + code], capture_output=True, text=True, cwd=ROOT)
@@ -106,6 +121,7 @@ def main() -> int:
     ap.add_argument("--only", nargs="*", help="case names (default: all)")
     ap.add_argument("--json", action="store_true", help="print one JSON list")
     args = ap.parse_args()
+    _load_case_files()
     names = args.only or list(CASES)
     results = []
     for name in names:
