@@ -30,7 +30,7 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -45,6 +45,7 @@ if TYPE_CHECKING:
 __all__ = [
     "ArcCosts",
     "ArcGeometry",
+    "WaveLoss",
     "arc_geometry",
     "geometry_from_xyz",
     "arc_costs",
@@ -111,6 +112,39 @@ def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[s
         "twa_deg": geodesy.angle_diff_deg(conditions.twd_deg, heading_deg),
         "wave_period_s": conditions.wave_period_s,
     }
+
+
+@dataclass(frozen=True)
+class WaveLoss:
+    """Speed loss in waves: the polar speed is multiplied by ``factor(Hs)``, linear between table points.
+
+    ``hs_m`` [m] strictly increasing from 0; ``factor`` [-] in [0, 1]. Beyond the last point the last factor
+    holds. NaN Hs gives NaN speed (the arc is forbidden as missing weather).
+
+    >>> WaveLoss(hs_m=(0.0, 2.0, 6.0), factor=(1.0, 0.9, 0.0)).factor(np.array([1.0, 4.0, 8.0])).tolist()
+    [0.95, 0.45, 0.0]
+    """
+
+    hs_m: tuple[float, ...]
+    factor_: tuple[float, ...]
+
+    def __init__(self, hs_m: Any, factor: Any) -> None:
+        h = tuple(float(v) for v in hs_m)
+        f = tuple(float(v) for v in factor)
+        if len(h) != len(f) or len(h) < 1:
+            raise ValueError(f"wave speed loss needs as many factors as Hs values (got {len(h)} and {len(f)})")
+        if h[0] != 0.0 or any(b <= a for a, b in zip(h[:-1], h[1:], strict=True)):
+            raise ValueError(f"wave speed loss Hs values must start at 0 and increase (got {list(h)})")
+        if not all(0.0 <= v <= 1.0 for v in f):
+            raise ValueError(f"wave speed loss factors must be in [0, 1] (got {list(f)})")
+        object.__setattr__(self, "hs_m", h)
+        object.__setattr__(self, "factor_", f)
+
+    def factor(self, hs_m: npt.ArrayLike) -> FloatArray:
+        """Speed factor [-] at significant wave heights [m]."""
+        hs = np.asarray(hs_m, dtype=float)
+        out = np.interp(hs, self.hs_m, self.factor_)
+        return np.where(np.isnan(hs), np.nan, out)
 
 
 @dataclass(frozen=True)
@@ -206,6 +240,7 @@ def arc_costs(
     apf: float = 1.0,
     samples: int = 1,
     beyond: str = "clamp",
+    wave_loss: WaveLoss | None = None,
 ) -> ArcCosts:
     """Cost of sailing great-circle arcs, vectorised (Algorithm 1 of Dickson et al. 2018).
 
@@ -220,6 +255,7 @@ def arc_costs(
     apf : Acceptable probability of failure in [0, 1]; arcs with ``p_f > apf`` are forbidden.
     samples : Sub-segments per arc (>= 1).
     beyond : Polar behaviour outside its table, ``"clamp"`` or ``"forbid"``.
+    wave_loss : Optional speed loss in waves: the polar speed is multiplied by a factor of Hs.
 
     Returns
     -------
@@ -238,7 +274,7 @@ def arc_costs(
     geom = arc_geometry(lon0_deg, lat0_deg, lon1_deg, lat1_deg, samples=samples)
     t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape) if geom.shape else np.asarray(t0_h, float)
     return geometry_costs(geom, t0, departure=departure, weather=weather, polar=polar, failure=failure,
-                          apf=apf, beyond=beyond)
+                          apf=apf, beyond=beyond, wave_loss=wave_loss)
 
 
 def geometry_costs(
@@ -251,6 +287,7 @@ def geometry_costs(
     failure: FailureModel | None = None,
     apf: float = 1.0,
     beyond: str = "clamp",
+    wave_loss: WaveLoss | None = None,
 ) -> ArcCosts:
     """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid)."""
     steady = bool(getattr(weather, "steady", False))
@@ -260,7 +297,7 @@ def geometry_costs(
     def evaluate(time_h: FloatArray | None) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8]]:
         time = departure if time_h is None else _to_datetime(departure, time_h)
         cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
-        return _sample_costs(cond, geom.course_deg, geom.seg_nm, polar, failure, apf, beyond)
+        return _sample_costs(cond, geom.course_deg, geom.seg_nm, polar, failure, apf, beyond, wave_loss)
 
     if steady:
         dt, p_f, reason = evaluate(None)
@@ -294,6 +331,7 @@ def _sample_costs(
     failure: FailureModel | None,
     apf: float,
     beyond: str,
+    wave_loss: WaveLoss | None = None,
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8]]:
     """Per-sample time [h], p_f and reason flags."""
     reason = np.zeros(course_deg.shape, dtype=np.uint8)
@@ -311,6 +349,8 @@ def _sample_costs(
         heading = (course_deg + np.where(np.isfinite(drift), drift, 0.0)) % 360.0
     twa = geodesy.angle_diff_deg(cond.twd_deg, heading)
     v = boat_speed_kn(polar, twa, cond.tws_kn, beyond=beyond)
+    if wave_loss is not None:
+        v = v * wave_loss.factor(cond.hs_m)
     if current:
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = -c_cross / v

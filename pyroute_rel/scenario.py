@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .avoid import Avoid, check_points, obstacle_mask
+from .cost import WaveLoss
 from .errors import PyrouteError, ScenarioError
 from .geodesy import along_track_km, cross_track_km, distance_km, intermediate_point
 from .grid import DEFAULT_N_RANKS, LAYOUTS, Grid, auto_samples, plan_grid
@@ -60,7 +61,11 @@ SCHEMA: dict[str, dict[str, str]] = {
         "max_deviation_deg": "largest arc angle from the rank direction [deg]",
         "samples_per_arc": "weather samples per arc",
     },
-    "boat": {"polar": "built-in name or polar file", "beyond": f"one of {list(BEYOND_MODES)}"},
+    "boat": {
+        "polar": "built-in name or polar file",
+        "beyond": f"one of {list(BEYOND_MODES)}",
+        "wave_speed_loss": "[[hs_m, factor], ...]: polar speed x factor(Hs), linear, from Hs = 0",
+    },
     "weather": {},  # validated by the weather kind
     "failure": {"model": "model name, model file, or 'none'", "apf": "probability in [0, 1]"},
     "avoid": {
@@ -101,6 +106,7 @@ class Scenario:
     finish_line: tuple[tuple[float, float], tuple[float, float]] | None = None
     waypoints: tuple[tuple[float, float], ...] = ()
     avoid: Avoid = field(default_factory=Avoid)
+    wave_loss: WaveLoss | None = None
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's)."""
@@ -196,7 +202,7 @@ class Scenario:
             departure=self.departure, weather=self.weather, polar=self.polar,
             failure=failure if failure is not None else self.load_failure(), apf=self.apf,
             samples=samples, beyond=self.beyond, blocked=blocked, time_step_h=self.time_step_h,
-            max_wait_h=self.max_wait_h,
+            max_wait_h=self.max_wait_h, wave_loss=self.wave_loss,
         )
 
     def route(self, *, progress: bool = False) -> Route:
@@ -330,6 +336,16 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     if not isinstance(polar_name, str):
         raise ScenarioError(f"[boat].polar must be a built-in name or a file path (got {polar_name!r})")
     polar = get_polar(polar_name, base_dir=base_dir)
+    wave_loss = None
+    if "wave_speed_loss" in boat:
+        raw = boat["wave_speed_loss"]
+        try:
+            if not isinstance(raw, list) or not all(isinstance(r, list) and len(r) == 2 for r in raw):
+                raise ValueError("expected a list of [hs_m, factor] pairs")
+            wave_loss = WaveLoss(hs_m=[_number(r[0], "[boat].wave_speed_loss") for r in raw],
+                                 factor=[_number(r[1], "[boat].wave_speed_loss") for r in raw])
+        except ValueError as exc:
+            raise ScenarioError(f"[boat].wave_speed_loss: {exc} (got {raw!r})") from None
     beyond = boat.get("beyond", "clamp")
     if beyond not in BEYOND_MODES:
         raise ScenarioError(f"[boat].beyond must be one of {list(BEYOND_MODES)} (got {beyond!r})")
@@ -350,7 +366,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         spacing_km=spacing, max_deviation_deg=dev, samples_per_arc=samples, polar=polar, beyond=beyond,
         weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
         layout=layout, aspect=aspect, half_width_km=half_width, start_line=start_line, finish_line=finish_line,
-        waypoints=waypoints, avoid=avoid,
+        waypoints=waypoints, avoid=avoid, wave_loss=wave_loss,
     )
 
 

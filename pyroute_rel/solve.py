@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .cost import REASONS, ArcCosts, ArcGeometry, arc_costs, arc_quantities, geometry_costs, geometry_from_xyz
+from .cost import REASONS, ArcCosts, ArcGeometry, WaveLoss, arc_costs, arc_quantities, geometry_costs, geometry_from_xyz
 from .errors import NoFeasibleRouteError, ScenarioError
 from .grid import Grid
 from .polar import BEYOND_MODES, Polar
@@ -72,6 +72,7 @@ class RoutingProblem:
         the time-expanded DP: times live on the lattice ``0, step, 2 step, ...`` (arrivals are rounded *up*
         to it, so every reported time is achievable) and the craft may wait at a node.
     max_wait_h : Longest wait at one node [h] (multiples of ``time_step_h``; 0 = never wait).
+    wave_loss : Optional speed loss in waves (:class:`~pyroute_rel.cost.WaveLoss`).
     """
 
     departure: np.datetime64
@@ -84,6 +85,7 @@ class RoutingProblem:
     blocked: ArcMask | None = field(default=None, repr=False)
     time_step_h: float | None = None
     max_wait_h: float = 0.0
+    wave_loss: WaveLoss | None = None
 
     def __post_init__(self) -> None:
         if self.time_step_h is not None and not (
@@ -120,7 +122,7 @@ class RoutingProblem:
         """Arc costs on precomputed geometry."""
         return geometry_costs(
             geom, t0_h, departure=self.departure, weather=self.weather, polar=self.polar, failure=self.failure,
-            apf=float(self.apf), beyond=self.beyond,
+            apf=float(self.apf), beyond=self.beyond, wave_loss=self.wave_loss,
         )
 
     def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
@@ -128,7 +130,7 @@ class RoutingProblem:
         return arc_costs(
             lon0, lat0, lon1, lat1, t0_h,
             departure=self.departure, weather=self.weather, polar=self.polar, failure=self.failure,
-            apf=float(self.apf), samples=self.samples, beyond=self.beyond,
+            apf=float(self.apf), samples=self.samples, beyond=self.beyond, wave_loss=self.wave_loss,
         )
 
 

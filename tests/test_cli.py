@@ -100,6 +100,35 @@ def test_bad_input_exit_2_one_line_no_output(tmp_path: Path, capsys: pytest.Capt
     assert not out.exists() or not any(out.iterdir())
 
 
+def test_start_on_land_and_everything_forbidden_are_explained(tmp_path: Path,
+                                                                capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    on_land = write(tmp_path, GOOD.replace("start = [-12.0, 45.0]", "start = [2.35, 48.85]"))  # Paris
+    code, _, err = run(["route", str(on_land), "--out", str(out), "--quiet"], capsys)
+    assert code == 2 and "[route].start [2.35, 48.85] is on land" in err and err.count("\n") == 1
+    # 5 m waves everywhere at apf 0.5: WH fires on every arc, so nothing is allowed; the message says so
+    storm = write(tmp_path, GOOD.replace("hs_m = 1.0", "hs_m = 5.0"), "storm.toml")
+    code, _, err = run(["route", str(storm), "--apf", "0.5", "--out", str(out), "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1
+    assert "no feasible route" in err and "front died at rank 1 " in err
+    assert "failure model 'dickson2018'" in err and "WH: hs_m >= 4 m on" in err and "raise --apf" in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_failure_command(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(["failure", "dickson2018", "--json"], capsys)
+    assert code == 0
+    d = json.loads(out)
+    assert d["model"] == "dickson2018" and len(d["criteria"]) == 2
+    # the paper's Table 1: P(fail) = 0, 0.9, 0.9, 1.0 for no, one, the other, both criteria
+    p = sorted(round(row["p_fail"], 9) for row in d["table"])
+    assert p == [0.0, 0.9, 0.9, 1.0]
+    code, out, _ = run(["failure"], capsys)
+    assert code == 0 and "dickson2018" in out.split() and "wind_wave_multistate" in out.split()
+    code, _, err = run(["failure", "no_such_model"], capsys)
+    assert code == 2 and "no_such_model" in err and err.count("\n") == 1
+
+
 def test_usage_error_is_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exc:
         main(["route"])

@@ -1,0 +1,108 @@
+"""Arc cost (Algorithm 1): analytical cases for currents, wave speed loss, missing weather and the apf rule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pyroute_rel import geodesy
+from pyroute_rel.cost import KN_PER_MS, REASONS, WaveLoss, arc_costs
+from pyroute_rel.failure import load_failure_model
+from pyroute_rel.polar import Polar, get_polar
+from pyroute_rel.weather import UniformWeather
+
+DEP = np.datetime64("2018-06-01T00:00")
+# a flat polar: 5 kn at every TWA from 30 deg and every TWS from 4 kn (so speed does not depend on heading)
+FLAT = Polar(name="flat", twa_deg=np.array([0.0, 29.9, 30.0, 180.0]), tws_kn=np.array([0.0, 4.0, 40.0]),
+             speed_kn=np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 5.0, 5.0], [0.0, 5.0, 5.0]]))
+EAST = (0.0, 0.0, 1.0, 0.0)  # one degree of the equator, course 090
+DIST_NM = float(geodesy.distance_nm(*EAST))
+
+
+def cost(weather, polar=FLAT, **kw):
+    return arc_costs(*EAST, 0.0, departure=DEP, weather=weather, polar=polar, **kw)
+
+
+def test_no_current_is_distance_over_polar_speed() -> None:
+    c = cost(UniformWeather(tws_kn=12.0, twd_deg=0.0))
+    assert float(c.time_h) == pytest.approx(DIST_NM / 5.0, rel=1e-12)
+    assert int(c.reason) == 0 and float(c.p_f) == 0.0
+
+
+@pytest.mark.parametrize("u_ms", [0.5, -0.5, 1.5])
+def test_current_along_the_course_adds_to_speed(u_ms: float) -> None:
+    c = cost(UniformWeather(tws_kn=12.0, twd_deg=0.0, current_u_ms=u_ms))
+    assert float(c.time_h) == pytest.approx(DIST_NM / (5.0 + u_ms * KN_PER_MS), rel=1e-9)
+
+
+@pytest.mark.parametrize("v_ms", [0.5, -1.0, 2.0])
+def test_cross_current_needs_a_crab_angle(v_ms: float) -> None:
+    # the boat heads into the cross current so that its track stays on the arc: sog = sqrt(5^2 - c^2)
+    c_kn = v_ms * KN_PER_MS
+    c = cost(UniformWeather(tws_kn=12.0, twd_deg=0.0, current_v_ms=v_ms))
+    assert float(c.time_h) == pytest.approx(DIST_NM / np.sqrt(25.0 - c_kn**2), rel=1e-9)
+
+
+def test_current_too_strong_forbids_the_arc() -> None:
+    cross = cost(UniformWeather(tws_kn=12.0, twd_deg=0.0, current_v_ms=3.0))  # 5.8 kn across > 5 kn
+    head = cost(UniformWeather(tws_kn=12.0, twd_deg=0.0, current_u_ms=-3.0))  # 5.8 kn on the nose
+    for c in (cross, head):
+        assert np.isinf(c.time_h) and int(c.reason) & REASONS["current"]
+
+
+def test_wave_speed_loss_scales_speed() -> None:
+    loss = WaveLoss(hs_m=(0.0, 2.0, 6.0), factor=(1.0, 0.8, 0.2))
+    c = cost(UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=4.0), wave_loss=loss)
+    assert float(c.time_h) == pytest.approx(DIST_NM / (5.0 * 0.5), rel=1e-12)  # factor 0.8 -> 0.2 halfway: 0.5
+    with pytest.raises(ValueError, match="start at 0"):
+        WaveLoss(hs_m=(1.0, 2.0), factor=(1.0, 0.5))
+
+
+def test_missing_weather_is_forbidden_never_calm() -> None:
+    class NaNWind(UniformWeather):
+        def sample(self, lon_deg, lat_deg, time):
+            c = super().sample(lon_deg, lat_deg, time)
+            c.tws_kn[...] = np.nan
+            return c
+
+    c = cost(NaNWind(tws_kn=12.0, twd_deg=0.0))
+    assert np.isinf(c.time_h) and int(c.reason) & REASONS["weather"]
+
+
+def test_apf_rule_is_p_f_greater_than_apf() -> None:
+    # dickson2018, Table 1: 4 m waves alone (from the north, beam seas on an eastward course) -> p_f = 0.9
+    model = load_failure_model("dickson2018")
+    w = UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=4.0, wave_dir_deg=0.0)
+    polar = get_polar("maribot_vane")
+    at = cost(w, polar=polar, failure=model, apf=0.9)
+    below = cost(w, polar=polar, failure=model, apf=0.89)
+    assert float(at.p_f) == pytest.approx(0.9) and np.isfinite(at.time_h) and int(at.reason) == 0
+    assert np.isinf(below.time_h) and int(below.reason) == REASONS["failure"]
+    # head seas too (waves from 090 on a 090 course): both criteria, p_f = 1.0, forbidden below apf 1
+    both = cost(UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=4.0, wave_dir_deg=90.0), polar=polar,
+                failure=model, apf=0.95)
+    assert float(both.p_f) == pytest.approx(1.0) and np.isinf(both.time_h)
+    assert np.isfinite(cost(w, polar=polar, failure=model, apf=1.0).time_h)
+
+
+def test_arc_p_f_is_the_worst_sample_along_it() -> None:
+    from pyroute_rel.weather import Patch
+
+    model = load_failure_model("dickson2018")
+    # 4 m waves on the eastern quarter of the arc only: one sample of four sees them
+    w = UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=1.0,
+                       patches=(Patch(lon=(0.75, 2.0), lat=(-1.0, 1.0), values={"hs_m": 4.0}),))
+    assert float(cost(w, failure=model, samples=4).p_f) == pytest.approx(0.9)
+    assert float(cost(w, failure=model, samples=1).p_f) == pytest.approx(0.0)  # the midpoint misses it
+
+
+def test_wave_speed_loss_from_a_scenario() -> None:
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.scenario import scenario_from_mapping
+
+    base = {"route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0]},
+            "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0, "hs_m": 2.0}}
+    sc = scenario_from_mapping({**base, "boat": {"wave_speed_loss": [[0.0, 1.0], [4.0, 0.6]]}})
+    assert sc.wave_loss is not None and float(sc.wave_loss.factor(2.0)) == pytest.approx(0.8)
+    with pytest.raises(ScenarioError, match=r"\[boat\].wave_speed_loss"):
+        scenario_from_mapping({**base, "boat": {"wave_speed_loss": [[0.0, 1.0], [4.0, 1.5]]}})
