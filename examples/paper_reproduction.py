@@ -36,7 +36,7 @@ def main() -> None:
         crossed = _areas_crossed(route, base.weather)
         rows.append({"apf": apf, "voyage_time_h": route.voyage_time_h, "paper_h": PAPER[apf],
                      "max_p_f": route.max_failure_probability, "areas_crossed": crossed})
-    print(f"| apf | voyage [h] | increment [h] | paper [h] | paper increment [h] | max leg p_f | areas crossed |")
+    print("| apf | voyage [h] | increment [h] | paper [h] | paper increment [h] | max leg p_f | areas crossed |")
     print("|---|---|---|---|---|---|---|")
     prev = prev_paper = None
     for r in rows:
@@ -54,14 +54,28 @@ def main() -> None:
 
 
 def _areas_crossed(route, weather) -> list[str]:
+    """Patches the track enters, with how deep it gets inside (km from the nearest edge).
+
+    Weather is sampled along arcs (samples at most 25 km apart by default), so a track may clip the corner
+    of a forbidden area by up to about half that spacing; a deep crossing means the area was allowed.
+    """
     import numpy as np
 
     from pyroute_rel.geodesy import intermediate_point
 
-    frac = np.linspace(0.0, 1.0, 21)
+    frac = np.linspace(0.0, 1.0, 201)
     lon, lat = intermediate_point(route.lon_deg[:-1, None], route.lat_deg[:-1, None], route.lon_deg[1:, None],
                                   route.lat_deg[1:, None], frac)
-    return [p.name for p in weather.patches if p.contains(lon, lat).any()]
+    out = []
+    for p in weather.patches:
+        inside = p.contains(lon, lat)
+        if inside.any():
+            li, la = lon[inside], lat[inside]
+            depth_km = np.minimum.reduce([(li - p.lon[0]) * 111.2 * np.cos(np.radians(la)),
+                                         (p.lon[1] - li) * 111.2 * np.cos(np.radians(la)),
+                                         (la - p.lat[0]) * 111.2, (p.lat[1] - la) * 111.2]).max()
+            out.append(f"{p.name} ({depth_km:.0f} km deep)")
+    return out
 
 
 if __name__ == "__main__":
