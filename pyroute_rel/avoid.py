@@ -89,8 +89,8 @@ def obstacle_mask(grid: Grid, avoid: Avoid) -> Any:
         out = ends.copy()
         sea = ~ends
         if sea.any():
-            b = [np.broadcast_to(x, src.shape)[sea] for x in (lon0, lat0, lon1, lat1)]
-            out[sea] = obstacles.arcs_blocked(*b, land)
+            b0, b1, b2, b3 = (np.broadcast_to(x, src.shape)[sea] for x in (lon0, lat0, lon1, lat1))
+            out[sea] = obstacles.arcs_blocked(b0, b1, b2, b3, land)
         return out
 
     def blocked(k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:

@@ -320,7 +320,7 @@ def geometry_costs(
 
 def _to_datetime(departure: np.datetime64, time_h: FloatArray) -> npt.NDArray[np.datetime64]:
     ms = np.where(np.isfinite(time_h), time_h, 0.0) * 3.6e6
-    return np.datetime64(departure, "ms") + ms.astype("timedelta64[ms]")
+    return np.asarray(departure).astype("datetime64[ms]") + ms.astype("timedelta64[ms]")
 
 
 def _sample_costs(

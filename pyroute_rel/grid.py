@@ -290,7 +290,7 @@ def make_grid(
     fractions = np.arange(1, n_ranks + 1) / (n_ranks + 1)
     c_lon, c_lat = geodesy.intermediate_point(lon_s, lat_s, lon_f, lat_f, fractions)
     course = geodesy.initial_bearing_deg(c_lon, c_lat, lon_f, lat_f)
-    offset = (np.arange(n_nodes) - (n_nodes - 1) / 2.0) * spacing_km
+    offset = ((np.arange(n_nodes) - (n_nodes - 1) / 2.0) * spacing_km).astype(np.float64)
     lon, lat = geodesy.destination_point(
         c_lon[:, None], c_lat[:, None], (course[:, None] + 90.0) % 360.0, offset[None, :]
     )

@@ -168,8 +168,8 @@ def plot_routes(
     if path is not None:
         from .route import atomic_write
 
-        p = Path(path)
-        atomic_write(p, lambda tmp: fig.savefig(tmp, format="png"))
+        out_path = Path(path)
+        atomic_write(out_path, lambda tmp: fig.savefig(tmp, format="png"))
         plt.close(fig)
     return fig
 

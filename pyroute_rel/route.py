@@ -86,7 +86,7 @@ class Route:
     @property
     def time(self) -> npt.NDArray[np.datetime64]:
         """UTC time at each track point."""
-        return np.datetime64(self.departure, "s") + np.round(self.elapsed_h * 3600.0).astype("timedelta64[s]")
+        return np.asarray(self.departure).astype("datetime64[s]") + np.round(self.elapsed_h * 3600.0).astype("timedelta64[s]")
 
     @property
     def arrival(self) -> np.datetime64:
@@ -214,7 +214,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         cond = problem.weather.sample(mlon, mlat, problem.departure)
     else:
         ms = (mid_h * 3.6e6).astype("timedelta64[ms]")
-        cond = problem.weather.sample(mlon, mlat, np.datetime64(problem.departure, "ms") + ms)
+        cond = problem.weather.sample(mlon, mlat, np.asarray(problem.departure).astype("datetime64[ms]") + ms)
     q = arc_quantities(cond, course)
     legs = {
         "distance_nm": dist,
@@ -239,7 +239,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         "failure_object": problem.failure,
     }
     return Route(
-        lon_deg=lon, lat_deg=lat, elapsed_h=elapsed, departure=np.datetime64(problem.departure, "s"),
+        lon_deg=lon, lat_deg=lat, elapsed_h=elapsed, departure=np.datetime64(problem.departure).astype("datetime64[s]"),  # type: ignore[arg-type]
         legs=legs, nodes=nodes, grid=grid, dp=result, meta=meta,
     )
 
@@ -269,7 +269,7 @@ def join_routes(routes: list[Route]) -> Route:
 
 
 def _iso(t: np.datetime64) -> str:
-    return str(np.datetime_as_string(np.datetime64(t, "s"), unit="s")) + "Z"
+    return str(np.datetime_as_string(np.asarray(t).astype("datetime64[s]"), unit="s")) + "Z"
 
 
 def _num(x: Any) -> float | None:
@@ -282,7 +282,7 @@ def _fmt(x: Any) -> str:
     return f"{v:.6g}" if np.isfinite(v) else ""
 
 
-def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], None]) -> None:
+def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], object]) -> None:
     """Write a file atomically: ``writer`` writes a temporary file in the same folder, then it is renamed.
 
     A failure inside ``writer`` leaves neither a partial file nor the temporary file behind.

@@ -410,7 +410,7 @@ def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
 
 def _times(departure: np.datetime64, t_h: FloatArray) -> npt.NDArray[np.datetime64]:
     ms = np.where(np.isfinite(t_h), t_h, 0.0) * 3.6e6
-    return np.datetime64(departure, "ms") + ms.astype("timedelta64[ms]")
+    return np.asarray(departure).astype("datetime64[ms]") + ms.astype("timedelta64[ms]")
 
 
 def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) -> str:
@@ -479,7 +479,7 @@ def _criteria_counts(
     cond = problem.weather.sample(lon_s, lat_s, time)
     q = arc_quantities(cond, course)
     fired = np.asarray(model.fired({name: q[name] for name in model.quantities}))
-    per_arc = fired.any(axis=-1)
+    per_arc = np.asarray(fired.any(axis=-1))
     return {c.describe(): int(per_arc[i].sum()) for i, c in enumerate(model.criteria)}
 
 
@@ -515,7 +515,7 @@ def path_costs(
 
 
 def leg_costs(
-    problem: RoutingProblem, lon_deg: FloatArray, lat_deg: FloatArray, waits: Sequence[float] | None = None
+    problem: RoutingProblem, lon_deg: FloatArray, lat_deg: FloatArray, waits: npt.ArrayLike | None = None
 ) -> tuple[FloatArray, ArcCosts]:
     """Chain great-circle legs through the given points (see :func:`path_costs`)."""
     lon, lat = np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float)

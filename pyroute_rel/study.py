@@ -165,6 +165,6 @@ def run_study(
         rows.append(row)
         if progress is not None:
             progress(i, len(levels), row)
-    study = convergence_study([r["h_km"] for r in rows], [r["voyage_time_h"] for r in rows],
+    study = convergence_study([float(r["h_km"] or 0.0) for r in rows], [float(r["voyage_time_h"] or 0.0) for r in rows],
                               safety_factor=safety_factor)
     return RoutedStudy(refinement=refinement, rows=tuple(rows), study=study)
