@@ -86,7 +86,8 @@ class Route:
     @property
     def time(self) -> npt.NDArray[np.datetime64]:
         """UTC time at each track point."""
-        return np.asarray(self.departure).astype("datetime64[s]") + np.round(self.elapsed_h * 3600.0).astype("timedelta64[s]")
+        start = np.asarray(self.departure).astype("datetime64[s]")
+        return start + np.round(self.elapsed_h * 3600.0).astype("timedelta64[s]")
 
     @property
     def arrival(self) -> np.datetime64:
