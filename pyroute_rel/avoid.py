@@ -18,7 +18,7 @@ import numpy.typing as npt
 from .errors import ScenarioError
 from .grid import Grid
 
-__all__ = ["Avoid", "obstacle_mask", "check_points"]
+__all__ = ["Avoid", "ObstacleMask", "obstacle_mask", "check_points"]
 
 
 @dataclass(frozen=True)
@@ -57,59 +57,94 @@ def _bbox(grid: Grid, pad_deg: float = 1.0) -> tuple[float, float, float, float]
             min(float(lon.max()) + pad_deg, 180.0), min(float(lat.max()) + pad_deg, 90.0))
 
 
-def obstacle_mask(grid: Grid, avoid: Avoid) -> Any:
+class ObstacleMask:
+    """The solver's obstacle callback for one grid (see :func:`obstacle_mask`).
+
+    ``mask(k, times)`` gives every arc into rank k; ``static_hits(k, select)`` checks only the selected arcs
+    against land and the zones without a time window (the solver asks for the few arcs it would pick, which
+    on a grid over continents is a small fraction); both cache what they learn on the grid. ``timed_hits``
+    tests the zones with a time window at the arcs' departure times.
+    """
+
+    def __init__(self, grid: Grid, avoid: Avoid) -> None:
+        import shapely
+
+        from . import obstacles
+
+        self.grid = grid
+        self._obstacles = obstacles
+        self.land = (
+            obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution)
+            if avoid.land else None
+        )
+        self.static = tuple(z for z in avoid.zones if z.valid_from is None and z.valid_to is None)
+        self.timed_zones = tuple(z for z in avoid.zones if z.valid_from is not None or z.valid_to is not None)
+        self.on: tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]] | None = None
+        if self.land is not None:
+            # an arc with an end on (buffered) land is blocked outright; only arcs with both ends at sea need the
+            # exact test along their great circle
+            shapely.prepare(self.land)
+            s_lon, s_lat = grid.start_points
+            self.on = (shapely.intersects_xy(self.land, s_lon, s_lat),
+                       shapely.intersects_xy(self.land, grid.lon_deg, grid.lat_deg))
+        self._cache: dict[int, tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]] = grid._cache.setdefault(
+            avoid.key(), {})
+
+    @property
+    def timed(self) -> bool:
+        """True when some zone has a time window (the mask then depends on departure times)."""
+        return bool(self.timed_zones)
+
+    def _state(self, k: int, shape: tuple[int, ...]) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+        st = self._cache.get(k)
+        if st is None:
+            st = self._cache[k] = (np.zeros(shape, dtype=bool), np.zeros(shape, dtype=bool))
+        return st
+
+    def static_hits(self, k: int, select: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
+        """Land and untimed-zone hits of the arcs into rank k; only ``select`` (default all) is guaranteed known."""
+        lon0, lat0, lon1, lat1, src, _ = self.grid.arcs(k)
+        known, hit = self._state(k, src.shape)
+        todo = ~known if select is None else (select & ~known)
+        if todo.any():
+            arcs = [np.broadcast_to(x, src.shape)[todo] for x in (lon0, lat0, lon1, lat1)]
+            res = np.zeros(int(todo.sum()), dtype=bool)
+            if self.on is not None and self.land is not None:
+                on_start, on_nodes = self.on
+                if k == 0:
+                    ends = on_start[src] | on_nodes[0][:, None]
+                elif k == self.grid.n_ranks:
+                    ends = np.broadcast_to(on_nodes[-1][src], src.shape)
+                else:
+                    ends = on_nodes[k - 1][src] | on_nodes[k][:, None]
+                res |= ends[todo]
+                sea = ~res
+                if sea.any():
+                    res[sea] = self._obstacles.arcs_blocked(arcs[0][sea], arcs[1][sea], arcs[2][sea], arcs[3][sea],
+                                                            self.land)
+            if self.static:
+                res |= self._obstacles.arcs_blocked_by_zones(arcs[0], arcs[1], arcs[2], arcs[3], self.static)
+            hit[todo] = res
+            known[todo] = True
+        return hit
+
+    def timed_hits(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
+        """Hits of the zones with a time window, for arcs leaving at ``times``."""
+        lon0, lat0, lon1, lat1, src, _ = self.grid.arcs(k)
+        if not self.timed_zones:
+            return np.zeros(src.shape, dtype=bool)
+        return self._obstacles.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, self.timed_zones, times)
+
+    def __call__(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
+        """Every arc into rank k that touches land or a zone (active at ``times`` for timed zones)."""
+        return self.static_hits(k) | self.timed_hits(k, times)
+
+
+def obstacle_mask(grid: Grid, avoid: Avoid) -> ObstacleMask | None:
     """The solver's ``blocked(k, times)`` callback for this grid, or None when nothing is avoided."""
     if not avoid.active:
         return None
-    from . import obstacles
-
-    land = obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution) \
-        if avoid.land else None
-    static = tuple(z for z in avoid.zones if z.valid_from is None and z.valid_to is None)
-    timed = tuple(z for z in avoid.zones if z.valid_from is not None or z.valid_to is not None)
-    cache: dict[int, npt.NDArray[np.bool_]] = grid._cache.setdefault(avoid.key(), {})
-    on = None
-    if land is not None:
-        # an arc with an end on (buffered) land is blocked outright; only arcs with both ends at sea need the
-        # exact test along their great circle (whose raster prefilter drops open-ocean arcs cheaply)
-        s_lon, s_lat = grid.start_points
-        on = (obstacles.points_on_land(s_lon, s_lat, margin_km=avoid.margin_km, resolution=avoid.resolution),
-              obstacles.points_on_land(grid.lon_deg, grid.lat_deg, margin_km=avoid.margin_km,
-                                       resolution=avoid.resolution))
-
-    def land_mask(k: int, lon0: Any, lat0: Any, lon1: Any, lat1: Any, src: Any) -> npt.NDArray[np.bool_]:
-        assert on is not None and land is not None
-        on_start, on_nodes = on
-        if k == 0:
-            ends = on_start[src] | on_nodes[0][:, None]
-        elif k == grid.n_ranks:
-            ends = on_nodes[-1][src] | False
-        else:
-            ends = on_nodes[k - 1][src] | on_nodes[k][:, None]
-        out = ends.copy()
-        sea = ~ends
-        if sea.any():
-            b0, b1, b2, b3 = (np.broadcast_to(x, src.shape)[sea] for x in (lon0, lat0, lon1, lat1))
-            out[sea] = obstacles.arcs_blocked(b0, b1, b2, b3, land)
-        return out
-
-    def blocked(k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
-        lon0, lat0, lon1, lat1, src, _ = grid.arcs(k)
-        mask = cache.get(k)
-        if mask is None:
-            mask = np.zeros(src.shape, dtype=bool)
-            if land is not None:
-                mask |= land_mask(k, lon0, lat0, lon1, lat1, src)
-            if static:
-                mask |= obstacles.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, static)
-            cache[k] = mask
-        if timed:
-            hit = obstacles.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, timed, times)
-            return mask | hit
-        return mask
-
-    blocked.grid = grid  # type: ignore[attr-defined]
-    return blocked
+    return ObstacleMask(grid, avoid)
 
 
 def check_points(points: Sequence[tuple[str, tuple[float, float]]], avoid: Avoid) -> None:

@@ -362,7 +362,7 @@ DEFAULT_SAMPLE_KM = 25.0
 
 
 def auto_samples(grid: Grid, *, sample_km: float = DEFAULT_SAMPLE_KM, max_samples: int = 16) -> int:
-    """Weather samples per arc so that samples along the longest arc between ranks are at most ``sample_km`` apart.
+    """Weather samples per arc so that samples along arcs between ranks are at most ``sample_km`` apart.
 
     A forbidden region narrower than the sample spacing can be crossed unseen by an arc; a count that follows
     the arc length (rather than a fixed count) keeps that blind spot the same size on every grid, which makes
@@ -372,8 +372,10 @@ def auto_samples(grid: Grid, *, sample_km: float = DEFAULT_SAMPLE_KM, max_sample
     >>> auto_samples(g)  # arcs of up to sqrt(2) x 33.4 km
     2
     """
-    longest = math.hypot(grid.rank_spacing_km, grid.band * grid.spacing_km) if grid.n_ranks > 1 else 0.0
-    longest = max(longest, grid.rank_spacing_km)
+    # arcs up to 45 deg off the rank direction set the count: all of them on the default banded grid; on an
+    # all-to-all grid the much longer sideways arcs (seldom optimal) would multiply the cost for nothing
+    lateral = min(grid.band * grid.spacing_km, grid.rank_spacing_km)
+    longest = math.hypot(grid.rank_spacing_km, lateral)
     return int(min(max(1, math.ceil(longest / sample_km - 1e-9)), max_samples))
 
 

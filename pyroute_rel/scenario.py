@@ -375,8 +375,8 @@ def _avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:
     if not isinstance(land, bool):
         raise ScenarioError(f"[avoid].land must be true or false (got {land!r})")
     margin = _number(raw.get("margin_km", 0.0), "[avoid].margin_km")
-    if not 0.0 <= margin <= 500.0:
-        raise ScenarioError(f"[avoid].margin_km must be in [0, 500] [km] (got {margin:g})")
+    if not 0.0 <= margin <= 200.0:
+        raise ScenarioError(f"[avoid].margin_km must be in [0, 200] [km] (got {margin:g})")
     resolution = raw.get("resolution", "intermediate")
     from .obstacles import RESOLUTIONS, load_zones
 

@@ -270,14 +270,23 @@ def forward_dp(
                 costs = problem.geometry_costs(geom, t0)
                 r_w = np.where(live, costs.reason, 0).astype(np.uint8)
                 time_h = costs.time_h
-                if problem.blocked is not None:
-                    times = None if getattr(problem.weather, "steady", False) else _times(problem.departure, t0)
-                    hit = problem.blocked(k, times) & live
+                lazy = problem.blocked is not None and hasattr(problem.blocked, "static_hits") and cost_hook is None
+                if problem.blocked is not None and not lazy:
+                    hit = problem.blocked(k, _block_times(problem, t0)) & live
+                    r_w = r_w | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
+                    time_h = np.where(hit, np.inf, time_h)
+                elif lazy and getattr(problem.blocked, "timed", False):
+                    hit = problem.blocked.timed_hits(k, _block_times(problem, t0)) & live  # type: ignore[union-attr]
                     r_w = r_w | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
                     time_h = np.where(hit, np.inf, time_h)
                 if cost_hook is not None and w == 0:
                     cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costs.p_f, reason=r_w))
                 tot_w = np.where(live, problem.arrive(t0 + time_h), np.inf)
+                if lazy:
+                    hit = _lazy_obstacles(problem.blocked, k, tot_w)
+                    r_w = r_w | np.where(hit & live, REASONS["obstacle"], 0).astype(np.uint8)
+                    tot_w = np.where(hit, np.inf, tot_w)
+                    time_h = np.where(hit, np.inf, time_h)
                 if line and k < n_ranks:
                     frac = _crossing(grid, k)
                     cand = np.where(np.isfinite(frac) & np.isfinite(tot_w), t0 + frac * time_h, np.inf)
@@ -408,6 +417,41 @@ def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
     return geom
 
 
+def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.datetime64] | None:
+    """Departure times for obstacle masks that depend on time (None when neither weather nor zones do)."""
+    if getattr(problem.weather, "steady", False) and not getattr(problem.blocked, "timed", False):
+        return None
+    return _times(problem.departure, t0)
+
+
+def _lazy_obstacles(blocked: Any, k: int, total: FloatArray) -> BoolArray:
+    """Obstacle hits among the arcs the DP would pick: for each destination its cheapest arcs are checked
+    (4, then 16, 64, ...) until its best arc is known to be free, so the minimum is exactly that of the fully
+    checked arcs while most arcs far from the optimum are never tested."""
+    tot = total.copy()
+    width = tot.shape[1]
+    rows = np.arange(tot.shape[0])
+    m = 4
+    hit = np.zeros(tot.shape, dtype=bool)
+    while True:
+        best = np.argmin(tot, axis=1)
+        known, hit = blocked._state(k, tot.shape)
+        need = np.isfinite(tot[rows, best]) & ~known[rows, best]
+        if not need.any():
+            break
+        r = rows[need]
+        mm = min(m, width)
+        idx = np.argpartition(tot[r], mm - 1, axis=1)[:, :mm] if mm < width else np.broadcast_to(
+            np.arange(width), (r.size, width))
+        select = np.zeros(tot.shape, dtype=bool)
+        select[r[:, None], idx] = True
+        select &= np.isfinite(tot)
+        hit = blocked.static_hits(k, select)
+        tot = np.where(hit, np.inf, tot)
+        m *= 4
+    return hit
+
+
 def _times(departure: np.datetime64, t_h: FloatArray) -> npt.NDArray[np.datetime64]:
     ms = np.where(np.isfinite(t_h), t_h, 0.0) * 3.6e6
     return np.asarray(departure).astype("datetime64[ms]") + ms.astype("timedelta64[ms]")
@@ -424,8 +468,7 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
     costs = problem.costs(lon0, lat0, lon1, lat1, t0)
     reason = np.where(live, costs.reason, 0)
     if problem.blocked is not None:
-        times = None if getattr(problem.weather, "steady", False) else _times(problem.departure, t0)
-        reason = reason | np.where(problem.blocked(k, times) & live, REASONS["obstacle"], 0)
+        reason = reason | np.where(problem.blocked(k, _block_times(problem, t0)) & live, REASONS["obstacle"], 0)
     where = "the finish" if k == grid.n_ranks else f"rank {k + 1} of {grid.n_ranks}"
     along = grid.rank_spacing_km * (k + 1)
     mid = grid.n_nodes // 2
@@ -458,6 +501,8 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
     hint = ""
     if problem.failure is not None and failure_arcs.any():
         hint = " (raise --apf, or widen the grid to go around)"
+    elif np.any(live & (reason & REASONS["obstacle"] != 0)):
+        hint = " (widen the grid: [grid].half_width_km / --half-width-km, to go around)"
     return f"no feasible route: the front died at {where} ({along:.0f} km along the route, {pos}); {detail}{hint}"
 
 

@@ -1,0 +1,305 @@
+"""Routing around land, coastal margins and exclusion zones (issue 6), end to end through the solver.
+
+tests/test_obstacles.py checks the geometric kernels; here whole routes are checked against sources that
+share no code with the router:
+
+- land/sea: the GLOBE 30-arc-second land mask of ``global-land-mask`` (NOAA GLOBE DEM, a different lineage
+  from the GSHHG shoreline the router reads). Its cells are 0.93 km and GSHHG "intermediate" is simplified
+  with a 1 km tolerance, so the two may disagree within ~2 km of a coast (tests/test_obstacles.py measures
+  this); the raster is trusted only farther than 2 km from the GSHHG coast;
+- great circles: every leg is re-densified every 0.5 km with ``pyproj.Geod.npts`` (PROJ's geodesic code)
+  on the sphere R = 6371.0088 km;
+- distances to the coast: shapely's exact planar distance between those polylines and the GSHHG land in a
+  local azimuthal equidistant projection (PROJ) centred on the island: within 300 km of the centre its
+  distances are exact to (300 / 6371)^2 / 6 < 0.04 %;
+- zones: shapely ``intersects`` of the re-densified legs with the zone polygon read from the GeoJSON.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+import shapely.geometry
+from pyproj import CRS, Geod, Transformer
+
+from pyroute_rel import obstacles as ob
+from pyroute_rel.cli import main
+from pyroute_rel.errors import NoFeasibleRouteError
+from pyroute_rel.scenario import scenario_from_mapping
+
+R_KM = 6371.0088
+SPHERE = Geod(a=R_KM * 1000.0, b=R_KM * 1000.0)
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+CONTROL = EXAMPLES / "microtransat_control.toml"
+REAL = EXAMPLES / "microtransat_real_course.toml"
+ZONE_FILE = EXAMPLES / "zones" / "fishing_grounds.geojson"
+
+# 16.25 N from 57 W to 64 W: the great circle crosses Guadeloupe (Grande-Terre and Basse-Terre)
+GUADELOUPE = {"start": [-57.0, 16.25], "finish": [-64.0, 16.25]}
+CARIBBEAN_BOX = (-66.0, 13.0, -55.0, 19.5)  # holds all land within 100 km of the Guadeloupe grids
+COAST_BAND_KM = 2.0  # the raster and GSHHG intermediate may disagree this close to a coast
+MARGIN_TOL = 0.025  # documented accuracy of the coastal margin (obstacles.py): within 2.5 %
+
+
+@pytest.fixture(scope="module")
+def globe():
+    """The GLOBE-based 1 km land mask (loads ~0.9 GB once)."""
+    return pytest.importorskip("global_land_mask.globe", reason="independent land source for the tests")
+
+
+def guadeloupe(margin_km: float = 0.0, *, land: bool = True, half_width_km: float = 150.0):
+    return scenario_from_mapping({
+        "route": GUADELOUPE,
+        "grid": {"n_ranks": 40, "aspect": 4.0, "half_width_km": half_width_km},
+        "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+        "avoid": {"land": land, "margin_km": margin_km},
+    })
+
+
+@pytest.fixture(scope="module")
+def routes():
+    return {"no land": guadeloupe(land=False).route(), 0.0: guadeloupe(0.0).route(), 10.0: guadeloupe(10.0).route()}
+
+
+def dense_legs(lon, lat, step_km: float = 0.5) -> list[np.ndarray]:
+    """Each leg's great circle as (lon, lat) points at most step_km apart (PROJ), end points included."""
+    legs = []
+    for a, b, c, d in zip(lon[:-1], lat[:-1], lon[1:], lat[1:], strict=True):
+        n = int(np.ceil(SPHERE.inv(a, b, c, d)[2] / 1000.0 / step_km)) - 1
+        legs.append(np.array([(a, b), *SPHERE.npts(a, b, c, d, max(n, 0)), (c, d)]))
+    return legs
+
+
+def local_metric(lon0: float, lat0: float):
+    """lon/lat geometry -> metres in an azimuthal equidistant projection on the sphere centred at (lon0, lat0)."""
+    sphere = CRS.from_proj4(f"+proj=longlat +R={R_KM * 1000.0} +no_defs")
+    aeqd = CRS.from_proj4(f"+proj=aeqd +lat_0={lat0} +lon_0={lon0} +R={R_KM * 1000.0} +units=m +no_defs")
+    tr = Transformer.from_crs(sphere, aeqd, always_xy=True)
+    return lambda geom: shapely.transform(geom, lambda xy: np.column_stack(tr.transform(xy[:, 0], xy[:, 1])))
+
+
+def coast_distance_km(legs: list[np.ndarray], land) -> tuple[np.ndarray, np.ndarray]:
+    """Per leg, its least distance to the land [km]; per point of the legs, its distance [km] (0 on land)."""
+    to_m = local_metric(-61.5, 16.25)
+    land_m = to_m(shapely.from_wkb(shapely.to_wkb(land)))  # an unprepared copy
+    per_leg = np.array([land_m.distance(to_m(shapely.LineString(leg))) for leg in legs]) / 1000.0
+    pts = np.concatenate(legs)
+    per_point = shapely.distance(land_m, to_m(shapely.points(pts))) / 1000.0
+    return per_leg, per_point
+
+
+# --------------------------------------------------------------------------------------------------
+# Land: a great circle across Guadeloupe
+# --------------------------------------------------------------------------------------------------
+
+
+def test_course_across_guadeloupe_goes_around_the_island(globe, routes) -> None:
+    land = ob.land_geometry(CARIBBEAN_BOX)
+    # precondition: without land avoidance the route is the great circle, which crosses the island in the
+    # independent raster too (more than 5 km of it lies inland, away from the coastal band)
+    straight = routes["no land"]
+    pts = np.concatenate(dense_legs(straight.lon_deg, straight.lat_deg))
+    _, dist = coast_distance_km(dense_legs(straight.lon_deg, straight.lat_deg), land)
+    inland = globe.is_land(pts[:, 1], pts[:, 0]) & shapely.intersects_xy(land, pts[:, 0], pts[:, 1])
+    assert np.count_nonzero(inland & (dist == 0.0)) > 10
+
+    route = routes[0.0]
+    legs = dense_legs(route.lon_deg, route.lat_deg)
+    pts = np.concatenate(legs)
+    per_leg, dist = coast_distance_km(legs, land)
+    # no leg touches the GSHHG land (exact polyline distance, PROJ great circles, unprepared geometry) ...
+    assert per_leg.min() > 0.0
+    # ... nor, away from the coastal band where the sources may disagree, the independent raster
+    on_raster = globe.is_land(pts[:, 1], pts[:, 0])
+    assert not np.any(on_raster & (dist > COAST_BAND_KM)), pts[on_raster & (dist > COAST_BAND_KM)][:5]
+    # the route really goes round: it leaves the great circle by more than the island's half-width ...
+    assert route.lat_deg.max() > 16.5  # Grande-Terre reaches 16.51 N
+    assert route.dp.forbidden_by_reason["obstacle"] > 0
+    # ... and is longer, in time and in distance, than the blocked great circle
+    assert route.voyage_time_h > straight.voyage_time_h
+    sailed_km = sum(SPHERE.inv(leg[0, 0], leg[0, 1], leg[-1, 0], leg[-1, 1])[2] for leg in legs) / 1000.0
+    assert sailed_km > SPHERE.inv(-57.0, 16.25, -64.0, 16.25)[2] / 1000.0
+
+
+def test_coastal_margin_keeps_the_route_ten_km_off(globe, routes) -> None:
+    land = ob.land_geometry(CARIBBEAN_BOX)
+    near, _ = coast_distance_km(dense_legs(routes[0.0].lon_deg, routes[0.0].lat_deg), land)
+    assert near.min() < 9.0  # precondition: without a margin the route passes closer than 10 km
+    route = routes[10.0]
+    legs = dense_legs(route.lon_deg, route.lat_deg)
+    per_leg, _ = coast_distance_km(legs, land)
+    # every point of every leg is at least margin_km off the coast, up to the documented 2.5 % accuracy
+    assert per_leg.min() >= 10.0 * (1.0 - MARGIN_TOL), np.sort(per_leg)[:3]
+    pts = np.concatenate(legs)
+    assert not globe.is_land(pts[:, 1], pts[:, 0]).any()  # 10 km is far outside the raster's coastal band
+    assert route.voyage_time_h > routes[0.0].voyage_time_h
+
+
+def test_grid_too_narrow_to_go_around_is_explained() -> None:
+    # 20 km either side of the great circle: Guadeloupe spans 15.9-16.5 N, so no path gets round it
+    with pytest.raises(NoFeasibleRouteError, match="land or exclusion zones") as info:
+        guadeloupe(half_width_km=20.0).route()
+    msg = str(info.value)
+    assert "\n" not in msg and "front died at rank" in msg
+    # the front dies at the island: its rank lies between 61.9 W and 60.9 W
+    lon = float(msg.split("near lon ")[1].split(",")[0])
+    assert -61.9 < lon < -60.9
+
+
+def test_grid_too_narrow_message_suggests_widening() -> None:
+    with pytest.raises(NoFeasibleRouteError) as info:
+        guadeloupe(half_width_km=20.0).route()
+    assert "widen the grid" in str(info.value)
+
+
+# --------------------------------------------------------------------------------------------------
+# Start or finish on land
+# --------------------------------------------------------------------------------------------------
+
+
+def _scenario_file(tmp_path: Path, route: str, avoid: str = "") -> Path:
+    text = f"""
+[route]
+{route}
+[grid]
+n_ranks = 10
+[weather]
+kind = "uniform"
+tws_kn = 15.0
+twd_deg = 0.0
+[avoid]
+{avoid}
+"""
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(("route", "avoid", "expected"), [
+    # Basse-Terre, Guadeloupe (land in both sources: tests/test_obstacles.py)
+    ("start = [-57.0, 16.25]\nfinish = [-61.65, 16.05]", "", "[route].finish [-61.65, 16.05] is on land (GSHHG"),
+    # 5 km east of Barbados (at sea in both sources) but inside a 10 km margin
+    ("start = [-59.4075, 13.2]\nfinish = [-50.0, 13.2]", "margin_km = 10",
+     "[route].start [-59.4075, 13.2] is on land or within margin_km = 10 of a coast"),
+])
+def test_start_or_finish_on_land_exits_2_naming_the_point(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                          globe, route: str, avoid: str, expected: str) -> None:
+    path = _scenario_file(tmp_path, route, avoid)
+    code = main(["route", str(path), "--out", str(tmp_path / "out"), "--quiet"])
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("pyroute-rel: error: ") and expected in err, err
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+    if avoid:  # the refused point is at sea: it is the margin that refuses it
+        assert not globe.is_land(13.2, -59.4075)
+    else:
+        assert globe.is_land(16.05, -61.65)
+
+
+# --------------------------------------------------------------------------------------------------
+# Exclusion zone on the Microtransat course
+# --------------------------------------------------------------------------------------------------
+
+
+def _control(zone_path: Path | None):
+    table = tomllib.loads(CONTROL.read_text())
+    table["grid"] = {"n_ranks": 40, "aspect": 4.0, "half_width_km": 600.0}
+    table["avoid"] = {"zones": [] if zone_path is None else [str(zone_path)]}
+    return scenario_from_mapping(table, base_dir=CONTROL.parent, source=str(CONTROL))
+
+
+def _zone_hits(route, zone) -> np.ndarray:
+    legs = dense_legs(route.lon_deg, route.lat_deg)
+    return np.array([zone.intersects(shapely.LineString(leg)) for leg in legs])
+
+
+@pytest.fixture(scope="module")
+def free_route():
+    return _control(None).route()
+
+
+def test_zone_across_the_course_is_avoided(free_route) -> None:
+    zone = shapely.geometry.shape(json.loads(ZONE_FILE.read_text())["features"][0]["geometry"])
+    hits = _zone_hits(free_route, zone)
+    assert hits.any()  # precondition: without the zone the route sails through it ...
+    when = free_route.departure + (free_route.elapsed_h[np.argmax(hits)] * 3600).astype("timedelta64[s]")
+    assert np.datetime64("2018-06-01") <= when <= np.datetime64("2018-06-30T23:59:59")  # ... while it applies
+    route = _control(ZONE_FILE).route()
+    assert not _zone_hits(route, zone).any()
+    assert route.voyage_time_h > free_route.voyage_time_h
+    assert route.dp.forbidden_by_reason["obstacle"] > 0
+
+
+@pytest.mark.parametrize(("valid_from", "valid_to", "avoided"), [
+    pytest.param("2017-01-01T00:00:00Z", "2017-12-31T23:59:59Z", False, id="only-in-2017"),
+    pytest.param("2018-06-01T00:00:00Z", "2018-06-03T00:00:00Z", False, id="over-before-arrival"),
+    pytest.param("2018-06-03T00:00:00Z", "2018-06-30T00:00:00Z", True, id="active-on-arrival"),
+])
+def test_zone_time_window(tmp_path: Path, free_route, valid_from: str, valid_to: str, avoided: bool) -> None:
+    doc = json.loads(ZONE_FILE.read_text())
+    doc["features"][0]["properties"].update(valid_from=valid_from, valid_to=valid_to)
+    path = tmp_path / "zone.geojson"
+    path.write_text(json.dumps(doc))
+    zone = shapely.geometry.shape(doc["features"][0]["geometry"])
+    # precondition: the free route reaches the zone after 3 June 2018
+    first = int(np.argmax(_zone_hits(free_route, zone)))
+    assert free_route.departure + np.timedelta64(int(free_route.elapsed_h[first] * 3600), "s") > np.datetime64(
+        "2018-06-03")
+    route = _control(path).route()
+    if avoided:
+        assert not _zone_hits(route, zone).any()
+        assert route.voyage_time_h > free_route.voyage_time_h
+    else:  # an inactive zone changes nothing: the same route as without it, through the zone
+        assert _zone_hits(route, zone).any()
+        np.testing.assert_array_equal(route.nodes, free_route.nodes)
+        assert route.voyage_time_h == pytest.approx(free_route.voyage_time_h, rel=1e-12)
+
+
+# --------------------------------------------------------------------------------------------------
+# The real-course example, end to end on a small grid
+# --------------------------------------------------------------------------------------------------
+
+
+def test_real_course_example_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str], globe) -> None:
+    out = tmp_path / "out"
+    code = main(["route", str(REAL), "--n-ranks", "40", "--aspect", "3", "--half-width-km", "600",
+                 "--json", "--quiet", "--out", str(out)])
+    stdout, err = capsys.readouterr()
+    assert code == 0, err
+    d = json.loads(stdout)
+    lon = np.array([p["lon"] for p in d["track"]])
+    lat = np.array([p["lat"] for p in d["track"]])
+    # starts on the start line 51N 16W - 45N 8W: on the great-circle segment between its ends (PROJ)
+    a, b = (-16.0, 51.0), (-8.0, 45.0)
+    detour_m = SPHERE.inv(*a, lon[0], lat[0])[2] + SPHERE.inv(lon[0], lat[0], *b)[2] - SPHERE.inv(*a, *b)[2]
+    assert detour_m < 1.0
+    # ends on the first crossing of 60 W between 10 N and 25 N
+    assert lon[-1] == pytest.approx(-60.0, abs=1e-6) and 10.0 <= lat[-1] <= 25.0
+    assert np.all(lon[:-1] > -60.0)
+    # the failure model bounds every leg at apf 0.95
+    assert d["max_failure_probability"] <= 0.95
+    # never within the 10 km margin: the raster sees only sea along every leg (0.5 km steps) ...
+    legs = dense_legs(lon, lat)
+    pts = np.concatenate(legs)
+    assert not globe.is_land(pts[:, 1], pts[:, 0]).any()
+    # ... and the whole track keeps 10 km (less the documented 2.5 %) off the GSHHG coast, measured where land is
+    # near: around the start line and the finish (local metric projections centred there)
+    for centre, box in (((-10.0, 47.0), (-20.0, 40.0, -0.5, 54.0)), ((-60.0, 17.5), (-66.0, 8.0, -54.0, 27.0))):
+        land = ob.land_geometry(box)
+        to_m = local_metric(*centre)
+        land_m = to_m(shapely.from_wkb(shapely.to_wkb(land)))
+        near = [leg for leg in legs if shapely.intersects_xy(shapely.box(*box), leg[:, 0], leg[:, 1]).any()]
+        assert near
+        d_km = min(land_m.distance(to_m(shapely.LineString(leg))) for leg in near) / 1000.0
+        assert d_km >= 10.0 * (1.0 - MARGIN_TOL)
+    # the zone is never entered
+    (zone,) = ob.load_zones([ZONE_FILE])
+    assert not any(zone.geometry.intersects(shapely.LineString(leg)) for leg in legs)
+    assert (out / "route.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert json.loads((out / "summary.json").read_text())["voyage_time_h"] == pytest.approx(d["voyage_time_h"])
