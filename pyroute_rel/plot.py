@@ -144,8 +144,14 @@ def plot_routes(
     for i, (route, label) in enumerate(zip(routes, labels, strict=True)):
         ax.plot(route.lon_deg, route.lat_deg, color=_COLOURS[i % len(_COLOURS)], lw=1.6,
                 label=f"{label}: {route.voyage_time_h:.1f} h")
-    ax.plot(*grid.start, "k^", ms=7, label="start")
-    ax.plot(*grid.finish, "ks", ms=7, label="finish")
+    if grid.start_lon is not None and grid.start_lat is not None:
+        ax.plot(grid.start_lon, grid.start_lat, "k-", lw=2.5, label="start line")
+    if grid.finish_line is not None:
+        (c_lon, c_lat), (d_lon, d_lat) = grid.finish_line
+        f_lon, f_lat = geodesy.intermediate_point(c_lon, c_lat, d_lon, d_lat, np.linspace(0.0, 1.0, 50))
+        ax.plot(f_lon, f_lat, "k-", lw=2.5, label="finish line")
+    ax.plot(routes[0].lon_deg[0], routes[0].lat_deg[0], "k^", ms=7, label="start")
+    ax.plot(routes[0].lon_deg[-1], routes[0].lat_deg[-1], "ks", ms=7, label="finish")
     ax.set_xlabel("longitude [deg]")
     ax.set_ylabel("latitude [deg]")
     # frame the routes, patches and zones (the grid outline may extend beyond: it is clipped)
@@ -154,6 +160,12 @@ def plot_routes(
     for patch in getattr(weather, "patches", ()) if weather is not None else ():
         xs.append(np.asarray(patch.lon))
         ys.append(np.asarray(patch.lat))
+    if grid.finish_line is not None:
+        xs.append(np.array([p[0] for p in grid.finish_line]))
+        ys.append(np.array([p[1] for p in grid.finish_line]))
+    if grid.start_lon is not None and grid.start_lat is not None:
+        xs.append(grid.start_lon)
+        ys.append(grid.start_lat)
     x_all, y_all = np.concatenate(xs), np.concatenate(ys)
     pad_x = max(3.0, 0.15 * float(np.ptp(x_all)))
     pad_y = max(3.0, 0.15 * float(np.ptp(y_all)))
