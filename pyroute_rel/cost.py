@@ -362,6 +362,8 @@ def _sample_costs(
     else:
         sog = v
     missing = ~np.isfinite(cond.tws_kn) | ~np.isfinite(cond.twd_deg)
+    if current:
+        missing |= ~np.isfinite(cond.current_u_ms) | ~np.isfinite(cond.current_v_ms)
     reason |= np.where(~missing & ~(v > 0), REASONS["polar"], 0).astype(np.uint8)
     if failure is not None:
         q = arc_quantities(cond, heading)
@@ -372,7 +374,7 @@ def _sample_costs(
     else:
         p = np.zeros(course_deg.shape)
     reason |= np.where(missing, REASONS["weather"], 0).astype(np.uint8)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         dt = seg_nm / sog
     dt = np.where(reason != 0, np.inf, dt)
     return dt, p, reason

@@ -8,6 +8,8 @@ into one line on stderr and exit code 2.
 from __future__ import annotations
 
 __all__ = [
+    "show",
+    "brief",
     "PyrouteError",
     "ScenarioError",
     "PolarError",
@@ -18,6 +20,21 @@ __all__ = [
     "ConvergenceError",
     "NoFeasibleRouteError",
 ]
+
+
+def show(value: object) -> str:
+    """A user-given string (file name, key) as it may appear in a one-line message: control characters escaped.
+
+    >>> show("a\\nb.pol")
+    'a\\\\nb.pol'
+    """
+    return repr(str(value))[1:-1]
+
+
+def brief(value: object, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for one-line messages about user values."""
+    r = repr(value)
+    return r if len(r) <= limit else r[: limit - 3] + "..."
 
 
 class PyrouteError(Exception):

@@ -57,7 +57,7 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from .errors import GridError, ScenarioError
+from .errors import GridError, ScenarioError, show
 
 __all__ = [
     "RESOLUTIONS",
@@ -879,9 +879,9 @@ def _read_zone_file(path: Path) -> list[Zone]:
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ScenarioError(f"{path}: zone file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read zone file ({exc})") from None
+        raise ScenarioError(f"{show(path)}: zone file not found") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ScenarioError(f"{show(path)}: cannot read zone file ({show(exc)})") from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:

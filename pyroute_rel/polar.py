@@ -72,7 +72,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import PolarError
+from .errors import PolarError, show
 
 __all__ = [
     "Polar",
@@ -447,7 +447,7 @@ def read_polar(path: str | os.PathLike[str], *, name: str | None = None) -> Pola
     suffix = path.suffix.lower()
     if suffix not in POLAR_SUFFIXES:
         raise PolarError(
-            f"polar file '{path}': suffix must be one of {list(POLAR_SUFFIXES)} (got {path.suffix!r})"
+            f"polar file '{show(path)}': suffix must be one of {list(POLAR_SUFFIXES)} (got {path.suffix!r})"
         )
     if suffix == ".csv":
         return read_polar_csv(path, name=name)
@@ -533,8 +533,10 @@ def _atomic_write_text(path: Path, text: str) -> None:
 def _read_lines(path: Path) -> list[str]:
     try:
         data = path.read_bytes()
+    except ValueError as exc:  # e.g. a NUL in the name
+        raise PolarError(f"polar file '{show(path)}': cannot be read ({exc})") from None
     except OSError as exc:
-        raise PolarError(f"polar file '{path}': cannot be read ({exc.strerror or exc})") from exc
+        raise PolarError(f"polar file '{show(path)}': cannot be read ({exc.strerror or exc})") from exc
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -579,7 +581,7 @@ def _parse_matrix(
     )
 
     def fail(line_no: int, message: str) -> PolarError:
-        return PolarError(f"polar file '{path}', line {line_no}: {message}")
+        return PolarError(f"polar file '{show(path)}', line {line_no}: {message}")
 
     def number(line_no: int, column: int, cell: str, what: str) -> float:
         value = _number(cell, what)

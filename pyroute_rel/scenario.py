@@ -26,7 +26,7 @@ import numpy as np
 
 from .avoid import Avoid, check_points, obstacle_mask
 from .cost import WaveLoss
-from .errors import PyrouteError, ScenarioError
+from .errors import PyrouteError, ScenarioError, brief, show
 from .geodesy import along_track_km, cross_track_km, distance_km, intermediate_point
 from .grid import DEFAULT_N_RANKS, LAYOUTS, Grid, auto_samples, plan_grid
 from .polar import BEYOND_MODES, Polar, get_polar
@@ -239,9 +239,9 @@ def load_scenario(path: str | Path) -> Scenario:
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ScenarioError(f"{p}: scenario file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{p}: cannot read scenario file ({exc.__class__.__name__}: {exc})") from None
+        raise ScenarioError(f"{show(p)}: scenario file not found") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ScenarioError(f"{show(p)}: cannot read scenario file ({exc.__class__.__name__}: {show(exc)})") from None
     try:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -265,7 +265,7 @@ def scenario_from_mapping(
 def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     for key in table:
         if key not in SCHEMA:
-            raise ScenarioError(f"unknown table [{key}] (expected {', '.join(f'[{k}]' for k in SCHEMA)})")
+            raise ScenarioError(f"unknown table [{show(key)}] (expected {', '.join(f'[{k}]' for k in SCHEMA)})")
     for name, spec in SCHEMA.items():
         sub = table.get(name, {})
         if not isinstance(sub, Mapping):
@@ -273,7 +273,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         if spec:
             for key in sub:
                 if key not in spec:
-                    raise ScenarioError(f"[{name}]: unknown key {key!r} (expected one of {', '.join(spec)})")
+                    raise ScenarioError(f"[{name}]: unknown key '{show(key)}' (expected one of {', '.join(spec)})")
     route = table.get("route", {})
     start_line = _line(route["start_line"], "[route].start_line") if "start_line" in route else None
     finish_line = _line(route["finish_line"], "[route].finish_line") if "finish_line" in route else None
@@ -351,7 +351,9 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         raise ScenarioError(f"[boat].beyond must be one of {list(BEYOND_MODES)} (got {beyond!r})")
 
     avoid = _avoid(table.get("avoid", {}), base_dir)
-    bbox = _course_bbox(start, finish, waypoints, start_line, finish_line, grid_table=grid)
+    grid_sizes = {"half_width_km": half_width, "n_ranks": n_ranks, "n_nodes": n_nodes}
+    bbox = _course_bbox(start, finish, waypoints, start_line, finish_line,
+                        grid_table={k: v for k, v in grid_sizes.items() if v is not None})
     weather = _weather(table.get("weather"), base_dir, bbox=bbox, departure=departure)
 
     failure = table.get("failure", {})
@@ -380,7 +382,7 @@ def _avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:
     resolution = raw.get("resolution", "intermediate")
     from .obstacles import RESOLUTIONS, load_zones
 
-    if resolution not in RESOLUTIONS:
+    if not isinstance(resolution, str) or resolution not in RESOLUTIONS:
         raise ScenarioError(f"[avoid].resolution must be one of {list(RESOLUTIONS)} (got {resolution!r})")
     paths = raw.get("zones", [])
     if isinstance(paths, str):
@@ -402,7 +404,8 @@ def _course_bbox(start: Any, finish: Any, waypoints: Any, start_line: Any, finis
     if half is None:
         n_ranks = grid_table.get("n_ranks", DEFAULT_N_RANKS)
         n_nodes = grid_table.get("n_nodes")
-        half = 2000.0 if n_nodes is None else (n_nodes - 1) / 2.0 * length / (n_ranks + 1)
+        half = 2000.0 if n_nodes is None else min((n_nodes - 1) / 2.0 * length / (n_ranks + 1), 1e4)
+    half = min(float(half), 1e4)
     pad_lat = float(half) / 111.0 + 1.0
     pad_lon = pad_lat / max(np.cos(np.radians(min(80.0, float(np.max(np.abs(lat))) + pad_lat))), 0.2)
     return (max(float(lon.min()) - pad_lon, -180.0), max(float(lat.min()) - pad_lat, -89.0),
@@ -442,14 +445,23 @@ def parse_departure(value: Any, where: str = "departure") -> np.datetime64:
             ) from None
     else:
         raise ScenarioError(f"{where} must be an ISO 8601 time string (got {value!r})")
-    if t.tzinfo is not None:
-        t = t.astimezone(dt.UTC).replace(tzinfo=None)
+    try:
+        if t.tzinfo is not None:
+            t = t.astimezone(dt.UTC).replace(tzinfo=None)
+    except OverflowError:
+        raise ScenarioError(f"{where} is out of range (got {value!r})") from None
+    if not 1900 <= t.year <= 2200:
+        raise ScenarioError(f"{where} must be between the years 1900 and 2200 (got {value!r})")
     return np.datetime64(t, "s")
 
 
 def _number(v: Any, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(float(v)):
-        raise ScenarioError(f"{where} must be a number (got {v!r})")
+    try:
+        ok = not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(float(v))
+    except OverflowError:  # an int beyond the float range
+        ok = False
+    if not ok:
+        raise ScenarioError(f"{where} must be a finite number (got {brief(v)})")
     return float(v)
 
 
@@ -476,7 +488,9 @@ def _int(v: Any, where: str, lo: int) -> int:
     if isinstance(v, bool) or not isinstance(v, int):
         raise ScenarioError(f"{where} must be a whole number (got {v!r})")
     if v < lo:
-        raise ScenarioError(f"{where} must be >= {lo} (got {v})")
+        raise ScenarioError(f"{where} must be >= {lo} (got {brief(v)})")
+    if v > 100_000:
+        raise ScenarioError(f"{where} must be at most 100000 (got {brief(v)})")
     return int(v)
 
 

@@ -94,6 +94,11 @@ class RoutingProblem:
             raise ScenarioError(f"time_step_h must be in (0, 48] [h] (got {self.time_step_h!r})")
         if not (isinstance(self.max_wait_h, int | float) and 0.0 <= float(self.max_wait_h) <= 24.0 * 60):
             raise ScenarioError(f"max_wait_h must be in [0, 1440] [h] (got {self.max_wait_h!r})")
+        if self.time_step_h is not None and self.max_wait_h / self.time_step_h > 10_000:
+            raise ScenarioError(
+                f"max_wait_h / time_step_h must be at most 10000 wait steps per node (got {self.max_wait_h:g} h / "
+                f"{self.time_step_h:g} h): use a larger time_step_h"
+            )
         if self.max_wait_h > 0 and self.time_step_h is None:
             raise ScenarioError("max_wait_h > 0 needs time_step_h (waiting is modelled on a time lattice)")
         if not (isinstance(self.apf, int | float) and 0.0 <= float(self.apf) <= 1.0):

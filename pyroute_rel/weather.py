@@ -29,7 +29,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from .errors import ScenarioError
+from .errors import ScenarioError, brief, show
 
 __all__ = [
     "Conditions",
@@ -225,7 +225,10 @@ def _checked_value(key: str, value: Any, where: str) -> float:
     label, lo, hi = FIELDS[key]
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ScenarioError(f"{where}.{key} must be a number ({label}) (got {value!r})")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:
+        raise ScenarioError(f"{where}.{key} must be in [{lo:g}, {hi:g}] ({label}) (got {brief(value)})") from None
     if not np.isfinite(v) or not lo <= v <= hi:
         raise ScenarioError(f"{where}.{key} must be in [{lo:g}, {hi:g}] ({label}) (got {value!r})")
     if key.endswith("_deg"):
@@ -241,7 +244,10 @@ def _range(value: Any, where: str, lo: float, hi: float) -> tuple[float, float]:
         or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
     ):
         raise ScenarioError(f"{where} must be a pair [min, max] of numbers [deg] (got {value!r})")
-    a, b = float(value[0]), float(value[1])
+    try:
+        a, b = float(value[0]), float(value[1])
+    except OverflowError:
+        raise ScenarioError(f"{where} must satisfy {lo:g} <= min < max <= {hi:g} [deg] (got a huge number)") from None
     if not (lo <= a < b <= hi):
         raise ScenarioError(f"{where} must satisfy {lo:g} <= min < max <= {hi:g} [deg] (got {value!r})")
     return a, b
