@@ -29,7 +29,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from .errors import ScenarioError, brief, show
+from .errors import ScenarioError, brief
 
 __all__ = [
     "Conditions",
