@@ -29,12 +29,8 @@ HERE = Path(__file__).resolve().parent
 LEVELS = (1.0, 0.95, 0.5)
 
 
-def route_time(problem, grid) -> tuple[float, int, float]:
-    from dataclasses import replace
-
-    from pyroute_rel.grid import auto_samples
-
-    problem = replace(problem, samples=auto_samples(grid))  # the default: samples <= 25 km apart
+def route_time(scenario, grid, failure) -> tuple[float, int, float]:
+    problem = scenario.problem(grid=grid, failure=failure)  # default sampling: samples <= 25 km apart
     t0 = time.perf_counter()
     res = forward_dp(grid, problem)
     return float(res.finish_h), int(res.arcs_evaluated), time.perf_counter() - t0
@@ -47,9 +43,9 @@ def main() -> None:
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    base = load_scenario(HERE / "microtransat_control.toml")
+    base = load_scenario(HERE / "microtransat_control.toml").with_options(land=False)  # the paper's open-sea case
     start, finish = base.start, base.finish
-    half_width = 1500.0
+    half_width = 1000.0
     results: dict = {"levels": {}, "half_width_km": half_width}
 
     ref_ranks = (21, 41, 81) if args.quick else (41, 81, 161)
@@ -60,14 +56,14 @@ def main() -> None:
                   for dev in (45.0, 60.0)]
     for apf in LEVELS:
         sc = base.with_options(apf=apf)
-        problem = sc.problem(grid=make_grid(start, finish, n_ranks=10, n_nodes=3))
+        failure = sc.load_failure()
         level: dict = {"apf": apf}
         # 1. angular refinement path: aspect proportional to n_ranks (lateral spacing ~ rank spacing^2)
         ang = []
         for i, nr in enumerate(ref_ranks):
             aspect = 4.0 * 2**i
             g = plan_grid(start, finish, n_ranks=nr, aspect=aspect, half_width_km=half_width, max_deviation_deg=60.0)
-            t, arcs, dt = route_time(problem, g)
+            t, arcs, dt = route_time(sc, g, failure)
             ang.append({"n_ranks": nr, "aspect": aspect, "n_nodes": g.n_nodes, "h_km": g.rank_spacing_km,
                         "voyage_time_h": t, "arcs": arcs, "runtime_s": dt})
             print(f"apf {apf}: angular {nr} ranks, aspect {aspect:g}: {t:.3f} h, {arcs} arcs, {dt:.1f} s", flush=True)
@@ -79,7 +75,7 @@ def main() -> None:
         sq = []
         for n in square_n:
             g = make_grid(start, finish, n_ranks=n, n_nodes=n)
-            t, arcs, dt = route_time(problem, g)
+            t, arcs, dt = route_time(sc, g, failure)
             sq.append({"n": n, "h_km": g.spacing_km, "voyage_time_h": t, "arcs": arcs, "runtime_s": dt})
             print(f"apf {apf}: square {n}x{n}: {t:.3f} h, {dt:.1f} s", flush=True)
         level["square"] = sq
@@ -87,7 +83,7 @@ def main() -> None:
         cands = []
         for nr, aspect, dev in candidates:
             g = plan_grid(start, finish, n_ranks=nr, aspect=aspect, half_width_km=half_width, max_deviation_deg=dev)
-            t, arcs, dt = route_time(problem, g)
+            t, arcs, dt = route_time(sc, g, failure)
             cands.append({"n_ranks": nr, "aspect": aspect, "max_deviation_deg": dev, "voyage_time_h": t,
                           "arcs": arcs, "runtime_s": dt, "error": (t - converged) / converged})
         level["candidates"] = cands

@@ -43,6 +43,7 @@ def add_gci_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], Non
     s.add_argument("--aspect0", type=float, default=2.0, help="angular: rank/lateral spacing of the coarsest grid")
     s.add_argument("--apf", type=float, help="acceptable probability of failure")
     s.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
+    s.add_argument("--no-land", action="store_true", help="do not avoid land (overrides [avoid].land)")
     _gate_args(s)
     add_common(s)
     s.set_defaults(func=_cmd_study)
@@ -120,7 +121,8 @@ def _cmd_study(args: argparse.Namespace) -> int:
     from .scenario import load_scenario
     from .study import angular_levels, run_study, square_levels
 
-    scenario = load_scenario(args.scenario).with_options(apf=args.apf, failure_model=args.failure_model)
+    scenario = load_scenario(args.scenario).with_options(apf=args.apf, failure_model=args.failure_model,
+                                                         land=False if args.no_land else None)
     if args.refinement == "square":
         if not args.n_nodes:
             raise ConvergenceError("gci study --refinement square needs --n-nodes, e.g. 41,57,81,115,161")
