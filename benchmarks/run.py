@@ -66,6 +66,21 @@ print(json.dumps({{"seconds": t1, "without_model_s": t0, "ratio": t1 / t0,
                   "target_ratio": 1.5, "pass_ratio": t1 / t0 <= 1.5}}))
 """)
 
+for _apf in (1.0, 0.95, 0.5):
+    case(f"default_route_apf{_apf:g}", 2.0,
+         f"default route of the example at apf {_apf:g} (angular grid, land on, failure model): load + route, "
+         "first in the process (issue 8: under 2 s each)")(f"""
+t0 = time.perf_counter()
+sc = load_scenario({str(EXAMPLE)!r}).with_options(apf={_apf})
+route = sc.route()
+cold = time.perf_counter() - t0
+grid = route.grid
+problem = sc.problem(grid=grid)
+t, res = best_of(lambda: forward_dp(grid, problem))
+print(json.dumps({{"seconds": cold, "warm_dp_seconds": t, "arcs": res.arcs_evaluated,
+                  "arcs_per_s": res.arcs_evaluated / t, "voyage_h": route.voyage_time_h, "peak_rss_mb": rss_mb()}}))
+""")
+
 case("bbn_table_vs_pgmpy", None, "compiled failure table vs one pgmpy VariableElimination query per arc")("""
 from pyroute_rel.failure import load_failure_model
 m = load_failure_model("dickson2018")
