@@ -220,6 +220,12 @@ class Scenario:
         routes = []
         departure = self.departure
         for grid in self.leg_grids():
+            # the weather must cover the leg's end points and its departure; cells missing elsewhere in the
+            # (wider) grid are NaN and forbid the arcs through them
+            s_lon, s_lat = grid.start_points
+            lons = [*s_lon, grid.finish[0]]
+            lats = [*s_lat, grid.finish[1]]
+            self.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)), (departure, departure))
             leg_problem = replace(self.problem(failure=failure, grid=grid), departure=departure)
             routes.append(solve(grid, leg_problem, progress=progress))
             departure = routes[-1].arrival

@@ -603,7 +603,12 @@ def _read_fields(
             field, had_members = _extract(ds[var], name, source, var, box, window, member, margin_deg)
             used_member |= had_members
             if field is None:
-                dropped.setdefault(name, []).append(f"'{source}' variable '{var}'")
+                covered = ""
+                tname = next((c for c in ("time", "valid_time") if c in ds[var].coords), None)
+                if tname is not None and ds[var][tname].size:
+                    tv = np.asarray(ds[var][tname].values).astype("datetime64[m]")
+                    covered = f" (it covers {_iso(tv.min())} .. {_iso(tv.max())})"
+                dropped.setdefault(name, []).append(f"'{source}' variable '{var}'{covered}")
             else:
                 parts.setdefault(name, []).append(field)
     if member is not None and not used_member:

@@ -78,3 +78,29 @@ def test_era5_layout_uniform_field_routes_like_the_uniform_scenario(tmp_path: Pa
     # float32 storage of v10 = -7.7167 m/s is exact to ~1e-7 relative: so is the voyage time
     assert route.voyage_time_h == pytest.approx(uniform_time, rel=1e-6)
     assert route.max_failure_probability == 0.0
+
+
+def test_departure_after_the_file_is_a_coverage_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from pyroute_rel.cli import main
+
+    era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
+    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace("2018-06-01T00:00:00Z",
+                                                                           "2018-09-01T00:00:00Z")
+    (tmp_path / "late.toml").write_text(text)
+    out = tmp_path / "out"
+    code = main(["route", str(tmp_path / "late.toml"), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "era5.nc" in err and "2018-07" in err  # names the file and the covered range
+    assert not out.exists()
+
+
+def test_start_outside_the_file_is_a_coverage_error(tmp_path: Path) -> None:
+    from pyroute_rel.errors import WeatherCoverageError
+
+    era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
+    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace("start = [-12.0, 45.0]",
+                                                                           "start = [-12.0, 65.0]")
+    (tmp_path / "north.toml").write_text(text)
+    with pytest.raises(WeatherCoverageError, match="era5.nc"):
+        load_scenario(tmp_path / "north.toml").route()
