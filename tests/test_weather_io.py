@@ -625,8 +625,8 @@ def test_box_or_window_outside_a_file_is_a_coverage_error(tmp_path):
     with pytest.raises(WeatherCoverageError, match=r"regional\.nc' variable 'u10' covers .*outside the requested box"):
         open_weather(path, bbox=(10.0, 5.0, 30.0, 20.0))
     with pytest.raises(WeatherCoverageError,
-                       match=r"regional\.nc' variable 'u10' \(it covers 2018-06-01T00:00 \.\. 2018-06-03T00:00\) has no "
-                             r"time in the requested"):
+                       match=r"regional\.nc' variable 'u10' \(it covers 2018-06-01T00:00 \.\. "
+                             r"2018-06-03T00:00\) has no time in the requested"):
         open_weather(path, time_window=("2018-07-01", "2018-07-02"))
     with pytest.raises(WeatherError, match=r"bbox must be"):
         open_weather(path, bbox=(0.0, 50.0, 10.0, 40.0))
