@@ -134,6 +134,7 @@ class Route:
                 "evaluated": self.dp.arcs_evaluated,
                 "forbidden": self.dp.arcs_forbidden,
                 "forbidden_by_reason": self.dp.forbidden_by_reason,
+                "forbidden_by_criterion": self.dp.forbidden_by_criterion,
             },
             "max_failure_probability": self.max_failure_probability,
             "voyage_failure_probability": self.voyage_failure_probability,
@@ -261,7 +262,9 @@ def join_routes(routes: list[Route]) -> Route:
     dp = _replace(first.dp, arcs_evaluated=sum(r.dp.arcs_evaluated for r in routes),
                   arcs_forbidden=sum(r.dp.arcs_forbidden for r in routes),
                   forbidden_by_reason={k: sum(r.dp.forbidden_by_reason[k] for r in routes)
-                                       for k in first.dp.forbidden_by_reason})
+                                       for k in first.dp.forbidden_by_reason},
+                  forbidden_by_criterion={k: sum(r.dp.forbidden_by_criterion.get(k, 0) for r in routes)
+                                          for r0 in routes for k in r0.dp.forbidden_by_criterion})
     meta = dict(first.meta)
     meta["legs_of_course"] = len(routes)
     meta["grids_object"] = [r.grid for r in routes]

@@ -155,6 +155,8 @@ class DPResult:
     arcs_forbidden : Of those, how many were forbidden.
     forbidden_by_reason : Forbidden arc counts per :data:`~pyroute_rel.cost.REASONS` name (an arc may count
         under several).
+    forbidden_by_criterion : For arcs forbidden by the failure model, how many had each criterion fired somewhere
+        along them (keys: the criteria's descriptions, e.g. ``"WH: hs_m >= 4 m"``).
     dead_rank : First rank (0..n_ranks, n_ranks = finish) with no reachable node, or None.
     wait_h : Wait at the source node before the best arc into each node, shape (n_ranks + 1, n_nodes) [h]
         (row n_ranks, column 0: before the arc into the finish); zeros without waiting.
@@ -173,6 +175,7 @@ class DPResult:
     forbidden_by_reason: dict[str, int]
     dead_rank: int | None
     wait_h: FloatArray | None = None
+    forbidden_by_criterion: dict[str, int] = field(default_factory=dict)
     end_rank: int | None = None
     end_node: int = -1
     end_src: int = -1
@@ -252,6 +255,7 @@ def forward_dp(
     evaluated = 0
     forbidden = 0
     by_reason = dict.fromkeys(REASONS, 0)
+    by_criterion: dict[str, int] = {}
     dead: int | None = None
     t_prev = np.zeros(grid.start_points[0].size)
     wait_into = np.zeros((n_ranks + 1, n_nodes)) if problem.n_wait else None
@@ -310,6 +314,10 @@ def forward_dp(
             if bad.any():
                 for name, bit in REASONS.items():
                     by_reason[name] += int(np.count_nonzero(bad & (reason & bit != 0)))
+                failed = bad & (reason & REASONS["failure"] != 0)
+                if problem.failure is not None and failed.any():
+                    for crit, n in _criteria_counts(grid, problem, k, t_src, failed).items():
+                        by_criterion[crit] = by_criterion.get(crit, 0) + n
             best = np.argmin(total, axis=1)
             t_new = np.take_along_axis(total, best[:, None], axis=1)[:, 0]
             src_best = np.take_along_axis(src, best[:, None], axis=1)[:, 0]
@@ -349,6 +357,7 @@ def forward_dp(
         arcs_evaluated=evaluated,
         arcs_forbidden=forbidden,
         forbidden_by_reason=by_reason,
+        forbidden_by_criterion=by_criterion,
         dead_rank=dead,
         wait_h=wait_into,
         **end,

@@ -106,3 +106,20 @@ def test_wave_speed_loss_from_a_scenario() -> None:
     assert sc.wave_loss is not None and float(sc.wave_loss.factor(2.0)) == pytest.approx(0.8)
     with pytest.raises(ScenarioError, match=r"\[boat\].wave_speed_loss"):
         scenario_from_mapping({**base, "boat": {"wave_speed_loss": [[0.0, 1.0], [4.0, 1.5]]}})
+
+
+def test_forbidden_arcs_record_which_criteria_fired() -> None:
+    from pyroute_rel.scenario import load_scenario
+
+    sc = load_scenario("examples/microtransat_control.toml").with_options(n_ranks=40, land=False)
+    strict = sc.with_options(apf=0.95).route()
+    n_fail = strict.dp.forbidden_by_reason["failure"]
+    assert n_fail > 0
+    # Table 1: p_f > 0.95 only when both criteria fire, so every failure-forbidden arc has both
+    assert strict.dp.forbidden_by_criterion == {"WH: hs_m >= 4 m": n_fail, "WD: awd_deg < 60 deg": n_fail}
+    # at apf 0.5 one criterion is enough: each forbidden arc has at least one, and the counts add up to at least it
+    loose = sc.with_options(apf=0.5).route()
+    counts = loose.dp.forbidden_by_criterion
+    n = loose.dp.forbidden_by_reason["failure"]
+    assert max(counts.values()) <= n <= sum(counts.values())
+    assert loose.summary()["arcs"]["forbidden_by_criterion"] == counts
