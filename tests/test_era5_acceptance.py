@@ -104,3 +104,27 @@ def test_start_outside_the_file_is_a_coverage_error(tmp_path: Path) -> None:
     (tmp_path / "north.toml").write_text(text)
     with pytest.raises(WeatherCoverageError, match="era5.nc"):
         load_scenario(tmp_path / "north.toml").route()
+
+
+@pytest.mark.parametrize("damage,needle", [("nan", "NaN"), ("corrupt", "era5.nc")])
+def test_bad_weather_file_exit_2_one_line_no_output(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                    damage: str, needle: str) -> None:
+    from pyroute_rel.cli import main
+
+    path = era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
+    if damage == "nan":
+        with xr.open_dataset(path) as ds:
+            bad = ds.load()
+        bad["u10"][:] = np.nan
+        bad["v10"][:] = np.nan
+        path.unlink()
+        bad.to_netcdf(path)
+    else:
+        path.write_bytes(np.random.default_rng(0).bytes(4096))
+    (tmp_path / "s.toml").write_text(TOML.format(weather='kind = "file"\npaths = ["era5.nc"]'))
+    out = tmp_path / "out"
+    code = main(["route", str(tmp_path / "s.toml"), "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert needle in err
+    assert not out.exists()
