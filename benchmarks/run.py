@@ -81,6 +81,17 @@ print(json.dumps({{"seconds": cold, "warm_dp_seconds": t, "arcs": res.arcs_evalu
                   "arcs_per_s": res.arcs_evaluated / t, "voyage_h": route.voyage_time_h, "peak_rss_mb": rss_mb()}}))
 """)
 
+case("gci_study_square_five_grids", 30.0,
+     "the paper's five-grid square GCI study (41, 57, 81, 115, 161 nodes), apf 1, no land (issue: under 30 s)")(f"""
+from pyroute_rel.study import run_study, square_levels
+sc = load_scenario({str(EXAMPLE)!r}).with_options(apf=1.0, land=False)
+t0 = time.perf_counter()
+st = run_study(sc, square_levels([41, 57, 81, 115, 161]))
+dt = time.perf_counter() - t0
+print(json.dumps({{"seconds": dt, "grids": len(st.rows), "convergence": st.study.finest.convergence,
+                  "peak_rss_mb": rss_mb()}}))
+""")
+
 case("bbn_table_vs_pgmpy", None, "compiled failure table vs one pgmpy VariableElimination query per arc")("""
 from pyroute_rel.failure import load_failure_model
 m = load_failure_model("dickson2018")
