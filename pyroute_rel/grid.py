@@ -156,38 +156,34 @@ class Grid:
             "n_arcs": self.n_arcs,
         }
 
+    def pattern(self, k: int) -> tuple[IntArray, BoolArray]:
+        """Arc pattern into rank k: source index of each candidate arc and whether it exists, shape (n_dst, width)."""
+        if k == 0:
+            pattern = self.start_pattern
+            return np.broadcast_to(np.arange(pattern.shape[1], dtype=np.intp)[None, :], pattern.shape), pattern
+        if k == self.n_ranks:
+            return np.arange(self.n_nodes, dtype=np.intp)[None, :], self.finish_valid[None, :]
+        if not 0 < k < self.n_ranks:
+            raise IndexError(f"rank index must be in [0, {self.n_ranks}] (got {k})")
+        return self.src_index, self.arc_valid
+
     def arcs(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, IntArray, BoolArray]:
         """Arcs into rank ``k`` (``k = 0`` from the start; ``k = n_ranks`` into the finish).
 
         Returns ``(lon0, lat0, lon1, lat1, src, valid)``: end points [deg] of shape (n_dst, width), the
         source node index of each arc, and whether the arc exists.
         """
+        src, valid = self.pattern(k)
         if k == 0:
             s_lon, s_lat = self.start_points
-            src = np.broadcast_to(np.arange(s_lon.size, dtype=np.intp)[None, :], (self.n_nodes, s_lon.size))
             return (np.broadcast_to(s_lon[None, :], src.shape), np.broadcast_to(s_lat[None, :], src.shape),
-                    self.lon_deg[0][:, None], self.lat_deg[0][:, None], src, self.start_pattern)
+                    self.lon_deg[0][:, None], self.lat_deg[0][:, None], src, valid)
         if k == self.n_ranks:
-            src = np.arange(self.n_nodes, dtype=np.intp)[None, :]
-            return (
-                self.lon_deg[-1][None, :],
-                self.lat_deg[-1][None, :],
-                np.full((1, self.n_nodes), self.finish[0]),
-                np.full((1, self.n_nodes), self.finish[1]),
-                src,
-                self.finish_valid[None, :],
-            )
-        if not 0 < k < self.n_ranks:
-            raise IndexError(f"rank index must be in [0, {self.n_ranks}] (got {k})")
-        src = self.src_index
-        return (
-            self.lon_deg[k - 1][src],
-            self.lat_deg[k - 1][src],
-            np.broadcast_to(self.lon_deg[k][:, None], src.shape),
-            np.broadcast_to(self.lat_deg[k][:, None], src.shape),
-            src,
-            self.arc_valid,
-        )
+            return (self.lon_deg[-1][None, :], self.lat_deg[-1][None, :], np.full((1, self.n_nodes), self.finish[0]),
+                    np.full((1, self.n_nodes), self.finish[1]), src, valid)
+        return (self.lon_deg[k - 1][src], self.lat_deg[k - 1][src],
+                np.broadcast_to(self.lon_deg[k][:, None], src.shape),
+                np.broadcast_to(self.lat_deg[k][:, None], src.shape), src, valid)
 
     def to_networkx(self, weight: npt.ArrayLike | None = None) -> nx.DiGraph:
         """Export the digraph to networkx.

@@ -265,7 +265,7 @@ def forward_dp(
     bar = _progress_bar(n_ranks + 1, enabled=progress)
     try:
         for k in range(n_ranks + 1):
-            src, valid = _pattern(grid, k)
+            src, valid = grid.pattern(k)
             t_src = t_prev[src]
             live = valid & np.isfinite(t_src)
             t_src = np.where(live, t_src, 0.0)
@@ -397,15 +397,6 @@ def _crossing(grid: Grid, k: int) -> FloatArray:
         frac = geodesy.crossing_fraction(lon0, lat0, lon1, lat1, c_lon, c_lat, d_lon, d_lat)
         cache[k] = frac
     return frac
-
-
-def _pattern(grid: Grid, k: int) -> tuple[npt.NDArray[np.intp], BoolArray]:
-    if k == 0:
-        pattern = grid.start_pattern
-        return np.broadcast_to(np.arange(pattern.shape[1], dtype=np.intp)[None, :], pattern.shape), pattern
-    if k == grid.n_ranks:
-        return np.arange(grid.n_nodes, dtype=np.intp)[None, :], grid.finish_valid[None, :]
-    return grid.src_index, grid.arc_valid
 
 
 def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
