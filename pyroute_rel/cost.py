@@ -352,7 +352,7 @@ def _sample_costs(
     if wave_loss is not None:
         v = v * wave_loss.factor(cond.hs_m)
     if current:
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             ratio = -c_cross / v
             cannot = ~(np.abs(ratio) <= 1.0)
             sog = v * np.sqrt(np.clip(1.0 - ratio**2, 0.0, 1.0)) + c_along

@@ -501,6 +501,12 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
             parts.append(f"{label} on {n} arcs")
     if n_live == 0:
         detail = "no arc into it starts from a reachable node"
+        earlier = [f"{labels.get(name, 'the failure model (p_f > apf)')} on {n} arcs"
+                   for name, n in result.forbidden_by_reason.items() if n]
+        if earlier:
+            detail += " (the reachable nodes were cut off before: " + "; ".join(earlier) + ")"
+        if grid.max_deviation_deg is not None:
+            detail += f"; arcs may deviate at most {grid.max_deviation_deg:g} deg from the rank direction"
     else:
         detail = f"all {n_live} arcs into it from reachable nodes are forbidden: " + "; ".join(parts)
     hint = ""
