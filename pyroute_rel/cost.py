@@ -57,6 +57,9 @@ __all__ = [
 
 #: Knots per metre per second (1 kn = 1852 m / 3600 s).
 KN_PER_MS = 3600.0 / 1852.0
+#: Slowest useful speed over ground [kn]: below it (near-calm air, a current almost as strong as the boat) an arc
+#: is forbidden as "no speed" rather than sailed for thousands of hours.
+MIN_SPEED_KN = 0.01
 
 #: Bit flags saying why an arc is forbidden.
 REASONS: dict[str, int] = {
@@ -361,10 +364,14 @@ def _sample_costs(
         reason |= np.where(cannot, REASONS["current"], 0).astype(np.uint8)
     else:
         sog = v
+    sog = np.where(sog >= MIN_SPEED_KN, sog, np.where(np.isnan(sog), np.nan, 0.0))
+    v = np.where(v >= MIN_SPEED_KN, v, np.where(np.isnan(v), np.nan, 0.0))
     missing = ~np.isfinite(cond.tws_kn) | ~np.isfinite(cond.twd_deg)
     if current:
         missing |= ~np.isfinite(cond.current_u_ms) | ~np.isfinite(cond.current_v_ms)
     reason |= np.where(~missing & ~(v > 0), REASONS["polar"], 0).astype(np.uint8)
+    if current:
+        reason |= np.where(~missing & (v > 0) & ~(sog > 0), REASONS["current"], 0).astype(np.uint8)
     if failure is not None:
         q = arc_quantities(cond, heading)
         p = np.asarray(failure.p_fail({name: q[name] for name in failure.quantities}), dtype=float)

@@ -312,7 +312,7 @@ def _checked_options(margin_km: float, resolution: str) -> float:
     margin = float(margin_km)
     if not (0.0 <= margin <= 200.0):
         raise ScenarioError(f"margin_km must be in [0, 200] [km] (got {margin_km!r})")
-    return margin
+    return margin if margin >= 1e-6 else 0.0  # below a millimetre: no margin (a tiny buffer loses polygons)
 
 
 def land_geometry(

@@ -75,6 +75,8 @@ def _draw_patches(ax: Axes, weather: Any) -> None:
 
     for i, patch in enumerate(getattr(weather, "patches", ())):
         label = patch.name or f"patch {i + 1}"
+        if len(label) > 40:
+            label = label[:37] + "..."
         desc = ", ".join(f"{k}={v:g}" for k, v in patch.values.items())
         ax.add_patch(Rectangle((patch.lon[0], patch.lat[0]), patch.lon[1] - patch.lon[0],
                                patch.lat[1] - patch.lat[0], fill=False, ec="k", lw=1.0))
