@@ -82,11 +82,14 @@ class ArcCosts:
     time_h : Time to sail the arc [h]; ``inf`` where forbidden.
     p_f : Largest failure probability along the arc (0 without a failure model; NaN where weather is missing).
     reason : Bit flags of :data:`REASONS` (0 where the arc is allowed).
+    fired : With a failure model, shape (n_criteria, *block): which criteria fired somewhere along the arcs the
+        model forbids (``p_f > apf``); False elsewhere.
     """
 
     time_h: FloatArray
     p_f: FloatArray
     reason: npt.NDArray[np.uint8]
+    fired: npt.NDArray[np.bool_] | None = None
 
 
 def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[str, FloatArray]:
@@ -297,28 +300,29 @@ def geometry_costs(
     shape = geom.shape
     samples = geom.samples
 
-    def evaluate(time_h: FloatArray | None) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8]]:
+    def evaluate(time_h: FloatArray | None) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any]:
         time = departure if time_h is None else _to_datetime(departure, time_h)
         cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
         return _sample_costs(cond, geom.course_deg, geom.seg_nm, polar, failure, apf, beyond, wave_loss)
 
     if steady:
-        dt, p_f, reason = evaluate(None)
+        dt, p_f, reason, fired = evaluate(None)
     else:
         t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (samples,))
-        dt, p_f, reason = evaluate(t_samples)
+        dt, p_f, reason, fired = evaluate(t_samples)
         with np.errstate(invalid="ignore"):
             elapsed = np.cumsum(dt, axis=-1) - 0.5 * dt
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
-        dt, p_f, reason = evaluate(t_samples + elapsed)
+        dt, p_f, reason, fired = evaluate(t_samples + elapsed)
+    arc_fired = None if fired is None else fired.any(axis=-1)
     if samples == 1:
-        return ArcCosts(time_h=dt[..., 0], p_f=p_f[..., 0], reason=reason[..., 0])
+        return ArcCosts(time_h=dt[..., 0], p_f=p_f[..., 0], reason=reason[..., 0], fired=arc_fired)
     with np.errstate(invalid="ignore"):
         time_h = dt.sum(axis=-1)
         arc_p = p_f.max(axis=-1)
     arc_reason = np.bitwise_or.reduce(reason, axis=-1)
     time_h = np.where(arc_reason != 0, np.inf, time_h)
-    return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason.astype(np.uint8))
+    return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason.astype(np.uint8), fired=arc_fired)
 
 
 def _to_datetime(departure: np.datetime64, time_h: FloatArray) -> npt.NDArray[np.datetime64]:
@@ -335,8 +339,8 @@ def _sample_costs(
     apf: float,
     beyond: str,
     wave_loss: WaveLoss | None = None,
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8]]:
-    """Per-sample time [h], p_f and reason flags."""
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], npt.NDArray[np.bool_] | None]:
+    """Per-sample time [h], p_f, reason flags and (with a failure model) the criteria fired where p_f > apf."""
     reason = np.zeros(course_deg.shape, dtype=np.uint8)
     heading = course_deg
     current = cond.has_current
@@ -373,15 +377,29 @@ def _sample_costs(
     if current:
         reason |= np.where(~missing & (v > 0) & ~(sog > 0), REASONS["current"], 0).astype(np.uint8)
     if failure is not None:
-        q = arc_quantities(cond, heading)
-        p = np.asarray(failure.p_fail({name: q[name] for name in failure.quantities}), dtype=float)
-        p = np.broadcast_to(p, course_deg.shape)
+        needed = failure.quantities
+        q: dict[str, Any] = {}
+        for name in needed:  # only what the model uses; TWA is already known
+            if name == "twa_deg":
+                q[name] = twa
+            elif name == "awd_deg":
+                q[name] = geodesy.angle_diff_deg(cond.wave_dir_deg, heading)
+            else:
+                q[name] = getattr(cond, name)
+        p, fired_all = failure.assess(q)
+        p = np.broadcast_to(np.asarray(p, dtype=float), course_deg.shape)
         missing |= np.isnan(p)
-        reason |= np.where(p > apf, REASONS["failure"], 0).astype(np.uint8)
+        over = p > apf
+        if over.any():
+            reason |= np.where(over, REASONS["failure"], 0).astype(np.uint8)
+            fired = np.broadcast_to(fired_all, (len(failure.criteria), *course_deg.shape)) & over
+        else:
+            fired = np.zeros((len(failure.criteria), *course_deg.shape), dtype=bool)
     else:
         p = np.zeros(course_deg.shape)
+        fired = None
     reason |= np.where(missing, REASONS["weather"], 0).astype(np.uint8)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         dt = seg_nm / sog
     dt = np.where(reason != 0, np.inf, dt)
-    return dt, p, reason
+    return dt, p, reason, fired

@@ -241,6 +241,30 @@ class FailureModel:
             p = np.where(np.logical_or.reduce(unknown), np.nan, p)
         return np.asarray(p)
 
+    def assess(self, quantities: Mapping[str, npt.ArrayLike]) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+        """:meth:`p_fail` and :meth:`fired` together, classifying each quantity once (the cost kernel's call).
+
+        >>> m = load_failure_model("dickson2018")
+        >>> p, f = m.assess({"hs_m": [4.0, 1.0], "awd_deg": [10.0, 90.0]})
+        >>> p.tolist(), f.tolist()
+        ([1.0, 0.0], [[True, False], [True, False]])
+        """
+        idx, unknown = self._indices(quantities)
+        p = self._full[tuple(idx)]
+        if unknown:
+            p = np.where(np.logical_or.reduce(unknown), np.nan, p)
+        out = []
+        for c, i in zip(self.criteria, idx, strict=True):
+            f = self._fired_lut(c)[i]
+            if c.if_missing == "nan":
+                f = f & ~np.isnan(np.asarray(quantities[c.quantity], dtype=float))
+            out.append(f)
+        return np.asarray(p), np.stack(np.broadcast_arrays(*out))
+
+    @staticmethod
+    def _fired_lut(c: Criterion) -> npt.NDArray[np.bool_]:
+        return np.array([s not in c.nominal for s in c.states] + [False])
+
     def fired(self, quantities: Mapping[str, npt.ArrayLike]) -> npt.NDArray[np.bool_]:
         """Which criteria are in a non-nominal state, shape ``(len(criteria), *broadcast shape)``.
 

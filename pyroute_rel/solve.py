@@ -277,6 +277,8 @@ def forward_dp(
             for w in range(problem.n_wait + 1):
                 t0 = t_src + w * step
                 costs = problem.geometry_costs(geom, t0)
+                if w == 0:
+                    fired0 = costs.fired
                 r_w = np.where(live, costs.reason, 0).astype(np.uint8)
                 time_h = costs.time_h
                 lazy = problem.blocked is not None and hasattr(problem.blocked, "static_hits") and cost_hook is None
@@ -312,12 +314,15 @@ def forward_dp(
             bad = live & (reason != 0)
             forbidden += int(bad.sum())
             if bad.any():
+                values = np.bincount(reason[bad], minlength=256)  # one pass: arcs per combination of flags
+                flags = np.arange(256)
                 for name, bit in REASONS.items():
-                    by_reason[name] += int(np.count_nonzero(bad & (reason & bit != 0)))
-                failed = bad & (reason & REASONS["failure"] != 0)
-                if problem.failure is not None and failed.any():
-                    for crit, n in _criteria_counts(grid, problem, k, t_src, failed).items():
-                        by_criterion[crit] = by_criterion.get(crit, 0) + n
+                    by_reason[name] += int(values[(flags & bit) != 0].sum())
+                if problem.failure is not None and fired0 is not None and values[(flags & REASONS["failure"]) != 0].any():
+                    failed = bad & (reason & REASONS["failure"] != 0)
+                    counts = np.count_nonzero(fired0 & failed, axis=(1, 2))
+                    for c, n in zip(problem.failure.criteria, counts, strict=True):
+                        by_criterion[c.describe()] = by_criterion.get(c.describe(), 0) + int(n)
             best = np.argmin(total, axis=1)
             t_new = np.take_along_axis(total, best[:, None], axis=1)[:, 0]
             src_best = np.take_along_axis(src, best[:, None], axis=1)[:, 0]
