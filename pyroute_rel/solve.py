@@ -318,7 +318,8 @@ def forward_dp(
                 flags = np.arange(256)
                 for name, bit in REASONS.items():
                     by_reason[name] += int(values[(flags & bit) != 0].sum())
-                if problem.failure is not None and fired0 is not None and values[(flags & REASONS["failure"]) != 0].any():
+                any_failed = values[(flags & REASONS["failure"]) != 0].any()
+                if problem.failure is not None and fired0 is not None and any_failed:
                     failed = bad & (reason & REASONS["failure"] != 0)
                     counts = np.count_nonzero(fired0 & failed, axis=(1, 2))
                     for c, n in zip(problem.failure.criteria, counts, strict=True):
