@@ -351,7 +351,7 @@ def _sample_costs(
         c_along = cu * np.sin(crs) + cv * np.cos(crs)
         c_cross = cu * np.cos(crs) - cv * np.sin(crs)  # to starboard of the course
         v0 = boat_speed_kn(polar, geodesy.angle_diff_deg(cond.twd_deg, heading), cond.tws_kn, beyond=beyond)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             drift = np.degrees(np.arcsin(np.clip(-c_cross / v0, -1.0, 1.0)))
         heading = (course_deg + np.where(np.isfinite(drift), drift, 0.0)) % 360.0
     twa = geodesy.angle_diff_deg(cond.twd_deg, heading)

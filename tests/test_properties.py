@@ -370,9 +370,6 @@ def test_tiny_boat_speed_with_current_is_forbidden_without_warnings() -> None:
     assert float(c.time_h) == np.inf and c.reason != 0
 
 
-@pytest.mark.xfail(strict=True, raises=RuntimeWarning,
-                   reason="BUG: cost._sample_costs computes the drift angle -c_cross / v0 under errstate(divide, "
-                          "invalid) but not over: a subnormal boat speed (~1e-309 kn) with a current overflows")
 def test_bug_subnormal_boat_speed_with_current_overflows_in_the_drift() -> None:
     from pyroute_rel.cost import arc_costs
 
