@@ -82,8 +82,8 @@ class ArcCosts:
     time_h : Time to sail the arc [h]; ``inf`` where forbidden.
     p_f : Largest failure probability along the arc (0 without a failure model; NaN where weather is missing).
     reason : Bit flags of :data:`REASONS` (0 where the arc is allowed).
-    fired : With a failure model, shape (n_criteria, *block): which criteria fired somewhere along the arcs the
-        model forbids (``p_f > apf``); False elsewhere.
+    fired : With a failure model and some arc it forbids, shape (n_criteria, *block): which criteria fired
+        somewhere along each arc (read it where ``reason`` has the failure flag); None otherwise.
     """
 
     time_h: FloatArray
@@ -390,11 +390,10 @@ def _sample_costs(
         p = np.broadcast_to(np.asarray(p, dtype=float), course_deg.shape)
         missing |= np.isnan(p)
         over = p > apf
+        fired = None
         if over.any():
             reason |= np.where(over, REASONS["failure"], 0).astype(np.uint8)
-            fired = np.broadcast_to(fired_all, (len(failure.criteria), *course_deg.shape)) & over
-        else:
-            fired = np.zeros((len(failure.criteria), *course_deg.shape), dtype=bool)
+            fired = np.broadcast_to(fired_all, (len(failure.criteria), *course_deg.shape))
     else:
         p = np.zeros(course_deg.shape)
         fired = None

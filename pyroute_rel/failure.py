@@ -200,23 +200,30 @@ class FailureModel:
 
     def _indices(self, quantities: Mapping[str, npt.ArrayLike]) -> tuple[list[Any], list[Any]]:
         """Per criterion: node-state index (``len(states)`` = unobserved) and where a NaN gives an unknown."""
+        idx, unknown, _ = self._classify(quantities)
+        return idx, unknown
+
+    def _classify(self, quantities: Mapping[str, npt.ArrayLike]) -> tuple[list[Any], list[Any], list[Any]]:
+        """:meth:`_indices` plus each criterion's NaN mask (None where its quantity has no NaN)."""
         missing = sorted(self.quantities - set(quantities))
         if missing:
             raise FailureModelError(f"failure model '{self.name}' needs quantities {missing} "
                                     f"(got {sorted(quantities)})")
         arrays = np.broadcast_arrays(*[np.asarray(quantities[c.quantity], dtype=float) for c in self.criteria])
-        idx, unknown = [], []
+        idx, unknown, nans = [], [], []
         for c, x in zip(self.criteria, arrays, strict=True):
             i = c._lut()[np.searchsorted(c.edges, x, side="right" if c.closed == "left" else "left")]
             nan = np.isnan(x)
-            if nan.any():
+            has_nan = bool(nan.any())
+            if has_nan:
                 if c.if_missing == "nan":
                     unknown.append(nan)
                 else:
                     fill = len(c.states) if c.if_missing == "prior" else c.states.index(c.if_missing)
                     i = np.where(nan, fill, i)
+            nans.append(nan if has_nan else None)
             idx.append(i)
-        return idx, unknown
+        return idx, unknown, nans
 
     def p_fail(self, quantities: Mapping[str, npt.ArrayLike]) -> FloatArray:
         """Probability of failure for each point, by gathering from the compiled table.
@@ -249,15 +256,15 @@ class FailureModel:
         >>> p.tolist(), f.tolist()
         ([1.0, 0.0], [[True, False], [True, False]])
         """
-        idx, unknown = self._indices(quantities)
+        idx, unknown, nans = self._classify(quantities)
         p = self._full[tuple(idx)]
         if unknown:
             p = np.where(np.logical_or.reduce(unknown), np.nan, p)
         out = []
-        for c, i in zip(self.criteria, idx, strict=True):
+        for c, i, nan in zip(self.criteria, idx, nans, strict=True):
             f = self._fired_lut(c)[i]
-            if c.if_missing == "nan":
-                f = f & ~np.isnan(np.asarray(quantities[c.quantity], dtype=float))
+            if c.if_missing == "nan" and nan is not None:
+                f = f & ~nan
             out.append(f)
         return np.asarray(p), np.stack(np.broadcast_arrays(*out))
 
