@@ -82,14 +82,21 @@ class ArcCosts:
     time_h : Time to sail the arc [h]; ``inf`` where forbidden.
     p_f : Largest failure probability along the arc (0 without a failure model; NaN where weather is missing).
     reason : Bit flags of :data:`REASONS` (0 where the arc is allowed).
-    fired : With a failure model and some arc it forbids, shape (n_criteria, *block): which criteria fired
-        somewhere along each arc (read it where ``reason`` has the failure flag); None otherwise.
+    fired_bits : With a failure model and some arc it forbids: bit ``c`` is set where criterion ``c`` of the
+        model fired somewhere along the arc (read it where ``reason`` has the failure flag); None otherwise.
     """
 
     time_h: FloatArray
     p_f: FloatArray
     reason: npt.NDArray[np.uint8]
-    fired: npt.NDArray[np.bool_] | None = None
+    fired_bits: npt.NDArray[np.uint32] | None = None
+
+    def fired(self, n_criteria: int) -> npt.NDArray[np.bool_] | None:
+        """:attr:`fired_bits` unpacked, shape ``(n_criteria, *block)`` (None when there are none)."""
+        if self.fired_bits is None:
+            return None
+        bits = np.uint32(1) << np.arange(n_criteria, dtype=np.uint32)
+        return (self.fired_bits[None, ...] & bits.reshape((-1,) + (1,) * self.fired_bits.ndim)) != 0
 
 
 def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[str, FloatArray]:
@@ -314,15 +321,15 @@ def geometry_costs(
             elapsed = np.cumsum(dt, axis=-1) - 0.5 * dt
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
         dt, p_f, reason, fired = evaluate(t_samples + elapsed)
-    arc_fired = None if fired is None else fired.any(axis=-1)
+    arc_fired = None if fired is None else np.bitwise_or.reduce(fired, axis=-1)
     if samples == 1:
-        return ArcCosts(time_h=dt[..., 0], p_f=p_f[..., 0], reason=reason[..., 0], fired=arc_fired)
+        return ArcCosts(time_h=dt[..., 0], p_f=p_f[..., 0], reason=reason[..., 0], fired_bits=arc_fired)
     with np.errstate(invalid="ignore"):
         time_h = dt.sum(axis=-1)
         arc_p = p_f.max(axis=-1)
     arc_reason = np.bitwise_or.reduce(reason, axis=-1)
     time_h = np.where(arc_reason != 0, np.inf, time_h)
-    return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason.astype(np.uint8), fired=arc_fired)
+    return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason.astype(np.uint8), fired_bits=arc_fired)
 
 
 def _to_datetime(departure: np.datetime64, time_h: FloatArray) -> npt.NDArray[np.datetime64]:
@@ -339,7 +346,7 @@ def _sample_costs(
     apf: float,
     beyond: str,
     wave_loss: WaveLoss | None = None,
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], npt.NDArray[np.bool_] | None]:
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], npt.NDArray[np.uint32] | None]:
     """Per-sample time [h], p_f, reason flags and (with a failure model) the criteria fired where p_f > apf."""
     reason = np.zeros(course_deg.shape, dtype=np.uint8)
     heading = course_deg
@@ -376,27 +383,33 @@ def _sample_costs(
     reason |= np.where(~missing & ~(v > 0), REASONS["polar"], 0).astype(np.uint8)
     if current:
         reason |= np.where(~missing & (v > 0) & ~(sog > 0), REASONS["current"], 0).astype(np.uint8)
+    fired = None
     if failure is not None:
-        needed = failure.quantities
         q: dict[str, Any] = {}
-        for name in needed:  # only what the model uses; TWA is already known
+        for name in failure.quantities:  # only what the model uses; TWA is already known
             if name == "twa_deg":
                 q[name] = twa
             elif name == "awd_deg":
                 q[name] = geodesy.angle_diff_deg(cond.wave_dir_deg, heading)
             else:
                 q[name] = getattr(cond, name)
-        p, fired_all = failure.assess(q)
-        p = np.broadcast_to(np.asarray(p, dtype=float), course_deg.shape)
-        missing |= np.isnan(p)
-        over = p > apf
-        fired = None
-        if over.any():
-            reason |= np.where(over, REASONS["failure"], 0).astype(np.uint8)
-            fired = np.broadcast_to(fired_all, (len(failure.criteria), *course_deg.shape))
+        flat, unknown = failure.evidence_index(q)
+        flat = np.broadcast_to(flat, course_deg.shape)
+        p = failure.p_flat.take(flat)
+        if unknown is not None:
+            unknown = np.broadcast_to(unknown, course_deg.shape)
+            p[unknown] = np.nan
+            missing |= unknown
+        over_table = failure.p_flat > apf
+        if over_table.any():  # a gather of the small table instead of comparing every point with apf
+            over = over_table.take(flat)
+            if unknown is not None:
+                over &= ~unknown
+            if over.any():
+                reason |= over.view(np.uint8) * np.uint8(REASONS["failure"])
+                fired = failure.fired_bits_flat.take(flat)
     else:
         p = np.zeros(course_deg.shape)
-        fired = None
     reason |= np.where(missing, REASONS["weather"], 0).astype(np.uint8)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         dt = seg_nm / sog

@@ -35,6 +35,7 @@ import tomllib
 import warnings
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import resources
 from importlib.resources.abc import Traversable
 from pathlib import Path
@@ -268,6 +269,62 @@ class FailureModel:
             out.append(f)
         return np.asarray(p), np.stack(np.broadcast_arrays(*out))
 
+    # --- the cost kernel's path: one flat index into the table per point -----------------------------
+
+    @cached_property
+    def _kernel(self) -> _Kernel:
+        return _Kernel.build(self)
+
+    @property
+    def p_flat(self) -> FloatArray:
+        """The table with an "unobserved" slot per axis, flattened: gather it with :meth:`evidence_index`."""
+        return self._kernel.p_flat
+
+    @property
+    def fired_bits_flat(self) -> npt.NDArray[np.uint32]:
+        """Per flat evidence index, bit ``c`` set when criterion ``c`` is in a non-nominal state."""
+        return self._kernel.fired_bits
+
+    def evidence_index(
+        self, quantities: Mapping[str, npt.ArrayLike]
+    ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_] | None]:
+        """Flat index into :attr:`p_flat` of each point's evidence, and where the evidence is unknown.
+
+        The cost kernel's fast path (threshold criteria classify by one comparison, the table is gathered
+        once with a flat index): ``p_flat[index]`` equals :meth:`p_fail` except where ``unknown`` (NaN there).
+
+        Returns
+        -------
+        ``(index, unknown)``: ``index`` in the broadcast shape of the quantities; ``unknown`` is a boolean mask
+        of points where a quantity is NaN and its criterion has ``if_missing = "nan"``, or None if there is none.
+
+        >>> m = load_failure_model("dickson2018")
+        >>> i, unknown = m.evidence_index({"hs_m": [1.0, 4.0, 4.0], "awd_deg": [90.0, 90.0, 10.0]})
+        >>> m.p_flat[i].tolist(), unknown
+        ([0.0, 0.9, 1.0], None)
+        """
+        missing = self.quantities - set(quantities)
+        if missing:
+            raise FailureModelError(f"failure model '{self.name}' needs quantities {sorted(missing)} "
+                                    f"(got {sorted(quantities)})")
+        flat: Any = None
+        unknown: Any = None
+        for c, rule in zip(self.criteria, self._kernel.rules, strict=True):
+            x = np.asarray(quantities[c.quantity], dtype=float)
+            part = rule.index(x)
+            if np.isnan(np.sum(x)):  # one reduction; the NaN mask only when some value is NaN (or +-inf pairs)
+                nan = np.isnan(x)
+                if nan.any():
+                    if rule.fill is None:
+                        unknown = nan if unknown is None else unknown | nan
+                    else:
+                        part = np.where(nan, rule.fill, part)
+            flat = part if flat is None else flat + part
+        flat = np.asarray(flat, dtype=np.intp)
+        if unknown is not None:
+            unknown = np.broadcast_to(unknown, flat.shape) if unknown.shape != flat.shape else unknown
+        return flat, unknown
+
     @staticmethod
     def _fired_lut(c: Criterion) -> npt.NDArray[np.bool_]:
         return np.array([s not in c.nominal for s in c.states] + [False])
@@ -333,6 +390,54 @@ class FailureModel:
             "references": list(self.references),
             "table": table,
         }
+
+
+@dataclass(frozen=True)
+class _Rule:
+    """One criterion's classifier in the kernel: the contribution ``state index * stride`` to the flat index."""
+
+    edges: npt.NDArray[np.float64]
+    contrib: npt.NDArray[np.intp]  # per bin: state index * stride
+    right: bool  # bins closed on the left: a value on an edge goes to the upper bin
+    fill: int | None  # contribution of a NaN value, None when a NaN makes the evidence unknown
+
+    def index(self, x: FloatArray) -> Any:
+        if self.edges.size == 1:  # a threshold: one comparison instead of a binary search
+            upper = x >= self.edges[0] if self.right else x > self.edges[0]
+            return np.where(upper, self.contrib[1], self.contrib[0])
+        return self.contrib[np.searchsorted(self.edges, x, side="right" if self.right else "left")]
+
+
+@dataclass(frozen=True)
+class _Kernel:
+    p_flat: FloatArray
+    fired_bits: npt.NDArray[np.uint32]
+    rules: tuple[_Rule, ...]
+
+    @classmethod
+    def build(cls, model: FailureModel) -> _Kernel:
+        if len(model.criteria) > 32:
+            raise FailureModelError(f"{model.path}: at most 32 criteria are supported (got {len(model.criteria)})")
+        full = np.ascontiguousarray(model._full)
+        strides = [s // full.itemsize for s in full.strides]
+        rules = []
+        bits = np.zeros(full.shape, dtype=np.uint32)
+        for axis, (c, stride) in enumerate(zip(model.criteria, strides, strict=True)):
+            if c.if_missing == "nan":
+                fill = None
+            else:
+                fill = (len(c.states) if c.if_missing == "prior" else c.states.index(c.if_missing)) * stride
+            rules.append(_Rule(edges=np.asarray(c.edges, dtype=float), contrib=c._lut() * stride,
+                               right=c.closed == "left", fill=fill))
+            fired = np.uint32(1 << axis) * FailureModel._fired_lut(c).astype(np.uint32)
+            shape = [1] * full.ndim
+            shape[axis] = -1
+            bits |= fired.reshape(shape)
+        p_flat = full.ravel()
+        p_flat.setflags(write=False)
+        bits_flat = bits.ravel()
+        bits_flat.setflags(write=False)
+        return cls(p_flat=p_flat, fired_bits=bits_flat, rules=tuple(rules))
 
 
 # ----------------------------------------------------------------------------------------------- loading

@@ -278,7 +278,7 @@ def forward_dp(
                 t0 = t_src + w * step
                 costs = problem.geometry_costs(geom, t0)
                 if w == 0:
-                    fired0 = costs.fired
+                    fired0 = costs.fired_bits
                 r_w = np.where(live, costs.reason, 0).astype(np.uint8)
                 time_h = costs.time_h
                 lazy = problem.blocked is not None and hasattr(problem.blocked, "static_hits") and cost_hook is None
@@ -321,9 +321,10 @@ def forward_dp(
                 any_failed = values[(flags & REASONS["failure"]) != 0].any()
                 if problem.failure is not None and fired0 is not None and any_failed:
                     failed = bad & (reason & REASONS["failure"] != 0)
-                    counts = np.count_nonzero(fired0 & failed, axis=(1, 2))
-                    for c, n in zip(problem.failure.criteria, counts, strict=True):
-                        by_criterion[c.describe()] = by_criterion.get(c.describe(), 0) + int(n)
+                    bits = np.broadcast_to(fired0, failed.shape)[failed]
+                    for i, c in enumerate(problem.failure.criteria):
+                        n = int(np.count_nonzero(bits & np.uint32(1 << i)))
+                        by_criterion[c.describe()] = by_criterion.get(c.describe(), 0) + n
             best = np.argmin(total, axis=1)
             t_new = np.take_along_axis(total, best[:, None], axis=1)[:, 0]
             src_best = np.take_along_axis(src, best[:, None], axis=1)[:, 0]

@@ -211,6 +211,38 @@ def test_multistate_gather_equals_pgmpy(multistate_reference, rows, data):
         assert got == pytest.approx(multistate_reference[key], rel=1e-12, abs=1e-14)
 
 
+def _with_named_missing_state(tmp: Path) -> Path:
+    """dickson2018 with WH assumed "true" (fired) when Hs is NaN: the third NaN rule."""
+    folder = tmp / "named_missing"
+    folder.mkdir(exist_ok=True)
+    toml = files("failure_models").joinpath("dickson2018.toml").read_text()
+    (folder / "m.toml").write_text(toml.replace('fired = "true"', 'fired = "true"\nif_missing = "true"', 1))
+    (folder / "dickson2018.bif").write_text(files("failure_models").joinpath("dickson2018.bif").read_text())
+    return folder / "m.toml"
+
+
+@given(st.lists(st.tuples(*[st.one_of(_quantity(q), st.just(math.nan)) for q in _order]), min_size=1, max_size=12),
+       st.sampled_from(["dickson2018", "wind_wave_multistate", "named"]))
+@settings(max_examples=80, deadline=None)
+def test_kernel_flat_index_equals_reference_classifier(tmp_path_factory, rows, which):
+    # the cost kernel's fast path (one comparison per threshold, one flat gather) against the reference
+    # path (binary search per criterion, one index per axis): same p_f, same fired criteria, same unknowns
+    name = _with_named_missing_state(tmp_path_factory.getbasetemp()) if which == "named" else which
+    m = load_failure_model(name)
+    q = dict(zip(_order, np.array(rows, dtype=float).T, strict=True))
+    q = {k: v for k, v in q.items() if k in m.quantities}
+    idx, unknown = m.evidence_index(q)
+    p = m.p_flat[idx]
+    if unknown is not None:
+        p = np.where(unknown, np.nan, p)
+    np.testing.assert_array_equal(p, m.p_fail(q))  # NaN where the reference gives NaN, equal elsewhere
+    bits = m.fired_bits_flat[idx]
+    ref = m.fired(q)
+    known = ~np.isnan(p)
+    for i in range(len(m.criteria)):
+        np.testing.assert_array_equal(((bits >> i) & 1).astype(bool)[known], ref[i][known])
+
+
 def test_nan_is_never_read_as_criterion_not_met():
     m = load_failure_model("dickson2018")
     p = m.p_fail({"hs_m": [np.nan, 1.0, np.nan], "awd_deg": [90.0, np.nan, np.nan]})
