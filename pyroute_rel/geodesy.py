@@ -59,7 +59,7 @@ def angle_diff_deg(a_deg: npt.ArrayLike, b_deg: npt.ArrayLike) -> FloatArray:
     [20.0, 180.0]
     """
     d = np.abs(np.asarray(np.subtract(a_deg, b_deg, dtype=float)))
-    if np.fmax.reduce(d, axis=None, initial=0.0) > 360.0:  # float remainder is ~20x slower than abs: only when some |a - b| > 360
+    if np.fmax.reduce(d, axis=None, initial=0.0) > 360.0:  # float remainder is ~20x slower: only if needed
         with np.errstate(invalid="ignore"):
             d = np.remainder(d, 360.0)
     return np.minimum(d, 360.0 - d, out=d) if d.ndim else np.minimum(d, 360.0 - d)
