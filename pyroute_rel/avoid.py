@@ -1,9 +1,10 @@
 """Obstacle masks for the solver: land, coastal margins and exclusion zones, cached per grid.
 
 The solver asks ``blocked(k, departure_times)`` for the arcs into rank k (:data:`~pyroute_rel.solve.ArcMask`).
-Land and zones without a time window do not depend on time, so their mask is computed once per grid and
-rank and kept on the grid (routing the same grid again - another apf, departure or weather - reuses it).
-Zones with a ``valid_from``/``valid_to`` window are tested against each arc's departure time.
+Whether an arc touches land or a zone does not depend on time, so each arc is tested once per grid and the
+answer kept on the grid (routing the same grid again - another apf, departure or weather - reuses it). Zones with
+a ``valid_from``/``valid_to`` window are remembered per arc as a bit set, and their windows are applied to each
+arc's departure time when the solver asks.
 """
 
 from __future__ import annotations
@@ -44,9 +45,9 @@ class Avoid:
         return self.land or bool(self.zones)
 
     def key(self) -> str:
-        """Cache key of the static part (land, margin and zones without a time window)."""
-        static = tuple(z.name for z in self.zones if z.valid_from is None and z.valid_to is None)
-        return f"avoid:{self.land}:{self.margin_km}:{self.resolution}:{static}:{id(self.zones)}"
+        """Cache key of the spatial tests (land, margin and every zone's geometry; windows are applied later)."""
+        names = tuple(z.name for z in self.zones)
+        return f"avoid:{self.land}:{self.margin_km}:{self.resolution}:{names}:{id(self.zones)}"
 
 
 def _bbox(grid: Grid, pad_deg: float = 1.0) -> tuple[float, float, float, float]:
@@ -60,10 +61,11 @@ def _bbox(grid: Grid, pad_deg: float = 1.0) -> tuple[float, float, float, float]
 class ObstacleMask:
     """The solver's obstacle callback for one grid (see :func:`obstacle_mask`).
 
-    ``mask(k, times)`` gives every arc into rank k; ``static_hits(k, select)`` checks only the selected arcs
-    against land and the zones without a time window (the solver asks for the few arcs it would pick, which
-    on a grid over continents is a small fraction); both cache what they learn on the grid. ``timed_hits``
-    tests the zones with a time window at the arcs' departure times.
+    ``mask(k, times)`` gives every arc into rank k. The solver instead asks lazily: ``learn(k, select)`` tests
+    only the selected arcs (the few it would pick, which on a grid over continents is a small fraction) and
+    ``hits(k, times)`` answers for the arcs learnt so far. What is learnt is cached on the grid: per arc,
+    whether it touches land or a zone without a time window, and which zones with a window it touches (their
+    windows are applied to the departure times on every call, which costs no geometry).
     """
 
     def __init__(self, grid: Grid, avoid: Avoid) -> None:
@@ -79,6 +81,8 @@ class ObstacleMask:
         )
         self.static = tuple(z for z in avoid.zones if z.valid_from is None and z.valid_to is None)
         self.timed_zones = tuple(z for z in avoid.zones if z.valid_from is not None or z.valid_to is not None)
+        if len(self.timed_zones) > 64:
+            raise ScenarioError(f"at most 64 exclusion zones may have a time window (got {len(self.timed_zones)})")
         self.on: tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]] | None = None
         if self.land is not None:
             # an arc with an end on (buffered) land is blocked outright; only arcs with both ends at sea need the
@@ -87,57 +91,93 @@ class ObstacleMask:
             s_lon, s_lat = grid.start_points
             self.on = (shapely.intersects_xy(self.land, s_lon, s_lat),
                        shapely.intersects_xy(self.land, grid.lon_deg, grid.lat_deg))
-        self._cache: dict[int, tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]] = grid._cache.setdefault(
-            avoid.key(), {})
+        self._cache: dict[int, tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.uint64]]] = (
+            grid._cache.setdefault(avoid.key(), {}))
 
     @property
     def timed(self) -> bool:
         """True when some zone has a time window (the mask then depends on departure times)."""
         return bool(self.timed_zones)
 
-    def _state(self, k: int, shape: tuple[int, ...]) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    def _state(
+        self, k: int, shape: tuple[int, ...]
+    ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.uint64]]:
+        """(learnt, static hit, timed-zone bits) of the arcs into rank k."""
         st = self._cache.get(k)
         if st is None:
-            st = self._cache[k] = (np.zeros(shape, dtype=bool), np.zeros(shape, dtype=bool))
+            st = self._cache[k] = (np.zeros(shape, dtype=bool), np.zeros(shape, dtype=bool),
+                                   np.zeros(shape, dtype=np.uint64))
         return st
+
+    def known(self, k: int) -> npt.NDArray[np.bool_]:
+        """Which arcs into rank k have been tested."""
+        return self._state(k, self.grid.arcs(k)[4].shape)[0]
+
+    def learn(self, k: int, select: npt.NDArray[np.bool_] | None = None) -> None:
+        """Test the selected arcs into rank k (default all) that are not known yet, against land and every zone."""
+        lon0, lat0, lon1, lat1, src, _ = self.grid.arcs(k)
+        known, hit, zbits = self._state(k, src.shape)
+        todo = ~known if select is None else (select & ~known)
+        if not todo.any():
+            return
+        arcs = [np.broadcast_to(x, src.shape)[todo] for x in (lon0, lat0, lon1, lat1)]
+        res = np.zeros(int(todo.sum()), dtype=bool)
+        if self.on is not None and self.land is not None:
+            on_start, on_nodes = self.on
+            if k == 0:
+                ends = on_start[src] | on_nodes[0][:, None]
+            elif k == self.grid.n_ranks:
+                ends = np.broadcast_to(on_nodes[-1][src], src.shape)
+            else:
+                ends = on_nodes[k - 1][src] | on_nodes[k][:, None]
+            res |= ends[todo]
+            sea = ~res
+            if sea.any():
+                res[sea] = self._obstacles.arcs_blocked(arcs[0][sea], arcs[1][sea], arcs[2][sea], arcs[3][sea],
+                                                        self.land)
+        if self.static:
+            free = ~res
+            if free.any():
+                res[free] = self._obstacles.arcs_blocked_by_zones(*(a[free] for a in arcs), self.static)
+        if self.timed_zones:
+            bits = np.zeros(res.size, dtype=np.uint64)
+            for i, zone in enumerate(self.timed_zones):
+                touch = self._obstacles.arcs_blocked_by_zones(*arcs, [zone])
+                bits[touch] |= np.uint64(1 << i)
+            zbits[todo] = bits
+        hit[todo] = res
+        known[todo] = True
+
+    def hits(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
+        """Arcs into rank k known to touch land or a zone active at their departure ``times`` (None: all active);
+        arcs not learnt yet count as free."""
+        _, hit, zbits = self._state(k, self.grid.arcs(k)[4].shape)
+        if not self.timed_zones:
+            return hit.copy()
+        out = hit | (zbits != 0) if times is None else hit.copy()
+        if times is not None:
+            for i, zone in enumerate(self.timed_zones):
+                on = np.flatnonzero((zbits & np.uint64(1 << i)).ravel())
+                if on.size:
+                    t = np.broadcast_to(times, zbits.shape).ravel()[on]
+                    out.ravel()[on[zone.active(t)]] = True
+        return out
 
     def static_hits(self, k: int, select: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
         """Land and untimed-zone hits of the arcs into rank k; only ``select`` (default all) is guaranteed known."""
-        lon0, lat0, lon1, lat1, src, _ = self.grid.arcs(k)
-        known, hit = self._state(k, src.shape)
-        todo = ~known if select is None else (select & ~known)
-        if todo.any():
-            arcs = [np.broadcast_to(x, src.shape)[todo] for x in (lon0, lat0, lon1, lat1)]
-            res = np.zeros(int(todo.sum()), dtype=bool)
-            if self.on is not None and self.land is not None:
-                on_start, on_nodes = self.on
-                if k == 0:
-                    ends = on_start[src] | on_nodes[0][:, None]
-                elif k == self.grid.n_ranks:
-                    ends = np.broadcast_to(on_nodes[-1][src], src.shape)
-                else:
-                    ends = on_nodes[k - 1][src] | on_nodes[k][:, None]
-                res |= ends[todo]
-                sea = ~res
-                if sea.any():
-                    res[sea] = self._obstacles.arcs_blocked(arcs[0][sea], arcs[1][sea], arcs[2][sea], arcs[3][sea],
-                                                            self.land)
-            if self.static:
-                res |= self._obstacles.arcs_blocked_by_zones(arcs[0], arcs[1], arcs[2], arcs[3], self.static)
-            hit[todo] = res
-            known[todo] = True
-        return hit
+        self.learn(k, select)
+        return self._state(k, self.grid.arcs(k)[4].shape)[1]
 
     def timed_hits(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
         """Hits of the zones with a time window, for arcs leaving at ``times``."""
-        lon0, lat0, lon1, lat1, src, _ = self.grid.arcs(k)
-        if not self.timed_zones:
-            return np.zeros(src.shape, dtype=bool)
-        return self._obstacles.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, self.timed_zones, times)
+        self.learn(k)
+        return self.hits(k, times) & ~self._state(k, self.grid.arcs(k)[4].shape)[1] if self.timed_zones else (
+            np.zeros(self.grid.arcs(k)[4].shape, dtype=bool))
 
     def __call__(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
         """Every arc into rank k that touches land or a zone (active at ``times`` for timed zones)."""
-        return self.static_hits(k) | self.timed_hits(k, times)
+        self.learn(k)
+        return self.hits(k, times)
 
 
 def obstacle_mask(grid: Grid, avoid: Avoid) -> ObstacleMask | None:

@@ -449,8 +449,35 @@ def _cell_flags(tree: shapely.STRtree, x: FloatArray, y: FloatArray, size: float
     return touch, inside
 
 
-@functools.lru_cache(maxsize=32)
+_INDEXES: list[tuple[shapely.Geometry, _Index]] = []  # most recent last; keyed by identity, see _index
+
+
 def _index(geometry: shapely.Geometry) -> _Index:
+    """The cached :class:`_Index` of a geometry.
+
+    Keyed by identity, not by ``hash(geometry)``: shapely hashes a geometry by its WKB, which for a coastline
+    of a few hundred thousand vertices costs milliseconds on every lookup. Geometries are immutable, and the
+    cache holds a reference to each, so an identity never points at another geometry.
+    """
+    for i, (g, index) in enumerate(_INDEXES):
+        if g is geometry:
+            if i != len(_INDEXES) - 1:
+                _INDEXES.append(_INDEXES.pop(i))
+            return index
+    index = _build_index(geometry)
+    _INDEXES.append((geometry, index))
+    del _INDEXES[:-32]
+    return index
+
+
+def _index_cache_clear() -> None:
+    _INDEXES.clear()
+
+
+_index.cache_clear = _index_cache_clear  # type: ignore[attr-defined]
+
+
+def _build_index(geometry: shapely.Geometry) -> _Index:
     parts = shapely.get_parts(geometry)
     parts = parts[~shapely.is_empty(parts)] if len(parts) else parts
     if len(parts) == 0:

@@ -281,20 +281,16 @@ def forward_dp(
                     fired0 = costs.fired_bits
                 r_w = np.where(live, costs.reason, 0).astype(np.uint8)
                 time_h = costs.time_h
-                lazy = problem.blocked is not None and hasattr(problem.blocked, "static_hits") and cost_hook is None
+                lazy = problem.blocked is not None and hasattr(problem.blocked, "learn") and cost_hook is None
                 if problem.blocked is not None and not lazy:
                     hit = problem.blocked(k, _block_times(problem, t0)) & live
-                    r_w = r_w | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
-                    time_h = np.where(hit, np.inf, time_h)
-                elif lazy and getattr(problem.blocked, "timed", False):
-                    hit = problem.blocked.timed_hits(k, _block_times(problem, t0)) & live  # type: ignore[union-attr]
                     r_w = r_w | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
                     time_h = np.where(hit, np.inf, time_h)
                 if cost_hook is not None and w == 0:
                     cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costs.p_f, reason=r_w))
                 tot_w = np.where(live, problem.arrive(t0 + time_h), np.inf)
                 if lazy:
-                    hit = _lazy_obstacles(problem.blocked, k, tot_w)
+                    hit = _lazy_obstacles(problem.blocked, k, tot_w, _block_times(problem, t0))
                     r_w = r_w | np.where(hit & live, REASONS["obstacle"], 0).astype(np.uint8)
                     tot_w = np.where(hit, np.inf, tot_w)
                     time_h = np.where(hit, np.inf, time_h)
@@ -436,7 +432,7 @@ def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.date
     return _times(problem.departure, t0)
 
 
-def _lazy_obstacles(blocked: Any, k: int, total: FloatArray) -> BoolArray:
+def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[np.datetime64] | None) -> BoolArray:
     """Obstacle hits among the arcs the DP would pick: for each destination its cheapest arcs are checked
     (4, then 16, 64, ...) until its best arc is known to be free, so the minimum is exactly that of the fully
     checked arcs while most arcs far from the optimum are never tested."""
@@ -444,10 +440,11 @@ def _lazy_obstacles(blocked: Any, k: int, total: FloatArray) -> BoolArray:
     width = tot.shape[1]
     rows = np.arange(tot.shape[0])
     m = 4
-    hit = np.zeros(tot.shape, dtype=bool)
+    hit = blocked.hits(k, times)
+    tot[hit] = np.inf
     while True:
         best = np.argmin(tot, axis=1)
-        known, hit = blocked._state(k, tot.shape)
+        known = blocked.known(k)
         need = np.isfinite(tot[rows, best]) & ~known[rows, best]
         if not need.any():
             break
@@ -458,8 +455,9 @@ def _lazy_obstacles(blocked: Any, k: int, total: FloatArray) -> BoolArray:
         select = np.zeros(tot.shape, dtype=bool)
         select[r[:, None], idx] = True
         select &= np.isfinite(tot)
-        hit = blocked.static_hits(k, select)
-        tot = np.where(hit, np.inf, tot)
+        blocked.learn(k, select)
+        hit = blocked.hits(k, times)
+        tot[hit] = np.inf
         m *= 4
     return hit
 

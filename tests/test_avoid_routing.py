@@ -303,3 +303,29 @@ def test_real_course_example_end_to_end(tmp_path: Path, capsys: pytest.CaptureFi
     assert not any(zone.geometry.intersects(shapely.LineString(leg)) for leg in legs)
     assert (out / "route.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert json.loads((out / "summary.json").read_text())["voyage_time_h"] == pytest.approx(d["voyage_time_h"])
+
+
+@pytest.mark.parametrize("window", [("2018-06-03T00:00:00Z", "2018-06-30T00:00:00Z"),
+                                    ("2018-06-01T00:00:00Z", "2018-06-03T00:00:00Z")], ids=["active", "over"])
+def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window) -> None:
+    # the solver tests only the arcs it would pick (land and zones, a zone's window applied at departure); an
+    # independent run with a cost hook takes the eager path, which masks every arc of every rank first
+    from pyroute_rel.solve import forward_dp
+
+    doc = json.loads(ZONE_FILE.read_text())
+    doc["features"][0]["properties"].update(valid_from=window[0], valid_to=window[1])
+    path = tmp_path / "zone.geojson"
+    path.write_text(json.dumps(doc))
+    table = tomllib.loads(CONTROL.read_text())
+    table["grid"] = {"n_ranks": 40, "aspect": 4.0, "half_width_km": 600.0}
+    table["avoid"] = {"zones": [str(path)], "land": True, "margin_km": 5.0}
+    sc = scenario_from_mapping(table, base_dir=CONTROL.parent, source=str(CONTROL))
+    grid = sc.make_grid()
+    lazy = forward_dp(grid, sc.problem(grid=grid))
+    learnt = sum(int(v[0].sum()) for v in grid._cache[sc.avoid.key()].values())
+    eager_grid = sc.make_grid()
+    eager = forward_dp(eager_grid, sc.problem(grid=eager_grid), cost_hook=lambda k, c: None)
+    assert learnt < eager.arcs_evaluated  # the lazy run really skipped arcs
+    assert lazy.finish_h == eager.finish_h
+    np.testing.assert_array_equal(lazy.arrival_h, eager.arrival_h)
+    np.testing.assert_array_equal(lazy.back, eager.back)
