@@ -138,11 +138,12 @@ class ObstacleMask:
         if self.static:
             free = ~res
             if free.any():
-                res[free] = self._obstacles.arcs_blocked_by_zones(*(a[free] for a in arcs), self.static)
+                a, b, c, d = (x[free] for x in arcs)
+                res[free] = self._obstacles.arcs_blocked_by_zones(a, b, c, d, self.static)
         if self.timed_zones:
             bits = np.zeros(res.size, dtype=np.uint64)
             for i, zone in enumerate(self.timed_zones):
-                touch = self._obstacles.arcs_blocked_by_zones(*arcs, [zone])
+                touch = self._obstacles.arcs_blocked_by_zones(arcs[0], arcs[1], arcs[2], arcs[3], [zone])
                 bits[touch] |= np.uint64(1 << i)
             zbits[todo] = bits
         hit[todo] = res
