@@ -85,7 +85,6 @@ _BAND_DEG = 0.5  # latitude band height of the margin buffer [deg]
 _TILE_DEG = 1.0  # tile size the geometry is cut into for the STRtree [deg]
 _MAX_CELLS = 4_000_000  # most cells of the prefilter rasters
 _MIN_CELL_DEG = 0.05  # smallest cell of the prefilter rasters [deg]
-_REFINE = 5  # the rasters are flagged on cells _REFINE times larger first, then refined near edges
 _LEAF_KM = 25.0  # pieces of arc longer than this near the geometry are halved before the exact test [km]
 _CHUNK_POINTS = 1_000_000  # densified points per exact-test chunk (bounds the memory)
 _BATCH_ARCS = 65_536  # arcs per batch of the coarse pass
@@ -438,17 +437,6 @@ def _prefix_sum(mask: BoolArray) -> npt.NDArray[np.int32]:
     return out
 
 
-def _cell_flags(tree: shapely.STRtree, x: FloatArray, y: FloatArray, size: float) -> tuple[BoolArray, BoolArray]:
-    """For square cells with lower-left corners (x, y): touching the tiles, and wholly inside one tile."""
-    cells = shapely.box(x, y, x + size, y + size)
-    touch = np.zeros(x.size, dtype=bool)
-    inside = np.zeros(x.size, dtype=bool)
-    hit = np.unique(tree.query(cells, predicate="intersects")[0])
-    touch[hit] = True
-    inside[hit[np.unique(tree.query(cells[hit], predicate="within")[0])]] = True
-    return touch, inside
-
-
 _INDEXES: list[tuple[shapely.Geometry, _Index]] = []  # most recent last; keyed by identity, see _index
 
 
@@ -489,26 +477,43 @@ def _build_index(geometry: shapely.Geometry) -> _Index:
     span = max(xmax - xmin, 1e-9) * max(ymax - ymin, 1e-9)
     cell = max(_MIN_CELL_DEG, math.sqrt(span / _MAX_CELLS))
     cell = 1.0 / math.floor(1.0 / cell) if cell < 1.0 else float(math.ceil(cell))  # aligned with the tiles
-    # flag coarse cells first, then only the fine cells of coarse cells on the geometry's edge
-    r = _REFINE
-    big = cell * r
-    x0, y0 = math.floor(xmin / big) * big, math.floor(ymin / big) * big
-    nx, ny = math.floor((xmax - x0) / big) + 1, math.floor((ymax - y0) / big) + 1
-    jj, ii = np.divmod(np.arange(nx * ny), nx)
-    c_touch, c_inside = _cell_flags(tree, x0 + ii * big, y0 + jj * big, big)
-    touch = np.zeros((ny, r, nx, r), dtype=bool)
-    inside = np.zeros((ny, r, nx, r), dtype=bool)
-    full = np.flatnonzero(c_inside)
-    touch[jj[full], :, ii[full], :] = True
-    inside[jj[full], :, ii[full], :] = True
-    edge = np.flatnonzero(c_touch & ~c_inside)
-    cj, ci = np.repeat(jj[edge], r * r), np.repeat(ii[edge], r * r)
-    sj, si = np.divmod(np.tile(np.arange(r * r), edge.size), r)
-    f_touch, f_inside = _cell_flags(tree, x0 + (ci * r + si) * cell, y0 + (cj * r + sj) * cell, cell)
-    touch[cj, sj, ci, si] = f_touch
-    inside[cj, sj, ci, si] = f_inside
-    touch_mask, inside_mask = touch.reshape(ny * r, nx * r), inside.reshape(ny * r, nx * r)
-    return _Index(tree, x0, y0, cell, _prefix_sum(touch_mask), _prefix_sum(inside_mask), inside_mask)
+    x0, y0 = math.floor(xmin / cell) * cell, math.floor(ymin / cell) * cell
+    nx, ny = math.floor((xmax - x0) / cell) + 1, math.floor((ymax - y0) / cell) + 1
+    touch, inside = _raster_flags(parts, geometry, x0, y0, cell, nx, ny)
+    return _Index(tree, x0, y0, cell, _prefix_sum(touch), _prefix_sum(inside), inside)
+
+
+def _raster_flags(
+    parts: npt.NDArray[np.object_], geometry: shapely.Geometry, x0: float, y0: float, cell: float, nx: int, ny: int
+) -> tuple[BoolArray, BoolArray]:
+    """Cells (ny, nx) that may touch the geometry, and cells wholly inside it, without a predicate per cell.
+
+    The boundary (every ring, densified to half a cell) marks the cells its points fall in and their eight
+    neighbours: a piece of boundary between two points half a cell apart cannot leave that 3 x 3 block, so every
+    cell the boundary crosses is marked (and some more: a superset is safe, it only sends arcs to the exact
+    test). A cell left unmarked holds no boundary, so it lies wholly inside or wholly outside, and so does every
+    unmarked cell 4-connected to it: each connected region is classified by one point-in-polygon test.
+    """
+    from scipy import ndimage
+
+    ring = shapely.segmentize(shapely.boundary(parts), 0.5 * cell)
+    xy = shapely.get_coordinates(ring)
+    i = np.clip(np.floor((xy[:, 0] - x0) / cell), 0, nx - 1).astype(np.intp)
+    j = np.clip(np.floor((xy[:, 1] - y0) / cell), 0, ny - 1).astype(np.intp)
+    edge = np.zeros((ny, nx), dtype=bool)
+    edge[j, i] = True
+    edge = ndimage.binary_dilation(edge, structure=np.ones((3, 3), dtype=bool))
+    labels, n = ndimage.label(~edge)
+    inside = np.zeros((ny, nx), dtype=bool)
+    if n:
+        first = np.unique(labels.ravel(), return_index=True)[1]
+        first = first[labels.ravel()[first] > 0]  # one cell of each region (label 0 is the boundary)
+        rj, ri = np.divmod(first, nx)
+        inner = shapely.contains_xy(geometry, x0 + (ri + 0.5) * cell, y0 + (rj + 0.5) * cell)
+        keep = np.zeros(n + 1, dtype=bool)
+        keep[labels.ravel()[first[inner]]] = True
+        inside = keep[labels]
+    return edge | inside, inside
 
 
 def _tiles(parts: npt.NDArray[np.object_]) -> npt.NDArray[np.object_]:

@@ -528,3 +528,32 @@ def test_example_zone_straddles_the_verification_great_circle():
     assert ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone], june).any()
     assert not ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone], np.datetime64("2018-07-15")).any()
     assert not zone.geometry.intersects(ob.land_geometry((-35.0, 34.0, -26.0, 41.0)))  # clear of the Azores
+
+
+@pytest.mark.parametrize("geometry", [
+    pytest.param(lambda: ob.land_geometry((-62.0, 15.8, -60.8, 16.6)), id="guadeloupe"),
+    pytest.param(lambda: shapely.Polygon([(-30, 35), (-27, 35), (-27, 38), (-30, 38)],
+                                         [[(-29, 36), (-28, 36), (-28.5, 37.3)]]), id="zone-with-hole"),
+])
+def test_index_rasters_against_per_cell_predicates(geometry) -> None:
+    # the prefilter rasters are made without a predicate per cell; check them cell by cell with shapely:
+    # every cell the geometry meets is flagged "touch", and every cell flagged "inside" is covered by it
+    geom = geometry()
+    index = ob._build_index(geom)
+    ny, nx = index.inside_mask.shape
+    jj, ii = np.divmod(np.arange(nx * ny), nx)
+    x, y = index.x0 + ii * index.cell, index.y0 + jj * index.cell
+    cells = shapely.box(x, y, x + index.cell, y + index.cell)
+    touch = np.diff(np.diff(index.touch, axis=0), axis=1).ravel() > 0
+    inside = index.inside_mask.ravel()
+    meets = shapely.intersects(geom, cells)
+    assert meets.any() and inside.any()
+    assert not (meets & ~touch).any()
+    assert shapely.covers(geom, cells[inside]).all()
+    # and not needlessly few: every cell whose 5 x 5 block lies wholly in the geometry is "inside"
+    from scipy import ndimage
+
+    covered = shapely.covers(geom, cells).reshape(ny, nx)
+    deep = ndimage.binary_erosion(covered, structure=np.ones((5, 5), dtype=bool))
+    assert deep.any() or covered.sum() < 100  # (a small island has no such cell)
+    assert not (deep.ravel() & ~inside).any()
