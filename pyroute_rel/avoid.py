@@ -109,9 +109,13 @@ class ObstacleMask:
                                    np.zeros(shape, dtype=np.uint64))
         return st
 
+    def _shape(self, k: int) -> tuple[int, ...]:
+        st = self._cache.get(k)
+        return st[0].shape if st is not None else self.grid.pattern(k)[0].shape
+
     def known(self, k: int) -> npt.NDArray[np.bool_]:
         """Which arcs into rank k have been tested."""
-        return self._state(k, self.grid.arcs(k)[4].shape)[0]
+        return self._state(k, self._shape(k))[0]
 
     def learn(self, k: int, select: npt.NDArray[np.bool_] | None = None) -> None:
         """Test the selected arcs into rank k (default all) that are not known yet, against land and every zone."""
@@ -140,11 +144,13 @@ class ObstacleMask:
             if free.any():
                 a, b, c, d = (x[free] for x in arcs)
                 res[free] = self._obstacles.arcs_blocked_by_zones(a, b, c, d, self.static)
-        if self.timed_zones:
+        if self.timed_zones:  # an arc already blocked at all times need not know its windows
             bits = np.zeros(res.size, dtype=np.uint64)
+            free = np.flatnonzero(~res)
+            a, b, c, d = (x[free] for x in arcs)
             for i, zone in enumerate(self.timed_zones):
-                touch = self._obstacles.arcs_blocked_by_zones(arcs[0], arcs[1], arcs[2], arcs[3], [zone])
-                bits[touch] |= np.uint64(1 << i)
+                touch = self._obstacles.arcs_blocked_by_zones(a, b, c, d, [zone])
+                bits[free[touch]] |= np.uint64(1 << i)
             zbits[todo] = bits
         hit[todo] = res
         known[todo] = True
@@ -152,7 +158,7 @@ class ObstacleMask:
     def hits(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
         """Arcs into rank k known to touch land or a zone active at their departure ``times`` (None: all active);
         arcs not learnt yet count as free."""
-        _, hit, zbits = self._state(k, self.grid.arcs(k)[4].shape)
+        _, hit, zbits = self._state(k, self._shape(k))
         if not self.timed_zones:
             return hit.copy()
         out = hit | (zbits != 0) if times is None else hit.copy()
@@ -167,13 +173,13 @@ class ObstacleMask:
     def static_hits(self, k: int, select: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
         """Land and untimed-zone hits of the arcs into rank k; only ``select`` (default all) is guaranteed known."""
         self.learn(k, select)
-        return self._state(k, self.grid.arcs(k)[4].shape)[1]
+        return self._state(k, self._shape(k))[1]
 
     def timed_hits(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
         """Hits of the zones with a time window, for arcs leaving at ``times``."""
         self.learn(k)
-        return self.hits(k, times) & ~self._state(k, self.grid.arcs(k)[4].shape)[1] if self.timed_zones else (
-            np.zeros(self.grid.arcs(k)[4].shape, dtype=bool))
+        return self.hits(k, times) & ~self._state(k, self._shape(k))[1] if self.timed_zones else (
+            np.zeros(self._shape(k), dtype=bool))
 
     def __call__(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
         """Every arc into rank k that touches land or a zone (active at ``times`` for timed zones)."""
