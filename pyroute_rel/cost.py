@@ -307,9 +307,15 @@ def geometry_costs(
     shape = geom.shape
     samples = geom.samples
 
+    # a source that can locate points once (gridded data) samples the same points at two sets of times below
+    prepared = None if steady or not hasattr(weather, "prepare") else weather.prepare(geom.lon_deg, geom.lat_deg)
+
     def evaluate(time_h: FloatArray | None) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any]:
         time = departure if time_h is None else _to_datetime(departure, time_h)
-        cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
+        if prepared is not None:
+            cond = weather.sample_at(prepared, time)  # type: ignore[attr-defined]
+        else:
+            cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
         return _sample_costs(cond, geom.course_deg, geom.seg_nm, polar, failure, apf, beyond, wave_loss)
 
     if steady:

@@ -46,6 +46,7 @@ __all__ = [
     "KNOTS_PER_MS",
     "VARIABLES",
     "GriddedWeather",
+    "PreparedPoints",
     "WeatherField",
     "open_weather",
     "weather_from_mapping",
@@ -186,7 +187,12 @@ class WeatherField:
 
 
 class _Block:
-    """Fields sharing one grid, stacked as (n_time * n_lat * n_lon, n_fields) float32 for one gather."""
+    """Fields sharing one grid, stored field-major as (n_fields, n_lat, n_lon, n_time) float32.
+
+    Time is the innermost axis: the two times a point is interpolated between sit side by side in memory, so
+    of the eight corners of its cell only four cost a trip to main memory (routing samples millions of points
+    scattered over a field of a gigabyte; the gathers, not the arithmetic, set the pace).
+    """
 
     def __init__(self, fields: list[WeatherField]):
         ref = fields[0]
@@ -194,48 +200,81 @@ class _Block:
         # wave direction is stored as (sin, cos) of the angle: a unit vector interpolates across north
         cols = [(f, op) for f in fields for op in ((np.sin, np.cos) if f.name == "wave_dir_deg" else (None,))]
         self.names = [{np.sin: "_wave_sin", np.cos: "_wave_cos"}.get(op, f.name) for f, op in cols]  # type: ignore[arg-type]
-        self.data = np.empty((nt * ny * nx, len(cols)), dtype=np.float32)
+        self.data = np.empty((len(cols), ny, nx, nt), dtype=np.float32)
+        rows = max(1, (1 << 22) // max(1, nt * nx))
         for j, (f, op) in enumerate(cols):
-            flat = f.values.reshape(-1)  # type: ignore[union-attr]
-            for k in range(0, flat.size, 1 << 22):  # in chunks: no full-size temporaries
-                chunk = flat[k : k + (1 << 22)]
-                self.data[k : k + chunk.size, j] = chunk if op is None else op(np.deg2rad(chunk.astype(np.float32)))
+            values = f.values
+            for y0 in range(0, ny, rows):  # in bands of latitude: no full-size temporaries
+                chunk = np.moveaxis(np.asarray(values[:, y0 : y0 + rows, :]), 0, -1)  # type: ignore[index]
+                self.data[j, y0 : y0 + rows] = chunk if op is None else op(np.deg2rad(chunk.astype(np.float32)))
+        self.flat = self.data.reshape(len(cols), -1)
         self.lon, self.lat = ref.lon, ref.lat
         self.t0 = ref.time[0] if ref.time is not None else np.datetime64("NaT", "ns")
         self.time_s = None if ref.time is None else (ref.time - self.t0) / np.timedelta64(1, "s")
         self.lon_mid = 0.5 * (self.lon[0] + self.lon[-1])
-        self.strides = (ny * nx, nx, 1)
+        self.strides = (1, nx * nt, nt)  # time, lat, lon
 
     def interpolate(self, lon: FloatArray, lat: FloatArray, time: npt.NDArray[np.datetime64]) -> FloatArray:
         """Trilinear interpolation at points (1-D arrays) -> (n_points, n_fields), NaN outside."""
+        return self.interpolate_at(self.locate(lon, lat), time)
+
+    def locate(self, lon: FloatArray, lat: FloatArray) -> _Where:
+        """Where points (1-D arrays) fall on this block's grid (reused by every time at which they are sampled)."""
         inside = (lon >= self.lon[0]) & (lon <= self.lon[-1])
         if not inside.all():  # the equivalent longitude (+- 360) nearest to the grid's middle
             lon = np.where(inside, lon, (lon - self.lon_mid + 180.0) % 360.0 - 180.0 + self.lon_mid)
         ix, wx, sx, ok = _locate(self.lon, lon, self.strides[2])
         iy, wy, sy, ok_y = _locate(self.lat, lat, self.strides[1])
-        ok &= ok_y
-        base = iy * self.strides[1] + ix
-        d = self.data
-        wx1, wy1 = wx[:, None], wy[:, None]
-        wx0, wy0 = 1.0 - wx1, 1.0 - wy1
+        return _Where(base=iy * self.strides[1] + ix * self.strides[2], sx=sx, sy=sy, wx=wx, wy=wy, ok=ok & ok_y)
 
-        def plane(b: IntArray) -> FloatArray:
-            lo = wx0 * np.take(d, b, axis=0) + wx1 * np.take(d, b + sx, axis=0)
-            hi = wx0 * np.take(d, b + sy, axis=0) + wx1 * np.take(d, b + sy + sx, axis=0)
-            return wy0 * lo + wy1 * hi
-
+    def interpolate_at(self, where: _Where, time: npt.NDArray[np.datetime64]) -> FloatArray:
+        """Interpolation at located points and times (1-D) -> (n_points, n_fields), NaN outside."""
+        ok = where.ok
+        wx, wy = where.wx, where.wy
         if self.time_s is None or self.time_s.size == 1:
-            out = plane(base)
+            base, st, wt = where.base, None, None
             if self.time_s is not None:
-                ok &= time == self.t0
+                ok = ok & (time == self.t0)
         else:
             t = (time - self.t0) / np.timedelta64(1, "s")
             it, wt, st, ok_t = _locate(self.time_s, t, self.strides[0])
-            ok &= ok_t
-            base += it * self.strides[0]
-            out = (1.0 - wt)[:, None] * plane(base) + wt[:, None] * plane(base + st)
+            ok = ok & ok_t
+            base = where.base + it
+        # corner indices (k, n) and weights; a step is 0 where its weight is 0, so a NaN neighbour that does
+        # not contribute never spoils the result
+        sx, sy = where.sx, where.sy
+        idx = [base, base + sx, base + sy, base + sx + sy]
+        w = [(1.0 - wx) * (1.0 - wy), wx * (1.0 - wy), (1.0 - wx) * wy, wx * wy]
+        if st is not None and wt is not None:
+            idx = idx + [i + st for i in idx]
+            w = [c * (1.0 - wt) for c in w] + [c * wt for c in w]
+        gathered = np.take(self.flat, np.stack(idx), axis=1)  # (n_fields, k, n)
+        out = np.einsum("kn,fkn->nf", np.stack(w), gathered)
         out[~ok] = np.nan
         return out
+
+
+@dataclass(frozen=True)
+class _Where:
+    """Points located on a block's (lat, lon) grid: lower-left cell index, steps to the neighbours, weights."""
+
+    base: IntArray
+    sx: IntArray
+    sy: IntArray
+    wx: FloatArray
+    wy: FloatArray
+    ok: npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class PreparedPoints:
+    """Points located once on every grid of a :class:`GriddedWeather` (see :meth:`GriddedWeather.prepare`)."""
+
+    shape: tuple[int, ...]
+    lon: FloatArray
+    lat: FloatArray
+    where: tuple[_Where, ...]
+    owner: int  # id of the GriddedWeather that located them
 
 
 def _locate(axis: FloatArray, x: FloatArray, stride: int) -> tuple[IntArray, FloatArray, IntArray, Any]:
@@ -328,11 +367,44 @@ class GriddedWeather:
         return sum(b.data.nbytes for b in self._blocks)
 
     def _interpolate(self, lon: FloatArray, lat: FloatArray, time: npt.NDArray[np.datetime64]) -> dict[str, FloatArray]:
+        return self._interpolate_at(tuple(b.locate(lon, lat) for b in self._blocks), time)
+
+    def _interpolate_at(self, where: tuple[_Where, ...], time: npt.NDArray[np.datetime64]) -> dict[str, FloatArray]:
         out: dict[str, FloatArray] = {}
-        for block in self._blocks:
-            values = block.interpolate(lon, lat, time)
+        for block, w in zip(self._blocks, where, strict=True):
+            values = block.interpolate_at(w, time)
             out.update((name, values[:, j]) for j, name in enumerate(block.names))
         return out
+
+    def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> PreparedPoints:
+        """Locate points on the data's grids once, for :meth:`sample_at` at several times (the cost kernel samples
+        the same arc points at the departure time and again at the times the boat gets there).
+
+        >>> import xarray as xr
+        >>> ds = xr.Dataset({"u10": (("latitude", "longitude"), np.ones((2, 2))),
+        ...                  "v10": (("latitude", "longitude"), np.zeros((2, 2)))},
+        ...                 coords={"latitude": [40.0, 50.0], "longitude": [-20.0, -10.0]})
+        >>> w = GriddedWeather.from_dataset(ds)
+        >>> p = w.prepare([-15.0, -12.0], 45.0)
+        >>> float(w.sample_at(p, np.datetime64("2018-06-01")).twd_deg[1])
+        270.0
+        """
+        lon = np.asarray(lon_deg, dtype=np.float64)
+        lat = np.asarray(lat_deg, dtype=np.float64)
+        shape = np.broadcast_shapes(lon.shape, lat.shape)
+        lon_f, lat_f = (np.broadcast_to(a, shape).ravel() for a in (lon, lat))
+        return PreparedPoints(shape=shape, lon=lon_f, lat=lat_f, owner=id(self),
+                              where=tuple(b.locate(lon_f, lat_f) for b in self._blocks))
+
+    def sample_at(self, points: PreparedPoints, time: npt.ArrayLike) -> Conditions:
+        """:meth:`sample` at points located by :meth:`prepare` (``time`` broadcasts to their shape)."""
+        if points.owner != id(self):
+            raise WeatherError("these points were prepared for another weather source: use its prepare()")
+        t = np.asarray(time)
+        if t.dtype.kind != "M":
+            raise WeatherError(f"'time' must be datetime64 (got dtype {t.dtype})")
+        t = np.broadcast_to(t.astype("datetime64[ns]"), points.shape).ravel()
+        return self._conditions(points.shape, self._interpolate_at(points.where, t))
 
     def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
         """One stored field (e.g. ``"wind_u_ms"`` [m/s]) at broadcast points; NaN where unknown."""
@@ -360,17 +432,20 @@ class GriddedWeather:
             direction from the interpolated unit vector; NaN outside the data or next to NaN cells.
         """
         shape, lon, lat, t = _points(lon_deg, lat_deg, time)
-        v = self._interpolate(lon, lat, t)
+        return self._conditions(shape, self._interpolate(lon, lat, t))
+
+    def _conditions(self, shape: tuple[int, ...], v: dict[str, FloatArray]) -> Conditions:
         u_w, v_w = v["wind_u_ms"], v["wind_v_ms"]
-        nan = np.full(lon.shape, np.nan)
+        n = u_w.size
+        nan = np.full(n, np.nan)
         out = {
             "tws_kn": np.hypot(u_w, v_w) * KNOTS_PER_MS,
             "twd_deg": _direction(-u_w, -v_w),
             "hs_m": v.get("hs_m", nan),
             "wave_dir_deg": _direction(v["_wave_sin"], v["_wave_cos"]) if "_wave_sin" in v else nan,
             "wave_period_s": v.get("wave_period_s", nan),
-            "current_u_ms": v.get("current_u_ms", np.zeros(lon.shape)),
-            "current_v_ms": v.get("current_v_ms", np.zeros(lon.shape)),
+            "current_u_ms": v.get("current_u_ms", np.zeros(n)),
+            "current_v_ms": v.get("current_v_ms", np.zeros(n)),
         }
         return Conditions(**{k: np.asarray(a, dtype=np.float64).reshape(shape) for k, a in out.items()})
 
@@ -993,8 +1068,10 @@ def _points(
 
 def _direction(east: FloatArray, north: FloatArray) -> FloatArray:
     """Bearing of the vector (east, north), clockwise from north, in [0, 360) [deg]."""
-    d = np.degrees(np.arctan2(east, north)) % 360.0 + 0.0
-    return np.where(d >= 360.0, d - 360.0, d)
+    d = np.degrees(np.arctan2(east, north))  # in [-180, 180]: no float remainder needed (it is slow)
+    d += 360.0 * (d < 0.0)
+    d[d >= 360.0] = 0.0  # -1e-15 + 360 rounds to 360
+    return d + 0.0  # -0.0 -> 0.0
 
 
 def _iso(t: np.datetime64) -> str:
