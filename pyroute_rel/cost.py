@@ -29,6 +29,8 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -290,6 +292,32 @@ def arc_costs(
                           apf=apf, beyond=beyond, wave_loss=wave_loss)
 
 
+#: Arcs per block below which :func:`geometry_costs` does not split the work between threads.
+PARALLEL_MIN_ARCS = 8192
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _pool(workers: int) -> ThreadPoolExecutor:
+    global _POOL
+    if _POOL is None or _POOL._max_workers < workers:  # noqa: SLF001
+        _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pyroute_rel")
+    return _POOL
+
+
+def default_workers() -> int:
+    """Threads used by :func:`geometry_costs`: ``$PYROUTE_REL_THREADS``, else the CPUs this process may use."""
+    env = os.environ.get("PYROUTE_REL_THREADS", "").strip()
+    if env:
+        try:
+            n = int(env)
+        except ValueError:
+            raise ValueError(f"PYROUTE_REL_THREADS must be a whole number >= 1 (got {env!r})") from None
+        if n < 1:
+            raise ValueError(f"PYROUTE_REL_THREADS must be a whole number >= 1 (got {env!r})")
+        return n
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def geometry_costs(
     geom: ArcGeometry,
     t0_h: npt.ArrayLike,
@@ -301,8 +329,36 @@ def geometry_costs(
     apf: float = 1.0,
     beyond: str = "clamp",
     wave_loss: WaveLoss | None = None,
+    workers: int | None = None,
 ) -> ArcCosts:
-    """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid)."""
+    """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid).
+
+    With time-varying weather, a large block is split along its first axis between ``workers`` threads (default
+    :func:`default_workers`): numpy releases the GIL in the gathers and ufuncs that dominate, so the parts run in
+    parallel. Each arc's
+    cost depends on that arc alone, so the result is the same as in one piece.
+    """
+    shape = geom.shape
+    n = default_workers() if workers is None else int(workers)
+    n = min(n, shape[0] if shape else 1)
+    # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
+    if n > 1 and not getattr(weather, "steady", False) and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
+        t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), shape)
+        cuts = np.linspace(0, shape[0], n + 1).astype(int)
+        parts = [
+            (ArcGeometry(lon_deg=geom.lon_deg[a:b], lat_deg=geom.lat_deg[a:b], course_deg=geom.course_deg[a:b],
+                         seg_nm=geom.seg_nm[a:b] if geom.seg_nm.shape[:1] == shape[:1] else geom.seg_nm), t0[a:b])
+            for a, b in zip(cuts[:-1], cuts[1:], strict=True)
+        ]
+        kw = dict(departure=departure, weather=weather, polar=polar, failure=failure, apf=apf, beyond=beyond,
+                  wave_loss=wave_loss, workers=1)
+        done = list(_pool(n).map(lambda p: geometry_costs(p[0], p[1], **kw), parts))  # type: ignore[arg-type]
+        bits = None
+        if any(c.fired_bits is not None for c in done):
+            bits = np.concatenate([np.zeros(c.time_h.shape, np.uint32) if c.fired_bits is None
+                                   else np.broadcast_to(c.fired_bits, c.time_h.shape) for c in done])
+        return ArcCosts(time_h=np.concatenate([c.time_h for c in done]), p_f=np.concatenate([c.p_f for c in done]),
+                        reason=np.concatenate([c.reason for c in done]), fired_bits=bits)
     steady = bool(getattr(weather, "steady", False))
     shape = geom.shape
     samples = geom.samples

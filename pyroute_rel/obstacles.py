@@ -85,6 +85,7 @@ _BAND_DEG = 0.5  # latitude band height of the margin buffer [deg]
 _TILE_DEG = 1.0  # tile size the geometry is cut into for the STRtree [deg]
 _MAX_CELLS = 4_000_000  # most cells of the prefilter rasters
 _MIN_CELL_DEG = 0.05  # smallest cell of the prefilter rasters [deg]
+_BLOCK = 5  # cells per side of the blocks the inside raster is decided by first
 _LEAF_KM = 25.0  # pieces of arc longer than this near the geometry are halved before the exact test [km]
 _CHUNK_POINTS = 1_000_000  # densified points per exact-test chunk (bounds the memory)
 _BATCH_ARCS = 65_536  # arcs per batch of the coarse pass
@@ -491,29 +492,32 @@ def _raster_flags(
     The boundary (every ring, densified to half a cell) marks the cells its points fall in and their eight
     neighbours: a piece of boundary between two points half a cell apart cannot leave that 3 x 3 block, so every
     cell the boundary crosses is marked (and some more: a superset is safe, it only sends arcs to the exact
-    test). A cell left unmarked holds no boundary, so it lies wholly inside or wholly outside, and so does every
-    unmarked cell 4-connected to it: each connected region is classified by one point-in-polygon test.
+    test). A cell left unmarked holds no boundary, so it lies wholly inside or wholly outside and its centre
+    tells which; a block of _BLOCK x _BLOCK unmarked cells is decided by one centre, the cells of the other
+    blocks one by one (a few point-in-polygon tests per coastline cell, not one per cell of the raster).
     """
-    from scipy import ndimage
-
+    r = _BLOCK
+    my, mx = -(-ny // r) * r, -(-nx // r) * r  # padded to whole blocks; the padding is outside the box
     ring = shapely.segmentize(shapely.boundary(parts), 0.5 * cell)
     xy = shapely.get_coordinates(ring)
     i = np.clip(np.floor((xy[:, 0] - x0) / cell), 0, nx - 1).astype(np.intp)
     j = np.clip(np.floor((xy[:, 1] - y0) / cell), 0, ny - 1).astype(np.intp)
-    edge = np.zeros((ny, nx), dtype=bool)
-    edge[j, i] = True
-    edge = ndimage.binary_dilation(edge, structure=np.ones((3, 3), dtype=bool))
-    labels, n = ndimage.label(~edge)
-    inside = np.zeros((ny, nx), dtype=bool)
-    if n:
-        first = np.unique(labels.ravel(), return_index=True)[1]
-        first = first[labels.ravel()[first] > 0]  # one cell of each region (label 0 is the boundary)
-        rj, ri = np.divmod(first, nx)
-        inner = shapely.contains_xy(geometry, x0 + (ri + 0.5) * cell, y0 + (rj + 0.5) * cell)
-        keep = np.zeros(n + 1, dtype=bool)
-        keep[labels.ravel()[first[inner]]] = True
-        inside = keep[labels]
-    return edge | inside, inside
+    mark = np.zeros((my + 2, mx + 2), dtype=bool)
+    mark[j + 1, i + 1] = True
+    edge = np.zeros((my, mx), dtype=bool)
+    for dj in range(3):  # dilate by one cell in the eight directions
+        for di in range(3):
+            edge |= mark[dj : dj + my, di : di + mx]
+    blocks = edge.reshape(my // r, r, mx // r, r)
+    open_block = ~blocks.any(axis=(1, 3))
+    bj, bi = np.nonzero(open_block)
+    inside = np.zeros((my // r, r, mx // r, r), dtype=bool)
+    whole = shapely.contains_xy(geometry, x0 + (bi + 0.5) * r * cell, y0 + (bj + 0.5) * r * cell)
+    inside[bj[whole], :, bi[whole], :] = True
+    fj, fi = np.nonzero(~edge & ~np.repeat(np.repeat(open_block, r, axis=0), r, axis=1))
+    inside.reshape(my, mx)[fj, fi] = shapely.contains_xy(geometry, x0 + (fi + 0.5) * cell, y0 + (fj + 0.5) * cell)
+    inside = inside.reshape(my, mx)[:ny, :nx]
+    return edge[:ny, :nx] | inside, np.ascontiguousarray(inside)
 
 
 def _tiles(parts: npt.NDArray[np.object_]) -> npt.NDArray[np.object_]:

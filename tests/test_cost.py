@@ -123,3 +123,54 @@ def test_forbidden_arcs_record_which_criteria_fired() -> None:
     n = loose.dp.forbidden_by_reason["failure"]
     assert max(counts.values()) <= n <= sum(counts.values())
     assert loose.summary()["arcs"]["forbidden_by_criterion"] == counts
+
+
+def _varying_field():
+    import xarray as xr
+
+    from pyroute_rel.weather_io import GriddedWeather
+
+    lon = np.arange(-40.0, -19.9, 0.5)
+    lat = np.arange(20.0, 40.1, 0.5)
+    time = np.datetime64("2018-06-01T00") + np.arange(48) * np.timedelta64(1, "h")
+    t, la, lo = np.meshgrid(np.arange(48.0), lat, lon, indexing="ij")
+    speed = 6.0 + 3.0 * np.sin(t / 7.0 + lo / 5.0)
+    frm = np.radians(40.0 * np.sin(t / 11.0 + la / 4.0))
+    hs = 2.0 + 2.5 * np.cos(la / 3.0 + t / 9.0)
+    hs[:, 10:12, 20:23] = np.nan  # an island: arcs next to it are forbidden as missing weather
+    dims = ("time", "latitude", "longitude")
+    ds = xr.Dataset({"u10": (dims, -speed * np.sin(frm)), "v10": (dims, -speed * np.cos(frm)), "swh": (dims, hs),
+                     "mwd": (dims, np.degrees(frm) % 360.0)},
+                    coords={"time": time, "latitude": lat, "longitude": lon})
+    return GriddedWeather.from_dataset(ds)
+
+
+def test_threads_split_a_block_without_changing_a_number() -> None:
+    from pyroute_rel.cost import PARALLEL_MIN_ARCS, arc_geometry, geometry_costs
+
+    rng = np.random.default_rng(3)
+    n_dst, width = 120, 90
+    assert n_dst * width >= PARALLEL_MIN_ARCS  # precondition: the block is big enough to be split
+    lon0, lat0 = rng.uniform(-39, -21, (1, width)), rng.uniform(21, 39, (1, width))
+    lon1, lat1 = rng.uniform(-39, -21, (n_dst, 1)), rng.uniform(21, 39, (n_dst, 1))
+    geom = arc_geometry(lon0, lat0, lon1, lat1, samples=3)
+    t0 = rng.uniform(0.0, 20.0, (n_dst, width))
+    kw = dict(departure=np.datetime64("2018-06-01T00:00"), weather=_varying_field(),
+              polar=get_polar("maribot_vane"), failure=load_failure_model("dickson2018"), apf=0.5)
+    one = geometry_costs(geom, t0, workers=1, **kw)
+    three = geometry_costs(geom, t0, workers=3, **kw)
+    assert (one.reason & REASONS["failure"]).any() and (one.reason & REASONS["weather"]).any()
+    assert np.isfinite(one.time_h).any()
+    for name in ("time_h", "p_f", "reason", "fired_bits"):
+        np.testing.assert_array_equal(getattr(three, name), getattr(one, name), err_msg=name)
+
+
+@pytest.mark.parametrize("value", ["0", "two", "-1"])
+def test_thread_count_from_the_environment_is_checked(monkeypatch, value) -> None:
+    from pyroute_rel.cost import default_workers
+
+    monkeypatch.setenv("PYROUTE_REL_THREADS", value)
+    with pytest.raises(ValueError, match="PYROUTE_REL_THREADS must be a whole number >= 1"):
+        default_workers()
+    monkeypatch.setenv("PYROUTE_REL_THREADS", "3")
+    assert default_workers() == 3
