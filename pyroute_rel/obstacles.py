@@ -85,6 +85,7 @@ _BAND_DEG = 0.5  # latitude band height of the margin buffer [deg]
 _TILE_DEG = 1.0  # tile size the geometry is cut into for the STRtree [deg]
 _MAX_CELLS = 4_000_000  # most cells of the prefilter rasters
 _MIN_CELL_DEG = 0.05  # smallest cell of the prefilter rasters [deg]
+_POINT_TILE_DEG = 5.0  # points_on_land reads land per tile of this size [deg]
 _BLOCK = 5  # cells per side of the blocks the inside raster is decided by first
 _LEAF_KM = 25.0  # pieces of arc longer than this near the geometry are halved before the exact test [km]
 _CHUNK_POINTS = 1_000_000  # densified points per exact-test chunk (bounds the memory)
@@ -769,15 +770,21 @@ def points_on_land(
         raise ScenarioError("points must have finite longitudes and latitudes in [-90, 90] [deg]")
     if lon_a.size == 0:
         return np.zeros(lon_a.shape, dtype=bool)
-    lon_w = (lon_a + 180.0) % 360.0 - 180.0
-    box = (
-        float(max(np.floor(lon_w.min()) - 1.0, -180.0)),
-        float(max(np.floor(lat_a.min()) - 1.0, -90.0)),
-        float(min(np.ceil(lon_w.max()) + 1.0, 180.0)),
-        float(min(np.ceil(lat_a.max()) + 1.0, 90.0)),
-    )
-    land = _land_geometry(box, margin, resolution)
-    return np.asarray(shapely.intersects_xy(land, lon_w, lat_a), dtype=bool)
+    lon_w = ((lon_a + 180.0) % 360.0 - 180.0).ravel()
+    lat_f = lat_a.ravel()
+    out = np.zeros(lon_w.size, dtype=bool)
+    # land (and its margin) per _POINT_TILE_DEG tile holding points: a start in Europe and a finish in the
+    # Caribbean read and buffer two small boxes, not the ocean between them (each box is cached)
+    tiles = np.stack([np.floor(lon_w / _POINT_TILE_DEG), np.floor(lat_f / _POINT_TILE_DEG)], axis=1)
+    keys, which = np.unique(tiles, axis=0, return_inverse=True)
+    for n, (ti, tj) in enumerate(keys):
+        w, s = ti * _POINT_TILE_DEG, tj * _POINT_TILE_DEG
+        box = (max(w - 1.0, -180.0), max(s - 1.0, -90.0), min(w + _POINT_TILE_DEG + 1.0, 180.0),
+               min(s + _POINT_TILE_DEG + 1.0, 90.0))
+        pick = np.flatnonzero(which.ravel() == n)
+        land = _land_geometry(tuple(float(v) for v in box), margin, resolution)  # type: ignore[arg-type]
+        out[pick] = shapely.intersects_xy(land, lon_w[pick], lat_f[pick])
+    return out.reshape(lon_a.shape)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -557,3 +557,15 @@ def test_index_rasters_against_per_cell_predicates(geometry) -> None:
     deep = ndimage.binary_erosion(covered, structure=np.ones((5, 5), dtype=bool))
     assert deep.any() or covered.sum() < 100  # (a small island has no such cell)
     assert not (deep.ravel() & ~inside).any()
+
+
+def test_points_on_land_per_tile_equals_one_box_over_all_points() -> None:
+    # points_on_land reads land per 5 deg tile; one geometry over a box holding every point is the reference
+    rng = np.random.default_rng(7)
+    lon = np.concatenate([rng.uniform(-5.2, -4.2, 40), rng.uniform(-61.9, -61.0, 40), [-9.99, -10.0, -10.01]])
+    lat = np.concatenate([rng.uniform(47.9, 48.8, 40), rng.uniform(15.8, 16.6, 40), [43.0, 43.0, 43.0]])
+    for margin in (0.0, 10.0):
+        got = ob.points_on_land(lon, lat, margin_km=margin)
+        land = ob.land_geometry((-63.0, 14.0, -3.0, 50.0), margin_km=margin)
+        np.testing.assert_array_equal(got, shapely.intersects_xy(land, lon, lat))
+        assert got.any() and not got.all()
