@@ -96,13 +96,25 @@ def _draw_coast(ax: Axes, grid: Grid) -> None:
                               float(grid.lon_deg.max()) + 2, float(grid.lat_deg.max()) + 2))
     except Exception:  # the map is still useful without a coastline
         return
-    import shapely
+    _fill_polygons(ax, land, facecolor="0.85", edgecolor="0.5", linewidth=0.4, zorder=0)
 
-    for poly in getattr(land, "geoms", [land]):
+
+def _fill_polygons(ax: Axes, geometry: Any, **style: Any) -> None:
+    """Fill a (Multi)Polygon, holes included, as one matplotlib artist (a coastline has thousands of parts:
+    an artist each made a map take seconds to draw and the legend seconds more to place)."""
+    import shapely
+    from matplotlib.collections import PathCollection
+    from matplotlib.path import Path as MplPath
+
+    paths = []
+    # exterior counter-clockwise, holes clockwise: holes stay empty under the nonzero fill rule
+    for poly in shapely.get_parts(shapely.orient_polygons(geometry)):
         if poly.is_empty or not hasattr(poly, "exterior"):
             continue
-        x, y = shapely.get_coordinates(poly.exterior).T
-        ax.fill(x, y, color="0.85", ec="0.5", lw=0.4, zorder=0)
+        rings = [poly.exterior, *poly.interiors]
+        paths.append(MplPath.make_compound_path(*[MplPath(shapely.get_coordinates(r), closed=True) for r in rings]))
+    if paths:
+        ax.add_collection(PathCollection(paths, **style), autolim=False)
 
 
 def plot_routes(
@@ -133,12 +145,8 @@ def plot_routes(
     if coast:
         _draw_coast(ax, grid)
     for zone in zones:
-        import shapely
-
-        geom = getattr(zone, "geometry", zone)
-        for poly in getattr(geom, "geoms", [geom]):
-            x, y = shapely.get_coordinates(poly.exterior).T
-            ax.fill(x, y, color="tab:purple", alpha=0.25, lw=0.8, ec="tab:purple")
+        _fill_polygons(ax, getattr(zone, "geometry", zone), facecolor="tab:purple", alpha=0.25, linewidth=0.8,
+                       edgecolor="tab:purple")
     _draw_grid_outline(ax, grid)
     if weather is not None:
         _draw_patches(ax, weather)

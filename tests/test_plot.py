@@ -1,0 +1,63 @@
+"""Maps: coastlines and zones are single artists, holes stay empty."""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import shapely  # noqa: E402
+
+from pyroute_rel import obstacles as ob  # noqa: E402
+from pyroute_rel.plot import _fill_polygons  # noqa: E402
+
+
+def _signed_area(xy: np.ndarray) -> float:
+    x, y = xy[:, 0], xy[:, 1]
+    return 0.5 * float(np.sum(x[:-1] * y[1:] - x[1:] * y[:-1]))
+
+
+def test_polygons_with_holes_fill_as_one_artist_with_empty_holes() -> None:
+    # exterior given clockwise and hole counter-clockwise: the worst case for the nonzero fill rule
+    outer = [(0, 0), (0, 3), (3, 3), (3, 0)]
+    hole = [(1, 1), (2, 1), (2, 2), (1, 2)]
+    geom = shapely.MultiPolygon([shapely.Polygon(outer, [hole]), shapely.box(4, 0, 5, 1)])
+    fig, ax = plt.subplots()
+    try:
+        _fill_polygons(ax, geom, facecolor="r")
+        assert len(ax.collections) == 1
+        paths = ax.collections[0].get_paths()
+        assert len(paths) == 2
+        # the first path holds the exterior then the hole: opposite orientations, so the hole is not filled
+        codes = paths[0].codes
+        starts = np.flatnonzero(codes == paths[0].MOVETO)
+        rings = np.split(paths[0].vertices, starts[1:])
+        assert len(rings) == 2
+        assert _signed_area(rings[0]) > 0 > _signed_area(rings[1])
+        # and the hole really stays empty when drawn
+        ax.set_xlim(-1, 6)
+        ax.set_ylim(-1, 4)
+        ax.set_axis_off()
+        fig.canvas.draw()
+        img = np.asarray(fig.canvas.buffer_rgba())
+        to_px = ax.transData.transform
+        (hx, hy), (fx, fy) = to_px((1.5, 1.5)), to_px((0.5, 0.5))
+        h = img.shape[0]
+        assert tuple(img[int(h - hy), int(hx), :3]) == (255, 255, 255)  # the hole: background
+        assert tuple(img[int(h - fy), int(fx), :3]) == (255, 0, 0)  # the polygon: filled
+    finally:
+        plt.close(fig)
+
+
+def test_a_coastline_of_thousands_of_parts_is_one_artist() -> None:
+    land = ob.land_geometry((-70.0, 8.0, -55.0, 20.0))  # the Caribbean: hundreds of islands
+    assert len(shapely.get_parts(land)) > 100
+    fig, ax = plt.subplots()
+    try:
+        _fill_polygons(ax, land, facecolor="0.85")
+        assert len(ax.collections) == 1
+        assert len(ax.collections[0].get_paths()) == len(shapely.get_parts(land))
+    finally:
+        plt.close(fig)
