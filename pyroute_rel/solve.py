@@ -394,10 +394,20 @@ def _crossing(grid: Grid, k: int) -> FloatArray:
     cache = grid._cache.setdefault("crossing", {})
     frac = cache.get(k)
     if frac is None:
-        lon0, lat0, lon1, lat1, _, _ = grid.arcs(k)
+        lon0, lat0, lon1, lat1, src, _ = grid.arcs(k)
         assert grid.finish_line is not None
         (c_lon, c_lat), (d_lon, d_lat) = grid.finish_line
-        frac = geodesy.crossing_fraction(lon0, lat0, lon1, lat1, c_lon, c_lat, d_lon, d_lat)
+        # a minor arc with both ends strictly on one side of the line's great circle cannot cross the line:
+        # only the arcs with ends on opposite sides (or on it, within eps) get the exact test
+        normal = np.cross(geodesy.to_xyz(c_lon, c_lat), geodesy.to_xyz(d_lon, d_lat))
+        side0 = geodesy.to_xyz(*np.broadcast_arrays(lon0, lat0)) @ normal
+        side1 = geodesy.to_xyz(*np.broadcast_arrays(lon1, lat1)) @ normal
+        eps = 1e-9  # [rad], about 6 mm: points this near the great circle count as on it (the exact test decides)
+        maybe = np.broadcast_to(((side0 <= eps) & (side1 >= -eps)) | ((side0 >= -eps) & (side1 <= eps)), src.shape)
+        frac = np.full(src.shape, np.nan)
+        if maybe.any():
+            a0, b0, a1, b1 = (np.broadcast_to(a, src.shape)[maybe] for a in (lon0, lat0, lon1, lat1))
+            frac[maybe] = geodesy.crossing_fraction(a0, b0, a1, b1, c_lon, c_lat, d_lon, d_lat)
         cache[k] = frac
     return frac
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -78,3 +80,23 @@ def test_waypoints_pass_the_marks_and_add_up() -> None:
 def test_bad_courses(route: dict, match: str) -> None:
     with pytest.raises(ScenarioError, match=match):
         scenario(route)
+
+
+@pytest.mark.parametrize("options", [{}, {"layout": "square", "n_nodes": 30, "n_ranks": 30}], ids=["angular", "square"])
+def test_finish_line_crossings_prefilter_is_exact(options) -> None:
+    # the solver tests only arcs with ends on both sides of the finish line's great circle; the full test of
+    # every arc (geodesy.crossing_fraction) must give the same fractions, NaN for the same arcs
+    from pyroute_rel import geodesy
+    from pyroute_rel.scenario import load_scenario
+    from pyroute_rel.solve import _crossing
+
+    sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "microtransat_real_course.toml")
+    grid = sc.with_options(**options).make_grid()
+    (c_lon, c_lat), (d_lon, d_lat) = grid.finish_line
+    crossings = 0
+    for k in range(grid.n_ranks + 1):
+        lon0, lat0, lon1, lat1, src, _ = grid.arcs(k)
+        ref = np.broadcast_to(geodesy.crossing_fraction(lon0, lat0, lon1, lat1, c_lon, c_lat, d_lon, d_lat), src.shape)
+        np.testing.assert_array_equal(_crossing(grid, k), ref, err_msg=f"rank {k}")
+        crossings += int(np.isfinite(ref).sum())
+    assert crossings > 100  # precondition: the grid reaches the line
