@@ -235,7 +235,9 @@ def geometry_from_xyz(a_xyz: FloatArray, b_xyz: FloatArray, *, samples: int = 1)
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
     bx, by, bz = b[..., None, 0], b[..., None, 1], b[..., None, 2]
     rho2 = x * x + y * y
-    course = np.degrees(np.arctan2(x * by - y * bx, rho2 * bz - z * (x * bx + y * by))) % 360.0
+    course = np.degrees(np.arctan2(x * by - y * bx, rho2 * bz - z * (x * bx + y * by)))  # in [-180, 180]
+    course += 360.0 * (course < 0.0)  # to [0, 360] without a float remainder (slow)
+    course[course >= 360.0] = 0.0
     lon = np.degrees(np.arctan2(y, x))
     lat = np.degrees(np.arctan2(z, np.sqrt(rho2)))
     return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm)
