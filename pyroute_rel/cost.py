@@ -208,13 +208,25 @@ def arc_geometry(
     return geometry_from_xyz(a, b, samples=samples)
 
 
-def geometry_from_xyz(a_xyz: FloatArray, b_xyz: FloatArray, *, samples: int = 1) -> ArcGeometry:
+def geometry_from_xyz(
+    a_xyz: FloatArray, b_xyz: FloatArray, *, samples: int = 1, workers: int | None = 1
+) -> ArcGeometry:
     """:func:`arc_geometry` from unit vectors of the end points (shape (..., 3), broadcast together).
 
     Sample points by spherical linear interpolation; the course at a point p towards b is
     ``atan2(b . east(p), b . north(p))``; the arc length is the central angle times the Earth radius.
+    ``workers`` > 1 (None: :func:`default_workers`) splits a large block along its first axis between threads
+    (trigonometry on arrays releases the GIL); every arc's numbers are the same either way.
     """
     a, b = np.broadcast_arrays(a_xyz, b_xyz)
+    n = default_workers() if workers is None else int(workers)
+    n = min(n, a.shape[0] if a.ndim > 1 else 1)
+    if n > 1 and a.size // 3 * samples >= PARALLEL_MIN_ARCS:
+        cuts = np.linspace(0, a.shape[0], n + 1).astype(int)
+        parts = list(_pool(n).map(lambda ab: geometry_from_xyz(ab[0], ab[1], samples=samples, workers=1),
+                                  [(a[i:j], b[i:j]) for i, j in zip(cuts[:-1], cuts[1:], strict=True)]))
+        return ArcGeometry(*(np.concatenate([getattr(g, f) for g in parts]) for f in
+                             ("lon_deg", "lat_deg", "course_deg", "seg_nm")))
     dot = np.clip(np.einsum("...i,...i->...", a, b), -1.0, 1.0)
     chord = np.sqrt(np.einsum("...i,...i->...", a - b, a - b))
     omega = 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))

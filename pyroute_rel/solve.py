@@ -430,7 +430,7 @@ def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
         else:
             a = xyz[k - 1][grid.src_index]
             b = xyz[k][:, None, :]
-        geom = geometry_from_xyz(a, b, samples=samples)
+        geom = geometry_from_xyz(a, b, samples=samples, workers=None)  # threads for big blocks
         cache[k] = geom
     return geom
 

@@ -174,3 +174,17 @@ def test_thread_count_from_the_environment_is_checked(monkeypatch, value) -> Non
         default_workers()
     monkeypatch.setenv("PYROUTE_REL_THREADS", "3")
     assert default_workers() == 3
+
+
+def test_arc_geometry_in_threads_is_the_same() -> None:
+    from pyroute_rel.cost import PARALLEL_MIN_ARCS, geometry_from_xyz
+
+    rng = np.random.default_rng(5)
+    a = geodesy.to_xyz(rng.uniform(-60, -10, (1, 150)), rng.uniform(10, 50, (1, 150)))
+    b = geodesy.to_xyz(rng.uniform(-60, -10, (90, 1)), rng.uniform(10, 50, (90, 1)))
+    assert 90 * 150 * 2 >= PARALLEL_MIN_ARCS
+    one = geometry_from_xyz(a, b, samples=2, workers=1)
+    three = geometry_from_xyz(a, b, samples=2, workers=3)
+    for name in ("lon_deg", "lat_deg", "course_deg", "seg_nm"):
+        np.testing.assert_array_equal(getattr(three, name), getattr(one, name), err_msg=name)
+    assert one.lon_deg.shape == (90, 150, 2)
