@@ -273,24 +273,33 @@ def _buffer_km(polys: npt.NDArray[np.object_], margin_km: float, bbox: tuple[flo
     m = margin_km / _KM_PER_DEG  # margin in degrees of great circle
     tree = shapely.STRtree(polys)
     edges = np.arange(math.floor(south / _BAND_DEG) * _BAND_DEG, north + _BAND_DEG, _BAND_DEG)
-    pieces = []
-    for a in edges[:-1]:  # loop over latitude bands (a few dozen), never over arcs
+
+    def band(a: float) -> Any:
         lo, hi = max(a, south), min(a + _BAND_DEG, north)
         if hi <= lo:
-            continue
+            return None
         k = math.cos(math.radians(a + 0.5 * _BAND_DEG))
         far = min(max(abs(lo - m), abs(hi + m)), 89.9)
         m_lon = m / math.cos(math.radians(far))
         window = (west - m_lon, lo - m, east + m_lon, hi + m)
         idx = tree.query(shapely.box(*window))
         if idx.size == 0:
-            continue
+            return None
         local = _clip_polygons(polys[idx], window)
-        scaled = shapely.transform(local, lambda c, k=k: c * (k, 1.0))
+        scaled = shapely.transform(local, lambda c: c * (k, 1.0))
         # buffering the parts one by one and then uniting them is several times faster than one buffer
         grown = shapely.union_all(shapely.buffer(scaled, m, quad_segs=8))
-        grown = shapely.transform(grown, lambda c, k=k: c / (k, 1.0))
-        pieces.append(shapely.clip_by_rect(grown, west, lo, east, hi))
+        grown = shapely.transform(grown, lambda c: c / (k, 1.0))
+        return shapely.clip_by_rect(grown, west, lo, east, hi)
+
+    # latitude bands (a few dozen, never a loop over arcs) are independent: shapely releases the GIL, so they are
+    # buffered in threads
+    from .cost import _pool, default_workers
+
+    workers = default_workers()
+    bands = [float(a) for a in edges[:-1]]
+    done = list(_pool(workers).map(band, bands)) if workers > 1 and len(bands) > 1 else [band(a) for a in bands]
+    pieces = [p for p in done if p is not None]
     if not pieces:
         return np.empty(0, dtype=object)
     return _polygon_parts(shapely.get_parts(shapely.union_all(pieces)))
