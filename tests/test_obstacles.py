@@ -569,3 +569,15 @@ def test_points_on_land_per_tile_equals_one_box_over_all_points() -> None:
         land = ob.land_geometry((-63.0, 14.0, -3.0, 50.0), margin_km=margin)
         np.testing.assert_array_equal(got, shapely.intersects_xy(land, lon, lat))
         assert got.any() and not got.all()
+
+
+def test_margin_buffered_in_threads_equals_one_thread(monkeypatch) -> None:
+    box = (-10.0, 42.0, -1.0, 49.0)  # Biscay: Brittany to Galicia, a dozen latitude bands
+    out = []
+    for threads in ("1", "3"):
+        monkeypatch.setenv("PYROUTE_REL_THREADS", threads)
+        ob._land_geometry.cache_clear()
+        out.append(ob.land_geometry(box, margin_km=10.0))
+    ob._land_geometry.cache_clear()
+    assert shapely.equals_exact(out[0], out[1], tolerance=0.0)
+    assert out[0].area > ob.land_geometry(box).area  # the margin grew the land
