@@ -105,9 +105,24 @@ class ObstacleMask:
         """(learnt, static hit, timed-zone bits) of the arcs into rank k."""
         st = self._cache.get(k)
         if st is None:
-            st = self._cache[k] = (np.zeros(shape, dtype=bool), np.zeros(shape, dtype=bool),
-                                   np.zeros(shape, dtype=np.uint64))
+            # an arc with an end on (buffered) land is blocked outright: known from the start, at no cost (on a
+            # grid over continents whole rows end on land, which the lazy DP would otherwise learn arc by arc)
+            ends = self._ends(k)
+            st = self._cache[k] = (ends.copy(), ends.copy(), np.zeros(shape, dtype=np.uint64))
         return st
+
+    def _ends(self, k: int) -> npt.NDArray[np.bool_]:
+        src = self.grid.pattern(k)[0]
+        if self.on is None:
+            return np.zeros(src.shape, dtype=bool)
+        on_start, on_nodes = self.on
+        if k == 0:
+            ends = on_start[src] | on_nodes[0][:, None]
+        elif k == self.grid.n_ranks:
+            ends = on_nodes[-1][src]
+        else:
+            ends = on_nodes[k - 1][src] | on_nodes[k][:, None]
+        return np.ascontiguousarray(np.broadcast_to(ends, src.shape))
 
     def _shape(self, k: int) -> tuple[int, ...]:
         st = self._cache.get(k)
@@ -125,20 +140,9 @@ class ObstacleMask:
         if not todo.any():
             return
         arcs = [np.broadcast_to(x, src.shape)[todo] for x in (lon0, lat0, lon1, lat1)]
-        res = np.zeros(int(todo.sum()), dtype=bool)
-        if self.on is not None and self.land is not None:
-            on_start, on_nodes = self.on
-            if k == 0:
-                ends = on_start[src] | on_nodes[0][:, None]
-            elif k == self.grid.n_ranks:
-                ends = np.broadcast_to(on_nodes[-1][src], src.shape)
-            else:
-                ends = on_nodes[k - 1][src] | on_nodes[k][:, None]
-            res |= ends[todo]
-            sea = ~res
-            if sea.any():
-                res[sea] = self._obstacles.arcs_blocked(arcs[0][sea], arcs[1][sea], arcs[2][sea], arcs[3][sea],
-                                                        self.land)
+        res = np.zeros(int(todo.sum()), dtype=bool)  # arcs with an end on land are known already (see _state)
+        if self.land is not None:
+            res = self._obstacles.arcs_blocked(arcs[0], arcs[1], arcs[2], arcs[3], self.land)
         if self.static:
             free = ~res
             if free.any():
