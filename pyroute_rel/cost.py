@@ -38,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
+from .errors import ScenarioError
 from .polar import Polar, boat_speed_kn
 from .weather import Conditions, WeatherSource
 
@@ -325,9 +326,9 @@ def default_workers() -> int:
         try:
             n = int(env)
         except ValueError:
-            raise ValueError(f"PYROUTE_REL_THREADS must be a whole number >= 1 (got {env!r})") from None
+            n = 0
         if n < 1:
-            raise ValueError(f"PYROUTE_REL_THREADS must be a whole number >= 1 (got {env!r})")
+            raise ScenarioError(f"environment variable PYROUTE_REL_THREADS must be a whole number >= 1 (got {env!r})")
         return n
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 

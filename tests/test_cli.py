@@ -140,3 +140,13 @@ def test_console_script_runs_as_a_subprocess(tmp_path: Path) -> None:
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "not found" in proc.stderr
+
+
+def test_bad_thread_count_in_the_environment_is_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("PYROUTE_REL_THREADS", "two")
+    out = tmp_path / "out"
+    code, _, err = run(["route", str(write(tmp_path, GOOD)), "--out", str(out), "--quiet"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert "environment variable PYROUTE_REL_THREADS must be a whole number >= 1 (got 'two')" in err
+    assert not out.exists() or not any(out.iterdir())
