@@ -31,7 +31,7 @@ sc = load_scenario({path!r}).with_options({options})
 avoid = {avoid}
 
 def clear():
-    ob._gshhs_meta.cache_clear(); ob._land_geometry.cache_clear(); ob._index.cache_clear()
+    ob._gshhs_meta.cache_clear(); ob._land_geometry.cache_clear(); ob._INDEXES.clear()
 
 def evaluate(grid, mask):
     return sum(int(mask(k, None).sum()) for k in range(grid.n_ranks + 1))

@@ -140,9 +140,11 @@ class ObstacleMask:
         if not todo.any():
             return
         arcs = [np.broadcast_to(x, src.shape)[todo] for x in (lon0, lat0, lon1, lat1)]
-        res = np.zeros(int(todo.sum()), dtype=bool)  # arcs with an end on land are known already (see _state)
+        # (arcs with an end on land are known already, see _state)
         if self.land is not None:
             res = self._obstacles.arcs_blocked(arcs[0], arcs[1], arcs[2], arcs[3], self.land)
+        else:
+            res = np.zeros(int(todo.sum()), dtype=bool)
         if self.static:
             free = ~res
             if free.any():
@@ -150,11 +152,11 @@ class ObstacleMask:
                 res[free] = self._obstacles.arcs_blocked_by_zones(a, b, c, d, self.static)
         if self.timed_zones:  # an arc already blocked at all times need not know its windows
             bits = np.zeros(res.size, dtype=np.uint64)
-            free = np.flatnonzero(~res)
-            a, b, c, d = (x[free] for x in arcs)
+            at_sea = np.flatnonzero(~res)
+            a, b, c, d = (x[at_sea] for x in arcs)
             for i, zone in enumerate(self.timed_zones):
                 touch = self._obstacles.arcs_blocked_by_zones(a, b, c, d, [zone])
-                bits[free[touch]] |= np.uint64(1 << i)
+                bits[at_sea[touch]] |= np.uint64(1 << i)
             zbits[todo] = bits
         hit[todo] = res
         known[todo] = True
@@ -163,27 +165,15 @@ class ObstacleMask:
         """Arcs into rank k known to touch land or a zone active at their departure ``times`` (None: all active);
         arcs not learnt yet count as free."""
         _, hit, zbits = self._state(k, self._shape(k))
-        if not self.timed_zones:
-            return hit.copy()
-        out = hit | (zbits != 0) if times is None else hit.copy()
-        if times is not None:
-            for i, zone in enumerate(self.timed_zones):
-                on = np.flatnonzero((zbits & np.uint64(1 << i)).ravel())
-                if on.size:
-                    t = np.broadcast_to(times, zbits.shape).ravel()[on]
-                    out.ravel()[on[zone.active(t)]] = True
+        if times is None:
+            return hit | (zbits != 0)
+        out = hit.copy()
+        for i, zone in enumerate(self.timed_zones):
+            on = np.flatnonzero((zbits & np.uint64(1 << i)).ravel())
+            if on.size:
+                t = np.broadcast_to(times, zbits.shape).ravel()[on]
+                out.ravel()[on[zone.active(t)]] = True
         return out
-
-    def static_hits(self, k: int, select: npt.NDArray[np.bool_] | None = None) -> npt.NDArray[np.bool_]:
-        """Land and untimed-zone hits of the arcs into rank k; only ``select`` (default all) is guaranteed known."""
-        self.learn(k, select)
-        return self._state(k, self._shape(k))[1]
-
-    def timed_hits(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
-        """Hits of the zones with a time window, for arcs leaving at ``times``."""
-        self.learn(k)
-        return self.hits(k, times) & ~self._state(k, self._shape(k))[1] if self.timed_zones else (
-            np.zeros(self._shape(k), dtype=bool))
 
     def __call__(self, k: int, times: npt.NDArray[np.datetime64] | None) -> npt.NDArray[np.bool_]:
         """Every arc into rank k that touches land or a zone (active at ``times`` for timed zones)."""

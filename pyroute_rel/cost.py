@@ -29,8 +29,6 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -38,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .errors import ScenarioError
+from .parallel import default_workers, row_blocks, thread_map
 from .polar import Polar, boat_speed_kn
 from .weather import Conditions, WeatherSource
 
@@ -93,13 +91,6 @@ class ArcCosts:
     p_f: FloatArray
     reason: npt.NDArray[np.uint8]
     fired_bits: npt.NDArray[np.uint32] | None = None
-
-    def fired(self, n_criteria: int) -> npt.NDArray[np.bool_] | None:
-        """:attr:`fired_bits` unpacked, shape ``(n_criteria, *block)`` (None when there are none)."""
-        if self.fired_bits is None:
-            return None
-        bits = np.uint32(1) << np.arange(n_criteria, dtype=np.uint32)
-        return (self.fired_bits[None, ...] & bits.reshape((-1,) + (1,) * self.fired_bits.ndim)) != 0
 
 
 def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[str, FloatArray]:
@@ -216,16 +207,14 @@ def geometry_from_xyz(
 
     Sample points by spherical linear interpolation; the course at a point p towards b is
     ``atan2(b . east(p), b . north(p))``; the arc length is the central angle times the Earth radius.
-    ``workers`` > 1 (None: :func:`default_workers`) splits a large block along its first axis between threads
-    (trigonometry on arrays releases the GIL); every arc's numbers are the same either way.
+    ``workers`` > 1 (None: :func:`~pyroute_rel.parallel.default_workers`) splits a large block along its first
+    axis between threads (trigonometry on arrays releases the GIL); every arc's numbers are the same either way.
     """
     a, b = np.broadcast_arrays(a_xyz, b_xyz)
     n = default_workers() if workers is None else int(workers)
-    n = min(n, a.shape[0] if a.ndim > 1 else 1)
-    if n > 1 and a.size // 3 * samples >= PARALLEL_MIN_ARCS:
-        cuts = np.linspace(0, a.shape[0], n + 1).astype(int)
-        parts = list(_pool(n).map(lambda ab: geometry_from_xyz(ab[0], ab[1], samples=samples, workers=1),
-                                  [(a[i:j], b[i:j]) for i, j in zip(cuts[:-1], cuts[1:], strict=True)]))
+    if n > 1 and a.ndim > 1 and a.size // 3 * samples >= PARALLEL_MIN_ARCS:
+        parts = thread_map(lambda rows: geometry_from_xyz(a[rows], b[rows], samples=samples, workers=1),
+                           row_blocks(a.shape[0], n), n)
         return ArcGeometry(*(np.concatenate([getattr(g, f) for g in parts]) for f in
                              ("lon_deg", "lat_deg", "course_deg", "seg_nm")))
     dot = np.clip(np.einsum("...i,...i->...", a, b), -1.0, 1.0)
@@ -248,9 +237,7 @@ def geometry_from_xyz(
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
     bx, by, bz = b[..., None, 0], b[..., None, 1], b[..., None, 2]
     rho2 = x * x + y * y
-    course = np.degrees(np.arctan2(x * by - y * bx, rho2 * bz - z * (x * bx + y * by)))  # in [-180, 180]
-    course += 360.0 * (course < 0.0)  # to [0, 360] without a float remainder (slow)
-    course[course >= 360.0] = 0.0
+    course = geodesy.bearing_deg(x * by - y * bx, rho2 * bz - z * (x * bx + y * by))
     lon = np.degrees(np.arctan2(y, x))
     lat = np.degrees(np.arctan2(z, np.sqrt(rho2)))
     return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm)
@@ -307,30 +294,8 @@ def arc_costs(
                           apf=apf, beyond=beyond, wave_loss=wave_loss)
 
 
-#: Arcs per block below which :func:`geometry_costs` does not split the work between threads.
+#: Arcs (times samples) per block below which the cost and geometry kernels do not split work between threads.
 PARALLEL_MIN_ARCS = 8192
-_POOL: ThreadPoolExecutor | None = None
-
-
-def _pool(workers: int) -> ThreadPoolExecutor:
-    global _POOL
-    if _POOL is None or _POOL._max_workers < workers:  # noqa: SLF001
-        _POOL = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pyroute_rel")
-    return _POOL
-
-
-def default_workers() -> int:
-    """Threads used by :func:`geometry_costs`: ``$PYROUTE_REL_THREADS``, else the CPUs this process may use."""
-    env = os.environ.get("PYROUTE_REL_THREADS", "").strip()
-    if env:
-        try:
-            n = int(env)
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise ScenarioError(f"environment variable PYROUTE_REL_THREADS must be a whole number >= 1 (got {env!r})")
-        return n
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
 def geometry_costs(
@@ -349,33 +314,31 @@ def geometry_costs(
     """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid).
 
     With time-varying weather, a large block is split along its first axis between ``workers`` threads (default
-    :func:`default_workers`): numpy releases the GIL in the gathers and ufuncs that dominate, so the parts run in
-    parallel. Each arc's
-    cost depends on that arc alone, so the result is the same as in one piece.
+    :func:`~pyroute_rel.parallel.default_workers`): numpy releases the GIL in the gathers and ufuncs that dominate,
+    so the parts run in parallel. Each arc's cost depends on that arc alone, so the result is the same as in one
+    piece.
     """
     shape = geom.shape
+    steady = bool(getattr(weather, "steady", False))
     n = default_workers() if workers is None else int(workers)
-    n = min(n, shape[0] if shape else 1)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
-    if n > 1 and not getattr(weather, "steady", False) and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
+    if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
         t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), shape)
-        cuts = np.linspace(0, shape[0], n + 1).astype(int)
-        parts = [
-            (ArcGeometry(lon_deg=geom.lon_deg[a:b], lat_deg=geom.lat_deg[a:b], course_deg=geom.course_deg[a:b],
-                         seg_nm=geom.seg_nm[a:b] if geom.seg_nm.shape[:1] == shape[:1] else geom.seg_nm), t0[a:b])
-            for a, b in zip(cuts[:-1], cuts[1:], strict=True)
-        ]
-        kw = dict(departure=departure, weather=weather, polar=polar, failure=failure, apf=apf, beyond=beyond,
-                  wave_loss=wave_loss, workers=1)
-        done = list(_pool(n).map(lambda p: geometry_costs(p[0], p[1], **kw), parts))  # type: ignore[arg-type]
+        split_seg = geom.seg_nm.shape[:1] == shape[:1]
+
+        def part(rows: slice) -> ArcCosts:
+            g = ArcGeometry(lon_deg=geom.lon_deg[rows], lat_deg=geom.lat_deg[rows],
+                            course_deg=geom.course_deg[rows], seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm)
+            return geometry_costs(g, t0[rows], departure=departure, weather=weather, polar=polar, failure=failure,
+                                  apf=apf, beyond=beyond, wave_loss=wave_loss, workers=1)
+
+        done = thread_map(part, row_blocks(shape[0], n), n)
         bits = None
         if any(c.fired_bits is not None for c in done):
             bits = np.concatenate([np.zeros(c.time_h.shape, np.uint32) if c.fired_bits is None
                                    else np.broadcast_to(c.fired_bits, c.time_h.shape) for c in done])
         return ArcCosts(time_h=np.concatenate([c.time_h for c in done]), p_f=np.concatenate([c.p_f for c in done]),
                         reason=np.concatenate([c.reason for c in done]), fired_bits=bits)
-    steady = bool(getattr(weather, "steady", False))
-    shape = geom.shape
     samples = geom.samples
 
     # a source that can locate points once (gridded data) samples the same points at two sets of times below

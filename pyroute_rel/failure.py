@@ -199,32 +199,28 @@ class FailureModel:
         """Names of the quantities :meth:`p_fail` needs."""
         return frozenset(c.quantity for c in self.criteria)
 
-    def _indices(self, quantities: Mapping[str, npt.ArrayLike]) -> tuple[list[Any], list[Any]]:
-        """Per criterion: node-state index (``len(states)`` = unobserved) and where a NaN gives an unknown."""
-        idx, unknown, _ = self._classify(quantities)
-        return idx, unknown
-
-    def _classify(self, quantities: Mapping[str, npt.ArrayLike]) -> tuple[list[Any], list[Any], list[Any]]:
-        """:meth:`_indices` plus each criterion's NaN mask (None where its quantity has no NaN)."""
+    def _check_quantities(self, quantities: Mapping[str, npt.ArrayLike]) -> None:
         missing = sorted(self.quantities - set(quantities))
         if missing:
             raise FailureModelError(f"failure model '{self.name}' needs quantities {missing} "
                                     f"(got {sorted(quantities)})")
+
+    def _indices(self, quantities: Mapping[str, npt.ArrayLike]) -> tuple[list[Any], list[Any]]:
+        """Per criterion: node-state index (``len(states)`` = unobserved) and where a NaN gives an unknown."""
+        self._check_quantities(quantities)
         arrays = np.broadcast_arrays(*[np.asarray(quantities[c.quantity], dtype=float) for c in self.criteria])
-        idx, unknown, nans = [], [], []
+        idx, unknown = [], []
         for c, x in zip(self.criteria, arrays, strict=True):
             i = c._lut()[np.searchsorted(c.edges, x, side="right" if c.closed == "left" else "left")]
             nan = np.isnan(x)
-            has_nan = bool(nan.any())
-            if has_nan:
+            if nan.any():
                 if c.if_missing == "nan":
                     unknown.append(nan)
                 else:
                     fill = len(c.states) if c.if_missing == "prior" else c.states.index(c.if_missing)
                     i = np.where(nan, fill, i)
-            nans.append(nan if has_nan else None)
             idx.append(i)
-        return idx, unknown, nans
+        return idx, unknown
 
     def p_fail(self, quantities: Mapping[str, npt.ArrayLike]) -> FloatArray:
         """Probability of failure for each point, by gathering from the compiled table.
@@ -248,26 +244,6 @@ class FailureModel:
         if unknown:
             p = np.where(np.logical_or.reduce(unknown), np.nan, p)
         return np.asarray(p)
-
-    def assess(self, quantities: Mapping[str, npt.ArrayLike]) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
-        """:meth:`p_fail` and :meth:`fired` together, classifying each quantity once (the cost kernel's call).
-
-        >>> m = load_failure_model("dickson2018")
-        >>> p, f = m.assess({"hs_m": [4.0, 1.0], "awd_deg": [10.0, 90.0]})
-        >>> p.tolist(), f.tolist()
-        ([1.0, 0.0], [[True, False], [True, False]])
-        """
-        idx, unknown, nans = self._classify(quantities)
-        p = self._full[tuple(idx)]
-        if unknown:
-            p = np.where(np.logical_or.reduce(unknown), np.nan, p)
-        out = []
-        for c, i, nan in zip(self.criteria, idx, nans, strict=True):
-            f = self._fired_lut(c)[i]
-            if c.if_missing == "nan" and nan is not None:
-                f = f & ~nan
-            out.append(f)
-        return np.asarray(p), np.stack(np.broadcast_arrays(*out))
 
     # --- the cost kernel's path: one flat index into the table per point -----------------------------
 
@@ -303,10 +279,7 @@ class FailureModel:
         >>> m.p_flat[i].tolist(), unknown
         ([0.0, 0.9, 1.0], None)
         """
-        missing = self.quantities - set(quantities)
-        if missing:
-            raise FailureModelError(f"failure model '{self.name}' needs quantities {sorted(missing)} "
-                                    f"(got {sorted(quantities)})")
+        self._check_quantities(quantities)
         flat: Any = None
         unknown: Any = None
         for c, rule in zip(self.criteria, self._kernel.rules, strict=True):
@@ -343,8 +316,7 @@ class FailureModel:
         arrays = np.broadcast_arrays(*[np.asarray(quantities[c.quantity], dtype=float) for c in self.criteria])
         out = []
         for c, i, x in zip(self.criteria, idx, arrays, strict=True):
-            lut = np.array([s not in c.nominal for s in c.states] + [False])
-            f = lut[i]
+            f = self._fired_lut(c)[i]
             out.append(f & ~np.isnan(x) if c.if_missing == "nan" else f)
         return np.stack(out)
 

@@ -31,6 +31,8 @@ __all__ = [
     "wrap_lon",
     "to_xyz",
     "angle_diff_deg",
+    "fold_angle_deg",
+    "bearing_deg",
     "geodesic_distance_km",
     "crossing_fraction",
 ]
@@ -58,11 +60,32 @@ def angle_diff_deg(a_deg: npt.ArrayLike, b_deg: npt.ArrayLike) -> FloatArray:
     >>> angle_diff_deg([350.0, 10.0], [10.0, 190.0]).tolist()
     [20.0, 180.0]
     """
-    d = np.abs(np.asarray(np.subtract(a_deg, b_deg, dtype=float)))
+    return fold_angle_deg(np.subtract(a_deg, b_deg, dtype=float))
+
+
+def fold_angle_deg(angle_deg: npt.ArrayLike) -> FloatArray:
+    """The unsigned angle in [0, 180] [deg] equivalent to any angle (-30 and 330 give 30); NaN gives NaN.
+
+    >>> fold_angle_deg([-30.0, 330.0, 190.0, 540.0]).tolist()
+    [30.0, 30.0, 170.0, 180.0]
+    """
+    d = np.abs(np.asarray(angle_deg, dtype=float))
     if np.fmax.reduce(d, axis=None, initial=0.0) > 360.0:  # float remainder is ~20x slower: only if needed
         with np.errstate(invalid="ignore"):
             d = np.remainder(d, 360.0)
     return np.minimum(d, 360.0 - d, out=d) if d.ndim else np.minimum(d, 360.0 - d)
+
+
+def bearing_deg(east: npt.ArrayLike, north: npt.ArrayLike) -> FloatArray:
+    """Bearing of the vector (east, north), clockwise from north, in [0, 360) [deg].
+
+    >>> bearing_deg([1.0, -1.0, 0.0, -1e-300], [0.0, 0.0, -1.0, 1.0]).tolist()
+    [90.0, 270.0, 180.0, 0.0]
+    """
+    d = np.asarray(np.degrees(np.arctan2(east, north)))  # in [-180, 180]: no float remainder (it is slow)
+    d += 360.0 * (d < 0.0)  # also turns -0.0 into 0.0
+    d[d >= 360.0] = 0.0  # -1e-15 + 360 rounds to 360
+    return d
 
 
 def _central_angle(lon1: FloatArray, lat1: FloatArray, lon2: FloatArray, lat2: FloatArray) -> FloatArray:

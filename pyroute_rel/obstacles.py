@@ -58,6 +58,7 @@ import numpy.typing as npt
 import shapely
 
 from .errors import GridError, ScenarioError, show
+from .parallel import default_workers, thread_map
 
 __all__ = [
     "RESOLUTIONS",
@@ -294,11 +295,7 @@ def _buffer_km(polys: npt.NDArray[np.object_], margin_km: float, bbox: tuple[flo
 
     # latitude bands (a few dozen, never a loop over arcs) are independent: shapely releases the GIL, so they are
     # buffered in threads
-    from .cost import _pool, default_workers
-
-    workers = default_workers()
-    bands = [float(a) for a in edges[:-1]]
-    done = list(_pool(workers).map(band, bands)) if workers > 1 and len(bands) > 1 else [band(a) for a in bands]
+    done = thread_map(band, [float(a) for a in edges[:-1]], default_workers())
     pieces = [p for p in done if p is not None]
     if not pieces:
         return np.empty(0, dtype=object)
@@ -469,13 +466,6 @@ def _index(geometry: shapely.Geometry) -> _Index:
     _INDEXES.append((geometry, index))
     del _INDEXES[:-32]
     return index
-
-
-def _index_cache_clear() -> None:
-    _INDEXES.clear()
-
-
-_index.cache_clear = _index_cache_clear  # type: ignore[attr-defined]
 
 
 def _build_index(geometry: shapely.Geometry) -> _Index:

@@ -38,6 +38,7 @@ import numpy.typing as npt
 import xarray as xr
 
 from .errors import ScenarioError, WeatherCoverageError, WeatherError
+from .geodesy import bearing_deg
 from .weather import Conditions
 
 __all__ = [
@@ -413,7 +414,7 @@ class GriddedWeather:
         shape, lon, lat, t = _points(lon_deg, lat_deg, time)
         values = self._interpolate(lon, lat, t)
         if name == "wave_dir_deg":
-            return _direction(values["_wave_sin"], values["_wave_cos"]).reshape(shape)
+            return bearing_deg(values["_wave_sin"], values["_wave_cos"]).reshape(shape)
         return values[name].reshape(shape)
 
     def sample(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> Conditions:
@@ -440,9 +441,9 @@ class GriddedWeather:
         nan = np.full(n, np.nan)
         out = {
             "tws_kn": np.hypot(u_w, v_w) * KNOTS_PER_MS,
-            "twd_deg": _direction(-u_w, -v_w),
+            "twd_deg": bearing_deg(-u_w, -v_w),
             "hs_m": v.get("hs_m", nan),
-            "wave_dir_deg": _direction(v["_wave_sin"], v["_wave_cos"]) if "_wave_sin" in v else nan,
+            "wave_dir_deg": bearing_deg(v["_wave_sin"], v["_wave_cos"]) if "_wave_sin" in v else nan,
             "wave_period_s": v.get("wave_period_s", nan),
             "current_u_ms": v.get("current_u_ms", np.zeros(n)),
             "current_v_ms": v.get("current_v_ms", np.zeros(n)),
@@ -1064,14 +1065,6 @@ def _points(
     shape = np.broadcast_shapes(lon.shape, lat.shape, t.shape)
     flat = [np.broadcast_to(a, shape).ravel() for a in (lon, lat, t)]
     return shape, flat[0], flat[1], flat[2]
-
-
-def _direction(east: FloatArray, north: FloatArray) -> FloatArray:
-    """Bearing of the vector (east, north), clockwise from north, in [0, 360) [deg]."""
-    d = np.degrees(np.arctan2(east, north))  # in [-180, 180]: no float remainder needed (it is slow)
-    d += 360.0 * (d < 0.0)
-    d[d >= 360.0] = 0.0  # -1e-15 + 360 rounds to 360
-    return d + 0.0  # -0.0 -> 0.0
 
 
 def _iso(t: np.datetime64) -> str:

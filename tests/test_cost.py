@@ -167,7 +167,7 @@ def test_threads_split_a_block_without_changing_a_number() -> None:
 
 @pytest.mark.parametrize("value", ["0", "two", "-1"])
 def test_thread_count_from_the_environment_is_checked(monkeypatch, value) -> None:
-    from pyroute_rel.cost import default_workers
+    from pyroute_rel.parallel import default_workers
 
     monkeypatch.setenv("PYROUTE_REL_THREADS", value)
     with pytest.raises(ValueError, match="PYROUTE_REL_THREADS must be a whole number >= 1"):
