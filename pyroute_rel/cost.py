@@ -12,8 +12,11 @@ For each arc (a great-circle segment between two nodes) and a departure time:
 4. otherwise its time [h] is the sum over sub-segments of length [nm] / speed over ground [kn].
 
 Time along an arc: with steady weather (``weather.steady``) every sample uses the departure time. With
-time-varying weather each sample is taken at the time the craft reaches it, found in two passes
-(departure time first, then the elapsed time those speeds imply).
+time-varying weather each sample is taken at the time the craft reaches it, found in two passes: the
+sub-segments are timed with the speeds at the departure time, then every sample is taken at the departure
+time plus the time to sail to it at those speeds (the failure model only acts in the second pass; a
+sub-segment the first pass cannot time, no speed or missing weather, leaves its later samples at the
+departure time).
 
 Currents (the water's velocity *to*, east/north [m/s]) add to the boat's velocity through the water.
 The boat heads off the course by the angle that cancels the cross-course current,
@@ -205,7 +208,8 @@ def geometry_from_xyz(
 ) -> ArcGeometry:
     """:func:`arc_geometry` from unit vectors of the end points (shape (..., 3), broadcast together).
 
-    Sample points by spherical linear interpolation; the course at a point p towards b is
+    Sample points by repeated halving of the arc (``samples`` a power of two) or spherical linear interpolation;
+    the course at a point p towards b is
     ``atan2(b . east(p), b . north(p))``; the arc length is the central angle times the Earth radius.
     ``workers`` > 1 (None: :func:`~pyroute_rel.parallel.default_workers`) splits a large block along its first
     axis between threads (trigonometry on arrays releases the GIL); every arc's numbers are the same either way.
@@ -217,13 +221,22 @@ def geometry_from_xyz(
                            row_blocks(a.shape[0], n), n)
         return ArcGeometry(*(np.concatenate([getattr(g, f) for g in parts]) for f in
                              ("lon_deg", "lat_deg", "course_deg", "seg_nm")))
-    dot = np.clip(np.einsum("...i,...i->...", a, b), -1.0, 1.0)
-    chord = np.sqrt(np.einsum("...i,...i->...", a - b, a - b))
+    # component by component: numpy's reductions over a last axis of 3 cost more than the arithmetic
+    ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
+    bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
+    dx, dy, dz = ax - bx, ay - by, az - bz
+    chord = np.sqrt(dx * dx + dy * dy + dz * dz)
     omega = 2.0 * np.arcsin(np.clip(chord / 2.0, 0.0, 1.0))
     seg_nm = (omega * (geodesy.EARTH_RADIUS_KM / geodesy.KM_PER_NM) / samples)[..., None]
-    if samples == 1:
-        p = (a + b)[..., None, :]
-        p = p / np.sqrt(np.einsum("...i,...i->...", p, p))[..., None]
+    if samples & (samples - 1) == 0:
+        # a power of two: halve the arc until its pieces are 1/samples long, then take their midpoints; the
+        # midpoint of a short arc is the normalised sum of its ends, so this needs no trigonometry
+        nodes = [(ax, ay, az), (bx, by, bz)]
+        while len(nodes) - 1 < samples:
+            mids = [_midpoint(p0, p1) for p0, p1 in zip(nodes[:-1], nodes[1:], strict=True)]
+            nodes = [q for pair in zip(nodes[:-1], mids, strict=True) for q in pair] + [nodes[-1]]
+        points = [_midpoint(p0, p1) for p0, p1 in zip(nodes[:-1], nodes[1:], strict=True)]
+        x, y, z = (np.stack([q[i] for q in points], axis=-1) for i in range(3))
     else:
         frac = (np.arange(samples) + 0.5) / samples
         om = omega[..., None]
@@ -232,15 +245,22 @@ def geometry_from_xyz(
             small = om < 1e-9
             wa = np.where(small, 1.0 - frac, np.sin((1.0 - frac) * om) / np.where(small, 1.0, so))
             wb = np.where(small, frac, np.sin(frac * om) / np.where(small, 1.0, so))
-        p = wa[..., None] * a[..., None, :] + wb[..., None] * b[..., None, :]
-    del dot
-    x, y, z = p[..., 0], p[..., 1], p[..., 2]
-    bx, by, bz = b[..., None, 0], b[..., None, 1], b[..., None, 2]
+        x, y, z = (wa * pa[..., None] + wb * pb[..., None] for pa, pb in ((ax, bx), (ay, by), (az, bz)))
+    bx, by, bz = bx[..., None], by[..., None], bz[..., None]
     rho2 = x * x + y * y
     course = geodesy.bearing_deg(x * by - y * bx, rho2 * bz - z * (x * bx + y * by))
     lon = np.degrees(np.arctan2(y, x))
-    lat = np.degrees(np.arctan2(z, np.sqrt(rho2)))
+    lat = np.degrees(np.arcsin(np.clip(z, -1.0, 1.0)))  # asin is twice as fast as atan2 here
     return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm)
+
+
+def _midpoint(
+    p: tuple[FloatArray, FloatArray, FloatArray], q: tuple[FloatArray, FloatArray, FloatArray]
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Midpoints of the minor arcs between unit vectors given as (x, y, z) components."""
+    x, y, z = p[0] + q[0], p[1] + q[1], p[2] + q[2]
+    r = 1.0 / np.sqrt(x * x + y * y + z * z)
+    return x * r, y * r, z * r
 
 
 def arc_costs(
@@ -344,32 +364,60 @@ def geometry_costs(
     # a source that can locate points once (gridded data) samples the same points at two sets of times below
     prepared = None if steady or not hasattr(weather, "prepare") else weather.prepare(geom.lon_deg, geom.lat_deg)
 
-    def evaluate(time_h: FloatArray | None) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any]:
-        time = departure if time_h is None else _to_datetime(departure, time_h)
+    # wind only, sampled in compiled code: TWA, speed and time come from the compiled twin of the numpy arithmetic
+    # (bit-identical); with currents or a wave speed loss the numpy code does it all
+    compiled = prepared is not None and wave_loss is None and "current_u_ms" not in getattr(weather, "fields", ())
+
+    def evaluate(
+        time_h: FloatArray | None, timing: bool = False
+    ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any]:
+        wind = None
         if prepared is not None:
-            cond = weather.sample_at(prepared, time)  # type: ignore[attr-defined]
+            wanted = _TIMING_FIELDS + (("hs_m",) if wave_loss is not None else ()) if timing else None
+            offset_h = None if time_h is None else np.where(np.isfinite(time_h), time_h, 0.0)
+            cond = weather.sample_at(prepared, departure, offset_h=offset_h, fields=wanted)  # type: ignore[attr-defined]
+            if compiled:
+                from .cost_compiled import sail_wind
+
+                wind = sail_wind(cond.tws_kn, cond.twd_deg, geom.course_deg, geom.seg_nm, polar, beyond=beyond)
+                if timing:
+                    return wind[2], np.empty(0), np.empty(0, np.uint8), None
         else:
+            time = departure if time_h is None else _to_datetime(departure, time_h)
             cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
-        return _sample_costs(cond, geom.course_deg, geom.seg_nm, polar, failure, apf, beyond, wave_loss)
+        return _sample_costs(cond, geom.course_deg, geom.seg_nm, polar, None if timing else failure, apf, beyond,
+                             wave_loss, wind=None if wind is None else wind[:2])
 
     if steady:
         dt, p_f, reason, fired = evaluate(None)
     else:
+        # pass 1 times the sub-segments at the departure time (speeds only: the failure model decides nothing
+        # here), pass 2 samples each at the time the craft gets there
         t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (samples,))
-        dt, p_f, reason, fired = evaluate(t_samples)
-        with np.errstate(invalid="ignore"):
-            elapsed = np.cumsum(dt, axis=-1) - 0.5 * dt
+        dt = evaluate(t_samples, timing=True)[0]
+        elapsed = 0.5 * dt
+        for s in range(1, samples):
+            elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
         dt, p_f, reason, fired = evaluate(t_samples + elapsed)
-    arc_fired = None if fired is None else np.bitwise_or.reduce(fired, axis=-1)
     if samples == 1:
+        arc_fired = None if fired is None else fired[..., 0]
         return ArcCosts(time_h=dt[..., 0], p_f=p_f[..., 0], reason=reason[..., 0], fired_bits=arc_fired)
-    with np.errstate(invalid="ignore"):
-        time_h = dt.sum(axis=-1)
-        arc_p = p_f.max(axis=-1)
-    arc_reason = np.bitwise_or.reduce(reason, axis=-1)
-    time_h = np.where(arc_reason != 0, np.inf, time_h)
-    return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason.astype(np.uint8), fired_bits=arc_fired)
+    # reduced over the samples axis one sample at a time: numpy reduces a short last axis slowly
+    time_h, arc_p, arc_reason = dt[..., 0].copy(), p_f[..., 0].copy(), reason[..., 0].copy()
+    arc_fired = None if fired is None else fired[..., 0].copy()
+    for s in range(1, samples):
+        time_h += dt[..., s]
+        np.maximum(arc_p, p_f[..., s], out=arc_p)
+        arc_reason |= reason[..., s]
+        if arc_fired is not None:
+            arc_fired |= fired[..., s]  # type: ignore[index]
+    time_h[arc_reason != 0] = np.inf
+    return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason, fired_bits=arc_fired)
+
+
+#: Conditions the timing pass of time-varying weather needs (with a wave speed loss, ``hs_m`` too).
+_TIMING_FIELDS = ("tws_kn", "twd_deg", "current_u_ms", "current_v_ms")
 
 
 def _to_datetime(departure: np.datetime64, time_h: FloatArray) -> npt.NDArray[np.datetime64]:
@@ -386,8 +434,14 @@ def _sample_costs(
     apf: float,
     beyond: str,
     wave_loss: WaveLoss | None = None,
+    *,
+    wind: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], npt.NDArray[np.uint32] | None]:
-    """Per-sample time [h], p_f, reason flags and (with a failure model) the criteria fired where p_f > apf."""
+    """Per-sample time [h], p_f, reason flags and (with a failure model) the criteria fired where p_f > apf.
+
+    ``wind``: TWA [deg] and polar speed [kn] already computed for the course (no current), e.g. by
+    :func:`pyroute_rel.cost_compiled.sail_wind`.
+    """
     reason = np.zeros(course_deg.shape, dtype=np.uint8)
     heading = course_deg
     current = cond.has_current
@@ -401,8 +455,11 @@ def _sample_costs(
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             drift = np.degrees(np.arcsin(np.clip(-c_cross / v0, -1.0, 1.0)))
         heading = (course_deg + np.where(np.isfinite(drift), drift, 0.0)) % 360.0
-    twa = geodesy.angle_diff_deg(cond.twd_deg, heading)
-    v = boat_speed_kn(polar, twa, cond.tws_kn, beyond=beyond)
+    if wind is not None and not current:
+        twa, v = wind
+    else:
+        twa = geodesy.angle_diff_deg(cond.twd_deg, heading)
+        v = boat_speed_kn(polar, twa, cond.tws_kn, beyond=beyond)
     if wave_loss is not None:
         v = v * wave_loss.factor(cond.hs_m)
     if current:

@@ -1,9 +1,9 @@
-"""Gridded, time-varying weather from files (ERA5, GFS, WAVEWATCH III, CMEMS) as a :class:`WeatherSource`.
+"""Reading gridded, time-varying weather files (ERA5, GFS, WAVEWATCH III, CMEMS) into a :class:`GriddedWeather`.
 
-Reading (:func:`open_weather`, :meth:`GriddedWeather.from_dataset`) and sampling
-(:meth:`GriddedWeather.sample`) are kept apart: files are read once, cut to the route's box and time
-window, normalised (longitude in [-180, 180), latitude ascending, units converted) and kept as numpy
-arrays on (time, lat, lon); sampling is index arithmetic, linear in time, latitude and longitude.
+Files are read once (:func:`open_weather`, :meth:`GriddedWeather.from_dataset`), cut to the route's box and
+time window, normalised (longitude in [-180, 180), latitude ascending, units converted) and handed over as
+:class:`~pyroute_rel.gridded.WeatherField` arrays on (time, lat, lon); sampling them is
+:mod:`pyroute_rel.gridded`'s job.
 
 Each field of :data:`VARIABLES` is found by name (ERA5 ``u10 v10 swh mwd pp1d``, GFS via cfgrib ``u10 v10``,
 WAVEWATCH III ``HTSGW DIRPW PERPW``, CMEMS ``VHM0 VMDR VTPK``, ``utotal vtotal`` or ``uo vo``), then by CF
@@ -12,10 +12,8 @@ and time axis; the same field in several files on one grid is joined along time 
 GRIB file per GFS step). Units come from the ``units`` attribute; a missing, empty or ``"unknown"`` one
 means m/s, degrees, m or s by the field's kind; a unit not recognised for the kind (``K`` for wind) is an error.
 
-Wind is interpolated as (u, v), then turned into speed [kn] and direction *from* [deg]; wave direction
-as a unit vector; currents as (u, v) *to* [m/s]. A point outside a field's loaded box or times, or with
-NaN in a grid value it draws on, gives NaN. Absent currents are 0 [m/s]; absent waves and periods NaN
-(see :attr:`GriddedWeather.fields`). A file without time is steady; one with a single time covers that instant.
+Wind speed and direction files are stored as (u, v). A file without time is steady; one with a single time
+covers that instant.
 
 References
 ----------
@@ -25,10 +23,9 @@ https://doi.org/10.1002/qj.3803
 
 from __future__ import annotations
 
-import datetime as _dt
 import os
-from collections.abc import Hashable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Hashable, Mapping, Sequence
+from dataclasses import replace
 from importlib.util import find_spec
 from pathlib import Path
 from typing import Any
@@ -38,8 +35,7 @@ import numpy.typing as npt
 import xarray as xr
 
 from .errors import ScenarioError, WeatherCoverageError, WeatherError
-from .geodesy import bearing_deg
-from .weather import Conditions
+from .gridded import KNOTS_PER_MS, GriddedWeather, PreparedPoints, WeatherField, _iso, _to_datetime64
 
 __all__ = [
     "BBOX_MARGIN_DEG",
@@ -50,14 +46,13 @@ __all__ = [
     "PreparedPoints",
     "WeatherField",
     "open_weather",
+    "read_fields",
     "weather_from_mapping",
 ]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 
-#: Knots per metre per second (1 kn = 1852 m / 3600 s).
-KNOTS_PER_MS = 3600.0 / 1852.0
 
 #: Margin added on every side of a ``bbox`` when cutting files [deg] (the grid points bracketing the
 #: box plus margin are kept as well, so interpolation at the edge of the box is exact).
@@ -149,360 +144,6 @@ _TIME_NAMES = ("time", "valid_time", "step", "t", "ocean_time")
 _MEMBER_NAMES = ("number", "realization", "member", "ensemble", "ens")
 _DEPTH_NAMES = ("depth", "deptht", "depthu", "depthv", "z", "lev", "depthbelowsea")
 _GRIB_SUFFIXES = (".grib", ".grb", ".grib1", ".grib2", ".grb2")
-#: Fields a :class:`GriddedWeather` stores (wind speed/direction files are converted to u/v on load).
-_GRID_FIELDS = tuple(k for k in VARIABLES if k not in ("tws_kn", "twd_deg"))
-
-
-@dataclass(frozen=True)
-class WeatherField:
-    """One field on its own (time, lat, lon) grid, in the units of :data:`VARIABLES`.
-
-    Attributes
-    ----------
-    name : Field name, one of ``wind_u_ms``, ``wind_v_ms``, ``hs_m``, ``wave_dir_deg``, ``wave_period_s``,
-        ``current_u_ms``, ``current_v_ms``.
-    values : Array (n_time, n_lat, n_lon) (n_time = 1 for a steady field); NaN where unknown. ``None``
-        in the metadata a :class:`GriddedWeather` keeps (its data live in the sampler's blocks).
-    lon : Strictly increasing longitudes [deg]; contiguous (a box across 180° runs past 180).
-    lat : Strictly increasing latitudes [deg].
-    time : Strictly increasing ``datetime64[ns]`` times, or ``None`` for a field steady in time.
-    source : File (or ``"<dataset>"``) the field was read from, for messages.
-    variable : Variable name in that file.
-    periodic : True when ``lon`` wraps around the whole globe (one duplicated column on each side).
-    """
-
-    name: str
-    values: npt.NDArray[np.floating] | None
-    lon: FloatArray
-    lat: FloatArray
-    time: npt.NDArray[np.datetime64] | None
-    source: str = "<dataset>"
-    variable: str = ""
-    periodic: bool = False
-
-    def describe(self) -> str:
-        """The field's extent, e.g. ``"lon [-70, 0], lat [5, 55] [deg], time 2018-06-01T00:00 .. ..."``."""
-        t = "any time" if self.time is None else f"time {_iso(self.time[0])} .. {_iso(self.time[-1])}"
-        lon = "all longitudes" if self.periodic else f"lon [{self.lon[0]:g}, {self.lon[-1]:g}]"
-        return f"{lon}, lat [{self.lat[0]:g}, {self.lat[-1]:g}] [deg], {t}"
-
-
-class _Block:
-    """Fields sharing one grid, stored field-major as (n_fields, n_lat, n_lon, n_time) float32.
-
-    Time is the innermost axis: the two times a point is interpolated between sit side by side in memory, so
-    of the eight corners of its cell only four cost a trip to main memory (routing samples millions of points
-    scattered over a field of a gigabyte; the gathers, not the arithmetic, set the pace).
-    """
-
-    def __init__(self, fields: list[WeatherField]):
-        ref = fields[0]
-        nt, ny, nx = ref.values.shape  # type: ignore[union-attr]
-        # wave direction is stored as (sin, cos) of the angle: a unit vector interpolates across north
-        cols = [(f, op) for f in fields for op in ((np.sin, np.cos) if f.name == "wave_dir_deg" else (None,))]
-        self.names = [{np.sin: "_wave_sin", np.cos: "_wave_cos"}.get(op, f.name) for f, op in cols]  # type: ignore[arg-type]
-        self.data = np.empty((len(cols), ny, nx, nt), dtype=np.float32)
-        rows = max(1, (1 << 22) // max(1, nt * nx))
-        for j, (f, op) in enumerate(cols):
-            values = f.values
-            for y0 in range(0, ny, rows):  # in bands of latitude: no full-size temporaries
-                chunk = np.moveaxis(np.asarray(values[:, y0 : y0 + rows, :]), 0, -1)  # type: ignore[index]
-                self.data[j, y0 : y0 + rows] = chunk if op is None else op(np.deg2rad(chunk.astype(np.float32)))
-        self.flat = self.data.reshape(len(cols), -1)
-        self.lon, self.lat = ref.lon, ref.lat
-        self.t0 = ref.time[0] if ref.time is not None else np.datetime64("NaT", "ns")
-        self.time_s = None if ref.time is None else (ref.time - self.t0) / np.timedelta64(1, "s")
-        self.lon_mid = 0.5 * (self.lon[0] + self.lon[-1])
-        self.strides = (1, nx * nt, nt)  # time, lat, lon
-
-    def interpolate(self, lon: FloatArray, lat: FloatArray, time: npt.NDArray[np.datetime64]) -> FloatArray:
-        """Trilinear interpolation at points (1-D arrays) -> (n_points, n_fields), NaN outside."""
-        return self.interpolate_at(self.locate(lon, lat), time)
-
-    def locate(self, lon: FloatArray, lat: FloatArray) -> _Where:
-        """Where points (1-D arrays) fall on this block's grid (reused by every time at which they are sampled)."""
-        inside = (lon >= self.lon[0]) & (lon <= self.lon[-1])
-        if not inside.all():  # the equivalent longitude (+- 360) nearest to the grid's middle
-            lon = np.where(inside, lon, (lon - self.lon_mid + 180.0) % 360.0 - 180.0 + self.lon_mid)
-        ix, wx, sx, ok = _locate(self.lon, lon, self.strides[2])
-        iy, wy, sy, ok_y = _locate(self.lat, lat, self.strides[1])
-        return _Where(base=iy * self.strides[1] + ix * self.strides[2], sx=sx, sy=sy, wx=wx, wy=wy, ok=ok & ok_y)
-
-    def interpolate_at(self, where: _Where, time: npt.NDArray[np.datetime64]) -> FloatArray:
-        """Interpolation at located points and times (1-D) -> (n_points, n_fields), NaN outside."""
-        ok = where.ok
-        wx, wy = where.wx, where.wy
-        if self.time_s is None or self.time_s.size == 1:
-            base, st, wt = where.base, None, None
-            if self.time_s is not None:
-                ok = ok & (time == self.t0)
-        else:
-            t = (time - self.t0) / np.timedelta64(1, "s")
-            it, wt, st, ok_t = _locate(self.time_s, t, self.strides[0])
-            ok = ok & ok_t
-            base = where.base + it
-        # corner indices (k, n) and weights; a step is 0 where its weight is 0, so a NaN neighbour that does
-        # not contribute never spoils the result
-        sx, sy = where.sx, where.sy
-        idx = [base, base + sx, base + sy, base + sx + sy]
-        w = [(1.0 - wx) * (1.0 - wy), wx * (1.0 - wy), (1.0 - wx) * wy, wx * wy]
-        if st is not None and wt is not None:
-            idx = idx + [i + st for i in idx]
-            w = [c * (1.0 - wt) for c in w] + [c * wt for c in w]
-        gathered = np.take(self.flat, np.stack(idx), axis=1)  # (n_fields, k, n)
-        out = np.einsum("kn,fkn->nf", np.stack(w), gathered)
-        out[~ok] = np.nan
-        return out
-
-
-@dataclass(frozen=True)
-class _Where:
-    """Points located on a block's (lat, lon) grid: lower-left cell index, steps to the neighbours, weights."""
-
-    base: IntArray
-    sx: IntArray
-    sy: IntArray
-    wx: FloatArray
-    wy: FloatArray
-    ok: npt.NDArray[np.bool_]
-
-
-@dataclass(frozen=True)
-class PreparedPoints:
-    """Points located once on every grid of a :class:`GriddedWeather` (see :meth:`GriddedWeather.prepare`)."""
-
-    shape: tuple[int, ...]
-    lon: FloatArray
-    lat: FloatArray
-    where: tuple[_Where, ...]
-    owner: int  # id of the GriddedWeather that located them
-
-
-def _locate(axis: FloatArray, x: FloatArray, stride: int) -> tuple[IntArray, FloatArray, IntArray, Any]:
-    """Cell index, weight of the upper neighbour, index step to it and in-range mask, per point.
-
-    The step is 0 where the weight is 0 (a point on a grid line, or on the last one), so a NaN
-    neighbour that does not contribute never spoils the result. Regular axes find the cell by
-    arithmetic, corrected against the axis values so the result equals a binary search.
-    """
-    n = axis.size
-    step0 = (axis[-1] - axis[0]) / (n - 1) if n > 1 else 0.0
-    with np.errstate(invalid="ignore"):
-        if n > 2 and np.all(np.abs(np.diff(axis) - step0) <= 1e-9 * abs(step0)):
-            f = np.nan_to_num((x - axis[0]) / step0, nan=0.0, posinf=n, neginf=0.0)
-            i = np.clip(f, 0, n - 1).astype(np.intp)
-            i -= (axis[i] > x) & (i > 0)
-            i += (axis[np.minimum(i + 1, n - 1)] <= x) & (i < n - 1)
-        else:
-            i = np.clip(np.searchsorted(axis, x, side="right") - 1, 0, n - 1)
-        gap = np.append(np.diff(axis), np.inf)
-        w = (x - axis[i]) / gap[i]
-        step = np.where(w > 0, stride, 0)
-        ok = (x >= axis[0]) & (x <= axis[-1])
-    return i, w, step, ok
-
-
-class GriddedWeather:
-    """Gridded, time-varying weather: a :class:`~pyroute_rel.weather.WeatherSource` over numpy arrays.
-
-    Build it with :func:`open_weather` (files) or :meth:`from_dataset` (an in-memory
-    :class:`xarray.Dataset`); the constructor takes ready :class:`WeatherField` objects.
-
-    Parameters
-    ----------
-    fields : Fields on their own grids; ``wind_u_ms`` and ``wind_v_ms`` are required. Their arrays
-        are copied into float32 blocks (fields on the same grid share one block).
-
-    Examples
-    --------
-    >>> import xarray as xr
-    >>> ds = xr.Dataset(
-    ...     {"u10": (("latitude", "longitude"), np.ones((2, 2)), {"units": "m s**-1"}),
-    ...      "v10": (("latitude", "longitude"), np.zeros((2, 2)), {"units": "m s**-1"})},
-    ...     coords={"latitude": [50.0, 40.0], "longitude": [340.0, 350.0]})
-    >>> w = GriddedWeather.from_dataset(ds)
-    >>> c = w.sample(-15.0, 45.0, np.datetime64("2018-06-01T00:00"))
-    >>> round(float(c.tws_kn), 4), float(c.twd_deg), sorted(w.fields)
-    (1.9438, 270.0, ['twd_deg', 'tws_kn'])
-    """
-
-    def __init__(self, fields: Iterable[WeatherField]):
-        fields = list(fields)
-        names = [f.name for f in fields]
-        for f in fields:
-            if f.name not in _GRID_FIELDS:
-                raise WeatherError(f"field name must be one of {list(_GRID_FIELDS)} (got {f.name!r})")
-            if names.count(f.name) > 1:
-                raise WeatherError(f"field {f.name!r} is given more than once")
-            _check_field(f)
-        if "wind_u_ms" not in names or "wind_v_ms" not in names:
-            srcs = sorted({f.source for f in fields}) or ["<no field>"]
-            raise WeatherError(
-                f"no 10 m wind (u and v components) found in {', '.join(map(repr, srcs))}; wind is required "
-                f"(name the variables with variables={{'wind_u_ms': ..., 'wind_v_ms': ...}})"
-            )
-        self._info: dict[str, WeatherField] = {f.name: replace(f, values=None) for f in fields}
-        groups: dict[tuple[bytes, bytes, bytes | None], list[WeatherField]] = {}
-        for f in fields:
-            key = (f.lon.tobytes(), f.lat.tobytes(), None if f.time is None else f.time.tobytes())
-            groups.setdefault(key, []).append(f)
-        self._blocks = [_Block(group) for group in groups.values()]
-
-    @property
-    def fields(self) -> frozenset[str]:
-        """Names of :class:`~pyroute_rel.weather.Conditions` fields the data actually provide."""
-        out = {"tws_kn", "twd_deg"}
-        out.update(n for n in ("hs_m", "wave_dir_deg", "wave_period_s") if n in self._info)
-        if "current_u_ms" in self._info and "current_v_ms" in self._info:
-            out.update(("current_u_ms", "current_v_ms"))
-        return frozenset(out)
-
-    @property
-    def field_info(self) -> Mapping[str, WeatherField]:
-        """Per stored field: grid axes, source file and variable (``values`` is ``None``)."""
-        return dict(self._info)
-
-    @property
-    def nbytes(self) -> int:
-        """Memory held by the gridded data [bytes]."""
-        return sum(b.data.nbytes for b in self._blocks)
-
-    def _interpolate(self, lon: FloatArray, lat: FloatArray, time: npt.NDArray[np.datetime64]) -> dict[str, FloatArray]:
-        return self._interpolate_at(tuple(b.locate(lon, lat) for b in self._blocks), time)
-
-    def _interpolate_at(self, where: tuple[_Where, ...], time: npt.NDArray[np.datetime64]) -> dict[str, FloatArray]:
-        out: dict[str, FloatArray] = {}
-        for block, w in zip(self._blocks, where, strict=True):
-            values = block.interpolate_at(w, time)
-            out.update((name, values[:, j]) for j, name in enumerate(block.names))
-        return out
-
-    def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> PreparedPoints:
-        """Locate points on the data's grids once, for :meth:`sample_at` at several times (the cost kernel samples
-        the same arc points at the departure time and again at the times the boat gets there).
-
-        >>> import xarray as xr
-        >>> ds = xr.Dataset({"u10": (("latitude", "longitude"), np.ones((2, 2))),
-        ...                  "v10": (("latitude", "longitude"), np.zeros((2, 2)))},
-        ...                 coords={"latitude": [40.0, 50.0], "longitude": [-20.0, -10.0]})
-        >>> w = GriddedWeather.from_dataset(ds)
-        >>> p = w.prepare([-15.0, -12.0], 45.0)
-        >>> float(w.sample_at(p, np.datetime64("2018-06-01")).twd_deg[1])
-        270.0
-        """
-        lon = np.asarray(lon_deg, dtype=np.float64)
-        lat = np.asarray(lat_deg, dtype=np.float64)
-        shape = np.broadcast_shapes(lon.shape, lat.shape)
-        lon_f, lat_f = (np.broadcast_to(a, shape).ravel() for a in (lon, lat))
-        return PreparedPoints(shape=shape, lon=lon_f, lat=lat_f, owner=id(self),
-                              where=tuple(b.locate(lon_f, lat_f) for b in self._blocks))
-
-    def sample_at(self, points: PreparedPoints, time: npt.ArrayLike) -> Conditions:
-        """:meth:`sample` at points located by :meth:`prepare` (``time`` broadcasts to their shape)."""
-        if points.owner != id(self):
-            raise WeatherError("these points were prepared for another weather source: use its prepare()")
-        t = np.asarray(time)
-        if t.dtype.kind != "M":
-            raise WeatherError(f"'time' must be datetime64 (got dtype {t.dtype})")
-        t = np.broadcast_to(t.astype("datetime64[ns]"), points.shape).ravel()
-        return self._conditions(points.shape, self._interpolate_at(points.where, t))
-
-    def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
-        """One stored field (e.g. ``"wind_u_ms"`` [m/s]) at broadcast points; NaN where unknown."""
-        if name not in self._info:
-            raise WeatherError(f"'name' must be one of {sorted(self._info)} (got {name!r})")
-        shape, lon, lat, t = _points(lon_deg, lat_deg, time)
-        values = self._interpolate(lon, lat, t)
-        if name == "wave_dir_deg":
-            return bearing_deg(values["_wave_sin"], values["_wave_cos"]).reshape(shape)
-        return values[name].reshape(shape)
-
-    def sample(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> Conditions:
-        """Wind, waves and current at points and times (broadcast together).
-
-        Parameters
-        ----------
-        lon_deg : Longitudes [deg] (any convention; mapped onto each field's grid).
-        lat_deg : Latitudes [deg].
-        time : Times (``datetime64``, UTC).
-
-        Returns
-        -------
-        Conditions
-            ``tws_kn`` = hypot(u, v) x 3600/1852 [kn], ``twd_deg`` = atan2(-u, -v) (from) [deg]; wave
-            direction from the interpolated unit vector; NaN outside the data or next to NaN cells.
-        """
-        shape, lon, lat, t = _points(lon_deg, lat_deg, time)
-        return self._conditions(shape, self._interpolate(lon, lat, t))
-
-    def _conditions(self, shape: tuple[int, ...], v: dict[str, FloatArray]) -> Conditions:
-        u_w, v_w = v["wind_u_ms"], v["wind_v_ms"]
-        n = u_w.size
-        nan = np.full(n, np.nan)
-        out = {
-            "tws_kn": np.hypot(u_w, v_w) * KNOTS_PER_MS,
-            "twd_deg": bearing_deg(-u_w, -v_w),
-            "hs_m": v.get("hs_m", nan),
-            "wave_dir_deg": bearing_deg(v["_wave_sin"], v["_wave_cos"]) if "_wave_sin" in v else nan,
-            "wave_period_s": v.get("wave_period_s", nan),
-            "current_u_ms": v.get("current_u_ms", np.zeros(n)),
-            "current_v_ms": v.get("current_v_ms", np.zeros(n)),
-        }
-        return Conditions(**{k: np.asarray(a, dtype=np.float64).reshape(shape) for k, a in out.items()})
-
-    def check_coverage(
-        self,
-        lon_range: tuple[float, float],
-        lat_range: tuple[float, float],
-        time_range: tuple[np.datetime64, np.datetime64],
-    ) -> None:
-        """Raise :class:`~pyroute_rel.errors.WeatherCoverageError` unless every field covers the request.
-
-        Parameters
-        ----------
-        lon_range : (west, east) [deg]; east < west means the box crosses 180°.
-        lat_range : (south, north) [deg].
-        time_range : (first, last) time needed (``datetime64``, UTC).
-        """
-        lo, hi = float(lon_range[0]), float(lon_range[1])
-        if hi < lo:
-            hi += 360.0
-        t0, t1 = (_to_datetime64(t, "time_range") for t in time_range)
-        for f in self._info.values():
-            short = []
-            if not f.periodic:
-                mid = 0.5 * (f.lon[0] + f.lon[-1])
-                shift = 360.0 * np.round((mid - 0.5 * (lo + hi)) / 360.0)
-                if lo + shift < f.lon[0] or hi + shift > f.lon[-1]:
-                    short.append("lon")
-            if lat_range[0] < f.lat[0] or lat_range[1] > f.lat[-1]:
-                short.append("lat")
-            if f.time is not None and (t0 < f.time[0] or t1 > f.time[-1]):
-                short.append("time")
-            if short:
-                raise WeatherCoverageError(
-                    f"weather file '{f.source}' variable '{f.variable}' covers (as loaded) {f.describe()}; requested "
-                    f"lon [{lon_range[0]:g}, {lon_range[1]:g}], lat [{lat_range[0]:g}, {lat_range[1]:g}] [deg], "
-                    f"time {_iso(t0)} .. {_iso(t1)} ({' and '.join(short)} not covered)"
-                )
-
-    @classmethod
-    def from_dataset(
-        cls,
-        ds: xr.Dataset,
-        *,
-        variables: Mapping[str, str] | None = None,
-        bbox: Sequence[float] | None = None,
-        time_window: Sequence[Any] | None = None,
-        member: int | None = None,
-        margin_deg: float = BBOX_MARGIN_DEG,
-        source: str = "<dataset>",
-    ) -> GriddedWeather:
-        """Build from an in-memory :class:`xarray.Dataset` laid out like one of the supported files.
-
-        Options as for :func:`open_weather`; ``source`` names the dataset in messages.
-        """
-        return cls(_read_fields([(source, [ds])], variables, bbox, time_window, member, margin_deg))
 
 
 def open_weather(
@@ -548,7 +189,8 @@ def open_weather(
     try:
         for p in paths:
             opened.append((str(p), _open_file(Path(p))))
-        return GriddedWeather(_read_fields(opened, variables, bbox, time_window, member, margin_deg))
+        return GriddedWeather(read_fields(opened, variables=variables, bbox=bbox, time_window=time_window,
+                                          member=member, margin_deg=margin_deg))
     finally:
         for _, datasets in opened:
             for ds in datasets:
@@ -644,15 +286,20 @@ def _open_grib(path: Path) -> list[xr.Dataset]:
     return out
 
 
-def _read_fields(
+def read_fields(
     files: list[tuple[str, list[xr.Dataset]]],
-    variables: Mapping[str, str] | None,
-    bbox: Sequence[float] | None,
-    time_window: Sequence[Any] | None,
-    member: int | None,
-    margin_deg: float,
+    *,
+    variables: Mapping[str, str] | None = None,
+    bbox: Sequence[float] | None = None,
+    time_window: Sequence[Any] | None = None,
+    member: int | None = None,
+    margin_deg: float | None = None,
 ) -> list[WeatherField]:
-    """Find, cut, convert and merge every field of every file."""
+    """Find, cut, convert and merge every field of opened files, ``[(name, [datasets]), ...]``.
+
+    Options as for :func:`open_weather`; ``margin_deg`` defaults to :data:`BBOX_MARGIN_DEG`.
+    """
+    margin_deg = BBOX_MARGIN_DEG if margin_deg is None else margin_deg
     variables = dict(variables or {})
     for key, name in variables.items():
         if key not in VARIABLES:
@@ -1009,18 +656,6 @@ def _speed_direction_to_uv(fields: dict[str, WeatherField]) -> None:
     fields["wind_v_ms"] = replace(speed, name="wind_v_ms", values=(-ms * np.cos(rad)).astype(np.float32))
 
 
-def _check_field(f: WeatherField) -> None:
-    where = f"field {f.name!r} ('{f.source}' variable '{f.variable}')"
-    if f.values is None or np.ndim(f.values) != 3:
-        raise WeatherError(f"{where}: values must be an array (time, lat, lon)")
-    nt = 1 if f.time is None else len(f.time)
-    if f.values.shape != (nt, len(f.lat), len(f.lon)):
-        raise WeatherError(f"{where}: values have shape {f.values.shape}, axes give {(nt, len(f.lat), len(f.lon))}")
-    for axis_name, axis in (("lon", f.lon), ("lat", f.lat), ("time", f.time)):
-        if axis is not None and np.any(np.diff(axis.astype(np.int64) if axis_name == "time" else axis) <= 0):
-            raise WeatherError(f"{where}: {axis_name} must be strictly increasing")
-
-
 # ----------------------------------------------------------------------------------------------- helpers
 
 
@@ -1037,35 +672,3 @@ def _check_bbox(bbox: Sequence[float] | None) -> tuple[float, float, float, floa
         east += 360.0
     return west, south, east, north
 
-
-def _to_datetime64(value: Any, what: str) -> np.datetime64:
-    """A time (datetime64, datetime, ISO 8601 string with optional 'Z') -> datetime64[ns] (UTC)."""
-    try:
-        if isinstance(value, _dt.datetime) and value.tzinfo is not None:
-            value = value.astimezone(_dt.UTC).replace(tzinfo=None)
-        if isinstance(value, str):
-            value = value.strip().removesuffix("Z").removesuffix("+00:00")
-        out = np.datetime64(value, "ns")  # type: ignore[call-overload]
-    except (TypeError, ValueError):
-        raise WeatherError(f"{what}: expected a time (datetime64 or ISO 8601 string, UTC) (got {value!r})") from None
-    if np.isnat(out):
-        raise WeatherError(f"{what}: expected a time, got NaT")
-    return out
-
-
-def _points(
-    lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike
-) -> tuple[tuple[int, ...], FloatArray, FloatArray, npt.NDArray[np.datetime64]]:
-    lon = np.asarray(lon_deg, dtype=np.float64)
-    lat = np.asarray(lat_deg, dtype=np.float64)
-    t = np.asarray(time)
-    if t.dtype.kind != "M":
-        t = np.asarray(np.vectorize(lambda v: _to_datetime64(v, "time"), otypes=["datetime64[ns]"])(t))
-    t = t.astype("datetime64[ns]")
-    shape = np.broadcast_shapes(lon.shape, lat.shape, t.shape)
-    flat = [np.broadcast_to(a, shape).ravel() for a in (lon, lat, t)]
-    return shape, flat[0], flat[1], flat[2]
-
-
-def _iso(t: np.datetime64) -> str:
-    return str(np.datetime_as_string(t, unit="m"))

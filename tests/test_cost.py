@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pyroute_rel import geodesy
 from pyroute_rel.cost import KN_PER_MS, REASONS, WaveLoss, arc_costs
@@ -176,6 +178,31 @@ def test_thread_count_from_the_environment_is_checked(monkeypatch, value) -> Non
     assert default_workers() == 3
 
 
+@pytest.mark.parametrize("samples", [1, 2, 3, 4, 5])
+def test_arc_sample_points_and_courses_match_pyproj_on_the_sphere(samples) -> None:
+    """Sample k of an arc lies (k + 0.5) / samples of the way along the great circle, its course is the azimuth
+    to the arc's end there, and the sub-segments add up to the arc (pyproj's geodesics on a sphere of the same
+    radius, an independent implementation; powers of two take the halving path, others slerp)."""
+    from pyproj import Geod
+
+    from pyroute_rel.cost import arc_geometry
+
+    rng = np.random.default_rng(samples)
+    lon0, lon1 = rng.uniform(-180, 180, (2, 500))
+    lat0, lat1 = rng.uniform(-80, 80, (2, 500))
+    geo = arc_geometry(lon0, lat0, lon1, lat1, samples=samples)
+    radius_m = geodesy.EARTH_RADIUS_KM * 1000.0
+    g = Geod(a=radius_m, b=radius_m)
+    az, _, dist_m = g.inv(lon0, lat0, lon1, lat1)
+    np.testing.assert_allclose(geo.seg_nm[:, 0] * samples * 1852.0, dist_m, rtol=1e-12, atol=1e-6)
+    for k in range(samples):
+        lon, lat, _ = g.fwd(lon0, lat0, az, dist_m * (k + 0.5) / samples)
+        course, _, _ = g.inv(lon, lat, lon1, lat1)
+        np.testing.assert_allclose((geo.lon_deg[:, k] - lon + 180.0) % 360.0 - 180.0, 0.0, atol=1e-9)
+        np.testing.assert_allclose(geo.lat_deg[:, k], lat, atol=1e-9)
+        np.testing.assert_allclose((geo.course_deg[:, k] - course + 180.0) % 360.0 - 180.0, 0.0, atol=1e-9)
+
+
 def test_arc_geometry_in_threads_is_the_same() -> None:
     from pyroute_rel.cost import PARALLEL_MIN_ARCS, geometry_from_xyz
 
@@ -188,3 +215,41 @@ def test_arc_geometry_in_threads_is_the_same() -> None:
     for name in ("lon_deg", "lat_deg", "course_deg", "seg_nm"):
         np.testing.assert_array_equal(getattr(three, name), getattr(one, name), err_msg=name)
     assert one.lon_deg.shape == (90, 150, 2)
+
+
+# a polar whose table starts above 0 kn and above 0 deg, so the light-air and no-go rules both apply
+_OFFSET_POLAR = Polar("offset", twa_deg=[35.0, 60.0, 90.0, 130.0, 165.0], tws_kn=[3.0, 8.0, 14.0, 22.0],
+                      speed_kn=[[0.5, 1.5, 2.5, 3.0], [1.0, 2.5, 3.5, 4.0], [1.2, 3.0, 4.2, 4.8],
+                                [1.0, 2.8, 4.0, 4.6], [0.6, 2.0, 3.2, 3.9]])
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), polar_name=st.sampled_from(["maribot_vane", "offset"]),
+       beyond=st.sampled_from(["clamp", "forbid"]))
+def test_compiled_wind_kernel_is_bit_identical_to_numpy(seed, polar_name, beyond) -> None:
+    """The compiled TWA, polar speed and sub-segment times (gridded weather, wind only) are exactly the numpy
+    kernel's: inside and outside the polar table, on its nodes, in calm and missing wind."""
+    from pyroute_rel.cost import _sample_costs
+    from pyroute_rel.cost_compiled import sail_wind
+    from pyroute_rel.polar import boat_speed_kn
+    from pyroute_rel.weather import Conditions
+
+    polar = _OFFSET_POLAR if polar_name == "offset" else get_polar(polar_name)
+    rng = np.random.default_rng(seed)
+    n = 4000
+    tws = np.concatenate([rng.uniform(0.0, 30.0, n), rng.choice(polar.tws_kn, n), [0.0, np.nan, np.inf, 1e-9]])
+    course = rng.uniform(0.0, 360.0, tws.size)
+    twa_on_nodes = (course + rng.choice([-1.0, 1.0], tws.size) * rng.choice(polar.twa_deg, tws.size)) % 360.0
+    twd = np.where(rng.random(tws.size) < 0.3, twa_on_nodes, rng.uniform(0.0, 360.0, tws.size))
+    twd[rng.random(tws.size) < 0.01] = np.nan
+    seg = rng.uniform(0.0, 40.0, tws.size)
+    nan = np.full(tws.size, np.nan)
+    cond = Conditions(tws_kn=tws, twd_deg=twd, hs_m=nan, wave_dir_deg=nan, wave_period_s=nan,
+                      current_u_ms=np.zeros(tws.size), current_v_ms=np.zeros(tws.size))
+    with np.errstate(invalid="ignore"):
+        expected = _sample_costs(cond, course, seg, polar, None, 1.0, beyond)[0]
+    twa, speed, dt = sail_wind(tws, twd, course, seg, polar, beyond=beyond)
+    assert np.isinf(expected).any() and np.isfinite(expected).any()
+    np.testing.assert_array_equal(dt, expected)
+    np.testing.assert_array_equal(twa, geodesy.angle_diff_deg(twd, course))
+    np.testing.assert_array_equal(speed, boat_speed_kn(polar, twa, tws, beyond=beyond))

@@ -174,7 +174,7 @@ def test_trilinear_matches_scipy_regular_grid_interpolator(points):
 )
 def test_cell_search_equals_binary_search(origin, step, n, seed):
     """The arithmetic cell search of regular axes gives the same cells as np.searchsorted, also at nodes +- 1 ulp."""
-    from pyroute_rel.weather_io import _locate  # private kernel: the index arithmetic under test
+    from pyroute_rel.gridded import _locate  # private kernel: the index arithmetic under test
 
     axis = origin + step * np.arange(n)
     rng = np.random.default_rng(seed)

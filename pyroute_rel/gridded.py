@@ -1,0 +1,621 @@
+"""Gridded weather in memory, and sampling it: the :class:`~pyroute_rel.weather.WeatherSource` files become.
+
+:mod:`pyroute_rel.weather_io` reads files into :class:`WeatherField` objects (numpy arrays on (time, lat, lon),
+longitude contiguous, latitude ascending, units normalised); :class:`GriddedWeather` keeps them and samples
+them, linear in time, latitude and longitude.
+
+Wind is interpolated as (u, v), then turned into speed [kn] and direction *from* [deg]; wave direction
+as a unit vector; currents as (u, v) *to* [m/s]. A point outside a field's loaded box or times, or with
+NaN in a grid value it draws on, gives NaN. Absent currents are 0 [m/s]; absent waves and periods NaN
+(see :attr:`GriddedWeather.fields`). A field without time is steady; one with a single time covers that instant.
+
+Sampling is the router's hot path (millions of points per route, scattered over a field of a gigabyte), so
+it runs in small compiled kernels (numba, ``nogil``: the cost kernel's threads run them side by side). Fields
+sharing a grid are stored interleaved, (lat, lon, time, field), so one corner of a point's cell, every field
+at both times, is one run of memory.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import functools
+import math
+from collections.abc import Collection, Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+import numba
+import numpy as np
+import numpy.typing as npt
+
+from .errors import WeatherCoverageError, WeatherError
+from .weather import Conditions
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+__all__ = ["GRID_FIELDS", "KNOTS_PER_MS", "GriddedWeather", "PreparedPoints", "WeatherField"]
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.intp]
+
+#: Knots per metre per second (1 kn = 1852 m / 3600 s).
+KNOTS_PER_MS = 3600.0 / 1852.0
+
+#: Fields a :class:`GriddedWeather` stores (files holding wind speed and direction are converted to u/v on load).
+GRID_FIELDS = ("wind_u_ms", "wind_v_ms", "hs_m", "wave_dir_deg", "wave_period_s", "current_u_ms", "current_v_ms")
+
+#: Stored columns each :class:`~pyroute_rel.weather.Conditions` field is computed from.
+_NEEDS: dict[str, tuple[str, ...]] = {
+    "tws_kn": ("wind_u_ms", "wind_v_ms"),
+    "twd_deg": ("wind_u_ms", "wind_v_ms"),
+    "hs_m": ("hs_m",),
+    "wave_dir_deg": ("_wave_sin", "_wave_cos"),
+    "wave_period_s": ("wave_period_s",),
+    "current_u_ms": ("current_u_ms", "current_v_ms"),
+    "current_v_ms": ("current_u_ms", "current_v_ms"),
+}
+
+
+@dataclass(frozen=True)
+class WeatherField:
+    """One field on its own (time, lat, lon) grid, in the units of :data:`~pyroute_rel.weather_io.VARIABLES`.
+
+    Attributes
+    ----------
+    name : Field name, one of ``wind_u_ms``, ``wind_v_ms``, ``hs_m``, ``wave_dir_deg``, ``wave_period_s``,
+        ``current_u_ms``, ``current_v_ms``.
+    values : Array (n_time, n_lat, n_lon) (n_time = 1 for a steady field); NaN where unknown. ``None``
+        in the metadata a :class:`GriddedWeather` keeps (its data live in the sampler's blocks).
+    lon : Strictly increasing longitudes [deg]; contiguous (a box across 180° runs past 180).
+    lat : Strictly increasing latitudes [deg].
+    time : Strictly increasing ``datetime64[ns]`` times, or ``None`` for a field steady in time.
+    source : File (or ``"<dataset>"``) the field was read from, for messages.
+    variable : Variable name in that file.
+    periodic : True when ``lon`` wraps around the whole globe (one duplicated column on each side).
+    """
+
+    name: str
+    values: npt.NDArray[np.floating] | None
+    lon: FloatArray
+    lat: FloatArray
+    time: npt.NDArray[np.datetime64] | None
+    source: str = "<dataset>"
+    variable: str = ""
+    periodic: bool = False
+
+    def describe(self) -> str:
+        """The field's extent, e.g. ``"lon [-70, 0], lat [5, 55] [deg], time 2018-06-01T00:00 .. ..."``."""
+        t = "any time" if self.time is None else f"time {_iso(self.time[0])} .. {_iso(self.time[-1])}"
+        lon = "all longitudes" if self.periodic else f"lon [{self.lon[0]:g}, {self.lon[-1]:g}]"
+        return f"{lon}, lat [{self.lat[0]:g}, {self.lat[-1]:g}] [deg], {t}"
+
+
+class _Block:
+    """Fields sharing one grid, stored as (n_lat, n_lon, n_time, n_fields) float32.
+
+    Fields, then time, are the innermost axes: everything a point needs from one corner of its cell (every
+    field, at the two times it lies between) sits in one run of ``2 n_fields`` floats, so interpolating a point
+    touches four places in memory, not forty.
+    """
+
+    def __init__(self, fields: list[WeatherField]):
+        ref = fields[0]
+        nt, ny, nx = ref.values.shape  # type: ignore[union-attr]
+        # wave direction is stored as (sin, cos) of the angle: a unit vector interpolates across north
+        cols = [(f, op) for f in fields for op in ((np.sin, np.cos) if f.name == "wave_dir_deg" else (None,))]
+        self.names = [{np.sin: "_wave_sin", np.cos: "_wave_cos"}.get(op, f.name) for f, op in cols]  # type: ignore[arg-type]
+        nf = len(cols)
+        self.data = np.empty((ny, nx, nt, nf), dtype=np.float32)
+        rows = max(1, (1 << 22) // max(1, nt * nx))
+        for j, (f, op) in enumerate(cols):
+            values = f.values
+            for y0 in range(0, ny, rows):  # in bands of latitude: no full-size temporaries
+                chunk = np.moveaxis(np.asarray(values[:, y0 : y0 + rows, :]), 0, -1)  # type: ignore[index]
+                self.data[y0 : y0 + rows, :, :, j] = chunk if op is None else op(np.deg2rad(chunk.astype(np.float32)))
+        self.flat = self.data.reshape(-1)
+        self.n_fields = nf
+        self.lon, self.lat = ref.lon, ref.lat
+        self.t0 = ref.time[0] if ref.time is not None else np.datetime64("NaT", "ns")
+        self.time_s = _NO_TIME if ref.time is None else (ref.time - self.t0) / np.timedelta64(1, "s")
+        self.lon_mid = 0.5 * (self.lon[0] + self.lon[-1])
+        self.strides = (nf, nx * nt * nf, nt * nf)  # time, lat, lon
+
+    def locate(self, lon: FloatArray, lat: FloatArray) -> _Where:
+        """Where points (1-D arrays) fall on this block's grid (reused by every time at which they are sampled)."""
+        inside = (lon >= self.lon[0]) & (lon <= self.lon[-1])
+        if not inside.all():  # the equivalent longitude (+- 360) nearest to the grid's middle
+            lon = np.where(inside, lon, (lon - self.lon_mid + 180.0) % 360.0 - 180.0 + self.lon_mid)
+        ix, wx, sx, ok = _locate(self.lon, lon, self.strides[2])
+        iy, wy, sy, ok_y = _locate(self.lat, lat, self.strides[1])
+        ok &= ok_y
+        ix *= self.strides[2]
+        iy *= self.strides[1]
+        iy += ix
+        return _Where(base=iy, sx=sx, sy=sy, wx=wx, wy=wy, ok=ok)
+
+    def interpolate_at(
+        self, where: _Where, origin: np.datetime64, offset_s: FloatArray, columns: IntArray
+    ) -> FloatArray:
+        """The stored ``columns`` at located points and times ``origin + offset_s`` [s] (1-D)
+        -> (len(columns), n_points), NaN outside."""
+        if self.time_s.size:
+            t = offset_s + (origin - self.t0) / np.timedelta64(1, "s")
+        else:
+            t = offset_s  # a steady block: any time will do
+        out = np.empty((columns.size, where.base.size))
+        _interpolate_kernel(self.flat, self.n_fields, columns, where.base, where.sx, where.sy, where.wx, where.wy,
+                            where.ok, t, self.time_s, out)
+        return out
+
+
+#: Time axis of a block steady in time (any time is valid).
+_NO_TIME = np.zeros(0)
+
+
+@dataclass(frozen=True)
+class _Where:
+    """Points located on a block's (lat, lon) grid: lower-left cell index, steps to the neighbours, weights."""
+
+    base: IntArray
+    sx: IntArray
+    sy: IntArray
+    wx: FloatArray
+    wy: FloatArray
+    ok: npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class PreparedPoints:
+    """Points located once on every grid of a :class:`GriddedWeather` (see :meth:`GriddedWeather.prepare`)."""
+
+    shape: tuple[int, ...]
+    lon: FloatArray
+    lat: FloatArray
+    where: tuple[_Where, ...]
+    owner: int  # id of the GriddedWeather that located them
+
+
+def _locate(axis: FloatArray, x: FloatArray, stride: int) -> tuple[IntArray, FloatArray, IntArray, Any]:
+    """Cell index, weight of the upper neighbour, index step to it and in-range mask, per point.
+
+    The cell is the one a binary search finds (``searchsorted(axis, x, "right") - 1``, clipped to the axis);
+    the weight is 0 on the last grid line; the step is 0 where the weight is not positive (on a grid line, or
+    outside), so a NaN neighbour that does not contribute never spoils the result.
+    """
+    # contiguous, writable float64: one compiled signature (a read-only array would be another)
+    axis = np.require(axis, np.float64, ("C", "W"))
+    x = np.require(x, np.float64, ("C", "W"))
+    i = np.empty(x.shape, dtype=np.intp)
+    w = np.empty(x.shape)
+    step = np.empty(x.shape, dtype=np.intp)
+    ok = np.empty(x.shape, dtype=np.bool_)
+    _locate_kernel(axis, x.reshape(-1), int(stride), i.reshape(-1), w.reshape(-1), step.reshape(-1), ok.reshape(-1))
+    return i, w, step, ok
+
+
+# ----------------------------------------------------------------------------------------------- kernels
+# Compiled with numba (cached on disk after the first run); they release the GIL. Excluded from coverage.
+
+
+@functools.cache
+def _load_kernels() -> None:
+    """Load (or, the first time ever, compile) the kernels by calling each once on a tiny input."""
+    axis = np.array([0.0, 1.0])
+    i, w, step, ok = _locate(axis, np.array([0.5]), 1)
+    out = np.empty((1, 1))
+    _interpolate_kernel(np.zeros(8, np.float32), 1, np.zeros(1, np.intp), i, step, step, w, w, ok, w, axis, out)
+    _vector_kernel(w, w, 1.0, 1.0, np.empty(1), np.empty(1))
+
+
+@numba.njit(nogil=True, cache=True)
+def _cell(axis, first, step, x):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
+    """(i, w): the cell ``axis[i] <= x < axis[i + 1]`` (clipped to the axis) and the weight of ``axis[i + 1]``.
+
+    Regular axes are found by arithmetic, checked against the axis values; anything else by a binary search,
+    so the cell is always the binary search's. Outside the axis ``w`` is outside [0, 1]; NaN gives NaN.
+    """
+    n = axis.size
+    if x != x:  # NaN
+        return 0, x
+    if x < axis[0]:
+        i = 0
+    elif x >= axis[n - 1]:
+        i = n - 1
+    else:
+        i = min(max(int((x - first) / step), 0), n - 2)
+        if not (axis[i] <= x < axis[i + 1]):
+            lo, hi = 0, n - 1  # axis[lo] <= x < axis[hi]
+            while hi - lo > 1:
+                mid = (lo + hi) // 2
+                if axis[mid] <= x:
+                    lo = mid
+                else:
+                    hi = mid
+            i = lo
+    if i == n - 1:
+        return i, 0.0 if x == axis[i] else (x - axis[i]) / math.inf
+    return i, (x - axis[i]) / (axis[i + 1] - axis[i])
+
+
+@numba.njit(nogil=True, cache=True)
+def _locate_kernel(axis, x, stride, i_out, w_out, step_out, ok_out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`_locate` into preallocated outputs."""
+    n = axis.size
+    first = axis[0]
+    last = axis[n - 1]
+    step = (last - first) / (n - 1) if n > 1 else 1.0
+    for k in range(x.size):
+        xk = x[k]
+        i, w = _cell(axis, first, step, xk)
+        i_out[k] = i
+        w_out[k] = w
+        step_out[k] = stride if w > 0.0 else 0
+        ok_out[k] = first <= xk <= last
+
+
+@numba.njit(nogil=True, cache=True)
+def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, t_axis, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Trilinear interpolation of the stored ``columns`` (of ``nf`` interleaved) at located points -> ``out``.
+
+    ``base``/``sx``/``sy``/``wx``/``wy``/``ok`` are a :class:`_Where`; ``t`` [s] the points' times on ``t_axis``
+    (empty: a steady block, valid at any time; one value: valid at exactly that time). NaN outside.
+    """
+    nt = t_axis.size
+    t_first = t_axis[0] if nt > 0 else 0.0
+    t_step = (t_axis[nt - 1] - t_first) / (nt - 1) if nt > 1 else 1.0
+    for k in range(base.size):
+        good = ok[k]
+        it = 0
+        wt = 0.0
+        if good and nt > 0:
+            x = t[k]
+            good = t_first <= x <= t_axis[nt - 1]
+            if good:
+                it, wt = _cell(t_axis, t_first, t_step, x)
+        if not good:
+            for c in range(columns.size):
+                out[c, k] = np.nan
+            continue
+        st = nf if wt > 0.0 else 0
+        b = base[k] + it * nf
+        ax = wx[k]
+        ay = wy[k]
+        c00 = (1.0 - ax) * (1.0 - ay)
+        c10 = ax * (1.0 - ay)
+        c01 = (1.0 - ax) * ay
+        c11 = ax * ay
+        b10 = b + sx[k]
+        b01 = b + sy[k]
+        b11 = b10 + sy[k]
+        t0w = 1.0 - wt
+        for c in range(columns.size):
+            f = columns[c]
+            out[c, k] = (
+                c00 * (t0w * flat[b + f] + wt * flat[b + st + f])
+                + c10 * (t0w * flat[b10 + f] + wt * flat[b10 + st + f])
+                + c01 * (t0w * flat[b01 + f] + wt * flat[b01 + st + f])
+                + c11 * (t0w * flat[b11 + f] + wt * flat[b11 + st + f])
+            )
+
+
+@numba.njit(nogil=True, cache=True)
+def _vector_kernel(east, north, sign, scale, speed_out, bearing_out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Length x ``scale`` and bearing [deg, [0, 360)] of ``sign`` x (east, north), as
+    :func:`~pyroute_rel.geodesy.bearing_deg`; NaN in, NaN out. ``speed_out`` may be empty (bearing only)."""
+    with_speed = speed_out.size > 0
+    for k in range(east.size):
+        e = sign * east[k]
+        n = sign * north[k]
+        d = math.degrees(math.atan2(e, n))
+        if d < 0.0:
+            d += 360.0
+        if d >= 360.0:
+            d = 0.0
+        bearing_out[k] = d + 0.0  # no -0.0
+        if with_speed:
+            speed_out[k] = math.sqrt(e * e + n * n) * scale  # hypot's overflow care costs 15x here
+
+
+class GriddedWeather:
+    """Gridded, time-varying weather: a :class:`~pyroute_rel.weather.WeatherSource` over numpy arrays.
+
+    Build it with :func:`~pyroute_rel.weather_io.open_weather` (files) or :meth:`from_dataset` (an in-memory
+    :class:`xarray.Dataset`); the constructor takes ready :class:`WeatherField` objects.
+
+    Parameters
+    ----------
+    fields : Fields on their own grids; ``wind_u_ms`` and ``wind_v_ms`` are required. Their arrays
+        are copied into float32 blocks (fields on the same grid share one block).
+
+    Examples
+    --------
+    >>> import xarray as xr
+    >>> ds = xr.Dataset(
+    ...     {"u10": (("latitude", "longitude"), np.ones((2, 2)), {"units": "m s**-1"}),
+    ...      "v10": (("latitude", "longitude"), np.zeros((2, 2)), {"units": "m s**-1"})},
+    ...     coords={"latitude": [50.0, 40.0], "longitude": [340.0, 350.0]})
+    >>> w = GriddedWeather.from_dataset(ds)
+    >>> c = w.sample(-15.0, 45.0, np.datetime64("2018-06-01T00:00"))
+    >>> round(float(c.tws_kn), 4), float(c.twd_deg), sorted(w.fields)
+    (1.9438, 270.0, ['twd_deg', 'tws_kn'])
+    """
+
+    def __init__(self, fields: Iterable[WeatherField]):
+        fields = list(fields)
+        names = [f.name for f in fields]
+        for f in fields:
+            if f.name not in GRID_FIELDS:
+                raise WeatherError(f"field name must be one of {list(GRID_FIELDS)} (got {f.name!r})")
+            if names.count(f.name) > 1:
+                raise WeatherError(f"field {f.name!r} is given more than once")
+            _check_field(f)
+        if "wind_u_ms" not in names or "wind_v_ms" not in names:
+            srcs = sorted({f.source for f in fields}) or ["<no field>"]
+            raise WeatherError(
+                f"no 10 m wind (u and v components) found in {', '.join(map(repr, srcs))}; wind is required "
+                f"(name the variables with variables={{'wind_u_ms': ..., 'wind_v_ms': ...}})"
+            )
+        self._info: dict[str, WeatherField] = {f.name: replace(f, values=None) for f in fields}
+        groups: dict[tuple[bytes, bytes, bytes | None], list[WeatherField]] = {}
+        for f in fields:
+            key = (f.lon.tobytes(), f.lat.tobytes(), None if f.time is None else f.time.tobytes())
+            groups.setdefault(key, []).append(f)
+        self._blocks = [_Block(group) for group in groups.values()]
+        _load_kernels()  # numba's first call in a process costs half a second: pay it with the file, not the route
+
+    @property
+    def fields(self) -> frozenset[str]:
+        """Names of :class:`~pyroute_rel.weather.Conditions` fields the data actually provide."""
+        out = {"tws_kn", "twd_deg"}
+        out.update(n for n in ("hs_m", "wave_dir_deg", "wave_period_s") if n in self._info)
+        if "current_u_ms" in self._info and "current_v_ms" in self._info:
+            out.update(("current_u_ms", "current_v_ms"))
+        return frozenset(out)
+
+    @property
+    def field_info(self) -> Mapping[str, WeatherField]:
+        """Per stored field: grid axes, source file and variable (``values`` is ``None``)."""
+        return dict(self._info)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the gridded data [bytes]."""
+        return sum(b.data.nbytes for b in self._blocks)
+
+    def _interpolate(self, lon: FloatArray, lat: FloatArray, time: npt.NDArray[np.datetime64]) -> dict[str, FloatArray]:
+        origin = time[0] if time.size else np.datetime64(0, "ns")
+        offset_s = np.ascontiguousarray((time - origin) / np.timedelta64(1, "s"), dtype=np.float64)
+        return self._interpolate_at(tuple(b.locate(lon, lat) for b in self._blocks), origin, offset_s)
+
+    def _interpolate_at(
+        self,
+        where: tuple[_Where, ...],
+        origin: np.datetime64,
+        offset_s: FloatArray,
+        wanted: Collection[str] | None = None,
+    ) -> dict[str, FloatArray]:
+        out: dict[str, FloatArray] = {}
+        for block, w in zip(self._blocks, where, strict=True):
+            cols = [j for j, name in enumerate(block.names) if wanted is None or name in wanted]
+            if cols:
+                values = block.interpolate_at(w, origin, offset_s, np.asarray(cols, dtype=np.intp))
+                out.update((block.names[j], row) for j, row in zip(cols, values, strict=True))
+        return out
+
+    def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> PreparedPoints:
+        """Locate points on the data's grids once, for :meth:`sample_at` at several times (the cost kernel samples
+        the same arc points at the departure time and again at the times the boat gets there).
+
+        >>> import xarray as xr
+        >>> ds = xr.Dataset({"u10": (("latitude", "longitude"), np.ones((2, 2))),
+        ...                  "v10": (("latitude", "longitude"), np.zeros((2, 2)))},
+        ...                 coords={"latitude": [40.0, 50.0], "longitude": [-20.0, -10.0]})
+        >>> w = GriddedWeather.from_dataset(ds)
+        >>> p = w.prepare([-15.0, -12.0], 45.0)
+        >>> float(w.sample_at(p, np.datetime64("2018-06-01")).twd_deg[1])
+        270.0
+        """
+        lon = np.asarray(lon_deg, dtype=np.float64)
+        lat = np.asarray(lat_deg, dtype=np.float64)
+        shape = np.broadcast_shapes(lon.shape, lat.shape)
+        lon_f, lat_f = (np.broadcast_to(a, shape).ravel() for a in (lon, lat))
+        return PreparedPoints(shape=shape, lon=lon_f, lat=lat_f, owner=id(self),
+                              where=tuple(b.locate(lon_f, lat_f) for b in self._blocks))
+
+    def sample_at(
+        self,
+        points: PreparedPoints,
+        time: npt.ArrayLike,
+        *,
+        offset_h: npt.ArrayLike | None = None,
+        fields: Collection[str] | None = None,
+    ) -> Conditions:
+        """:meth:`sample` at points located by :meth:`prepare`.
+
+        Parameters
+        ----------
+        points : From :meth:`prepare`.
+        time : Times (``datetime64``, UTC), broadcast to the points' shape; or, with ``offset_h``, one origin.
+        offset_h : Hours after ``time`` [h], broadcast to the points' shape (NaN gives NaN conditions); the
+            cost kernel's departure times, passed without building an array of datetimes.
+        fields : :class:`~pyroute_rel.weather.Conditions` fields wanted (default all); the others are not
+            interpolated and come back NaN (the cost kernel's timing pass needs only wind and current).
+        """
+        if points.owner != id(self):
+            raise WeatherError("these points were prepared for another weather source: use its prepare()")
+        t = np.asarray(time)
+        if t.dtype.kind != "M":
+            raise WeatherError(f"'time' must be datetime64 (got dtype {t.dtype})")
+        wanted = None
+        if fields is not None:
+            unknown = sorted(set(fields) - set(_NEEDS))
+            if unknown:
+                raise WeatherError(f"'fields' must be Conditions fields {sorted(_NEEDS)} (got {unknown})")
+            wanted = {col for name in fields for col in _NEEDS[name]}
+        if offset_h is None:
+            t = np.broadcast_to(t.astype("datetime64[ns]"), points.shape).ravel()
+            origin = t[0] if t.size else np.datetime64(0, "ns")
+            offset_s = (t - origin) / np.timedelta64(1, "s")
+        else:
+            if t.ndim:
+                raise WeatherError(f"with 'offset_h', 'time' must be one origin (got shape {t.shape})")
+            origin = t.astype("datetime64[ns]")
+            offset_s = np.broadcast_to(np.asarray(offset_h, dtype=np.float64) * 3600.0, points.shape).ravel()
+        offset_s = np.ascontiguousarray(offset_s, dtype=np.float64)
+        return self._conditions(points.shape, self._interpolate_at(points.where, origin, offset_s, wanted), fields)
+
+    def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
+        """One stored field (e.g. ``"wind_u_ms"`` [m/s]) at broadcast points; NaN where unknown."""
+        if name not in self._info:
+            raise WeatherError(f"'name' must be one of {sorted(self._info)} (got {name!r})")
+        shape, lon, lat, t = _points(lon_deg, lat_deg, time)
+        values = self._interpolate(lon, lat, t)
+        if name == "wave_dir_deg":
+            out = np.empty(values["_wave_sin"].size)
+            _vector_kernel(values["_wave_sin"], values["_wave_cos"], 1.0, 1.0, _NO_TIME, out)
+            return out.reshape(shape)
+        return values[name].reshape(shape)
+
+    def sample(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> Conditions:
+        """Wind, waves and current at points and times (broadcast together).
+
+        Parameters
+        ----------
+        lon_deg : Longitudes [deg] (any convention; mapped onto each field's grid).
+        lat_deg : Latitudes [deg].
+        time : Times (``datetime64``, UTC).
+
+        Returns
+        -------
+        Conditions
+            ``tws_kn`` = hypot(u, v) x 3600/1852 [kn], ``twd_deg`` = atan2(-u, -v) (from) [deg]; wave
+            direction from the interpolated unit vector; NaN outside the data or next to NaN cells.
+        """
+        shape, lon, lat, t = _points(lon_deg, lat_deg, time)
+        return self._conditions(shape, self._interpolate(lon, lat, t))
+
+    def _conditions(
+        self, shape: tuple[int, ...], v: dict[str, FloatArray], fields: Collection[str] | None = None
+    ) -> Conditions:
+        n = int(np.prod(shape))
+        nan = np.full(n, np.nan)
+        out = dict.fromkeys(_NEEDS, nan)
+        if "wind_u_ms" in v:
+            out["tws_kn"], out["twd_deg"] = np.empty(n), np.empty(n)
+            _vector_kernel(v["wind_u_ms"], v["wind_v_ms"], -1.0, KNOTS_PER_MS, out["tws_kn"], out["twd_deg"])
+        if "_wave_sin" in v:
+            out["wave_dir_deg"] = np.empty(n)
+            _vector_kernel(v["_wave_sin"], v["_wave_cos"], 1.0, 1.0, _NO_TIME, out["wave_dir_deg"])
+        for name in ("hs_m", "wave_period_s", "current_u_ms", "current_v_ms"):
+            if name in v:
+                out[name] = v[name]
+            elif name.startswith("current") and (fields is None or name in fields):
+                out[name] = np.zeros(n)  # no current in the data
+        return Conditions(**{k: a.reshape(shape) for k, a in out.items()})
+
+    def check_coverage(
+        self,
+        lon_range: tuple[float, float],
+        lat_range: tuple[float, float],
+        time_range: tuple[np.datetime64, np.datetime64],
+    ) -> None:
+        """Raise :class:`~pyroute_rel.errors.WeatherCoverageError` unless every field covers the request.
+
+        Parameters
+        ----------
+        lon_range : (west, east) [deg]; east < west means the box crosses 180°.
+        lat_range : (south, north) [deg].
+        time_range : (first, last) time needed (``datetime64``, UTC).
+        """
+        lo, hi = float(lon_range[0]), float(lon_range[1])
+        if hi < lo:
+            hi += 360.0
+        t0, t1 = (_to_datetime64(t, "time_range") for t in time_range)
+        for f in self._info.values():
+            short = []
+            if not f.periodic:
+                mid = 0.5 * (f.lon[0] + f.lon[-1])
+                shift = 360.0 * np.round((mid - 0.5 * (lo + hi)) / 360.0)
+                if lo + shift < f.lon[0] or hi + shift > f.lon[-1]:
+                    short.append("lon")
+            if lat_range[0] < f.lat[0] or lat_range[1] > f.lat[-1]:
+                short.append("lat")
+            if f.time is not None and (t0 < f.time[0] or t1 > f.time[-1]):
+                short.append("time")
+            if short:
+                raise WeatherCoverageError(
+                    f"weather file '{f.source}' variable '{f.variable}' covers (as loaded) {f.describe()}; requested "
+                    f"lon [{lon_range[0]:g}, {lon_range[1]:g}], lat [{lat_range[0]:g}, {lat_range[1]:g}] [deg], "
+                    f"time {_iso(t0)} .. {_iso(t1)} ({' and '.join(short)} not covered)"
+                )
+
+    @classmethod
+    def from_dataset(
+        cls,
+        ds: xr.Dataset,
+        *,
+        variables: Mapping[str, str] | None = None,
+        bbox: Sequence[float] | None = None,
+        time_window: Sequence[Any] | None = None,
+        member: int | None = None,
+        margin_deg: float | None = None,
+        source: str = "<dataset>",
+    ) -> GriddedWeather:
+        """Build from an in-memory :class:`xarray.Dataset` laid out like one of the supported files.
+
+        Options as for :func:`~pyroute_rel.weather_io.open_weather` (``margin_deg`` defaults to its
+        :data:`~pyroute_rel.weather_io.BBOX_MARGIN_DEG`); ``source`` names the dataset in messages.
+        """
+        from .weather_io import read_fields  # the readers build on this module
+
+        return cls(read_fields([(source, [ds])], variables=variables, bbox=bbox, time_window=time_window,
+                               member=member, margin_deg=margin_deg))
+
+
+def _check_field(f: WeatherField) -> None:
+    where = f"field {f.name!r} ('{f.source}' variable '{f.variable}')"
+    if f.values is None or np.ndim(f.values) != 3:
+        raise WeatherError(f"{where}: values must be an array (time, lat, lon)")
+    nt = 1 if f.time is None else len(f.time)
+    if f.values.shape != (nt, len(f.lat), len(f.lon)):
+        raise WeatherError(f"{where}: values have shape {f.values.shape}, axes give {(nt, len(f.lat), len(f.lon))}")
+    for axis_name, axis in (("lon", f.lon), ("lat", f.lat), ("time", f.time)):
+        if axis is not None and np.any(np.diff(axis.astype(np.int64) if axis_name == "time" else axis) <= 0):
+            raise WeatherError(f"{where}: {axis_name} must be strictly increasing")
+
+
+# ----------------------------------------------------------------------------------------------- helpers
+
+
+def _to_datetime64(value: Any, what: str) -> np.datetime64:
+    """A time (datetime64, datetime, ISO 8601 string with optional 'Z') -> datetime64[ns] (UTC)."""
+    try:
+        if isinstance(value, _dt.datetime) and value.tzinfo is not None:
+            value = value.astimezone(_dt.UTC).replace(tzinfo=None)
+        if isinstance(value, str):
+            value = value.strip().removesuffix("Z").removesuffix("+00:00")
+        out = np.datetime64(value, "ns")  # type: ignore[call-overload]
+    except (TypeError, ValueError):
+        raise WeatherError(f"{what}: expected a time (datetime64 or ISO 8601 string, UTC) (got {value!r})") from None
+    if np.isnat(out):
+        raise WeatherError(f"{what}: expected a time, got NaT")
+    return out
+
+
+def _points(
+    lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike
+) -> tuple[tuple[int, ...], FloatArray, FloatArray, npt.NDArray[np.datetime64]]:
+    lon = np.asarray(lon_deg, dtype=np.float64)
+    lat = np.asarray(lat_deg, dtype=np.float64)
+    t = np.asarray(time)
+    if t.dtype.kind != "M":
+        t = np.asarray(np.vectorize(lambda v: _to_datetime64(v, "time"), otypes=["datetime64[ns]"])(t))
+    t = t.astype("datetime64[ns]")
+    shape = np.broadcast_shapes(lon.shape, lat.shape, t.shape)
+    flat = [np.broadcast_to(a, shape).ravel() for a in (lon, lat, t)]
+    return shape, flat[0], flat[1], flat[2]
+
+
+def _iso(t: np.datetime64) -> str:
+    return str(np.datetime_as_string(t, unit="m"))
