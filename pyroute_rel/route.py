@@ -18,7 +18,7 @@ import json
 import os
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -31,6 +31,7 @@ from .cost import arc_quantities
 if TYPE_CHECKING:
     from .grid import Grid
     from .solve import DPResult, RoutingProblem
+    from .weather import Conditions
 
 __all__ = ["Route", "build_route", "join_routes", "atomic_write", "write_outputs", "OUTPUT_FILES"]
 
@@ -56,7 +57,8 @@ class Route:
     departure : Departure time (UTC).
     legs : Per-leg arrays (one fewer than points): ``distance_nm`` [nm], ``time_h`` [h], ``sog_kn`` mean speed
         over ground [kn], ``course_deg`` [deg], and at the leg's midpoint and mid-time ``tws_kn``, ``twd_deg``,
-        ``twa_deg``, ``hs_m``, ``wave_dir_deg``, ``awd_deg``; ``p_f`` the leg's largest failure probability.
+        ``twa_deg``, ``hs_m``, ``wave_dir_deg``, ``awd_deg`` (where the data have a hole at the midpoint that the
+        leg's cost samples straddle, at the sample nearest it); ``p_f`` the leg's largest failure probability.
     nodes : Node index on each rank.
     grid : The grid routed on.
     dp : The raw DP result.
@@ -200,6 +202,20 @@ class Route:
         return buf.getvalue()
 
 
+def _sample(problem: RoutingProblem, lon: FloatArray, lat: FloatArray, t_h: FloatArray) -> Conditions:
+    """The problem's weather at points and times [h after departure] (at the departure when it is steady)."""
+    if getattr(problem.weather, "steady", False):
+        return problem.weather.sample(lon, lat, problem.departure)
+    ms = (np.asarray(t_h) * 3.6e6).astype("timedelta64[ms]")
+    return problem.weather.sample(lon, lat, np.asarray(problem.departure).astype("datetime64[ms]") + ms)
+
+
+def _put(values: FloatArray, i: npt.NDArray[np.intp], new: FloatArray) -> FloatArray:
+    out = np.array(values, dtype=float)  # a copy
+    out[i] = new
+    return out
+
+
 def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
     """Turn a DP result into a Route, recomputing every leg from its end points."""
     from .solve import leg_costs
@@ -212,11 +228,18 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
     mlon, mlat = geodesy.intermediate_point(lon[:-1], lat[:-1], lon[1:], lat[1:], 0.5)
     course = geodesy.initial_bearing_deg(mlon, mlat, lon[1:], lat[1:])
     mid_h = elapsed[:-1] + waits + 0.5 * costs.time_h
-    if getattr(problem.weather, "steady", False):
-        cond = problem.weather.sample(mlon, mlat, problem.departure)
-    else:
-        ms = (mid_h * 3.6e6).astype("timedelta64[ms]")
-        cond = problem.weather.sample(mlon, mlat, np.asarray(problem.departure).astype("datetime64[ms]") + ms)
+    cond = _sample(problem, mlon, mlat, mid_h)
+    hole = ~(np.isfinite(cond.tws_kn) & np.isfinite(cond.twd_deg)) & np.isfinite(costs.time_h)
+    if hole.any() and problem.samples > 1:
+        # a sailable leg whose midpoint falls in a hole of the data (a NaN cell its samples straddle): report the
+        # conditions at its cost sample nearest the midpoint instead, which the cost found valid
+        frac = (problem.samples // 2 - 0.5) / problem.samples
+        i = np.flatnonzero(hole)
+        slon, slat = geodesy.intermediate_point(lon[i], lat[i], lon[i + 1], lat[i + 1], frac)
+        at = _sample(problem, slon, slat, (elapsed[:-1] + waits)[i] + frac * costs.time_h[i])
+        cond = replace(cond, **{f.name: _put(getattr(cond, f.name), i, getattr(at, f.name)) for f in fields(cond)})
+        course = course.copy()
+        course[i] = geodesy.initial_bearing_deg(slon, slat, lon[i + 1], lat[i + 1])
     q = arc_quantities(cond, course)
     legs = {
         "distance_nm": dist,

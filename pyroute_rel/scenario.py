@@ -386,7 +386,8 @@ def _avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:
     if not 0.0 <= margin <= 200.0:
         raise ScenarioError(f"[avoid].margin_km must be in [0, 200] [km] (got {margin:g})")
     resolution = raw.get("resolution", "intermediate")
-    from .obstacles import RESOLUTIONS, load_zones
+    from .obstacles import RESOLUTIONS
+    from .zones import load_zones
 
     if not isinstance(resolution, str) or resolution not in RESOLUTIONS:
         raise ScenarioError(f"[avoid].resolution must be one of {list(RESOLUTIONS)} (got {resolution!r})")

@@ -28,6 +28,7 @@ import shapely.geometry
 from pyproj import CRS, Geod, Transformer
 
 from pyroute_rel import obstacles as ob
+from pyroute_rel import zones as zn
 from pyroute_rel.cli import main
 from pyroute_rel.errors import NoFeasibleRouteError
 from pyroute_rel.scenario import scenario_from_mapping
@@ -299,7 +300,7 @@ def test_real_course_example_end_to_end(tmp_path: Path, capsys: pytest.CaptureFi
         d_km = min(land_m.distance(to_m(shapely.LineString(leg))) for leg in near) / 1000.0
         assert d_km >= 10.0 * (1.0 - MARGIN_TOL)
     # the zone is never entered
-    (zone,) = ob.load_zones([ZONE_FILE])
+    (zone,) = zn.load_zones([ZONE_FILE])
     assert not any(zone.geometry.intersects(shapely.LineString(leg)) for leg in legs)
     assert (out / "route.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert json.loads((out / "summary.json").read_text())["voyage_time_h"] == pytest.approx(d["voyage_time_h"])

@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 from pyproj import Geod
 
 from pyroute_rel import obstacles as ob
+from pyroute_rel import zones as zn
 from pyroute_rel.errors import GridError, ScenarioError
 
 R_KM = 6371.0088
@@ -343,12 +344,12 @@ def test_two_km_chords_stay_within_a_metre_of_the_great_circle():
 
 def test_polygon_with_hole_blocks_the_ring_not_the_hole(tmp_path):
     doc = {"type": "Polygon", "coordinates": [square(0, 0, 4, 4), square(1, 1, 3, 3)]}
-    (zone,) = ob.load_zones([write(tmp_path, "ring.geojson", doc)])
+    (zone,) = zn.load_zones([write(tmp_path, "ring.geojson", doc)])
     assert zone.name == "ring" and zone.valid_from is None and zone.valid_to is None
     assert zone.geometry.area == pytest.approx(16.0 - 4.0)  # square minus hole, deg^2
     lon0, lat0 = [1.5, 0.5, 5.0, -1.0, 1.2], [2.0, 2.0, 2.0, 2.0, 1.2]
     lon1, lat1 = [2.5, 2.0, 6.0, 5.0, 2.8], [2.0, 2.0, 2.0, 2.0, 2.8]
-    got = ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
+    got = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
     assert got.tolist() == [False, True, False, True, False]  # inside the hole only -> free
     np.testing.assert_array_equal(got, reference_blocked(lon0, lat0, lon1, lat1, zone.geometry))
 
@@ -369,10 +370,10 @@ def test_multipolygon_feature_collection_and_names(tmp_path):
             },
         ],
     }
-    zones = ob.load_zones("multi.geojson", base_dir=write(tmp_path, "multi.geojson", doc).parent)
+    zones = zn.load_zones("multi.geojson", base_dir=write(tmp_path, "multi.geojson", doc).parent)
     assert [z.name for z in zones] == ["two boxes", "multi[1]"]
     assert zones[0].geometry.geom_type == "MultiPolygon"
-    got = ob.arcs_blocked_by_zones(
+    got = zn.arcs_blocked_by_zones(
         [-0.5, 2.5, 1.5, 9.5], [0.5, 0.5, 0.5, 10.5], [0.5, 3.5, 2.5, 10.5], [0.5, 0.5, 0.5, 10.5], zones
     )
     assert got.tolist() == [True, True, False, True]
@@ -384,7 +385,7 @@ def test_time_windows(tmp_path):
         "properties": {"valid_from": "2018-06-01T02:00:00+02:00", "valid_to": "2018-06-30"},
         "geometry": {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]},
     }
-    (zone,) = ob.load_zones([write(tmp_path, "timed.geojson", doc)])
+    (zone,) = zn.load_zones([write(tmp_path, "timed.geojson", doc)])
     assert zone.valid_from == np.datetime64("2018-06-01T00:00:00")  # converted to UTC
     assert zone.valid_to == np.datetime64("2018-06-30T00:00:00")  # a date alone is its midnight
     arc = (-0.5, 0.5, 1.5, 0.5)
@@ -392,19 +393,19 @@ def test_time_windows(tmp_path):
         ["2018-05-31T23:59", "2018-06-01T00:00", "2018-06-15", "2018-06-30T00:00", "2018-06-30T00:01", "NaT"],
         dtype="datetime64[m]",
     )
-    got = ob.arcs_blocked_by_zones(*arc, [zone], times)
+    got = zn.arcs_blocked_by_zones(*arc, [zone], times)
     assert got.tolist() == [False, True, True, True, False, True]  # NaT: unknown time, zone counts
-    assert ob.arcs_blocked_by_zones(*arc, [zone]).item()  # time=None: every zone active
+    assert zn.arcs_blocked_by_zones(*arc, [zone]).item()  # time=None: every zone active
     # with arrival times, a window overlapping the passage blocks it
     dep = np.array(["2018-05-30", "2018-07-01"], dtype="datetime64[s]")
     arr = np.array(["2018-06-02", "2018-07-02"], dtype="datetime64[s]")
-    assert ob.arcs_blocked_by_zones(*arc, [zone], dep, time_end=arr).tolist() == [True, False]
+    assert zn.arcs_blocked_by_zones(*arc, [zone], dep, time_end=arr).tolist() == [True, False]
     # per-arc times broadcast against a 2-D array of arcs
     lon0 = np.array([[-0.5, -0.5], [5.0, -0.5]])
     t = np.array([["2018-06-10"], ["2018-07-10"]], dtype="datetime64[s]")
-    assert ob.arcs_blocked_by_zones(lon0, 0.5, lon0 + 2.0, 0.5, [zone], t).tolist() == [[True, True], [False, False]]
-    assert ob.zones_active([zone], np.datetime64("2018-05-20"), np.datetime64("2018-06-02")) == (zone,)
-    assert ob.zones_active([zone], np.datetime64("2018-07-20")) == ()
+    assert zn.arcs_blocked_by_zones(lon0, 0.5, lon0 + 2.0, 0.5, [zone], t).tolist() == [[True, True], [False, False]]
+    assert zn.zones_active([zone], np.datetime64("2018-05-20"), np.datetime64("2018-06-02")) == (zone,)
+    assert zn.zones_active([zone], np.datetime64("2018-07-20")) == ()
 
 
 def test_antimeridian_arcs_are_short_arcs(tmp_path):
@@ -427,12 +428,12 @@ def test_antimeridian_arcs_are_short_arcs(tmp_path):
             },
         ],
     }
-    zones = ob.load_zones([write(tmp_path, "seam.geojson", doc)])
+    zones = zn.load_zones([write(tmp_path, "seam.geojson", doc)])
     lon0 = np.array([179.0, 179.0, 179.9, -179.0, 170.0, -178.0])
     lat0 = np.array([0.0, 5.0, 0.5, 0.0, 0.0, 0.0])
     lon1 = np.array([-179.0, -179.0, -179.9, 179.0, 175.0, -179.7])
     lat1 = np.array([0.0, 5.0, 0.5, 0.0, 0.0, 0.0])
-    got = ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, zones)
+    got = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, zones)
     assert got.tolist() == [True, False, True, True, False, True]
     np.testing.assert_array_equal(
         got, reference_blocked(lon0, lat0, lon1, lat1, shapely.union_all([z.geometry for z in zones]))
@@ -447,21 +448,21 @@ def test_vectorised_zone_test_equals_slow_reference(tmp_path):
             square(-29.5, 36.5, -28.5, 37.2),
         ],
     }
-    (zone,) = ob.load_zones([write(tmp_path, "z.geojson", doc)])
+    (zone,) = zn.load_zones([write(tmp_path, "z.geojson", doc)])
     rng = np.random.default_rng(3)
     lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (-34.0, 34.0, -25.0, 41.0), (5.0, 400.0))
-    fast = ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
+    fast = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
     np.testing.assert_array_equal(fast, reference_blocked(lon0, lat0, lon1, lat1, zone.geometry))
     assert 0.2 < fast.mean() < 0.8
 
 
 def test_self_intersecting_polygon_is_repaired(tmp_path):
     bowtie = {"type": "Polygon", "coordinates": [[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]]}
-    (zone,) = ob.load_zones([write(tmp_path, "bowtie.geojson", bowtie)])
+    (zone,) = zn.load_zones([write(tmp_path, "bowtie.geojson", bowtie)])
     assert zone.geometry.is_valid
     assert zone.geometry.area == pytest.approx(2.0)  # two triangles of area 1
     unclosed = {"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}
-    (zone,) = ob.load_zones([write(tmp_path, "unclosed.geojson", unclosed)])
+    (zone,) = zn.load_zones([write(tmp_path, "unclosed.geojson", unclosed)])
     assert zone.geometry.equals(shapely.box(0, 0, 1, 1))
 
 
@@ -502,18 +503,18 @@ POLY = {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]}
 def test_bad_geojson_raises_scenario_error_naming_the_file(tmp_path, content, match):
     path = write(tmp_path, "bad_zone.geojson", content)
     with pytest.raises(ScenarioError, match=match) as info:
-        ob.load_zones([path])
+        zn.load_zones([path])
     assert "bad_zone.geojson" in str(info.value)
     assert "\n" not in str(info.value)
 
 
 def test_missing_zone_file(tmp_path):
     with pytest.raises(ScenarioError, match=r"nowhere\.geojson: zone file not found"):
-        ob.load_zones(["nowhere.geojson"], base_dir=tmp_path)
+        zn.load_zones(["nowhere.geojson"], base_dir=tmp_path)
 
 
 def test_example_zone_straddles_the_verification_great_circle():
-    (zone,) = ob.load_zones([EXAMPLE_ZONE])
+    (zone,) = zn.load_zones([EXAMPLE_ZONE])
     assert zone.name == "sample fishing grounds"
     assert zone.valid_from == np.datetime64("2018-06-01T00:00:00")
     assert zone.valid_to == np.datetime64("2018-06-30T23:59:59")
@@ -525,8 +526,8 @@ def test_example_zone_straddles_the_verification_great_circle():
     pts = np.array([(-12.0, 45.0), *SPHERE.npts(-12.0, 45.0, -60.0, 17.5, 199), (-60.0, 17.5)])
     lon0, lat0, lon1, lat1 = pts[:-1, 0], pts[:-1, 1], pts[1:, 0], pts[1:, 1]
     june = np.datetime64("2018-06-15T12:00")
-    assert ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone], june).any()
-    assert not ob.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone], np.datetime64("2018-07-15")).any()
+    assert zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone], june).any()
+    assert not zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone], np.datetime64("2018-07-15")).any()
     assert not zone.geometry.intersects(ob.land_geometry((-35.0, 34.0, -26.0, 41.0)))  # clear of the Azores
 
 
