@@ -328,6 +328,9 @@ class GriddedWeather:
     fields : Fields on their own grids; ``wind_u_ms`` and ``wind_v_ms`` are required. Their arrays
         are copied into float32 blocks (fields on the same grid share one block).
 
+    Building one also loads the compiled sampling kernels: about half a second the first time in a process
+    (numba's start-up), a few seconds once after installing (compiling them; the result is cached on disk).
+
     Examples
     --------
     >>> import xarray as xr

@@ -679,3 +679,26 @@ def test_example_script_writes_an_era5_layout_file(tmp_path):
     c = w.sample([start[0], finish[0]], [start[1], finish[1]], np.datetime64("2018-06-03"))
     assert np.isfinite(c.hs_m).all() and np.isfinite(c.tws_kn).all()  # start and finish are at sea
     assert np.isnan(w.sample(-5.0, 40.0, np.datetime64("2018-06-03")).hs_m)  # Spain: no waves on land
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_compiled_wind_vector_equals_numpy(seed):
+    """The compiled speed and direction of (u, v) vectors equal numpy's hypot and geodesy.bearing_deg (signed zeros,
+    calm, NaN and the axes included): wind *from* = bearing of (-u, -v)."""
+    from pyroute_rel.geodesy import bearing_deg
+    from pyroute_rel.gridded import KNOTS_PER_MS, _vector_kernel  # private kernel: the arithmetic under test
+
+    rng = np.random.default_rng(seed)
+    special = np.array([0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300, np.nan])
+    u = np.concatenate([rng.normal(0.0, 8.0, 2000), np.repeat(special, special.size)])
+    v = np.concatenate([rng.normal(0.0, 8.0, 2000), np.tile(special, special.size)])
+    speed, direction = np.empty(u.size), np.empty(u.size)
+    _vector_kernel(u, v, -1.0, KNOTS_PER_MS, speed, direction)
+    # sqrt(u^2 + v^2), not hypot (15x slower): a wind under 1e-154 m/s underflows to calm
+    np.testing.assert_allclose(speed, np.hypot(u, v) * KNOTS_PER_MS, rtol=1e-15, atol=1e-290)
+    expected = bearing_deg(-u, -v)
+    np.testing.assert_array_equal(np.isnan(direction), np.isnan(expected))
+    diff = (direction - expected + 180.0) % 360.0 - 180.0
+    np.testing.assert_allclose(diff[~np.isnan(expected)], 0.0, atol=1e-12)
+    assert np.all((direction[~np.isnan(direction)] >= 0.0) & (direction[~np.isnan(direction)] < 360.0))
