@@ -334,9 +334,9 @@ def geometry_costs(
     """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid).
 
     With time-varying weather, a large block is split along its first axis between ``workers`` threads (default
-    :func:`~pyroute_rel.parallel.default_workers`): numpy releases the GIL in the gathers and ufuncs that dominate,
-    so the parts run in parallel. Each arc's cost depends on that arc alone, so the result is the same as in one
-    piece.
+    :func:`~pyroute_rel.parallel.default_workers`): the compiled sampling kernels and numpy's ufuncs release the
+    GIL, so the parts run in parallel. Each arc's cost depends on that arc alone, so the result is the same as in
+    one piece.
     """
     shape = geom.shape
     steady = bool(getattr(weather, "steady", False))
@@ -366,7 +366,8 @@ def geometry_costs(
 
     # wind only, sampled in compiled code: TWA, speed and time come from the compiled twin of the numpy arithmetic
     # (bit-identical); with currents or a wave speed loss the numpy code does it all
-    compiled = prepared is not None and wave_loss is None and "current_u_ms" not in getattr(weather, "fields", ())
+    stored = getattr(weather, "field_info", {})
+    compiled = prepared is not None and wave_loss is None and not {"current_u_ms", "current_v_ms"} & set(stored)
 
     def evaluate(
         time_h: FloatArray | None, timing: bool = False

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pyroute_rel import geodesy
-from pyroute_rel.cost import KN_PER_MS, REASONS, WaveLoss, arc_costs
+from pyroute_rel.cost import KN_PER_MS, REASONS, WaveLoss, arc_costs, arc_geometry
 from pyroute_rel.failure import load_failure_model
 from pyroute_rel.polar import Polar, get_polar
 from pyroute_rel.weather import UniformWeather
@@ -253,3 +253,57 @@ def test_compiled_wind_kernel_is_bit_identical_to_numpy(seed, polar_name, beyond
     np.testing.assert_array_equal(dt, expected)
     np.testing.assert_array_equal(twa, geodesy.angle_diff_deg(twd, course))
     np.testing.assert_array_equal(speed, boat_speed_kn(polar, twa, tws, beyond=beyond))
+
+
+@pytest.mark.parametrize("current", [(0.0, 0.0), (0.4, -0.3)])
+@pytest.mark.parametrize("wave_loss", [None, WaveLoss(hs_m=(0.0, 2.0, 6.0), factor=(1.0, 0.9, 0.3))])
+def test_gridded_uniform_field_costs_like_the_uniform_source(current, wave_loss, monkeypatch) -> None:
+    """A time-varying gridded file holding a uniform field gives the arc costs of UniformWeather: through the
+    compiled wind path (no current, no wave loss) and through the numpy path (current or wave loss, which the
+    compiled twin does not model: it must not be used then), both passes."""
+    import xarray as xr
+
+    from pyroute_rel import cost_compiled
+    from pyroute_rel.cost import geometry_costs
+    from pyroute_rel.weather_io import GriddedWeather
+
+    calls = []
+    compiled_wind = cost_compiled.sail_wind
+    monkeypatch.setattr(cost_compiled, "sail_wind", lambda *a, **k: calls.append(1) or compiled_wind(*a, **k))
+
+    tws_kn, twd, hs, wdir = 13.0, 70.0, 2.5, 250.0
+    uniform = UniformWeather(tws_kn=tws_kn, twd_deg=twd, hs_m=hs, wave_dir_deg=wdir, current_u_ms=current[0],
+                             current_v_ms=current[1])
+    lon, lat = np.arange(-45.0, -14.0, 1.0), np.arange(20.0, 41.0, 1.0)
+    time = np.datetime64("2018-06-01T00") + np.arange(0, 2000, 6) * np.timedelta64(1, "h")  # outlasts every arc
+    ms = tws_kn / KN_PER_MS
+    full = np.ones((time.size, lat.size, lon.size))
+    dims = ("time", "latitude", "longitude")
+    data = {"u10": (dims, -ms * np.sin(np.radians(twd)) * full), "v10": (dims, -ms * np.cos(np.radians(twd)) * full),
+            "swh": (dims, hs * full), "mwd": (dims, wdir * full)}
+    if current != (0.0, 0.0):
+        data.update(uo=(dims, current[0] * full), vo=(dims, current[1] * full))
+    gridded = GriddedWeather.from_dataset(xr.Dataset(data, coords={"time": time, "latitude": lat, "longitude": lon}))
+    rng = np.random.default_rng(11)
+    geom = arc_geometry(rng.uniform(-40, -20, (1, 60)), rng.uniform(25, 35, (1, 60)),
+                        rng.uniform(-40, -20, (50, 1)), rng.uniform(25, 35, (50, 1)), samples=2)
+    t0 = rng.uniform(0.0, 30.0, (50, 60))
+    kw = dict(departure=np.datetime64("2018-06-01T00:00"), polar=get_polar("maribot_vane"),
+              failure=load_failure_model("dickson2018"), apf=0.5, wave_loss=wave_loss, workers=1)
+    got = geometry_costs(geom, t0, weather=gridded, **kw)
+    assert bool(calls) == (current == (0.0, 0.0) and wave_loss is None)
+    ref = geometry_costs(geom, t0, weather=uniform, **kw)
+    assert np.isfinite(ref.time_h).any() and (ref.reason != 0).any()  # both allowed and forbidden arcs
+    # arcs sailed so slowly that the craft reaches their second sample after the file's last time (1998 h) meet
+    # missing weather there, as they should
+    from pyroute_rel.cost import _sample_costs
+
+    dt = _sample_costs(uniform.sample(geom.lon_deg, geom.lat_deg, kw["departure"]), geom.course_deg, geom.seg_nm,
+                       kw["polar"], None, 1.0, "clamp", wave_loss)[0]
+    last_sample_h = t0 + dt[..., 0] + 0.5 * dt[..., 1]
+    late = np.isfinite(ref.time_h) & (last_sample_h > 1998.0 + 1e-6)
+    assert np.all(got.reason[late] & REASONS["weather"])
+    ok = ~np.isfinite(ref.time_h) | (last_sample_h < 1998.0 - 1e-6)
+    np.testing.assert_array_equal(got.reason[ok], ref.reason[ok])
+    np.testing.assert_allclose(got.time_h[ok], ref.time_h[ok], rtol=1e-6)
+    np.testing.assert_allclose(got.p_f[ok], ref.p_f[ok], atol=1e-9)
