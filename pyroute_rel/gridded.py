@@ -302,14 +302,28 @@ def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, t_axis, 
 @numba.njit(nogil=True, cache=True)
 def _vector_kernel(east, north, sign, scale, speed_out, bearing_out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Length x ``scale`` and bearing [deg, [0, 360)] of ``sign`` x (east, north), as
-    :func:`~pyroute_rel.geodesy.bearing_deg`; NaN in, NaN out. ``speed_out`` may be empty (bearing only)."""
+    :func:`~pyroute_rel.geodesy.bearing_deg` gives it (to 1e-13 deg); NaN in, NaN out. ``speed_out`` may be empty
+    (bearing only).
+
+    The bearing is ``atan`` of the smaller over the larger component, placed in its octant by selects: three times
+    faster than the C library's ``atan2``, which took a sixth of the time of a route over gridded weather.
+    """
     with_speed = speed_out.size > 0
     for k in range(east.size):
         e = sign * east[k]
         n = sign * north[k]
-        d = math.degrees(math.atan2(e, n))
-        if d < 0.0:
-            d += 360.0
+        ae = abs(e)
+        an = abs(n)
+        hi = max(ae, an)
+        if hi > 0.0 and hi < math.inf and e == e and n == n:  # (max() may drop a NaN: tested apart)
+            r = math.degrees(math.atan(min(ae, an) / hi))  # angle from the nearer axis, in [0, 45]
+            r = 90.0 - r if ae > an else r  # from the north-south axis
+            r = 180.0 - r if n < 0.0 else r
+            d = 360.0 - r if e < 0.0 else r
+        else:  # calm (signed zeros), infinite or NaN components: the library's rules
+            d = math.degrees(math.atan2(e, n))
+            if d < 0.0:
+                d += 360.0
         if d >= 360.0:
             d = 0.0
         bearing_out[k] = d + 0.0  # no -0.0

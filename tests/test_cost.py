@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pyproj import Geod  # at import: pyproj loaded after cfgrib/ecCodes cannot find its database (a warning)
 
 from pyroute_rel import geodesy
 from pyroute_rel.cost import KN_PER_MS, REASONS, WaveLoss, arc_costs, arc_geometry
@@ -183,10 +184,6 @@ def test_arc_sample_points_and_courses_match_pyproj_on_the_sphere(samples) -> No
     """Sample k of an arc lies (k + 0.5) / samples of the way along the great circle, its course is the azimuth
     to the arc's end there, and the sub-segments add up to the arc (pyproj's geodesics on a sphere of the same
     radius, an independent implementation; powers of two take the halving path, others slerp)."""
-    from pyproj import Geod
-
-    from pyroute_rel.cost import arc_geometry
-
     rng = np.random.default_rng(samples)
     lon0, lon1 = rng.uniform(-180, 180, (2, 500))
     lat0, lat1 = rng.uniform(-80, 80, (2, 500))
