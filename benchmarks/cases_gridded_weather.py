@@ -36,12 +36,14 @@ sc = replace(sc, weather=weather)
 """
 
 CASES = {}
-for _name, _layout in (("weather_file_square_160", "square"), ("weather_file_default_grid", "angular")):
+for _name, _layout, _prune in (("weather_file_square_160", "square", False),
+                               ("weather_file_default_grid", "angular", False),
+                               ("weather_file_square_160_prune", "square", True)):
     CASES[_name] = (
         "from pathlib import Path\nEXAMPLE = str(Path('examples/microtransat_control.toml').resolve())\n"
         + BUILD % "examples/microtransat_control.toml"
         + f"""
-sc = sc.with_options(layout="{_layout}")
+sc = sc.with_options(layout="{_layout}", prune={_prune})
 grid = sc.make_grid()
 problem = sc.problem(grid=grid)
 from pyroute_rel.solve import grid_geometry
@@ -57,6 +59,6 @@ print(json.dumps({{"seconds": first, "warm_seconds": t, "grid_geometry_s": geome
                   "field_build_s": build_s, "weather_mb": weather.nbytes / 2**20, "peak_rss_mb": rss_mb()}}))
 """,
         3.0,
-        f"160-rank route ({_layout} grid) over a 0.25 deg hourly 40-day ERA5-layout field, dickson2018, "
-        "DP + sampling (field build excluded; target under 3 s)",
+        f"160-rank route ({_layout} grid{', prune = true' if _prune else ''}) over a 0.25 deg hourly 40-day "
+        "ERA5-layout field, dickson2018, DP + sampling (field build excluded; target under 3 s)",
     )

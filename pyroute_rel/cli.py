@@ -83,6 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="time-expanded DP on this time lattice [h] (exact without FIFO; allows waiting)")
     r.add_argument("--max-wait", type=float, dest="max_wait_h", help="longest wait at a node [h] (needs --time-step)")
     r.add_argument("--no-land", action="store_true", help="do not avoid land (overrides [avoid].land)")
+    r.add_argument("--prune", action="store_true", default=None,
+                   help="cost only the arcs that can still win: the same route, fewer arcs costed ([route].prune)")
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument("--out", help="folder for route.geojson, route.gpx, route.csv, summary.json, route.png")
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -112,7 +114,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
         n_nodes=args.n_nodes, n_ranks=args.n_ranks, apf=args.apf, failure_model=args.failure_model,
         spacing_km=args.spacing_km, max_deviation_deg=args.max_deviation_deg, samples_per_arc=args.samples_per_arc,
         time_step_h=args.time_step_h, max_wait_h=args.max_wait_h, layout=args.layout, aspect=args.aspect,
-        half_width_km=args.half_width_km, land=False if args.no_land else None,
+        half_width_km=args.half_width_km, land=False if args.no_land else None, prune=args.prune,
     )
     if args.departures:
         return _departure_sweep(scenario, args)

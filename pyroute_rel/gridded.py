@@ -395,6 +395,18 @@ class GriddedWeather:
         """Per stored field: grid axes, source file and variable (``values`` is ``None``)."""
         return dict(self._info)
 
+    @functools.cached_property
+    def max_current_ms(self) -> float:
+        """A bound on the current's speed anywhere in the data [m/s]: the largest |u| and |v| combined (0 without
+        currents; NaN cells ignored)."""
+        big = [0.0, 0.0]
+        for block in self._blocks:
+            for j, name in enumerate(block.names):
+                if name in ("current_u_ms", "current_v_ms"):
+                    m = float(np.nanmax(np.abs(block.data[..., j]), initial=0.0))
+                    big[name == "current_v_ms"] = max(big[name == "current_v_ms"], m)
+        return math.hypot(big[0], big[1])
+
     @property
     def nbytes(self) -> int:
         """Memory held by the gridded data [bytes]."""

@@ -50,6 +50,7 @@ SCHEMA: dict[str, dict[str, str]] = {
         "waypoints": "[[lon, lat], ...] [deg]: marks to pass, in order",
         "time_step_h": "time lattice of the time-expanded DP [h]",
         "max_wait_h": "longest wait at a node [h] (needs time_step_h)",
+        "prune": "true: cost only the arcs that can still win (same route, fewer arcs costed)",
     },
     "grid": {
         "layout": "'angular' (default) or 'square' (the paper's grid)",
@@ -99,6 +100,7 @@ class Scenario:
     base_dir: Path
     time_step_h: float | None = None
     max_wait_h: float = 0.0
+    prune: bool = False
     layout: str = "angular"
     aspect: float | None = None
     half_width_km: float | None = None
@@ -128,6 +130,8 @@ class Scenario:
                 checked[key] = value
             elif key == "land":
                 checked["avoid"] = replace(self.avoid, land=bool(value))
+            elif key == "prune":
+                checked[key] = bool(value)
             elif key in ("spacing_km", "max_deviation_deg", "samples_per_arc", "beyond", "time_step_h",
                          "max_wait_h", "aspect", "half_width_km"):
                 checked[key] = value
@@ -202,7 +206,7 @@ class Scenario:
             departure=self.departure, weather=self.weather, polar=self.polar,
             failure=failure if failure is not None else self.load_failure(), apf=self.apf,
             samples=samples, beyond=self.beyond, blocked=blocked, time_step_h=self.time_step_h,
-            max_wait_h=self.max_wait_h, wave_loss=self.wave_loss,
+            max_wait_h=self.max_wait_h, wave_loss=self.wave_loss, prune=self.prune,
         )
 
     def route(self, *, progress: bool = False) -> Route:
@@ -314,6 +318,9 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         raise ScenarioError(f"[route].max_wait_h must be >= 0 [h] (got {max_wait:g})")
     if max_wait > 0 and step is None:
         raise ScenarioError("[route].max_wait_h needs [route].time_step_h (waiting is modelled on a time lattice)")
+    prune = route.get("prune", False)
+    if not isinstance(prune, bool):
+        raise ScenarioError(f"[route].prune must be true or false (got {prune!r})")
 
     grid = table.get("grid", {})
     layout = grid.get("layout", "angular")
@@ -373,6 +380,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         source=source, start=start, finish=finish, departure=departure, n_ranks=n_ranks, n_nodes=n_nodes,
         spacing_km=spacing, max_deviation_deg=dev, samples_per_arc=samples, polar=polar, beyond=beyond,
         weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
+        prune=prune,
         layout=layout, aspect=aspect, half_width_km=half_width, start_line=start_line, finish_line=finish_line,
         waypoints=waypoints, avoid=avoid, wave_loss=wave_loss,
     )

@@ -73,6 +73,12 @@ class RoutingProblem:
         to it, so every reported time is achievable) and the craft may wait at a node.
     max_wait_h : Longest wait at one node [h] (multiples of ``time_step_h``; 0 = never wait).
     wave_loss : Optional speed loss in waves (:class:`~pyroute_rel.cost.WaveLoss`).
+    prune : Evaluate only the arcs that can still win (off by default). An arc takes at least its length over
+        the fastest speed over ground possible (the polar's top speed plus the strongest current), so once each
+        destination's few most promising arcs are costed, an arc whose bound exceeds the best of them cannot
+        be the earliest arrival and is skipped. The route is the same (exact, tested); ``arcs_evaluated`` and
+        the forbidden counts then cover the arcs evaluated only. Ignored with waiting, a finish line, or a
+        weather source with currents but no ``max_current_ms`` bound.
     """
 
     departure: np.datetime64
@@ -86,6 +92,7 @@ class RoutingProblem:
     time_step_h: float | None = None
     max_wait_h: float = 0.0
     wave_loss: WaveLoss | None = None
+    prune: bool = False
 
     def __post_init__(self) -> None:
         if self.time_step_h is not None and not (
@@ -114,6 +121,19 @@ class RoutingProblem:
         if self.time_step_h is None:
             return 0
         return int(math.floor(self.max_wait_h / self.time_step_h + 1e-9))
+
+    def speed_bound_kn(self) -> float | None:
+        """The fastest speed over ground possible anywhere [kn] (polar top speed plus the strongest current), or
+        None when the weather has currents and no bound on them."""
+        current = getattr(self.weather, "max_current_ms", None)
+        if current is None:
+            fields = getattr(self.weather, "fields", None)
+            if fields is None or "current_u_ms" in fields or "current_v_ms" in fields:
+                return None
+            current = 0.0
+        from .cost import KN_PER_MS
+
+        return float(np.max(self.polar.speed_kn)) + float(current) * KN_PER_MS
 
     def arrive(self, t_h: Any) -> Any:
         """Arrival time on the time lattice (rounded up), or unchanged in continuous time."""
@@ -262,6 +282,8 @@ def forward_dp(
     line = grid.finish_line is not None
     cross_best = np.inf
     cross_at: tuple[int, int, int, float, float] | None = None
+    bound = problem.speed_bound_kn() if problem.prune else None
+    prune = bound is not None and bound > 0.0 and problem.n_wait == 0 and not line and cost_hook is None
     bar = _progress_bar(n_ranks + 1, enabled=progress)
     try:
         for k in range(n_ranks + 1):
@@ -274,14 +296,18 @@ def forward_dp(
             total = np.full(live.shape, np.inf)
             wait = np.zeros(live.shape)
             reason = np.zeros(live.shape, dtype=np.uint8)
+            counted = live
             for w in range(problem.n_wait + 1):
                 t0 = t_src + w * step
-                costs = problem.geometry_costs(geom, t0)
+                lazy = problem.blocked is not None and hasattr(problem.blocked, "learn") and cost_hook is None
+                if prune:
+                    costs, counted = _pruned_costs(problem, k, geom, t0, live, bound, lazy)  # type: ignore[arg-type]
+                else:
+                    costs = problem.geometry_costs(geom, t0)
                 if w == 0:
                     fired0 = costs.fired_bits
                 r_w = np.where(live, costs.reason, 0).astype(np.uint8)
                 time_h = costs.time_h
-                lazy = problem.blocked is not None and hasattr(problem.blocked, "learn") and cost_hook is None
                 if problem.blocked is not None and not lazy:
                     hit = problem.blocked(k, _block_times(problem, t0)) & live
                     r_w = r_w | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
@@ -306,7 +332,7 @@ def forward_dp(
                 wait = np.where(better, w * step, wait)
                 # an arc counts as forbidden when it is forbidden at every departure time tried
                 reason = r_w if w == 0 else np.where(np.isfinite(total), 0, reason | r_w).astype(np.uint8)
-            evaluated += int(live.sum())
+            evaluated += int(counted.sum())
             bad = live & (reason != 0)
             forbidden += int(bad.sum())
             if bad.any():
@@ -433,6 +459,60 @@ def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
         geom = geometry_from_xyz(a, b, samples=samples, workers=None)  # threads for big blocks
         cache[k] = geom
     return geom
+
+
+def _pruned_costs(
+    problem: RoutingProblem, k: int, geom: ArcGeometry, t0: FloatArray, live: BoolArray, bound_kn: float, lazy: bool
+) -> tuple[ArcCosts, BoolArray]:
+    """Costs of the arcs into rank k that can still win (see ``RoutingProblem.prune``), and which were evaluated.
+
+    Each destination's four arcs of smallest lower bound (departure + length / ``bound_kn``) are costed first,
+    obstacles included; then every arc whose bound does not exceed the best of them. A skipped arc arrives after
+    its bound, which is later than an arc already costed: it cannot be the minimum, nor tie with it. Skipped arcs
+    get an infinite time, NaN p_f and no reason flags."""
+    shape = live.shape
+    length_nm = np.broadcast_to(geom.seg_nm[..., 0] * geom.samples, shape)
+    with np.errstate(invalid="ignore"):
+        lower = np.where(live, problem.arrive(t0 + length_nm / bound_kn), np.inf)
+    m = min(4, shape[1])
+    first = np.zeros(shape, dtype=bool)
+    rows = np.arange(shape[0])[:, None]
+    first[rows, np.argpartition(lower, m - 1, axis=1)[:, :m] if m < shape[1] else slice(None)] = True
+    first &= live
+    costs = _costs_of(problem, geom, t0, first)
+    total = np.where(first, problem.arrive(t0 + costs.time_h), np.inf)
+    if lazy:
+        total[_lazy_obstacles(problem.blocked, k, total, _block_times(problem, t0))] = np.inf
+    best = total.min(axis=1)
+    rest = live & ~first & (lower <= best[:, None])
+    if rest.any():
+        more = _costs_of(problem, geom, t0, rest)
+        costs = ArcCosts(time_h=np.where(rest, more.time_h, costs.time_h), p_f=np.where(rest, more.p_f, costs.p_f),
+                         reason=np.where(rest, more.reason, costs.reason).astype(np.uint8),
+                         fired_bits=None if costs.fired_bits is None and more.fired_bits is None else np.where(
+                             rest, _bits(more, shape), _bits(costs, shape)))
+    return costs, first | rest
+
+
+def _bits(costs: ArcCosts, shape: tuple[int, ...]) -> npt.NDArray[np.uint32]:
+    return np.zeros(shape, np.uint32) if costs.fired_bits is None else np.broadcast_to(costs.fired_bits, shape)
+
+
+def _costs_of(problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray, pick: BoolArray) -> ArcCosts:
+    """Costs of the picked arcs of a block, laid out on the whole block (others: inf, NaN, no flags)."""
+    shape = pick.shape
+    sub = ArcGeometry(*(np.broadcast_to(a, shape + (a.shape[-1],))[pick]
+                        for a in (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm)))
+    c = problem.geometry_costs(sub, np.broadcast_to(t0, shape)[pick])
+    time_h = np.full(shape, np.inf)
+    p_f = np.full(shape, np.nan)
+    reason = np.zeros(shape, dtype=np.uint8)
+    time_h[pick], p_f[pick], reason[pick] = c.time_h, c.p_f, c.reason
+    fired = None
+    if c.fired_bits is not None:
+        fired = np.zeros(shape, dtype=np.uint32)
+        fired[pick] = c.fired_bits
+    return ArcCosts(time_h=time_h, p_f=p_f, reason=reason, fired_bits=fired)
 
 
 def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.datetime64] | None:

@@ -22,6 +22,7 @@ Proc. International Robotic Sailing Conference 2018, section 3.2 (control weathe
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -171,6 +172,13 @@ class UniformWeather:
     def fields(self) -> frozenset[str]:
         """Every field of :class:`Conditions` is defined everywhere."""
         return frozenset(FIELDS)
+
+    @property
+    def max_current_ms(self) -> float:
+        """The strongest current anywhere [m/s] (a bound on each component taken separately)."""
+        cu = [abs(self.current_u_ms)] + [abs(p.values.get("current_u_ms", 0.0)) for p in self.patches]
+        cv = [abs(self.current_v_ms)] + [abs(p.values.get("current_v_ms", 0.0)) for p in self.patches]
+        return float(math.hypot(max(cu), max(cv)))
 
     def sample(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> Conditions:
         """Sample the control field at points; ``time`` is accepted for the protocol and ignored."""

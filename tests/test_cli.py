@@ -38,6 +38,18 @@ def test_route_json_contract(capsys: pytest.CaptureFixture[str]) -> None:
     assert track[-1]["time"] == d["arrival"]
 
 
+def test_route_prune_gives_the_same_route_with_fewer_arcs(capsys: pytest.CaptureFixture[str]) -> None:
+    args = ["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land"]
+    code, out, err = run(args, capsys)
+    assert code == 0, err
+    full = json.loads(out)
+    code, out, err = run([*args, "--prune"], capsys)
+    assert code == 0, err
+    pruned = json.loads(out)
+    assert pruned["voyage_time_h"] == full["voyage_time_h"] and pruned["track"] == full["track"]
+    assert pruned["arcs"]["evaluated"] < full["arcs"]["evaluated"] / 2
+
+
 def test_route_out_writes_every_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
     code, stdout, err = run(["route", str(EXAMPLE), *SMALL, "--out", str(out), "--quiet"], capsys)
@@ -150,3 +162,12 @@ def test_bad_thread_count_in_the_environment_is_exit_2(tmp_path: Path, capsys: p
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
     assert "environment variable PYROUTE_REL_THREADS must be a whole number >= 1 (got 'two')" in err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_route_prune_must_be_a_boolean() -> None:
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.scenario import scenario_from_mapping
+
+    with pytest.raises(ScenarioError, match=r"\[route\]\.prune must be true or false \(got 'yes'\)"):
+        scenario_from_mapping({"route": {"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "prune": "yes"},
+                               "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0}})

@@ -222,3 +222,54 @@ def test_waiting_never_helps_in_steady_weather() -> None:
     waiting = RoutingProblem(departure=DEP, weather=w, polar=polar, time_step_h=1.0, max_wait_h=24.0)
     assert forward_dp(grid, waiting).finish_h == forward_dp(grid, lattice).finish_h
     assert np.all(forward_dp(grid, waiting).waits() == 0.0)
+
+
+def _same_dp(grid, problem) -> tuple[int, int]:
+    """forward_dp with and without pruning: the same arrivals, back-pointers and finish (the exact same route)."""
+    from dataclasses import replace
+
+    full = forward_dp(grid, problem)
+    pruned = forward_dp(grid, replace(problem, prune=True))
+    np.testing.assert_array_equal(pruned.arrival_h, full.arrival_h)
+    np.testing.assert_array_equal(pruned.back, full.back)
+    assert pruned.finish_h == full.finish_h and pruned.finish_back == full.finish_back
+    return pruned.arcs_evaluated, full.arcs_evaluated
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_pruning_finds_the_same_route_in_steady_weather(seed: int) -> None:
+    """Random polars (top speeds 0.5-8 kn), patched wind, with and without currents, square and banded grids."""
+    rng = np.random.default_rng(100 + seed)
+    square = seed % 2 == 0
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=int(rng.integers(6, 14)), n_nodes=int(rng.integers(5, 13)),
+                     max_deviation_deg=None if square else 45.0, spacing_km=float(rng.uniform(40, 200)))
+    weather = random_weather(rng)
+    if seed % 4 == 1:  # a current (east) the bound must include
+        weather = UniformWeather(tws_kn=weather.tws_kn, twd_deg=weather.twd_deg, patches=weather.patches,
+                                 current_u_ms=float(rng.uniform(-1.0, 1.0)), current_v_ms=float(rng.uniform(-1, 1)))
+    problem = RoutingProblem(departure=DEP, weather=weather, polar=random_polar(rng), samples=int(rng.integers(1, 4)))
+    pruned, full = _same_dp(grid, problem)
+    assert pruned <= full
+
+
+def test_pruning_finds_the_same_route_over_time_varying_gridded_weather_and_land() -> None:
+    """The paper's failure model at apf 0.5 over a veering gridded wind with a NaN island, and a land mask tested
+    lazily: the same route, with far fewer arcs costed on the square grid."""
+    from test_cost import _varying_field
+
+    from pyroute_rel.avoid import Avoid, obstacle_mask
+    from pyroute_rel.failure import load_failure_model
+
+    grid = make_grid((-31.5, 28.5), (-30.0, 30.0), n_ranks=16, n_nodes=16, max_deviation_deg=None)  # < 48 h
+    problem = RoutingProblem(departure=DEP, weather=_varying_field(), polar=get_polar("maribot_vane"),
+                             failure=load_failure_model("dickson2018"), apf=0.95, samples=2)
+    first = forward_dp(grid, problem)
+    assert np.isfinite(first.finish_h) and first.forbidden_by_reason["failure"] > 0  # premise: a route, and risk
+    pruned, full = _same_dp(grid, problem)
+    assert pruned < full / 2
+    caribbean = make_grid((-57.0, 16.25), (-64.0, 16.25), n_ranks=20, n_nodes=15, max_deviation_deg=None,
+                          spacing_km=10.0)
+    land = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0),
+                          polar=get_polar("maribot_vane"), blocked=obstacle_mask(caribbean, Avoid(land=True)))
+    assert forward_dp(caribbean, land).forbidden_by_reason["obstacle"] > 0  # premise: land is in the way
+    _same_dp(caribbean, land)
