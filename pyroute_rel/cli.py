@@ -83,8 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="time-expanded DP on this time lattice [h] (exact without FIFO; allows waiting)")
     r.add_argument("--max-wait", type=float, dest="max_wait_h", help="longest wait at a node [h] (needs --time-step)")
     r.add_argument("--no-land", action="store_true", help="do not avoid land (overrides [avoid].land)")
-    r.add_argument("--prune", action="store_true", default=None,
-                   help="cost only the arcs that can still win: the same route, fewer arcs costed ([route].prune)")
+    r.add_argument("--prune", action=argparse.BooleanOptionalAction, default=None,
+                   help="cost only the arcs that can still win (default): the same route, fewer arcs costed; "
+                        "--no-prune costs every arc, e.g. to count all forbidden arcs ([route].prune)")
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument("--out", help="folder for route.geojson, route.gpx, route.csv, summary.json, route.png")
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object")

@@ -50,7 +50,7 @@ SCHEMA: dict[str, dict[str, str]] = {
         "waypoints": "[[lon, lat], ...] [deg]: marks to pass, in order",
         "time_step_h": "time lattice of the time-expanded DP [h]",
         "max_wait_h": "longest wait at a node [h] (needs time_step_h)",
-        "prune": "true: cost only the arcs that can still win (same route, fewer arcs costed)",
+        "prune": "true (default): cost only the arcs that can still win (same route); false: cost every arc",
     },
     "grid": {
         "layout": "'angular' (default) or 'square' (the paper's grid)",
@@ -100,7 +100,7 @@ class Scenario:
     base_dir: Path
     time_step_h: float | None = None
     max_wait_h: float = 0.0
-    prune: bool = False
+    prune: bool = True
     layout: str = "angular"
     aspect: float | None = None
     half_width_km: float | None = None
@@ -318,7 +318,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         raise ScenarioError(f"[route].max_wait_h must be >= 0 [h] (got {max_wait:g})")
     if max_wait > 0 and step is None:
         raise ScenarioError("[route].max_wait_h needs [route].time_step_h (waiting is modelled on a time lattice)")
-    prune = route.get("prune", False)
+    prune = route.get("prune", True)
     if not isinstance(prune, bool):
         raise ScenarioError(f"[route].prune must be true or false (got {prune!r})")
 

@@ -73,11 +73,11 @@ class RoutingProblem:
         to it, so every reported time is achievable) and the craft may wait at a node.
     max_wait_h : Longest wait at one node [h] (multiples of ``time_step_h``; 0 = never wait).
     wave_loss : Optional speed loss in waves (:class:`~pyroute_rel.cost.WaveLoss`).
-    prune : Evaluate only the arcs that can still win (off by default). An arc takes at least its length over
-        the fastest speed over ground possible (the polar's top speed plus the strongest current), so once each
-        destination's few most promising arcs are costed, an arc whose bound exceeds the best of them cannot
-        be the earliest arrival and is skipped. The route is the same (exact, tested); ``arcs_evaluated`` and
-        the forbidden counts then cover the arcs evaluated only. Ignored with waiting, a finish line, or a
+    prune : Cost only the arcs that can still win (default; False costs every arc). An arc takes at least its
+        length over the fastest speed over ground possible (the polar's top speed plus the strongest current), so
+        once each destination's few most promising arcs are costed, an arc whose bound exceeds the best of them
+        cannot be the earliest arrival and is skipped. The route is the same (exact, tested); ``arcs_evaluated``
+        and the forbidden counts then cover the arcs costed only. Not applied with waiting, a finish line, or a
         weather source with currents but no ``max_current_ms`` bound.
     """
 
@@ -92,7 +92,7 @@ class RoutingProblem:
     time_step_h: float | None = None
     max_wait_h: float = 0.0
     wave_loss: WaveLoss | None = None
-    prune: bool = False
+    prune: bool = True
 
     def __post_init__(self) -> None:
         if self.time_step_h is not None and not (

@@ -23,7 +23,7 @@ def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, 
 
 
 def test_route_json_contract(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land"], capsys)
+    code, out, err = run(["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land", "--no-prune"], capsys)
     assert code == 0, err
     d = json.loads(out)
     for key, typ in [("voyage_time_h", float), ("distance_nm", float), ("departure", str), ("arrival", str),
@@ -40,10 +40,10 @@ def test_route_json_contract(capsys: pytest.CaptureFixture[str]) -> None:
 
 def test_route_prune_gives_the_same_route_with_fewer_arcs(capsys: pytest.CaptureFixture[str]) -> None:
     args = ["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land"]
-    code, out, err = run(args, capsys)
+    code, out, err = run([*args, "--no-prune"], capsys)
     assert code == 0, err
     full = json.loads(out)
-    code, out, err = run([*args, "--prune"], capsys)
+    code, out, err = run(args, capsys)  # pruning is the default
     assert code == 0, err
     pruned = json.loads(out)
     assert pruned["voyage_time_h"] == full["voyage_time_h"] and pruned["track"] == full["track"]
