@@ -235,8 +235,9 @@ def _same_dp(grid, problem) -> tuple[int, int]:
 
 
 @pytest.mark.parametrize("seed", range(8))
-def test_pruning_finds_the_same_route_in_steady_weather(seed: int) -> None:
+def test_pruning_finds_the_same_route_in_steady_weather(seed: int, monkeypatch) -> None:
     """Random polars (top speeds 0.5-8 kn), patched wind, with and without currents, square and banded grids."""
+    monkeypatch.setattr("pyroute_rel.solve.PRUNE_MIN_WIDTH", 0)  # prune these small grids too
     rng = np.random.default_rng(100 + seed)
     square = seed % 2 == 0
     grid = make_grid(START_PT, FINISH_PT, n_ranks=int(rng.integers(6, 14)), n_nodes=int(rng.integers(5, 13)),
@@ -250,9 +251,10 @@ def test_pruning_finds_the_same_route_in_steady_weather(seed: int) -> None:
     assert pruned <= full
 
 
-def test_pruning_finds_the_same_route_over_time_varying_gridded_weather_and_land() -> None:
-    """The paper's failure model at apf 0.5 over a veering gridded wind with a NaN island, and a land mask tested
-    lazily: the same route, with far fewer arcs costed on the square grid."""
+def test_pruning_finds_the_same_route_over_time_varying_gridded_weather_and_land(monkeypatch) -> None:
+    """The paper's failure model over a veering gridded wind with a NaN island, and a land mask tested lazily: the
+    same route, with far fewer arcs costed on the square grid."""
+    monkeypatch.setattr("pyroute_rel.solve.PRUNE_MIN_WIDTH", 0)  # prune these small grids too
     from test_cost import _varying_field
 
     from pyroute_rel.avoid import Avoid, obstacle_mask
