@@ -35,7 +35,17 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .cost import REASONS, ArcCosts, ArcGeometry, WaveLoss, arc_costs, arc_quantities, geometry_costs, geometry_from_xyz
+from .cost import (
+    KN_PER_MS,
+    REASONS,
+    ArcCosts,
+    ArcGeometry,
+    WaveLoss,
+    arc_costs,
+    arc_quantities,
+    geometry_costs,
+    geometry_from_xyz,
+)
 from .errors import NoFeasibleRouteError, ScenarioError
 from .grid import Grid
 from .polar import BEYOND_MODES, Polar
@@ -132,8 +142,6 @@ class RoutingProblem:
             if fields is None or "current_u_ms" in fields or "current_v_ms" in fields:
                 return None
             current = 0.0
-        from .cost import KN_PER_MS
-
         return float(np.max(self.polar.speed_kn)) + float(current) * KN_PER_MS
 
     def arrive(self, t_h: Any) -> Any:

@@ -702,3 +702,21 @@ def test_compiled_wind_vector_equals_numpy(seed):
     diff = (direction - expected + 180.0) % 360.0 - 180.0
     np.testing.assert_allclose(diff[~np.isnan(expected)], 0.0, atol=1e-12)
     assert np.all((direction[~np.isnan(direction)] >= 0.0) & (direction[~np.isnan(direction)] < 360.0))
+
+
+def test_max_current_bounds_every_sampled_current():
+    """The pruning DP's speed bound needs a current no sample can exceed: max |u| and max |v| combined."""
+    rng = np.random.default_rng(4)
+    lat, lon = np.arange(10.0, 20.1, 1.0), np.arange(-40.0, -29.9, 1.0)
+    u, v = rng.normal(0.0, 0.6, (2, lat.size, lon.size))
+    u[3, 4] = np.nan  # a land cell
+    dims = ("latitude", "longitude")
+    ds = xr.Dataset({"u10": (dims, np.ones_like(u)), "v10": (dims, np.zeros_like(u)), "uo": (dims, u),
+                     "vo": (dims, v)}, coords={"latitude": lat, "longitude": lon})
+    w = GriddedWeather.from_dataset(ds)
+    assert w.max_current_ms == pytest.approx(np.hypot(np.nanmax(np.abs(u)), np.nanmax(np.abs(v))), rel=1e-6)
+    c = w.sample(rng.uniform(-40, -30, 5000), rng.uniform(10, 20, 5000), np.datetime64("2018-06-01"))
+    speed = np.hypot(c.current_u_ms, c.current_v_ms)
+    assert np.nanmax(speed) <= w.max_current_ms
+    no_current = GriddedWeather.from_dataset(ds[["u10", "v10"]])
+    assert no_current.max_current_ms == 0.0
