@@ -193,7 +193,8 @@ def _route_text(route: Any, elapsed: float, out: str | None) -> str:
         f"arrival          {s['arrival']}",
         f"grid             {route.grid.n_ranks} ranks x {route.grid.n_nodes} nodes, lateral spacing "
         f"{route.grid.spacing_km:.2f} km, rank spacing {route.grid.rank_spacing_km:.2f} km",
-        f"arcs             {s['arcs']['evaluated']} evaluated, {s['arcs']['forbidden']} forbidden",
+        f"arcs             {s['arcs']['evaluated']} evaluated, {s['arcs']['forbidden']} forbidden"
+        + (f", {s['arcs']['pruned']} skipped (could not win)" if s["arcs"]["pruned"] else ""),
         f"failure model    {s.get('failure_model') or 'none'} (apf {s.get('apf', 1.0):g}): max leg p_f "
         f"{route.max_failure_probability:.3f}, voyage p_f {route.voyage_failure_probability:.3f}",
         f"runtime          {elapsed:.2f} s",

@@ -134,6 +134,7 @@ class Route:
             },
             "arcs": {
                 "evaluated": self.dp.arcs_evaluated,
+                "pruned": self.dp.arcs_pruned,
                 "forbidden": self.dp.arcs_forbidden,
                 "forbidden_by_reason": self.dp.forbidden_by_reason,
                 "forbidden_by_criterion": self.dp.forbidden_by_criterion,
@@ -283,6 +284,7 @@ def join_routes(routes: list[Route]) -> Route:
                                                                                       strict=True))])
     legs = {k: np.concatenate([r.legs[k] for r in routes]) for k in first.legs}
     dp = _replace(first.dp, arcs_evaluated=sum(r.dp.arcs_evaluated for r in routes),
+                  arcs_pruned=sum(r.dp.arcs_pruned for r in routes),
                   arcs_forbidden=sum(r.dp.arcs_forbidden for r in routes),
                   forbidden_by_reason={k: sum(r.dp.forbidden_by_reason[k] for r in routes)
                                        for k in first.dp.forbidden_by_reason},

@@ -182,6 +182,7 @@ class DPResult:
     finish_back : Last-rank node the finish is reached from (-1 when unreachable).
     arcs_evaluated : Arcs whose cost was computed (from reachable nodes).
     arcs_forbidden : Of those, how many were forbidden.
+    arcs_pruned : Arcs from reachable nodes not costed because they could not win (``RoutingProblem.prune``).
     forbidden_by_reason : Forbidden arc counts per :data:`~pyroute_rel.cost.REASONS` name (an arc may count
         under several).
     forbidden_by_criterion : For arcs forbidden by the failure model, how many had each criterion fired somewhere
@@ -210,6 +211,7 @@ class DPResult:
     end_src: int = -1
     end_fraction: float = 1.0
     end_wait_h: float = 0.0
+    arcs_pruned: int = 0
 
     def waits(self) -> FloatArray:
         """Wait before each leg of the optimal path [h] (one value per leg)."""
@@ -282,6 +284,7 @@ def forward_dp(
     back = np.full((n_ranks, n_nodes), -1, dtype=np.intp)
     finish_h, finish_back = np.inf, -1
     evaluated = 0
+    pruned = 0
     forbidden = 0
     by_reason = dict.fromkeys(REASONS, 0)
     by_criterion: dict[str, int] = {}
@@ -342,6 +345,7 @@ def forward_dp(
                 # an arc counts as forbidden when it is forbidden at every departure time tried
                 reason = r_w if w == 0 else np.where(np.isfinite(total), 0, reason | r_w).astype(np.uint8)
             evaluated += int(counted.sum())
+            pruned += int(live.sum()) - int(counted.sum())
             bad = live & (reason != 0)
             forbidden += int(bad.sum())
             if bad.any():
@@ -394,6 +398,7 @@ def forward_dp(
         finish_back=finish_back,
         arcs_evaluated=evaluated,
         arcs_forbidden=forbidden,
+        arcs_pruned=pruned,
         forbidden_by_reason=by_reason,
         forbidden_by_criterion=by_criterion,
         dead_rank=dead,

@@ -49,6 +49,8 @@ def test_route_prune_gives_the_same_route_with_fewer_arcs(capsys: pytest.Capture
     pruned = json.loads(out)
     assert pruned["voyage_time_h"] == full["voyage_time_h"] and pruned["track"] == full["track"]
     assert pruned["arcs"]["evaluated"] < full["arcs"]["evaluated"] / 2
+    assert pruned["arcs"]["evaluated"] + pruned["arcs"]["pruned"] == full["arcs"]["evaluated"]
+    assert full["arcs"]["pruned"] == 0
 
 
 def test_route_out_writes_every_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
