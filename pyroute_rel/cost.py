@@ -95,6 +95,12 @@ class ArcCosts:
     reason: npt.NDArray[np.uint8]
     fired_bits: npt.NDArray[np.uint32] | None = None
 
+    def bits(self) -> npt.NDArray[np.uint32]:
+        """:attr:`fired_bits` with the block's shape (zeros when there are none)."""
+        if self.fired_bits is None:
+            return np.zeros(self.time_h.shape, np.uint32)
+        return np.broadcast_to(self.fired_bits, self.time_h.shape)
+
 
 def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[str, FloatArray]:
     """Environmental quantities seen by a craft on a heading (inputs of failure criteria).
@@ -355,8 +361,7 @@ def geometry_costs(
         done = thread_map(part, row_blocks(shape[0], n), n)
         bits = None
         if any(c.fired_bits is not None for c in done):
-            bits = np.concatenate([np.zeros(c.time_h.shape, np.uint32) if c.fired_bits is None
-                                   else np.broadcast_to(c.fired_bits, c.time_h.shape) for c in done])
+            bits = np.concatenate([c.bits() for c in done])
         return ArcCosts(time_h=np.concatenate([c.time_h for c in done]), p_f=np.concatenate([c.p_f for c in done]),
                         reason=np.concatenate([c.reason for c in done]), fired_bits=bits)
     samples = geom.samples

@@ -413,9 +413,7 @@ class GriddedWeather:
         return sum(b.data.nbytes for b in self._blocks)
 
     def _interpolate(self, lon: FloatArray, lat: FloatArray, time: npt.NDArray[np.datetime64]) -> dict[str, FloatArray]:
-        origin = time[0] if time.size else np.datetime64(0, "ns")
-        offset_s = np.ascontiguousarray((time - origin) / np.timedelta64(1, "s"), dtype=np.float64)
-        return self._interpolate_at(tuple(b.locate(lon, lat) for b in self._blocks), origin, offset_s)
+        return self._interpolate_at(tuple(b.locate(lon, lat) for b in self._blocks), *_offsets(time))
 
     def _interpolate_at(
         self,
@@ -483,15 +481,13 @@ class GriddedWeather:
                 raise WeatherError(f"'fields' must be Conditions fields {sorted(_NEEDS)} (got {unknown})")
             wanted = {col for name in fields for col in _NEEDS[name]}
         if offset_h is None:
-            t = np.broadcast_to(t.astype("datetime64[ns]"), points.shape).ravel()
-            origin = t[0] if t.size else np.datetime64(0, "ns")
-            offset_s = (t - origin) / np.timedelta64(1, "s")
+            origin, offset_s = _offsets(np.broadcast_to(t.astype("datetime64[ns]"), points.shape).ravel())
         else:
             if t.ndim:
                 raise WeatherError(f"with 'offset_h', 'time' must be one origin (got shape {t.shape})")
-            origin = t.astype("datetime64[ns]")
-            offset_s = np.broadcast_to(np.asarray(offset_h, dtype=np.float64) * 3600.0, points.shape).ravel()
-        offset_s = np.ascontiguousarray(offset_s, dtype=np.float64)
+            origin = np.datetime64(t.astype("datetime64[ns]").item(), "ns")
+            offset_s = np.ascontiguousarray(
+                np.broadcast_to(np.asarray(offset_h, dtype=np.float64) * 3600.0, points.shape).ravel())
         return self._conditions(points.shape, self._interpolate_at(points.where, origin, offset_s, wanted), fields)
 
     def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
@@ -644,6 +640,12 @@ def _points(
     shape = np.broadcast_shapes(lon.shape, lat.shape, t.shape)
     flat = [np.broadcast_to(a, shape).ravel() for a in (lon, lat, t)]
     return shape, flat[0], flat[1], flat[2]
+
+
+def _offsets(time: npt.NDArray[np.datetime64]) -> tuple[np.datetime64, FloatArray]:
+    """Times (1-D ``datetime64[ns]``) as an origin and contiguous float seconds after it, as the kernels take them."""
+    origin = time[0] if time.size else np.datetime64(0, "ns")
+    return origin, np.ascontiguousarray((time - origin) / np.timedelta64(1, "s"), dtype=np.float64)
 
 
 def _iso(t: np.datetime64) -> str:

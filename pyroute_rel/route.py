@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .cost import arc_quantities
+from .cost import _to_datetime, arc_quantities
 
 if TYPE_CHECKING:
     from .grid import Grid
@@ -207,8 +207,7 @@ def _sample(problem: RoutingProblem, lon: FloatArray, lat: FloatArray, t_h: Floa
     """The problem's weather at points and times [h after departure] (at the departure when it is steady)."""
     if getattr(problem.weather, "steady", False):
         return problem.weather.sample(lon, lat, problem.departure)
-    ms = (np.asarray(t_h) * 3.6e6).astype("timedelta64[ms]")
-    return problem.weather.sample(lon, lat, np.asarray(problem.departure).astype("datetime64[ms]") + ms)
+    return problem.weather.sample(lon, lat, _to_datetime(problem.departure, np.asarray(t_h, dtype=float)))
 
 
 def _put(values: FloatArray, i: npt.NDArray[np.intp], new: FloatArray) -> FloatArray:

@@ -509,12 +509,8 @@ def _pruned_costs(
         costs = ArcCosts(time_h=np.where(rest, more.time_h, costs.time_h), p_f=np.where(rest, more.p_f, costs.p_f),
                          reason=np.where(rest, more.reason, costs.reason).astype(np.uint8),
                          fired_bits=None if costs.fired_bits is None and more.fired_bits is None else np.where(
-                             rest, _bits(more, shape), _bits(costs, shape)))
+                             rest, more.bits(), costs.bits()))
     return costs, first | rest
-
-
-def _bits(costs: ArcCosts, shape: tuple[int, ...]) -> npt.NDArray[np.uint32]:
-    return np.zeros(shape, np.uint32) if costs.fired_bits is None else np.broadcast_to(costs.fired_bits, shape)
 
 
 def _costs_of(problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray, pick: BoolArray) -> ArcCosts:
