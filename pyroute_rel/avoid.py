@@ -94,6 +94,69 @@ class ObstacleMask:
                        shapely.intersects_xy(self.land, grid.lon_deg, grid.lat_deg))
         self._cache: dict[int, tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.uint64]]] = (
             grid._cache.setdefault(avoid.key(), {}))
+        self._swept: list[bool] = grid._cache.setdefault(avoid.key() + ":swept", [False])
+
+    def _groups(self) -> tuple[list[Any], list[tuple[int, int]]]:
+        """The grid's arcs as :class:`~pyroute_rel.strips.Group` s, with the (rank, first group) of each rank."""
+        from .strips import Group
+
+        g = self.grid
+        groups: list[Any] = []
+        spans: list[tuple[int, int]] = []
+        s_lon, s_lat = g.start_points
+        spans.append((0, len(groups)))
+        groups += [Group(s_lon[i : i + 1], s_lat[i : i + 1], g.lon_deg[0], g.lat_deg[0]) for i in range(s_lon.size)]
+        band = g.band if g.width < g.n_nodes else None
+        for k in range(1, g.n_ranks):
+            spans.append((k, len(groups)))
+            groups.append(Group(g.lon_deg[k - 1], g.lat_deg[k - 1], g.lon_deg[k], g.lat_deg[k], band))
+        spans.append((g.n_ranks, len(groups)))
+        groups.append(Group(np.array([g.finish[0]]), np.array([g.finish[1]]), g.lon_deg[-1], g.lat_deg[-1]))
+        spans.append((g.n_ranks + 1, len(groups)))
+        return groups, spans
+
+    def _sweep(self) -> None:
+        """Test every arc of the grid at once by rank-pair shadows (:mod:`pyroute_rel.strips`) where they apply.
+
+        One pass per geometry (land, each zone) over all ranks costs about what testing a few percent of the
+        arcs one by one does, and leaves nothing for the DP to learn; ranks the shadows do not handle (e.g. a
+        single node per rank) are left to the arc-by-arc test.
+        """
+        from .strips import fans_blocked
+
+        groups, spans = self._groups()
+        areas = ([] if self.land is None else [self.land]) + [z.geometry for z in self.static + self.timed_zones]
+        bits_of = [None] * (len(areas) - len(self.timed_zones)) + list(range(len(self.timed_zones)))
+        results = fans_blocked(groups, [self._obstacles.tiles_tree(a) for a in areas])
+        tests = list(zip(bits_of, results, strict=True))  # (timed-zone bit or None, per-group result)
+        g = self.grid
+        for (k, lo), (_, hi) in zip(spans[:-1], spans[1:], strict=True):
+            src, valid = g.pattern(k)
+            hit = self._ends(k).copy()
+            bits = np.zeros(src.shape, dtype=np.uint64)
+            done = True
+            for bit, res in tests:
+                per = [r for r in res[lo:hi] if r is not None]
+                if len(per) < hi - lo:
+                    done = False
+                    break
+                b: npt.NDArray[np.bool_]
+                if k == 0:
+                    b = np.concatenate(per, axis=1)  # (first-rank node, start point)
+                elif k == g.n_ranks:
+                    b = per[0].T  # (1, last-rank node)
+                elif per[0].shape == (g.n_nodes, g.n_nodes):  # (node, source node)
+                    b = per[0][np.arange(src.shape[0])[:, None], src]
+                else:  # banded: (source node, node - source node + band)
+                    col = np.arange(src.shape[0])[:, None] - src + g.band
+                    b = valid & per[0][src, np.clip(col, 0, per[0].shape[1] - 1)]
+                if bit is None:
+                    hit |= b
+                else:
+                    bits[b & ~hit] |= np.uint64(1 << bit)
+            if done:
+                bits[hit] = 0
+                self._cache[k] = (np.ones(src.shape, dtype=bool), hit, bits)
 
     @property
     def timed(self) -> bool:
@@ -105,6 +168,10 @@ class ObstacleMask:
     ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.uint64]]:
         """(learnt, static hit, timed-zone bits) of the arcs into rank k."""
         st = self._cache.get(k)
+        if st is None and not self._swept[0]:
+            self._swept[0] = True
+            self._sweep()
+            st = self._cache.get(k)
         if st is None:
             # an arc with an end on (buffered) land is blocked outright: known from the start, at no cost (on a
             # grid over continents whole rows end on land, which the lazy DP would otherwise learn arc by arc)

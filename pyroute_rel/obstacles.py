@@ -64,6 +64,7 @@ __all__ = [
     "points_on_land",
     "arcs_blocked",
     "arcs_on_land",
+    "tiles_tree",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -440,25 +441,42 @@ def _prefix_sum(mask: BoolArray) -> npt.NDArray[np.int32]:
     return out
 
 
-_INDEXES: list[tuple[shapely.Geometry, _Index]] = []  # most recent last; keyed by identity, see _index
+_INDEXES: list[tuple[shapely.Geometry, _Index]] = []  # most recent last; keyed by identity, see _cached
+_TREES: list[tuple[shapely.Geometry, shapely.STRtree]] = []
 
 
-def _index(geometry: shapely.Geometry) -> _Index:
-    """The cached :class:`_Index` of a geometry.
+def _cached(cache: list[tuple[shapely.Geometry, Any]], geometry: shapely.Geometry, build: Any) -> Any:
+    """``build(geometry)``, cached on the geometry's identity (the 32 most recent).
 
     Keyed by identity, not by ``hash(geometry)``: shapely hashes a geometry by its WKB, which for a coastline
     of a few hundred thousand vertices costs milliseconds on every lookup. Geometries are immutable, and the
     cache holds a reference to each, so an identity never points at another geometry.
     """
-    for i, (g, index) in enumerate(_INDEXES):
+    for i, (g, value) in enumerate(cache):
         if g is geometry:
-            if i != len(_INDEXES) - 1:
-                _INDEXES.append(_INDEXES.pop(i))
-            return index
-    index = _build_index(geometry)
-    _INDEXES.append((geometry, index))
-    del _INDEXES[:-32]
-    return index
+            if i != len(cache) - 1:
+                cache.append(cache.pop(i))
+            return value
+    value = build(geometry)
+    cache.append((geometry, value))
+    del cache[:-32]
+    return value
+
+
+def _index(geometry: shapely.Geometry) -> _Index:
+    """The cached :class:`_Index` of a geometry."""
+    return _cached(_INDEXES, geometry, _build_index)
+
+
+def tiles_tree(geometry: shapely.Geometry) -> shapely.STRtree:
+    """The geometry cut into 1 deg tiles, in an STRtree (cached on the geometry's identity)."""
+    return _cached(_TREES, geometry, _build_tree)
+
+
+def _build_tree(geometry: shapely.Geometry) -> shapely.STRtree:
+    parts = shapely.get_parts(geometry)
+    parts = parts[~shapely.is_empty(parts)] if len(parts) else parts
+    return shapely.STRtree(_tiles(parts) if len(parts) else parts)
 
 
 def _build_index(geometry: shapely.Geometry) -> _Index:
@@ -467,8 +485,8 @@ def _build_index(geometry: shapely.Geometry) -> _Index:
     if len(parts) == 0:
         zero = np.zeros((2, 2), dtype=np.int32)
         return _Index(shapely.STRtree([]), 0.0, 0.0, 1.0, zero, zero, np.zeros((1, 1), dtype=bool))
-    tiles = _tiles(parts)
-    tree = shapely.STRtree(tiles)
+    tree = tiles_tree(geometry)
+    tiles = tree.geometries
     xmin, ymin, xmax, ymax = shapely.total_bounds(tiles)
     span = max(xmax - xmin, 1e-9) * max(ymax - ymin, 1e-9)
     cell = max(_MIN_CELL_DEG, math.sqrt(span / _MAX_CELLS))

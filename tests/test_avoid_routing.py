@@ -308,9 +308,11 @@ def test_real_course_example_end_to_end(tmp_path: Path, capsys: pytest.CaptureFi
 
 @pytest.mark.parametrize("window", [("2018-06-03T00:00:00Z", "2018-06-30T00:00:00Z"),
                                     ("2018-06-01T00:00:00Z", "2018-06-03T00:00:00Z")], ids=["active", "over"])
-def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window) -> None:
-    # the solver tests only the arcs it would pick (land and zones, a zone's window applied at departure); an
-    # independent run with a cost hook takes the eager path, which masks every arc of every rank first
+def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window, monkeypatch) -> None:
+    # three independent ways to the same DP: the default sweep (every arc by rank-pair shadows, module strips),
+    # the lazy arc-by-arc test of only the arcs the solver would pick (land and zones, a zone's window applied at
+    # departure), and the eager path of a run with a cost hook, which masks every arc of every rank first
+    from pyroute_rel.avoid import ObstacleMask
     from pyroute_rel.solve import forward_dp
 
     doc = json.loads(ZONE_FILE.read_text())
@@ -321,12 +323,24 @@ def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window) -> Non
     table["grid"] = {"n_ranks": 40, "aspect": 4.0, "half_width_km": 600.0}
     table["avoid"] = {"zones": [str(path)], "land": True, "margin_km": 5.0}
     sc = scenario_from_mapping(table, base_dir=CONTROL.parent, source=str(CONTROL))
-    grid = sc.make_grid()
-    lazy = forward_dp(grid, sc.problem(grid=grid))
+    swept_grid = sc.make_grid()
+    swept = forward_dp(swept_grid, sc.problem(grid=swept_grid))
+    states = swept_grid._cache[sc.avoid.key()]
+    assert len(states) == swept_grid.n_ranks + 1 and all(v[0].all() for v in states.values())  # all swept
+    with monkeypatch.context() as m:
+        m.setattr(ObstacleMask, "_sweep", lambda self: None)
+        grid = sc.make_grid()
+        lazy = forward_dp(grid, sc.problem(grid=grid))
     learnt = sum(int(v[0].sum()) for v in grid._cache[sc.avoid.key()].values())
     eager_grid = sc.make_grid()
     eager = forward_dp(eager_grid, sc.problem(grid=eager_grid), cost_hook=lambda k, c: None)
     assert learnt < eager.arcs_evaluated  # the lazy run really skipped arcs
-    assert lazy.finish_h == eager.finish_h
-    np.testing.assert_array_equal(lazy.arrival_h, eager.arrival_h)
-    np.testing.assert_array_equal(lazy.back, eager.back)
+    for res in (lazy, swept):
+        assert res.finish_h == eager.finish_h
+        np.testing.assert_array_equal(res.arrival_h, eager.arrival_h)
+        np.testing.assert_array_equal(res.back, eager.back)
+    # the sweep's masks agree with the arc-by-arc test on every arc it tested
+    for k, (known, hit, bits) in grid._cache[sc.avoid.key()].items():
+        s_known, s_hit, s_bits = states[k]
+        np.testing.assert_array_equal(hit[known], s_hit[known])
+        np.testing.assert_array_equal(bits[known], s_bits[known])
