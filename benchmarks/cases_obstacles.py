@@ -31,7 +31,8 @@ sc = load_scenario({path!r}).with_options({options})
 avoid = {avoid}
 
 def clear():
-    ob._gshhs_meta.cache_clear(); ob._land_geometry.cache_clear(); ob._INDEXES.clear()
+    ob._gshhs_meta.cache_clear(); ob._land_geometry.cache_clear(); ob._land_within.cache_clear()
+    ob._INDEXES.clear(); ob._TREES.clear()
 
 def evaluate(grid, mask):
     return sum(int(mask(k, None).sum()) for k in range(grid.n_ranks + 1))

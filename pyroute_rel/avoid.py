@@ -58,6 +58,43 @@ def _bbox(grid: Grid, pad_deg: float = 1.0) -> tuple[float, float, float, float]
             min(float(lon.max()) + pad_deg, 180.0), min(float(lat.max()) + pad_deg, 90.0))
 
 
+def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
+    """A lon/lat polygon [deg] holding every arc of the grid, or None when it would cross the antimeridian.
+
+    The union of: the ranks' outline (first node of every rank, then the last nodes back), the start fan (start
+    points and the first rank) and the finish fan. Edges follow their great circles in 25 km steps; the
+    polygon is grown by ``pad_deg`` to cover the lon/lat chords between those steps.
+    """
+    import shapely
+
+    from .obstacles import _gc_densify
+
+    def ring(lon: npt.NDArray[np.float64], lat: npt.NDArray[np.float64]) -> tuple[Any, Any]:
+        x, y, _ = _gc_densify(lon, lat, np.roll(lon, -1), np.roll(lat, -1), max_step_km=25.0)
+        return x, y
+
+    s_lon, s_lat = grid.start_points
+    first, last = grid.lon_deg[:, 0], grid.lon_deg[:, -1]
+    outline = ring(np.concatenate([first, last[::-1]]), np.concatenate([grid.lat_deg[:, 0], grid.lat_deg[::-1, -1]]))
+    corners_start = (np.array([s_lon[0], s_lon[-1], grid.lon_deg[0, -1], grid.lon_deg[0, 0]]),
+                     np.array([s_lat[0], s_lat[-1], grid.lat_deg[0, -1], grid.lat_deg[0, 0]]))
+    corners_finish = (np.array([grid.lon_deg[-1, 0], grid.lon_deg[-1, -1], grid.finish[0]]),
+                      np.array([grid.lat_deg[-1, 0], grid.lat_deg[-1, -1], grid.finish[1]]))
+    fans = []
+    for lon, lat in (corners_start, corners_finish):  # hulls of the fans: every edge between their corners
+        i, j = np.triu_indices(lon.size, 1)
+        x, y, _ = _gc_densify(lon[i], lat[i], lon[j], lat[j], max_step_km=25.0)
+        fans.append((x, y))
+    xs = [outline[0], *(f[0] for f in fans)]
+    if any(np.ptp(x) > 180.0 or np.abs(x).max() > 180.0 for x in xs):
+        return None
+    poly = shapely.Polygon(np.column_stack(outline))
+    if not poly.is_valid:
+        poly = shapely.make_valid(poly)
+    hulls = [shapely.convex_hull(shapely.multipoints(np.column_stack(f))) for f in fans]
+    return shapely.buffer(shapely.union_all([poly, *hulls]), pad_deg, quad_segs=2)
+
+
 class ObstacleMask:
     """The solver's obstacle callback for one grid (see :func:`obstacle_mask`).
 
@@ -76,10 +113,14 @@ class ObstacleMask:
         self.grid = grid
         self._obstacles = obstacles
         self._zones = zones
-        self.land = (
-            obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution)
-            if avoid.land else None
-        )
+        self.land = None
+        if avoid.land:
+            region = _region(grid)
+            self.land = (
+                obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution)
+                if region is None
+                else obstacles.land_within(region, margin_km=avoid.margin_km, resolution=avoid.resolution)
+            )
         self.static = tuple(z for z in avoid.zones if z.valid_from is None and z.valid_to is None)
         self.timed_zones = tuple(z for z in avoid.zones if z.valid_from is not None or z.valid_to is not None)
         if len(self.timed_zones) > 64:
@@ -146,7 +187,7 @@ class ObstacleMask:
                 elif k == g.n_ranks:
                     b = per[0].T  # (1, last-rank node)
                 elif per[0].shape == (g.n_nodes, g.n_nodes):  # (node, source node)
-                    b = per[0][np.arange(src.shape[0])[:, None], src]
+                    b = per[0] if src.shape[1] == g.n_nodes else per[0][np.arange(src.shape[0])[:, None], src]
                 else:  # banded: (source node, node - source node + band)
                     col = np.arange(src.shape[0])[:, None] - src + g.band
                     b = valid & per[0][src, np.clip(col, 0, per[0].shape[1] - 1)]

@@ -65,6 +65,7 @@ __all__ = [
     "arcs_blocked",
     "arcs_on_land",
     "tiles_tree",
+    "land_within",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -86,6 +87,7 @@ _BLOCK = 5  # cells per side of the blocks the inside raster is decided by first
 _LEAF_KM = 25.0  # pieces of arc longer than this near the geometry are halved before the exact test [km]
 _CHUNK_POINTS = 1_000_000  # densified points per exact-test chunk (bounds the memory)
 _BATCH_ARCS = 65_536  # arcs per batch of the coarse pass
+_SEGMENT_DEG = 0.05  # edges of the tiles are split to at most this [deg] (chords of great circles within 1 m)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -211,8 +213,11 @@ def _gshhs_meta(letter: str, resolution: str) -> tuple[Path, npt.NDArray[np.floa
     return dat, table[np.isin(table[:, 0], _LAND_LEVELS)]
 
 
-def _gshhs_polygons(resolution: str, bbox: tuple[float, float, float, float]) -> npt.NDArray[np.object_]:
-    """GSHHG land polygons that overlap ``bbox``, clipped to it (an object array of Polygons)."""
+def _gshhs_polygons(
+    resolution: str, bbox: tuple[float, float, float, float], region: shapely.Geometry | None = None
+) -> npt.NDArray[np.object_]:
+    """GSHHG land polygons that overlap ``bbox``, clipped to it (an object array of Polygons); with ``region``
+    (a lon/lat polygon inside ``bbox``), only the land inside the region."""
     west, south, east, north = bbox
     dat, table = _gshhs_meta(RESOLUTIONS[resolution], resolution)
     rows = table[(table[:, 3] <= north) & (table[:, 4] >= south)]
@@ -236,10 +241,17 @@ def _gshhs_polygons(resolution: str, bbox: tuple[float, float, float, float]) ->
     sel = keep[ring]
     ring_ids = np.cumsum(keep) - 1
     polys = shapely.polygons(shapely.linearrings(xy[sel], indices=ring_ids[ring[sel]]))
+    if region is not None:  # select first: the validity check below is the costly step
+        polys = polys[np.sort(shapely.STRtree(polys).query(region, predicate="intersects"))]
     bad = ~shapely.is_valid(polys)
     if bad.any():
         polys[bad] = shapely.make_valid(polys[bad])
-    return _clip_polygons(polys, bbox)
+    if region is None:
+        return _clip_polygons(polys, bbox)
+    shapely.prepare(region)
+    inside = shapely.contains(region, polys)
+    cross = ~inside & shapely.intersects(region, polys)
+    return _polygon_parts(np.concatenate([polys[inside], shapely.intersection(polys[cross], region)]))
 
 
 def _clip_polygons(polys: npt.NDArray[np.object_], bbox: tuple[float, float, float, float]) -> Any:
@@ -363,6 +375,55 @@ def _land_geometry(bbox: tuple[float, float, float, float], margin_km: float, re
     return geom
 
 
+def land_within(
+    region: shapely.Geometry, *, margin_km: float = 0.0, resolution: str = "intermediate"
+) -> shapely.Geometry:
+    """The land, grown by a coastal margin, that can touch anything inside a lon/lat region.
+
+    Only the coast within ``margin_km`` of the region is read and buffered, so a slanted band (a route's grid)
+    costs far less than :func:`land_geometry` of its bounding box. Parts of the result may reach up to the
+    margin beyond the region.
+
+    Parameters
+    ----------
+    region : shapely polygon in lon/lat [deg], longitudes in [-180, 180].
+    margin_km : Coastal margin [km] (see :func:`land_geometry`).
+    resolution : GSHHG resolution, one of :data:`RESOLUTIONS`.
+
+    Returns
+    -------
+    shapely.MultiPolygon in lon/lat [deg], prepared; cached on the arguments.
+
+    Examples
+    --------
+    >>> band = shapely.Polygon([(-62.0, 15.9), (-61.0, 15.9), (-61.0, 16.0), (-62.0, 16.0)])
+    >>> land = land_within(band, margin_km=5.0)  # off Guadeloupe's south coast
+    >>> land.intersects(shapely.Point(-61.7, 15.95)), land.intersects(shapely.Point(-61.45, 15.92))
+    (True, False)
+    """
+    margin = _checked_options(margin_km, resolution)
+    if not isinstance(region, shapely.Polygon | shapely.MultiPolygon) or region.is_empty:
+        raise ScenarioError(f"region must be a non-empty shapely Polygon or MultiPolygon (got {type(region).__name__})")
+    _checked_bbox(region.bounds)
+    return _land_within(shapely.to_wkb(region), margin, resolution)
+
+
+@functools.lru_cache(maxsize=16)
+def _land_within(wkb: bytes, margin_km: float, resolution: str) -> Any:
+    region = shapely.from_wkb(wkb)
+    w, s, e, n = region.bounds
+    m = margin_km / _KM_PER_DEG
+    m_lon = m / math.cos(math.radians(min(max(abs(s), abs(n)) + m, 89.9)))
+    reach = shapely.buffer(region, max(m_lon, 0.01), quad_segs=2)  # every point within the margin of the region
+    rw, rs, re_, rn = reach.bounds
+    box = (max(rw, -180.0), max(rs, -90.0), min(re_, 180.0), min(rn, 90.0))
+    polys = _gshhs_polygons(resolution, box, reach)
+    parts = _buffer_km(polys, margin_km, box) if (margin_km and len(polys)) else polys
+    geom = shapely.multipolygons(parts) if len(parts) else shapely.MultiPolygon()
+    shapely.prepare(geom)
+    return geom
+
+
 # --------------------------------------------------------------------------------------------------
 # Arc tests
 # --------------------------------------------------------------------------------------------------
@@ -469,14 +530,23 @@ def _index(geometry: shapely.Geometry) -> _Index:
 
 
 def tiles_tree(geometry: shapely.Geometry) -> shapely.STRtree:
-    """The geometry cut into 1 deg tiles, in an STRtree (cached on the geometry's identity)."""
+    """The geometry cut into 1 deg tiles, in an STRtree (cached on the geometry's identity).
+
+    Edges longer than 0.05 deg are split first, so a tile's edges along the geometry's boundary depart from the
+    great-circle chords between their vertices by under a metre (s^2 tan|lat| / (8 R)); the cut lines between
+    tiles are not split (they are shared by neighbouring tiles and lie inside the geometry).
+    """
     return _cached(_TREES, geometry, _build_tree)
 
 
 def _build_tree(geometry: shapely.Geometry) -> shapely.STRtree:
     parts = shapely.get_parts(geometry)
     parts = parts[~shapely.is_empty(parts)] if len(parts) else parts
-    return shapely.STRtree(_tiles(parts) if len(parts) else parts)
+    if len(parts) == 0:
+        return shapely.STRtree(parts)
+    # edges are split before the cut, so each tile's own (coastline) edges are short and the cut lines between
+    # tiles stay single segments (see pyroute_rel.strips: edges count as great-circle chords there)
+    return shapely.STRtree(_tiles(shapely.segmentize(parts, _SEGMENT_DEG)))
 
 
 def _build_index(geometry: shapely.Geometry) -> _Index:

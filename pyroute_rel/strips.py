@@ -26,10 +26,11 @@ Method
 Cost: (hull vertices of the clipped pieces) x (sources), independent of the number of arcs; a 160 x 160
 all-to-all grid (4 M arcs) over the Atlantic coasts is tested in a fraction of a second.
 
-Accuracy: the area's edges are taken as great-circle chords between its vertices, which are first inserted
-every ``_SEGMENT_DEG`` along lon/lat edges; a lon/lat edge of length s departs from its chord by about
-s^2 tan|lat| / (8 R), under a metre here. Arcs are exact great circles. This is the same tolerance as
-:func:`pyroute_rel.obstacles.arcs_blocked`, which densifies the arcs instead.
+Accuracy: the area's edges are taken as great-circle chords between their vertices. A lon/lat edge of length s
+departs from its chord by about s^2 tan|lat| / (8 R): split long boundary edges first, as
+:func:`pyroute_rel.obstacles.tiles_tree` does (0.05 deg: under a metre). Edges that pieces share (cuts between
+tiles) need no splitting: both pieces take the same chord, so their union is unchanged. Arcs are exact great
+circles. This is the tolerance of :func:`pyroute_rel.obstacles.arcs_blocked`, which densifies the arcs instead.
 
 Limits: groups whose points are not within 80 deg of their frame centre, whose sources are not on one great
 circle through P, or whose source and target lines (nearly) meet are reported as not handled, for the caller
@@ -52,13 +53,13 @@ FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 IntArray = npt.NDArray[np.intp]
 
-_SEGMENT_DEG = 0.05  # area edges are split to at most this [deg] before projection (see Accuracy)
 _QUERY_PAD_KM = 10.0  # the outlines that select candidate pieces are grown by this in the gnomonic plane [km]
 _QUERY_STEP_KM = 25.0  # outline edges follow their great circles in steps of this [km]
 _SLICE_KM = 300.0  # outlines are cut into slices at most this long [km]
 _MAX_ANGLE_COS = math.cos(math.radians(80.0))  # points farther than 80 deg from a frame centre: not handled
 _ON_LINE_TOL = 1e-9  # sources (targets) must lie on their great circle to this [rad]
 _CHUNK = 2_000_000  # (vertex, source) pairs per chunk of the shadow computation
+_MARK_CHUNK = 262_144  # arcs per chunk of the marking (its arrays stay in cache)
 _R_KM = 6371.0088
 
 
@@ -253,8 +254,9 @@ def _candidates(
         geoms = np.concatenate([geoms, *extra_g])
         owner = np.concatenate([owner, *extra_o])
     q = tree.query(geoms, predicate="intersects")
-    pairs = np.unique(np.stack([owner[q[0]], q[1]]), axis=1)
-    return pairs[0], pairs[1]
+    n_pieces = len(tree)
+    pairs = np.unique(owner[q[0]] * n_pieces + q[1])
+    return pairs // n_pieces, pairs % n_pieces
 
 
 def fans_blocked(groups: Sequence[Group], trees: Sequence[shapely.STRtree]) -> list[list[BoolArray | None]]:
@@ -292,15 +294,16 @@ def fans_blocked(groups: Sequence[Group], trees: Sequence[shapely.STRtree]) -> l
             raise ValueError("every group needs at least one source and one target")
     src = _points([g.src_lon for g in groups], [g.src_lat for g in groups])
     dst = _points([g.dst_lon for g in groups], [g.dst_lat for g in groups])
-    _, ok = _frames(src, dst)
+    frames, ok = _frames(src, dst)
     keep = [int(i) for i in np.flatnonzero(ok)]
     if not keep:
         return out
     if len(keep) < len(groups):
         src = _points([groups[i].src_lon for i in keep], [groups[i].src_lat for i in keep])
         dst = _points([groups[i].dst_lon for i in keep], [groups[i].dst_lat for i in keep])
-    frames, _ = _frames(src, dst)
+        frames, _ = _frames(src, dst)
     outlines = _outlines(frames, src.count)
+    shapely.prepare(outlines[0])  # queried once per area
     bands = [groups[i].band for i in keep]
     for t, tree in enumerate(trees):
         blocked = _shadows(frames, src, dst, bands, outlines, tree)
@@ -326,7 +329,7 @@ def _shadows(
     if grp.size == 0:
         return result
     # 1. project the candidate pieces into their group's (u, t) plane and clip them to the band 0 <= t <= 1
-    geoms = shapely.segmentize(tree.geometries.take(piece), _SEGMENT_DEG)
+    geoms = tree.geometries.take(piece)
     owner = np.repeat(grp, shapely.get_num_coordinates(geoms))
 
     def project(lonlat: FloatArray) -> FloatArray:
@@ -340,14 +343,16 @@ def _shadows(
     if parts.size == 0:
         return result
     # 2. convex hull vertices of each connected piece
-    xy, vert_part = shapely.get_coordinates(shapely.convex_hull(parts), return_index=True)
+    hulls = shapely.convex_hull(parts)
+    xy, vert_part = shapely.get_coordinates(hulls, return_index=True)
     nv = np.bincount(vert_part, minlength=parts.size)
     v_start = np.cumsum(nv) - nv
+    nv = np.where(shapely.get_type_id(hulls) == shapely.GeometryType.POLYGON, nv - 1, nv)  # not the closing vertex
     inv_t = 1.0 / np.maximum(xy[:, 1], 1e-200)
     # 3. shadows: for each (piece, source) the interval of target-line positions u the piece hides. Pieces are
     # bucketed by hull size (padded by repeating a vertex) and source count, so each bucket is one broadcast.
     src_u, _ = frames.project(src.v, src.group)
-    bucket = np.maximum(4, 2 ** np.ceil(np.log2(np.maximum(nv, 1)))).astype(np.intp)
+    bucket = np.where(nv <= 16, nv, 2 ** np.ceil(np.log2(np.maximum(nv, 1)))).astype(np.intp)
     rows_g, rows_i, lo_all, hi_all = [], [], [], []
     for kk in np.unique(bucket):
         in_k = bucket == kk
@@ -394,7 +399,7 @@ def _shadows(
     while b < busy.size:
         g_lo = int(busy[b])
         e = b + 1
-        while e < busy.size and size[g_lo : busy[e] + 1].sum() <= _CHUNK:
+        while e < busy.size and size[g_lo : busy[e] + 1].sum() <= _MARK_CHUNK:
             e += 1
         g_hi = int(busy[e - 1]) + 1
         b = e

@@ -135,7 +135,10 @@ def test_the_grid_sweep_equals_the_arc_by_arc_test_on_every_arc() -> None:
     avoid = Avoid(land=True, margin_km=10.0, zones=(zone,))
     mask = obstacle_mask(grid, avoid)
     assert mask is not None
-    land = mask.land
+    # reference land: the whole bounding box of the grid, not the grid's own region that the mask reads
+    lon = np.concatenate([grid.lon_deg.ravel(), grid.start_points[0], [grid.finish[0]]])
+    lat = np.concatenate([grid.lat_deg.ravel(), grid.start_points[1], [grid.finish[1]]])
+    land = ob.land_geometry((lon.min() - 1, lat.min() - 1, lon.max() + 1, lat.max() + 1), margin_km=10.0)
     for k in range(grid.n_ranks + 1):
         known = mask.known(k)
         assert known.all()
