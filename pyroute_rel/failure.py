@@ -26,11 +26,11 @@ from __future__ import annotations
 
 import hashlib
 import importlib.metadata
+import io
 import itertools
 import json
 import os
 import re
-import tempfile
 import tomllib
 import warnings
 from collections.abc import Iterator, Mapping
@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from . import diskcache
 from .errors import FailureModelError
 
 __all__ = [
@@ -89,7 +90,6 @@ _CRITERION_KEYS = ("node", "quantity", "operator", "threshold", "fired", "bins",
                    "if_missing", "note")
 _PROB_ATOL = 1e-6
 _CACHE_FORMAT = "1"
-_CACHE_ENV = "PYROUTE_REL_CACHE_DIR"
 _MEMORY: dict[str, _Compiled] = {}  # compiled tables by hash of the model files
 _NETWORKS: dict[str, Any] = {}  # checked pgmpy networks by hash of the network file
 
@@ -850,15 +850,6 @@ def _cache_key(toml_bytes: bytes, net_bytes: bytes) -> str:
     return h.hexdigest()[:32]
 
 
-def _cache_dir() -> Path:
-    env = os.environ.get(_CACHE_ENV)
-    if env:
-        return Path(env).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
-    return base / "pyroute_rel"
-
-
 def _fits(compiled: _Compiled, spec: dict[str, Any]) -> bool:
     """Whether a cached entry has the table shape the model's criteria imply."""
     try:
@@ -869,33 +860,19 @@ def _fits(compiled: _Compiled, spec: dict[str, Any]) -> bool:
 
 
 def _disk_get(key: str) -> _Compiled | None:
-    path = _cache_dir() / f"failure-{key}.npz"
+    data = diskcache.read(f"failure-{key}.npz")
+    if data is None:
+        return None
     try:
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            table = np.array(data["table"], dtype=float)
+        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+            meta = json.loads(str(npz["meta"]))
+            table = np.array(npz["table"], dtype=float)
         return _Compiled(nodes=list(meta["nodes"]), edges=[list(e) for e in meta["edges"]],
                          states={k: list(v) for k, v in meta["states"].items()}, table=table)
-    except Exception:  # absent, unreadable or corrupt: compile again
+    except Exception:  # unreadable or corrupt: compile again
         return None
 
 
 def _disk_put(key: str, compiled: _Compiled) -> None:
-    folder = _cache_dir()
     meta = json.dumps({"nodes": compiled.nodes, "edges": compiled.edges, "states": compiled.states})
-    tmp = None
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".failure-", suffix=".tmp", dir=folder)
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, table=compiled.table, meta=np.array(meta))
-        os.replace(tmp, folder / f"failure-{key}.npz")
-        tmp = None
-    except OSError:
-        pass  # not writable: run without a disk cache
-    finally:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
+    diskcache.write(f"failure-{key}.npz", lambda fh: np.savez(fh, table=compiled.table, meta=np.array(meta)))

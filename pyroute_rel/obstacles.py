@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import functools
 import importlib.util
+import io
 import math
 import os
 from collections.abc import Sequence
@@ -55,6 +56,7 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
+from . import diskcache
 from .errors import GridError, ScenarioError
 from .parallel import default_workers, thread_map
 
@@ -208,9 +210,21 @@ def _gshhs_paths(letter: str, resolution: str) -> tuple[Path, Path]:
 @functools.lru_cache(maxsize=5)
 def _gshhs_meta(letter: str, resolution: str) -> tuple[Path, npt.NDArray[np.float64]]:
     dat, meta = _gshhs_paths(letter, resolution)
-    # columns: level, area [km2], n points, south, north [deg], byte offset, byte count (then an id)
-    table = np.loadtxt(meta, usecols=range(7), ndmin=2)
-    return dat, table[np.isin(table[:, 0], _LAND_LEVELS)]
+    stat = meta.stat()
+    name = "gshhs-" + diskcache.key([b"meta-1", str(meta).encode(), f"{stat.st_size}:{stat.st_mtime_ns}".encode()])
+    data = diskcache.read(name + ".npy")  # parsing the text table takes ~0.1 s; the binary copy ~1 ms
+    table = None
+    if data is not None:
+        try:
+            table = np.load(io.BytesIO(data), allow_pickle=False)
+        except Exception:  # corrupt: parse again
+            table = None
+    if table is None or table.ndim != 2 or table.shape[1] != 7:
+        # columns: level, area [km2], n points, south, north [deg], byte offset, byte count (then an id)
+        table = np.loadtxt(meta, usecols=range(7), ndmin=2)
+        table = table[np.isin(table[:, 0], _LAND_LEVELS)]
+        diskcache.write(name + ".npy", lambda fh: np.save(fh, table, allow_pickle=False))
+    return dat, table
 
 
 def _gshhs_polygons(
@@ -392,7 +406,8 @@ def land_within(
 
     Returns
     -------
-    shapely.MultiPolygon in lon/lat [deg], prepared; cached on the arguments.
+    shapely.MultiPolygon in lon/lat [deg], prepared; cached on the arguments in memory and, with a margin, on
+    disk (:mod:`pyroute_rel.diskcache`), so later runs of the same course skip the buffering.
 
     Examples
     --------
@@ -408,9 +423,35 @@ def land_within(
     return _land_within(shapely.to_wkb(region), margin, resolution)
 
 
+_LAND_CACHE_FORMAT = b"land-within-1"  # bump when the buffering changes: old disk entries then go unused
+_LAND_CACHE_KEEP = 64  # newest coastlines kept on disk (each well under 1 MB)
+
+
 @functools.lru_cache(maxsize=16)
 def _land_within(wkb: bytes, margin_km: float, resolution: str) -> Any:
-    region = shapely.from_wkb(wkb)
+    """Land within a region, from memory, else from the disk cache (margins only: buffering is the cost)."""
+    name = None
+    if margin_km:
+        dat, _ = _gshhs_meta(RESOLUTIONS[resolution], resolution)
+        stat = dat.stat()
+        source = f"{dat.name}:{stat.st_size}:{stat.st_mtime_ns}".encode()
+        name = "land-" + diskcache.key([_LAND_CACHE_FORMAT, source, repr(float(margin_km)).encode(), wkb]) + ".wkb"
+        data = diskcache.read(name)
+        if data is not None:
+            try:
+                geom = shapely.from_wkb(data)
+            except Exception:  # corrupt: make it again
+                geom = None
+            if isinstance(geom, shapely.MultiPolygon):
+                shapely.prepare(geom)
+                return geom
+    geom = _make_land_within(shapely.from_wkb(wkb), margin_km, resolution)
+    if name is not None:
+        diskcache.write(name, shapely.to_wkb(geom), keep=_LAND_CACHE_KEEP)
+    return geom
+
+
+def _make_land_within(region: shapely.Geometry, margin_km: float, resolution: str) -> Any:
     w, s, e, n = region.bounds
     m = margin_km / _KM_PER_DEG
     m_lon = m / math.cos(math.radians(min(max(abs(s), abs(n)) + m, 89.9)))
@@ -614,6 +655,7 @@ def _tiles(parts: npt.NDArray[np.object_]) -> npt.NDArray[np.object_]:
 
 
 def _cut(parts: npt.NDArray[np.object_], size: float) -> npt.NDArray[np.object_]:
+    """Polygons cut on a ``size`` [deg] grid: rectangle clips (linear time), one vectorised call per grid cell."""
     b = shapely.bounds(parts)
     i0, j0 = np.floor(b[:, 0] / size), np.floor(b[:, 1] / size)
     i1, j1 = np.ceil(b[:, 2] / size), np.ceil(b[:, 3] / size)
@@ -626,9 +668,17 @@ def _cut(parts: npt.NDArray[np.object_], size: float) -> npt.NDArray[np.object_]
     owner = np.repeat(big, count)
     k = np.arange(owner.size) - np.repeat(np.cumsum(count) - count, count)
     jj, ii = np.divmod(k, nx[owner])
-    x, y = (i0[owner] + ii) * size, (j0[owner] + jj) * size
-    cut = shapely.get_parts(shapely.intersection(parts[owner], shapely.box(x, y, x + size, y + size)))
-    cut = cut[~shapely.is_empty(cut)]
+    span = 1 << 20  # cell indices offset to be non-negative, then packed into one key
+    key = (i0[owner] + ii + span // 2).astype(np.int64) * span + (j0[owner] + jj + span // 2).astype(np.int64)
+    order = np.argsort(key, kind="stable")
+    cells, first = np.unique(key[order], return_index=True)
+    last = np.append(first[1:], order.size)
+    pieces = []
+    for cell, lo, hi in zip(cells.tolist(), first.tolist(), last.tolist(), strict=True):
+        x, y = (cell // span - span // 2) * size, (cell % span - span // 2) * size
+        pieces.append(shapely.clip_by_rect(parts[owner[order[lo:hi]]], x, y, x + size, y + size))
+    cut = shapely.get_parts(np.concatenate(pieces))
+    cut = cut[(shapely.get_type_id(cut) == shapely.GeometryType.POLYGON) & ~shapely.is_empty(cut)]
     return np.concatenate([parts[small], cut])
 
 

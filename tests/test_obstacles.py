@@ -582,3 +582,43 @@ def test_margin_buffered_in_threads_equals_one_thread(monkeypatch) -> None:
     ob._land_geometry.cache_clear()
     assert shapely.equals_exact(out[0], out[1], tolerance=0.0)
     assert out[0].area > ob.land_geometry(box).area  # the margin grew the land
+
+
+def test_land_within_is_kept_on_disk_and_read_back(tmp_path: Path, monkeypatch) -> None:
+    # a later process (simulated by clearing the in-memory cache) reads the grown coastline back from disk; a
+    # corrupt entry is made again; an unwritable cache folder only costs the time
+    from pyroute_rel import diskcache
+
+    monkeypatch.setenv(diskcache.ENV, str(tmp_path / "cache"))
+    region = shapely.box(-62.0, 15.5, -61.0, 16.6)  # Guadeloupe
+    ob._land_within.cache_clear()
+    made = ob.land_within(region, margin_km=3.0)
+    (entry,) = (tmp_path / "cache").glob("land-*.wkb")
+    ob._land_within.cache_clear()
+    monkeypatch.setattr(ob, "_make_land_within", lambda *a: pytest.fail("buffered again despite the disk cache"))
+    again = ob.land_within(region, margin_km=3.0)
+    assert again.equals_exact(made, 0.0) and again is not made
+    monkeypatch.undo()
+    monkeypatch.setenv(diskcache.ENV, str(tmp_path / "cache"))
+    entry.write_bytes(b"not wkb")
+    ob._land_within.cache_clear()
+    assert ob.land_within(region, margin_km=3.0).equals_exact(made, 0.0)
+    assert shapely.from_wkb(entry.read_bytes()).equals_exact(made, 0.0)  # rewritten
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    monkeypatch.setenv(diskcache.ENV, str(blocker / "cache"))  # a folder that cannot be made
+    ob._land_within.cache_clear()
+    assert ob.land_within(region, margin_km=3.0).equals_exact(made, 0.0)
+    ob._land_within.cache_clear()
+
+
+def test_land_within_matches_land_geometry_inside_the_region() -> None:
+    # the region's land equals the bounding-box land wherever the region is (coasts cut at the region's edge are
+    # grown from the land within the margin of the region, which the region's reach includes)
+    region = shapely.Polygon([(-62.5, 15.0), (-60.5, 16.0), (-60.5, 16.6), (-62.5, 15.6)])
+    for margin in (0.0, 8.0):
+        got = ob.land_within(region, margin_km=margin)
+        ref = ob.land_geometry((-64.0, 14.0, -59.0, 18.0), margin_km=margin)
+        diff = shapely.symmetric_difference(shapely.intersection(got, region), shapely.intersection(ref, region))
+        assert diff.area < 1e-9 * max(ref.area, 1e-9)
+        assert shapely.intersection(ref, region).area > 0.01  # Guadeloupe is really inside
