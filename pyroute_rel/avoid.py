@@ -5,6 +5,11 @@ Whether an arc touches land or a zone does not depend on time, so each arc is te
 answer kept on the grid (routing the same grid again - another apf, departure or weather - reuses it). Zones with
 a ``valid_from``/``valid_to`` window are remembered per arc as a bit set, and their windows are applied to each
 arc's departure time when the solver asks.
+
+On first use every arc of the grid is tested at once by rank-pair shadows (:mod:`pyroute_rel.strips`), against
+the land (grown by the margin) within the grid's own outline (:func:`pyroute_rel.obstacles.land_within`) and each
+zone. Ranks the shadows cannot take are tested arc by arc (:func:`pyroute_rel.obstacles.arcs_blocked`), only for
+the arcs the solver would pick.
 """
 
 from __future__ import annotations
@@ -98,11 +103,12 @@ def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
 class ObstacleMask:
     """The solver's obstacle callback for one grid (see :func:`obstacle_mask`).
 
-    ``mask(k, times)`` gives every arc into rank k. The solver instead asks lazily: ``learn(k, select)`` tests
-    only the selected arcs (the few it would pick, which on a grid over continents is a small fraction) and
-    ``hits(k, times)`` answers for the arcs learnt so far. What is learnt is cached on the grid: per arc,
-    whether it touches land or a zone without a time window, and which zones with a window it touches (their
-    windows are applied to the departure times on every call, which costs no geometry).
+    ``mask(k, times)`` gives every arc into rank k. The solver asks through ``known(k)``, ``learn(k, select)``
+    and ``hits(k, times)``: the first question sweeps the whole grid (see the module notes), after which every
+    arc is known; where the sweep does not apply, ``learn`` tests only the selected arcs (the few the solver would
+    pick). What is known is cached on the grid: per arc, whether it touches land or a zone without a time window,
+    and which zones with a window it touches (their windows are applied to the departure times on every call,
+    which costs no geometry).
     """
 
     def __init__(self, grid: Grid, avoid: Avoid) -> None:

@@ -1,8 +1,11 @@
 """Land and coastal margins: which great-circle arcs a craft may not sail, and the arc-versus-area test.
 
-A route over land is worthless. This module answers, vectorised over arrays of arcs, *does this arc touch that
-area?* (:func:`arcs_blocked`, for land and for the user's exclusion zones of :mod:`pyroute_rel.zones` alike). The
-grid caches the answer per arc; nothing here is queried per arc in a Python loop.
+A route over land is worthless. This module reads the land (:func:`land_geometry` for a box,
+:func:`land_within` for a grid's outline, both optionally grown by a coastal margin), cuts it into tiles
+(:func:`tiles_tree`) and answers, vectorised over arrays of arcs, *does this arc touch that area?*
+(:func:`arcs_blocked`, for land and for the user's exclusion zones of :mod:`pyroute_rel.zones` alike). Whole rank
+pairs are tested at once by :mod:`pyroute_rel.strips`; the grid caches the answer per arc; nothing here is queried
+per arc in a Python loop.
 
 Coastline source
 ----------------
