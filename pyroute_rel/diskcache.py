@@ -17,9 +17,11 @@ import os
 import tempfile
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, TypeVar
 
-__all__ = ["cache_dir", "key", "read", "write"]
+__all__ = ["cache_dir", "key", "stamp", "read", "load", "write"]
+
+T = TypeVar("T")
 
 ENV = "PYROUTE_REL_CACHE_DIR"
 
@@ -43,11 +45,29 @@ def key(parts: Iterable[bytes]) -> str:
     return h.hexdigest()[:32]
 
 
+def stamp(path: Path) -> bytes:
+    """What identifies a source file's version for a key: its path, size and modification time."""
+    st = path.stat()
+    return f"{path}:{st.st_size}:{st.st_mtime_ns}".encode()
+
+
 def read(name: str) -> bytes | None:
     """The bytes of entry ``name``, or None when it is absent or unreadable."""
     try:
         return (cache_dir() / name).read_bytes()
     except OSError:
+        return None
+
+
+def load(name: str, decode: Callable[[bytes], T | None]) -> T | None:
+    """Entry ``name`` decoded, or None when it is absent, unreadable, or ``decode`` fails on it (a corrupt entry
+    is then simply made again by the caller)."""
+    data = read(name)
+    if data is None:
+        return None
+    try:
+        return decode(data)
+    except Exception:
         return None
 
 

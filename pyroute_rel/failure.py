@@ -860,17 +860,14 @@ def _fits(compiled: _Compiled, spec: dict[str, Any]) -> bool:
 
 
 def _disk_get(key: str) -> _Compiled | None:
-    data = diskcache.read(f"failure-{key}.npz")
-    if data is None:
-        return None
-    try:
+    def decode(data: bytes) -> _Compiled:
         with np.load(io.BytesIO(data), allow_pickle=False) as npz:
             meta = json.loads(str(npz["meta"]))
             table = np.array(npz["table"], dtype=float)
         return _Compiled(nodes=list(meta["nodes"]), edges=[list(e) for e in meta["edges"]],
                          states={k: list(v) for k, v in meta["states"].items()}, table=table)
-    except Exception:  # unreadable or corrupt: compile again
-        return None
+
+    return diskcache.load(f"failure-{key}.npz", decode)  # None when absent or corrupt: compile again
 
 
 def _disk_put(key: str, compiled: _Compiled) -> None:

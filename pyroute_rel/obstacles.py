@@ -213,20 +213,18 @@ def _gshhs_paths(letter: str, resolution: str) -> tuple[Path, Path]:
 @functools.lru_cache(maxsize=5)
 def _gshhs_meta(letter: str, resolution: str) -> tuple[Path, npt.NDArray[np.float64]]:
     dat, meta = _gshhs_paths(letter, resolution)
-    stat = meta.stat()
-    name = "gshhs-" + diskcache.key([b"meta-1", str(meta).encode(), f"{stat.st_size}:{stat.st_mtime_ns}".encode()])
-    data = diskcache.read(name + ".npy")  # parsing the text table takes ~0.1 s; the binary copy ~1 ms
-    table = None
-    if data is not None:
-        try:
-            table = np.load(io.BytesIO(data), allow_pickle=False)
-        except Exception:  # corrupt: parse again
-            table = None
-    if table is None or table.ndim != 2 or table.shape[1] != 7:
+    name = "gshhs-" + diskcache.key([b"meta-1", diskcache.stamp(meta)]) + ".npy"
+
+    def decode(data: bytes) -> npt.NDArray[np.float64] | None:
+        table = np.load(io.BytesIO(data), allow_pickle=False)
+        return table if table.ndim == 2 and table.shape[1] == 7 else None
+
+    table = diskcache.load(name, decode)  # parsing the text table takes ~0.1 s; the binary copy ~1 ms
+    if table is None:
         # columns: level, area [km2], n points, south, north [deg], byte offset, byte count (then an id)
-        table = np.loadtxt(meta, usecols=range(7), ndmin=2)
-        table = table[np.isin(table[:, 0], _LAND_LEVELS)]
-        diskcache.write(name + ".npy", lambda fh: np.save(fh, table, allow_pickle=False))
+        parsed = np.loadtxt(meta, usecols=range(7), ndmin=2)
+        table = parsed[np.isin(parsed[:, 0], _LAND_LEVELS)]
+        diskcache.write(name, lambda fh: np.save(fh, table, allow_pickle=False))
     return dat, table
 
 
@@ -436,21 +434,21 @@ def _land_within(wkb: bytes, margin_km: float, resolution: str) -> Any:
     name = None
     if margin_km:
         dat, _ = _gshhs_meta(RESOLUTIONS[resolution], resolution)
-        stat = dat.stat()
-        source = f"{dat.name}:{stat.st_size}:{stat.st_mtime_ns}".encode()
-        name = "land-" + diskcache.key([_LAND_CACHE_FORMAT, source, repr(float(margin_km)).encode(), wkb]) + ".wkb"
-        data = diskcache.read(name)
-        if data is not None:
-            try:
-                geom = shapely.from_wkb(data)
-            except Exception:  # corrupt: make it again
-                geom = None
-            if isinstance(geom, shapely.MultiPolygon):
-                shapely.prepare(geom)
-                return geom
+        parts = [_LAND_CACHE_FORMAT, diskcache.stamp(dat), repr(float(margin_km)).encode(), wkb]
+        name = "land-" + diskcache.key(parts) + ".wkb"
+        geom = diskcache.load(name, lambda data: _prepared_multipolygon(shapely.from_wkb(data)))
+        if geom is not None:
+            return geom
     geom = _make_land_within(shapely.from_wkb(wkb), margin_km, resolution)
     if name is not None:
         diskcache.write(name, shapely.to_wkb(geom), keep=_LAND_CACHE_KEEP)
+    return geom
+
+
+def _prepared_multipolygon(geom: Any) -> Any:
+    if not isinstance(geom, shapely.MultiPolygon):
+        return None
+    shapely.prepare(geom)
     return geom
 
 

@@ -47,6 +47,8 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
+from .geodesy import _from_xyz, to_xyz
+
 __all__ = ["Group", "fans_blocked"]
 
 FloatArray = npt.NDArray[np.float64]
@@ -78,23 +80,12 @@ class Group:
     band: int | None = None
 
 
-def _unit(lon: FloatArray, lat: FloatArray) -> FloatArray:
-    lam, phi = np.radians(lon), np.radians(lat)
-    c = np.cos(phi)
-    return np.stack([c * np.cos(lam), c * np.sin(lam), np.sin(phi)], axis=-1)
-
-
 def _norm(v: FloatArray) -> FloatArray:
     return np.sqrt(np.einsum("ij,ij->i", v, v))
 
 
 def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.einsum("ij,ij->i", a, b)
-
-
-def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    return np.column_stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                            a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]])
 
 
 def _unitize(v: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -127,7 +118,7 @@ class _Points:
 def _points(lons: list[FloatArray], lats: list[FloatArray]) -> _Points:
     counts = np.array([len(a) for a in lons], dtype=np.intp)
     off = np.concatenate([[0], np.cumsum(counts)]).astype(np.intp)
-    v = _unit(np.concatenate(lons).astype(float), np.concatenate(lats).astype(float))
+    v = to_xyz(np.concatenate(lons).astype(float), np.concatenate(lats).astype(float))
     return _Points(v, np.repeat(np.arange(len(counts)), counts), off)
 
 
@@ -151,22 +142,22 @@ class _Frames:
 def _frames(src: _Points, dst: _Points) -> tuple[_Frames, BoolArray]:
     """Every group's frame, and which groups the method handles (see the module notes)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        n_b, nb_len = _unitize(_cross(dst.first(), dst.last()))
+        n_b, nb_len = _unitize(np.cross(dst.first(), dst.last()))
         ok = (dst.count >= 2) & (nb_len > 1e-12)
         ok &= dst.reduce(np.maximum, np.abs(_dot(dst.v, n_b[dst.group]))) <= _ON_LINE_TOL
         single = src.count == 1
         s0 = src.first()
         off = _dot(s0, n_b)
         foot, _ = _unitize(s0 - off[:, None] * n_b)
-        n_a, na_len = _unitize(_cross(s0, src.last()))
+        n_a, na_len = _unitize(np.cross(s0, src.last()))
         on_a = src.reduce(np.maximum, np.abs(_dot(src.v, n_a[src.group]))) <= _ON_LINE_TOL
         ok &= np.where(single, np.abs(off) >= 1e-9, (na_len > 1e-12) & on_a)
-        p, p_len = _unitize(np.where(single[:, None], _cross(s0, foot), _cross(n_a, n_b)))
+        p, p_len = _unitize(np.where(single[:, None], np.cross(s0, foot), np.cross(n_a, n_b)))
         ok &= p_len > 1e-9
         m = src.reduce(np.add, src.v) / src.count[:, None] + dst.reduce(np.add, dst.v) / dst.count[:, None]
         c, c_len = _unitize(m - _dot(m, p)[:, None] * p)
         ok &= c_len > 1e-9
-        y = _cross(c, p)
+        y = np.cross(c, p)
         ws, wd = _dot(src.v, c[src.group]), _dot(dst.v, c[dst.group])
         ok &= (src.reduce(np.minimum, ws) > _MAX_ANGLE_COS) & (dst.reduce(np.minimum, wd) > _MAX_ANGLE_COS)
         gys, gyd = _dot(src.v, y[src.group]) / ws, _dot(dst.v, y[dst.group]) / wd
@@ -226,8 +217,7 @@ def _outlines(frames: _Frames, n_src: IntArray) -> tuple[npt.NDArray[np.object_]
     g = owner[sl]
     gx, gy = u * frames.du[g] + frames.u0[g], t * frames.dt[g] + frames.t0[g]
     v = frames.c[g] + gx[:, None] * frames.x[g] + gy[:, None] * frames.y[g]
-    lon = np.degrees(np.arctan2(v[:, 1], v[:, 0]))
-    lat = np.degrees(np.arctan2(v[:, 2], np.hypot(v[:, 0], v[:, 1])))
+    lon, lat = _from_xyz(v)
     first = np.cumsum(per) - per
     step = np.concatenate([[0.0], (np.diff(lon) + 180.0) % 360.0 - 180.0])
     run = np.cumsum(step)
@@ -333,7 +323,7 @@ def _shadows(
     owner = np.repeat(grp, shapely.get_num_coordinates(geoms))
 
     def project(lonlat: FloatArray) -> FloatArray:
-        u, t = frames.project(_unit(lonlat[:, 0], lonlat[:, 1]), owner)
+        u, t = frames.project(to_xyz(lonlat[:, 0], lonlat[:, 1]), owner)
         return np.column_stack([u, t])
 
     clipped = shapely.clip_by_rect(shapely.transform(geoms, project), -0.01, 0.0, 1.01, 1.0)
