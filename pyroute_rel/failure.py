@@ -9,8 +9,11 @@ The network is compiled once: pgmpy's variable elimination gives the joint distr
 and the criteria nodes, from which ``P(target = fail | evidence)`` follows for every combination of
 evidence states (and for every subset left unobserved, used when a quantity is missing and its
 criterion says ``if_missing = "prior"``). The table is cached in memory and on disk, keyed by a hash of
-the model files and the pgmpy version, so later runs do not import pgmpy at all. Routing only gathers
-from the table (:meth:`FailureModel.p_fail`), never queries the network per arc.
+the model files and the pgmpy version, so later runs do not import pgmpy at all. The shipped models' tables
+come compiled with the package (``failure_models/compiled_tables.json``, keyed by a hash of the model files'
+bytes and checked against pgmpy by the tests), so even a first run of a shipped model skips pgmpy (about 5 s
+and 300 MB). Routing only gathers from the table (:meth:`FailureModel.p_fail`), never queries the network per
+arc.
 
 Missing values: a NaN quantity is never read as "criterion not met". By default (``if_missing = "nan"``)
 the probability of failure is NaN there, and the cost module forbids the arc as missing weather. A
@@ -24,6 +27,7 @@ Proc. International Robotic Sailing Conference 2018, section 2.1, Figure 1, Tabl
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.metadata
 import io
@@ -90,6 +94,7 @@ _CRITERION_KEYS = ("node", "quantity", "operator", "threshold", "fired", "bins",
                    "if_missing", "note")
 _PROB_ATOL = 1e-6
 _CACHE_FORMAT = "1"
+_SHIPPED_TABLES = "compiled_tables.json"  # compiled tables of the shipped models, in failure_models/
 _MEMORY: dict[str, _Compiled] = {}  # compiled tables by hash of the model files
 _NETWORKS: dict[str, Any] = {}  # checked pgmpy networks by hash of the network file
 
@@ -466,7 +471,9 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     key = _cache_key(toml_bytes, net_bytes)
     compiled = _MEMORY.get(key) if cache else None
     if compiled is None and cache:
-        compiled = _disk_get(key)
+        compiled = _shipped_tables().get(_content_key(toml_bytes, net_bytes))
+        if compiled is None:
+            compiled = _disk_get(key)
         if compiled is not None and not _fits(compiled, spec):  # a damaged or foreign entry
             compiled = None
     if compiled is None:
@@ -850,6 +857,61 @@ def _cache_key(toml_bytes: bytes, net_bytes: bytes) -> str:
     return h.hexdigest()[:32]
 
 
+def _content_key(toml_bytes: bytes, net_bytes: bytes) -> str:
+    """Hash of a model's two files (any copy of a shipped model with the same bytes has the same key)."""
+    h = hashlib.sha256()
+    for part in (b"shipped-table-1", toml_bytes, net_bytes):
+        h.update(len(part).to_bytes(8, "little"))
+        h.update(part)
+    return h.hexdigest()[:32]
+
+
+@functools.lru_cache(maxsize=1)
+def _shipped_tables() -> dict[str, _Compiled]:
+    """The compiled tables shipped in ``failure_models/compiled_tables.json``, by :func:`_content_key`.
+
+    Variable elimination is exact, so a table depends only on the model's files, not on the pgmpy version;
+    ``tests/test_failure.py`` compiles every shipped model with pgmpy and compares. A missing or unreadable file
+    only means compiling (and the disk cache) as for any other model.
+    """
+    try:
+        doc = json.loads(_shipped().joinpath(_SHIPPED_TABLES).read_text(encoding="utf-8"))
+        out = {}
+        for entry in doc["models"].values():
+            table = np.array(entry["table"], dtype=float).reshape(entry["shape"])
+            out[entry["key"]] = _Compiled(nodes=list(entry["nodes"]), edges=[list(e) for e in entry["edges"]],
+                                          states={k: list(v) for k, v in entry["states"].items()}, table=table)
+        return out
+    except (OSError, ValueError, KeyError, TypeError):
+        return {}
+
+
+def write_shipped_tables() -> Path:
+    """Compile every shipped model with pgmpy and write ``failure_models/compiled_tables.json`` (a developer's
+    step after editing a shipped model: ``python -m pyroute_rel.failure``). Returns the file's path."""
+    models = {}
+    for name in list_failure_models():
+        toml_file = _shipped().joinpath(f"{name}.toml")
+        toml_bytes = toml_file.read_bytes()
+        spec = _parse_spec(tomllib.loads(toml_bytes.decode("utf-8")), str(toml_file), default_name=name)
+        net_file = _sibling(toml_file, spec["network"])
+        net_bytes = net_file.read_bytes()
+        c = _compile(net_bytes, str(net_file), spec, str(toml_file))
+        models[name] = {"key": _content_key(toml_bytes, net_bytes), "nodes": c.nodes, "edges": c.edges,
+                        "states": c.states, "shape": list(c.table.shape), "table": c.table.ravel().tolist()}
+    doc = {"about": "P(fail | evidence) of the shipped failure models, compiled with pgmpy by "
+                    "`python -m pyroute_rel.failure`; used only while the model files' hashes match",
+           "models": models}
+    path = Path(str(_shipped().joinpath(_SHIPPED_TABLES)))
+    tmp = path.with_suffix(".tmp")
+    lines = [f" {json.dumps(name)}: {json.dumps(entry)}" for name, entry in models.items()]  # a line per model
+    text = '{\n"about": ' + json.dumps(doc["about"]) + ',\n"models": {\n' + ",\n".join(lines) + "\n}}\n"
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(path)
+    _shipped_tables.cache_clear()
+    return path
+
+
 def _fits(compiled: _Compiled, spec: dict[str, Any]) -> bool:
     """Whether a cached entry has the table shape the model's criteria imply."""
     try:
@@ -873,3 +935,7 @@ def _disk_get(key: str) -> _Compiled | None:
 def _disk_put(key: str, compiled: _Compiled) -> None:
     meta = json.dumps({"nodes": compiled.nodes, "edges": compiled.edges, "states": compiled.states})
     diskcache.write(f"failure-{key}.npz", lambda fh: np.savez(fh, table=compiled.table, meta=np.array(meta)))
+
+
+if __name__ == "__main__":
+    print(write_shipped_tables())

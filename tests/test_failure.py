@@ -286,21 +286,64 @@ def test_quantities_constant_names_units():
 
 
 def _copy_model(folder: Path, name: str = "dickson2018", network_text: str | None = None) -> Path:
+    """A copy of a shipped model whose TOML differs by a comment line, so no shipped table matches its bytes."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / f"{name}.bif").write_text(network_text or (SHIPPED / f"{name}.bif").read_text())
     toml = folder / f"{name}.toml"
-    toml.write_text((SHIPPED / f"{name}.toml").read_text())
+    toml.write_text("# a designer's copy\n" + (SHIPPED / f"{name}.toml").read_text())
     return toml
+
+
+def test_shipped_tables_equal_a_fresh_pgmpy_compile():
+    """The tables shipped in failure_models/compiled_tables.json are what pgmpy compiles from today's files."""
+    failure._shipped_tables.cache_clear()
+    shipped = failure._shipped_tables()
+    for name in list_failure_models():
+        toml_bytes = (SHIPPED / f"{name}.toml").read_bytes()
+        net_bytes = (SHIPPED / f"{name}.bif").read_bytes()
+        entry = shipped.get(failure._content_key(toml_bytes, net_bytes))
+        assert entry is not None, f"{name}: model files changed; refresh the tables: python -m pyroute_rel.failure"
+        fresh = load_failure_model(name, cache=False)  # compiled by pgmpy, no cache of any kind
+        assert np.array_equal(entry.table, fresh._full), f"{name}: refresh: python -m pyroute_rel.failure"
+        assert entry.nodes == list(fresh.nodes)
+        assert entry.states == {k: list(v) for k, v in fresh.node_states.items()}
+
+
+def test_first_run_of_a_shipped_model_needs_neither_pgmpy_nor_the_disk_cache(tmp_path):
+    code = ("import json, sys; from pyroute_rel.failure import load_failure_model; "
+            "t = {n: load_failure_model(n).table.tolist() for n in ('dickson2018', 'wind_wave_multistate')}; "
+            "print(json.dumps({'pgmpy': any(k.split('.')[0] == 'pgmpy' for k in sys.modules), 'tables': t}))")
+    env = {**os.environ, "PYROUTE_REL_CACHE_DIR": str(tmp_path / "empty")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    got = json.loads(out.stdout)
+    assert got["pgmpy"] is False
+    assert not (tmp_path / "empty").exists()  # nothing compiled, nothing written
+    for name, table in got["tables"].items():
+        assert np.array_equal(np.array(table), load_failure_model(name, cache=False).table)
+
+
+def test_without_the_shipped_tables_models_are_compiled(monkeypatch, tmp_path):
+    monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(failure, "_MEMORY", {})
+    monkeypatch.setattr(failure, "_SHIPPED_TABLES", "no_such_file.json")
+    failure._shipped_tables.cache_clear()
+    try:
+        assert load_failure_model("dickson2018").table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
+        assert len(list(tmp_path.glob("failure-*.npz"))) == 1  # compiled, then kept on disk
+    finally:
+        monkeypatch.undo()
+        failure._shipped_tables.cache_clear()
 
 
 def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(cache))
     monkeypatch.setattr(failure, "_MEMORY", {})
-    first = load_failure_model("wind_wave_multistate")
+    toml = _copy_model(tmp_path / "m", "wind_wave_multistate")
+    first = load_failure_model(toml)
     assert len(list(cache.glob("failure-*.npz"))) == 1
     code = ("import json, sys; from pyroute_rel.failure import load_failure_model; "
-            "m = load_failure_model('wind_wave_multistate'); "
+            f"m = load_failure_model({str(toml)!r}); "
             "print(json.dumps({'pgmpy': any(k.split('.')[0] == 'pgmpy' for k in sys.modules), "
             "'table': m.table.tolist(), 'edges': [list(e) for e in m.edges]}))")
     env = {**os.environ, "PYROUTE_REL_CACHE_DIR": str(cache)}
@@ -312,18 +355,20 @@ def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
 
 
 def test_disk_cache_is_used_instead_of_compiling(tmp_path, monkeypatch):
-    monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path))
+    monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setattr(failure, "_MEMORY", {})
-    first = load_failure_model("dickson2018")
+    toml = _copy_model(tmp_path / "m")
+    first = load_failure_model(toml)
 
     def boom(*args, **kwargs):
         raise AssertionError("compiled again")
 
     monkeypatch.setattr(failure, "_MEMORY", {})
     monkeypatch.setattr(failure, "_compile", boom)
-    again = load_failure_model("dickson2018")
+    again = load_failure_model(toml)
     assert np.array_equal(again.table, first.table)
     assert again.table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
+    assert load_failure_model("dickson2018").table.tolist() == [[0.0, 0.9], [0.9, 1.0]]  # the shipped table
 
 
 def test_editing_the_network_recompiles(tmp_path, monkeypatch):
@@ -337,30 +382,44 @@ def test_editing_the_network_recompiles(tmp_path, monkeypatch):
     assert len(list((tmp_path / "cache").glob("failure-*.npz"))) == 2
 
 
-def test_corrupt_cache_file_is_ignored(tmp_path, monkeypatch):
-    monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path))
+def test_editing_a_shipped_model_in_place_is_not_served_the_shipped_table(tmp_path, monkeypatch):
+    """The shipped tables are keyed by the files' bytes: an edited copy (here: another CPT) is compiled."""
+    monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setattr(failure, "_MEMORY", {})
-    load_failure_model("dickson2018")
-    (entry,) = tmp_path.glob("failure-*.npz")
+    folder = tmp_path / "m"
+    folder.mkdir()
+    (folder / "dickson2018.toml").write_text((SHIPPED / "dickson2018.toml").read_text())  # same bytes as shipped
+    (folder / "dickson2018.bif").write_text((SHIPPED / "dickson2018.bif").read_text().replace("0.1, 0.9;", "0.3, 0.7;"))
+    np.testing.assert_allclose(load_failure_model(folder / "dickson2018.toml").table, [[0.0, 0.7], [0.7, 1.0]],
+                               rtol=0, atol=1e-15)
+
+
+def test_corrupt_cache_file_is_ignored(tmp_path, monkeypatch):
+    monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(failure, "_MEMORY", {})
+    toml = _copy_model(tmp_path / "m")
+    load_failure_model(toml)
+    (entry,) = (tmp_path / "cache").glob("failure-*.npz")
     entry.write_bytes(b"not a zip file")
     monkeypatch.setattr(failure, "_MEMORY", {})
-    assert load_failure_model("dickson2018").table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
+    assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
     with np.load(entry) as data:  # rewritten atomically with a good entry
         assert data["table"].shape == (3, 3)
         meta = data["meta"]
     with open(entry, "wb") as fh:  # readable, but its table does not fit the model
         np.savez(fh, table=np.full((2, 2), 0.5), meta=meta)
     monkeypatch.setattr(failure, "_MEMORY", {})
-    assert load_failure_model("dickson2018").table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
+    assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
 
 
 def test_unwritable_cache_folder_falls_back_silently(tmp_path, monkeypatch):
+    toml = _copy_model(tmp_path / "m")
     blocker = tmp_path / "a_file"
     blocker.write_text("")
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(blocker / "cache"))  # cannot mkdir under a file
     monkeypatch.setattr(failure, "_MEMORY", {})
-    assert load_failure_model("dickson2018").table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
-    assert list(tmp_path.iterdir()) == [blocker]
+    assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "m"]
 
 
 def test_cache_false_writes_nothing(tmp_path, monkeypatch):
