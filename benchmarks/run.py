@@ -2,7 +2,8 @@
 
 Each case runs in a fresh subprocess so that its peak memory (max RSS) is its own. Targets come from the
 issues; a case prints PASS/FAIL against its target, and the script exits non-zero if any target is missed
-(timings are machine-dependent: this is a benchmark, not a unit test, and CI does not run it).
+(timings are machine-dependent: this is a benchmark, not a unit test, and CI does not run it). The first line
+times fixed workloads (``machine ...``), so runs on days when the machine is faster or slower can be compared.
 """
 
 from __future__ import annotations
@@ -148,6 +149,34 @@ def run_case(name: str) -> dict:
     return out
 
 
+_CALIBRATION = """
+import json, os, time
+import numpy as np, shapely
+def best(fn, n=5):
+    ts = []
+    for _ in range(n):
+        t0 = time.perf_counter(); fn(); ts.append(time.perf_counter() - t0)
+    return min(ts)
+x = np.random.default_rng(0).random(2_000_000)
+a = np.linspace(0, 2 * np.pi, 40_000)
+r = 1 + 0.05 * np.sin(997 * a)
+wiggly = shapely.Polygon(np.column_stack([np.cos(a) * r, np.sin(a) * r]))
+print(json.dumps({"cores": os.cpu_count(),
+                  "numpy_sort_s": best(lambda: np.sort(x)),
+                  "python_loop_s": best(lambda: sum(i * i for i in range(1_000_000))),
+                  "geos_buffer_s": best(lambda: shapely.buffer(wiggly, 0.002, quad_segs=8))}))
+"""
+
+
+def calibrate() -> dict:
+    """Time fixed workloads (numpy sort of 2 M floats, a 1 M-step Python loop, a GEOS buffer of a wiggly 40,000-vertex
+    ring), so figures from different days of this machine, whose speed drifts, can be compared."""
+    proc = subprocess.run([sys.executable, "-c", _CALIBRATION], capture_output=True, text=True, cwd=ROOT)
+    if proc.returncode != 0:
+        return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr else "failed"}
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--only", nargs="*", help="case names (default: all)")
@@ -155,6 +184,10 @@ def main() -> int:
     args = ap.parse_args()
     _load_case_files()
     names = args.only or list(CASES)
+    machine = calibrate()
+    if not args.json:
+        shown = (f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in machine.items())
+        print("machine  " + ", ".join(shown))
     results = []
     for name in names:
         if name not in CASES:
@@ -171,7 +204,7 @@ def main() -> int:
             verdict = "PASS" if r["pass"] else "FAIL"
             print(f"{name:28s} {verdict}  {extra}\n{'':28s} ({r['what']})")
     if args.json:
-        print(json.dumps(results, indent=1))
+        print(json.dumps({"machine": machine, "cases": results}, indent=1))
     return 0 if all(r.get("pass", False) for r in results) else 1
 
 
