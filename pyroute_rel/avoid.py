@@ -100,6 +100,29 @@ def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
     return shapely.buffer(shapely.union_all([poly, *hulls]), pad_deg, quad_segs=2)
 
 
+def _land(grid: Grid, avoid: Avoid, parent: Grid | None) -> Any:
+    """The (grown) land that can touch the grid's arcs, kept on the grid; a grid lying inside ``parent``'s outline
+    (a corridor of :mod:`pyroute_rel.refine`) takes the parent's land instead of reading and growing it again."""
+    from . import obstacles
+
+    key = avoid.key() + ":land"
+    known = grid._cache.get(key)
+    if known is not None:
+        return known[1]
+    region = _region(grid)
+    land = None
+    if parent is not None and region is not None:
+        outer = parent._cache.get(key)
+        if outer is not None and outer[0] is not None and outer[0].contains(region):
+            land = outer[1]
+    if land is None:
+        land = (obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution)
+                if region is None
+                else obstacles.land_within(region, margin_km=avoid.margin_km, resolution=avoid.resolution))
+    grid._cache[key] = (region, land)
+    return land
+
+
 class ObstacleMask:
     """The solver's obstacle callback for one grid (see :func:`obstacle_mask`).
 
@@ -111,7 +134,7 @@ class ObstacleMask:
     which costs no geometry).
     """
 
-    def __init__(self, grid: Grid, avoid: Avoid) -> None:
+    def __init__(self, grid: Grid, avoid: Avoid, *, parent: Grid | None = None) -> None:
         import shapely
 
         from . import obstacles, zones
@@ -119,14 +142,7 @@ class ObstacleMask:
         self.grid = grid
         self._obstacles = obstacles
         self._zones = zones
-        self.land = None
-        if avoid.land:
-            region = _region(grid)
-            self.land = (
-                obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution)
-                if region is None
-                else obstacles.land_within(region, margin_km=avoid.margin_km, resolution=avoid.resolution)
-            )
+        self.land = _land(grid, avoid, parent) if avoid.land else None
         self.static = tuple(z for z in avoid.zones if z.valid_from is None and z.valid_to is None)
         self.timed_zones = tuple(z for z in avoid.zones if z.valid_from is not None or z.valid_to is not None)
         if len(self.timed_zones) > 64:
@@ -296,11 +312,14 @@ class ObstacleMask:
         return self.hits(k, times)
 
 
-def obstacle_mask(grid: Grid, avoid: Avoid) -> ObstacleMask | None:
-    """The solver's ``blocked(k, times)`` callback for this grid, or None when nothing is avoided."""
+def obstacle_mask(grid: Grid, avoid: Avoid, *, parent: Grid | None = None) -> ObstacleMask | None:
+    """The solver's ``blocked(k, times)`` callback for this grid, or None when nothing is avoided.
+
+    ``parent``: a grid this one lies within (see :func:`_land`), whose land may be reused.
+    """
     if not avoid.active:
         return None
-    return ObstacleMask(grid, avoid)
+    return ObstacleMask(grid, avoid, parent=parent)
 
 
 def check_points(points: Sequence[tuple[str, tuple[float, float]]], avoid: Avoid) -> None:

@@ -77,6 +77,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--max-deviation", type=float, dest="max_deviation_deg",
                    help="largest arc angle from the rank direction [deg] (overrides [grid].max_deviation_deg)")
     r.add_argument("--samples", type=int, dest="samples_per_arc", help="weather samples per arc")
+    r.add_argument("--refine", type=int, metavar="LEVELS",
+                   help="refine the track in LEVELS corridor grids around it, each solved exactly: its points slide "
+                        "along the ranks (0 = none; overrides [grid].refine)")
     r.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1]")
     r.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
     r.add_argument("--time-step", type=float, dest="time_step_h",
@@ -116,6 +119,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
         spacing_km=args.spacing_km, max_deviation_deg=args.max_deviation_deg, samples_per_arc=args.samples_per_arc,
         time_step_h=args.time_step_h, max_wait_h=args.max_wait_h, layout=args.layout, aspect=args.aspect,
         half_width_km=args.half_width_km, land=False if args.no_land else None, prune=args.prune,
+        refine=args.refine,
     )
     if args.departures:
         return _departure_sweep(scenario, args)
@@ -195,6 +199,7 @@ def _route_text(route: Any, elapsed: float, out: str | None) -> str:
         f"{route.grid.spacing_km:.2f} km, rank spacing {route.grid.rank_spacing_km:.2f} km",
         f"arcs             {s['arcs']['evaluated']} evaluated, {s['arcs']['forbidden']} forbidden"
         + (f", {s['arcs']['pruned']} skipped (could not win)" if s["arcs"]["pruned"] else ""),
+        *_refine_lines(s.get("refine")),
         f"failure model    {s.get('failure_model') or 'none'} (apf {s.get('apf', 1.0):g}): max leg p_f "
         f"{route.max_failure_probability:.3f}, voyage p_f {route.voyage_failure_probability:.3f}",
         f"runtime          {elapsed:.2f} s",
@@ -202,6 +207,16 @@ def _route_text(route: Any, elapsed: float, out: str | None) -> str:
     if out:
         lines.append(f"outputs          {Path(out)}/ (route.geojson, route.gpx, route.csv, summary.json, route.png)")
     return "\n".join(lines)
+
+
+def _refine_lines(info: Any) -> list[str]:
+    if not info:
+        return []
+    levels = info["levels"]
+    steps = " -> ".join(f"{lv['voyage_time_h']:.2f}" for lv in levels)
+    arcs = sum(lv["arcs_evaluated"] for lv in levels)
+    return [f"refined          {info['grid_voyage_time_h']:.2f} h on the grid -> {steps} h in {len(levels)} corridor"
+            f"{'s' if len(levels) != 1 else ''} (last spacing {levels[-1]['spacing_km']:.3g} km, {arcs} arcs)"]
 
 
 def _cmd_failure(args: argparse.Namespace) -> int:

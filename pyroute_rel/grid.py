@@ -43,7 +43,7 @@ from .errors import GridError
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["Grid", "make_grid", "plan_grid", "auto_samples", "LAYOUTS", "START", "FINISH"]
+__all__ = ["Grid", "make_grid", "plan_grid", "rank_points", "auto_samples", "LAYOUTS", "START", "FINISH"]
 
 #: networkx node labels of the start and finish nodes; other nodes are ``(rank, node)`` tuples.
 START = "start"
@@ -76,6 +76,12 @@ class Grid:
         single point ``start``. The craft may start from any of them at the departure time.
     finish_line : End points [deg] of a finish line (a great-circle segment through ``finish``), or None.
         With a line the voyage ends where a route first crosses it.
+    centre_km : For a corridor grid (:func:`pyroute_rel.refine.corridor_grid`), the lateral offset of each rank's
+        middle [km], shape (n_ranks,): node i of rank k lies ``centre_km[k] + offset_km[i]`` from the great circle.
+        None for grids centred on the great circle.
+    rank_valid : Optional per-rank arc pattern, shape (n_ranks - 1, n_nodes, width): which arcs into rank k exist is
+        ``rank_valid[k - 1]`` instead of ``arc_valid`` (corridor grids, whose ranks are shifted differently, keep
+        the arcs within ``max_deviation_deg`` this way).
     """
 
     start: tuple[float, float]
@@ -95,6 +101,8 @@ class Grid:
     start_lon: FloatArray | None = None
     start_lat: FloatArray | None = None
     finish_line: tuple[tuple[float, float], tuple[float, float]] | None = None
+    centre_km: FloatArray | None = None
+    rank_valid: BoolArray | None = None
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -114,8 +122,13 @@ class Grid:
 
     @property
     def half_width_km(self) -> float:
-        """Distance from the great circle to the outermost node of a rank [km]."""
+        """Distance from the great circle (a corridor's middle) to the outermost node of a rank [km]."""
         return float(np.max(np.abs(self.offset_km)))
+
+    def node_offsets_km(self) -> FloatArray:
+        """Signed lateral offset of every node from the great circle [km], shape (n_ranks, n_nodes)."""
+        centre = np.zeros(self.n_ranks) if self.centre_km is None else self.centre_km
+        return centre[:, None] + self.offset_km[None, :]
 
     @property
     def aspect(self) -> float:
@@ -125,7 +138,8 @@ class Grid:
     @property
     def n_arcs(self) -> int:
         """Number of arcs in the digraph, start and finish arcs included."""
-        inner = int(self.arc_valid.sum()) * (self.n_ranks - 1)
+        inner = (int(self.arc_valid.sum()) * (self.n_ranks - 1) if self.rank_valid is None
+                 else int(self.rank_valid.sum()))
         return inner + int(self.start_pattern.sum()) + int(self.finish_valid.sum())
 
     @property
@@ -165,7 +179,7 @@ class Grid:
             return np.arange(self.n_nodes, dtype=np.intp)[None, :], self.finish_valid[None, :]
         if not 0 < k < self.n_ranks:
             raise IndexError(f"rank index must be in [0, {self.n_ranks}] (got {k})")
-        return self.src_index, self.arc_valid
+        return self.src_index, (self.arc_valid if self.rank_valid is None else self.rank_valid[k - 1])
 
     def arcs(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, IntArray, BoolArray]:
         """Arcs into rank ``k`` (``k = 0`` from the start; ``k = n_ranks`` into the finish).
@@ -283,13 +297,8 @@ def make_grid(
     else:
         band = n_nodes - 1
 
-    fractions = np.arange(1, n_ranks + 1) / (n_ranks + 1)
-    c_lon, c_lat = geodesy.intermediate_point(lon_s, lat_s, lon_f, lat_f, fractions)
-    course = geodesy.initial_bearing_deg(c_lon, c_lat, lon_f, lat_f)
     offset = ((np.arange(n_nodes) - (n_nodes - 1) / 2.0) * spacing_km).astype(np.float64)
-    lon, lat = geodesy.destination_point(
-        c_lon[:, None], c_lat[:, None], (course[:, None] + 90.0) % 360.0, offset[None, :]
-    )
+    lon, lat = rank_points((lon_s, lat_s), (lon_f, lat_f), np.broadcast_to(offset, (n_ranks, n_nodes)))
 
     width = min(2 * band + 1, n_nodes)
     j = np.arange(n_nodes)
@@ -332,6 +341,30 @@ def make_grid(
         start_lat=s_lat,
         finish_line=fin_line,
     )
+
+
+def rank_points(
+    start: tuple[float, float], finish: tuple[float, float], offset_km: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """Points on the rank lines of the course start -> finish at given lateral offsets.
+
+    Rank k (of ``n_ranks``, the first axis of ``offset_km``) is the great circle perpendicular to the course at the
+    fraction (k + 1) / (n_ranks + 1) of its length; an offset [km] is the distance along it, positive to starboard.
+
+    Returns lon, lat [deg] of ``offset_km``'s shape (n_ranks, ...).
+
+    >>> lon, lat = rank_points((0.0, 0.0), (2.0, 0.0), [[0.0, 111.19]])  # one rank, halfway along the equator
+    >>> [round(float(v), 3) for v in (*lon[0], *lat[0])]
+    [1.0, 1.0, 0.0, -1.0]
+    """
+    off = np.asarray(offset_km, dtype=np.float64)
+    n_ranks = off.shape[0]
+    fractions = np.arange(1, n_ranks + 1) / (n_ranks + 1)
+    c_lon, c_lat = geodesy.intermediate_point(start[0], start[1], finish[0], finish[1], fractions)
+    course = geodesy.initial_bearing_deg(c_lon, c_lat, finish[0], finish[1])
+    shape = (n_ranks,) + (1,) * (off.ndim - 1)
+    return geodesy.destination_point(c_lon.reshape(shape), c_lat.reshape(shape),
+                                     ((course + 90.0) % 360.0).reshape(shape), off)
 
 
 def _checked_point(p: Any, name: str) -> tuple[float, float]:

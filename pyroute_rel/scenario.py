@@ -4,7 +4,7 @@ A scenario has these tables (unknown tables or keys are refused with the file an
 
     [route]    start = [lon, lat]  finish = [lon, lat]  departure = "2018-06-01T00:00:00Z"
     [grid]     layout = "angular" | "square"  n_ranks = 160  n_nodes = 160  (all optional; see grid.plan_grid)
-               spacing_km, aspect, half_width_km, max_deviation_deg, samples_per_arc = 1
+               spacing_km, aspect, half_width_km, max_deviation_deg, samples_per_arc = 1, refine = 0
     [boat]     polar = "maribot_vane" | "path/to/file.pol"   beyond = "clamp" | "forbid"
     [weather]  kind = "uniform" (tws_kn, twd_deg, hs_m, wave_dir_deg, ... and [[weather.patch]] boxes)
                kind = "file"    (paths = [...], see pyroute_rel.weather_io)
@@ -61,6 +61,7 @@ SCHEMA: dict[str, dict[str, str]] = {
         "half_width_km": "distance from the great circle to the outermost nodes [km] (angular layout)",
         "max_deviation_deg": "largest arc angle from the rank direction [deg]",
         "samples_per_arc": "weather samples per arc",
+        "refine": "whole number >= 0: corridor refinements of the track (0 = none; see pyroute_rel.refine)",
     },
     "boat": {
         "polar": "built-in name or polar file",
@@ -109,6 +110,7 @@ class Scenario:
     waypoints: tuple[tuple[float, float], ...] = ()
     avoid: Avoid = field(default_factory=Avoid)
     wave_loss: WaveLoss | None = None
+    refine: int = 0
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's)."""
@@ -118,6 +120,8 @@ class Scenario:
                 continue
             if key in ("n_ranks", "n_nodes"):
                 checked[key] = _int(value, f"--{key.replace('_', '-')}", 1)
+            elif key == "refine":
+                checked[key] = _int(value, "--refine", 0)
             elif key == "apf":
                 checked[key] = _prob(value, "--apf")
             elif key == "failure_model":
@@ -231,13 +235,40 @@ class Scenario:
             lats = [*s_lat, grid.finish[1]]
             self.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)), (departure, departure))
             leg_problem = replace(self.problem(failure=failure, grid=grid), departure=departure)
-            routes.append(solve(grid, leg_problem, progress=progress))
+            leg = solve(grid, leg_problem, progress=progress)
+            if self.refine:
+                leg = self._refined(leg, leg_problem)
+            routes.append(leg)
             departure = routes[-1].arrival
         route = routes[0] if len(routes) == 1 else join_routes(routes)
         route.meta["scenario"] = self.source
         route.meta["zones_object"] = self.avoid.zones
         route.meta["land"] = self.avoid.land
         return route
+
+
+    def _refined(self, route: Route, problem: RoutingProblem) -> Route:
+        """The route with its track refined in corridors (:mod:`pyroute_rel.refine`); the grid, its DP result and
+        nodes stay those of the grid routed on, the levels are reported in ``meta["refine"]``."""
+        from .refine import refine
+        from .route import build_route
+
+        grid = route.grid
+
+        def problem_for(corridor: Grid) -> RoutingProblem:
+            return replace(problem, blocked=obstacle_mask(corridor, self.avoid, parent=grid))
+
+        c_grid, c_problem, c_result, levels = refine(grid, problem, route.dp, levels=self.refine,
+                                                     problem_for=problem_for)
+        better = c_grid is not grid
+        out = replace(build_route(c_grid, c_problem, c_result), grid=grid, nodes=route.nodes, dp=route.dp,
+                      meta=dict(route.meta)) if better else route
+        out.meta["refine"] = {
+            "levels": [{"half_width_km": lv.half_width_km, "spacing_km": lv.spacing_km,
+                        "voyage_time_h": lv.voyage_time_h, "arcs_evaluated": lv.arcs_evaluated} for lv in levels],
+            "grid_voyage_time_h": route.voyage_time_h,
+        }
+        return out
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -343,6 +374,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     samples = None if "samples_per_arc" not in grid else _int(grid["samples_per_arc"], "[grid].samples_per_arc", 1)
     if samples is not None and samples > 64:
         raise ScenarioError(f"[grid].samples_per_arc must be at most 64 (got {samples})")
+    refine = _int(grid.get("refine", 0), "[grid].refine", 0)
 
     boat = table.get("boat", {})
     polar_name = boat.get("polar", "maribot_vane")
@@ -382,7 +414,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
         prune=prune,
         layout=layout, aspect=aspect, half_width_km=half_width, start_line=start_line, finish_line=finish_line,
-        waypoints=waypoints, avoid=avoid, wave_loss=wave_loss,
+        waypoints=waypoints, avoid=avoid, wave_loss=wave_loss, refine=refine,
     )
 
 
