@@ -15,8 +15,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from . import __version__
 from .errors import PyrouteError
 
@@ -150,28 +148,26 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
     """Route one scenario for several departure times (planning): a table, or JSON with --json."""
     from .errors import NoFeasibleRouteError
     from .scenario import parse_departure
-    from .solve import forward_dp
+    from .solve import _progress_bar
 
     times = [parse_departure(t.strip(), "--departures") for t in args.departures.split(",") if t.strip()]
-    grid = scenario.make_grid()
-    failure = scenario.load_failure()
+    grids = scenario.leg_grids()  # one set of grids: arc geometry and obstacle masks are computed once
     rows = []
+    bar = _progress_bar(len(times), enabled=not args.quiet, desc="departures", unit="departure")
     for dep in times:
-        sc = scenario.with_options(departure=str(dep))
-        problem = sc.problem(failure=failure)
-        res = forward_dp(grid, problem)
         row: dict[str, Any] = {"departure": str(dep) + "Z", "voyage_time_h": None, "feasible": False}
-        if np.isfinite(res.finish_h):
-            from .route import build_route
-
-            route = build_route(grid, problem, res)
+        try:
+            route = scenario.with_options(departure=str(dep)).route(grids=grids)
+        except NoFeasibleRouteError as exc:
+            row["reason"] = str(exc)
+        else:
             row.update({"voyage_time_h": route.voyage_time_h, "feasible": True, "arrival": route.summary()["arrival"],
                         "max_failure_probability": route.max_failure_probability})
-        else:
-            from .solve import explain_infeasible
-
-            row["reason"] = explain_infeasible(grid, problem, res)
+            if "refine" in route.meta:
+                row["grid_voyage_time_h"] = route.meta["refine"]["grid_voyage_time_h"]
         rows.append(row)
+        bar.update(1)
+    bar.close()
     if args.json:
         print(json.dumps({"departures": rows}))
     else:

@@ -213,12 +213,13 @@ class Scenario:
             max_wait_h=self.max_wait_h, wave_loss=self.wave_loss, prune=self.prune,
         )
 
-    def route(self, *, progress: bool = False) -> Route:
+    def route(self, *, progress: bool = False, grids: list[Grid] | None = None) -> Route:
         """Route the scenario (forward DP on its grid; leg after leg through waypoints).
 
         Legs are solved in order, each departing when the previous one arrives at its mark; under FIFO
         weather this is optimal for the whole course, since the earliest arrival at a mark is best for what
-        follows.
+        follows. ``grids``: the legs' grids from an earlier :meth:`leg_grids` of this course, to reuse what is
+        cached on them (arc geometry, obstacle masks) when routing it again, e.g. for another departure.
         """
         from .route import join_routes
 
@@ -227,7 +228,7 @@ class Scenario:
         failure = self.load_failure()
         routes = []
         departure = self.departure
-        for grid in self.leg_grids():
+        for grid in self.leg_grids() if grids is None else grids:
             # the weather must cover the leg's end points and its departure; cells missing elsewhere in the
             # (wider) grid are NaN and forbid the arcs through them
             s_lon, s_lat = grid.start_points

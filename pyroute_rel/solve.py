@@ -657,13 +657,13 @@ class _NullBar:
         pass
 
 
-def _progress_bar(total: int, *, enabled: bool) -> Any:
+def _progress_bar(total: int, *, enabled: bool, desc: str = "routing", unit: str = "rank") -> Any:
     """A tqdm bar on a terminal (stderr is a TTY), nothing otherwise."""
     if not enabled or not sys.stderr.isatty():
         return _NullBar()
     from tqdm import tqdm
 
-    return tqdm(total=total, desc="routing", unit="rank", leave=False, file=sys.stderr)
+    return tqdm(total=total, desc=desc, unit=unit, leave=False, file=sys.stderr)
 
 
 def path_costs(

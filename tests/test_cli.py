@@ -174,3 +174,20 @@ def test_route_prune_must_be_a_boolean() -> None:
     with pytest.raises(ScenarioError, match=r"\[route\]\.prune must be true or false \(got 'yes'\)"):
         scenario_from_mapping({"route": {"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "prune": "yes"},
                                "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0}})
+
+
+def test_departure_sweep_routes_each_departure_like_a_single_route(capsys) -> None:
+    """--departures with land on (the default) and a refinement: each row equals the same single route."""
+    args = ["route", str(EXAMPLE), "--n-ranks", "40", "--quiet", "--refine", "1"]
+    assert main([*args, "--json"]) == 0
+    single = json.loads(capsys.readouterr().out)
+    assert main([*args, "--json", "--departures", "2018-06-01T00:00:00Z,2018-06-03T12:00:00Z"]) == 0
+    rows = json.loads(capsys.readouterr().out)["departures"]
+    assert [r["departure"] for r in rows] == ["2018-06-01T00:00:00Z", "2018-06-03T12:00:00Z"]
+    assert rows[0]["voyage_time_h"] == pytest.approx(single["voyage_time_h"], rel=1e-12)
+    assert rows[0]["arrival"] == single["arrival"]
+    assert rows[0]["grid_voyage_time_h"] == pytest.approx(single["refine"]["grid_voyage_time_h"], rel=1e-12)
+    assert rows[1]["voyage_time_h"] == pytest.approx(single["voyage_time_h"], rel=1e-12)  # steady weather
+    assert main([*args, "--departures", "2018-06-01T00:00:00Z,June"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--departures" in err
