@@ -152,8 +152,12 @@ def plot_routes(
         _draw_patches(ax, weather)
     labels = list(labels) if labels is not None else [f"route {i + 1}" for i in range(len(routes))]
     for i, (route, label) in enumerate(zip(routes, labels, strict=True)):
+        before = route.meta.get("grid_track_object")
+        if before is not None:  # a refined route: the grid's own track, thin, for comparison
+            ax.plot(before[0], before[1], color=_COLOURS[i % len(_COLOURS)], lw=0.8, ls=":",
+                    label=f"{label} on the grid, before refinement: {before[2]:.1f} h")
         ax.plot(route.lon_deg, route.lat_deg, color=_COLOURS[i % len(_COLOURS)], lw=1.6,
-                label=f"{label}: {route.voyage_time_h:.1f} h")
+                label=f"{label}{' (refined)' if before is not None else ''}: {route.voyage_time_h:.1f} h")
     if grid.start_lon is not None and grid.start_lat is not None:
         ax.plot(grid.start_lon, grid.start_lat, "k-", lw=2.5, label="start line")
     if grid.finish_line is not None:

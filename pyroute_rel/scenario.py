@@ -269,6 +269,7 @@ class Scenario:
                         "voyage_time_h": lv.voyage_time_h, "arcs_evaluated": lv.arcs_evaluated} for lv in levels],
             "grid_voyage_time_h": route.voyage_time_h,
         }
+        out.meta["grid_track_object"] = (route.lon_deg, route.lat_deg, route.voyage_time_h)  # for the map
         return out
 
 
