@@ -61,3 +61,24 @@ def test_a_coastline_of_thousands_of_parts_is_one_artist() -> None:
         assert len(ax.collections[0].get_paths()) == len(shapely.get_parts(land))
     finally:
         plt.close(fig)
+
+
+def test_a_refined_route_map_draws_the_grid_track_too() -> None:
+    from dataclasses import replace
+    from pathlib import Path
+
+    from pyroute_rel.plot import plot_route
+    from pyroute_rel.scenario import load_scenario
+
+    sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml")
+    sc = sc.with_options(n_ranks=30, land=False)
+    route = replace(sc, refine=1).route()
+    fig = plot_route(route)
+    try:
+        lines = {ln.get_label(): ln for ln in fig.axes[0].get_lines()}
+        before = [k for k in lines if "before refinement" in k]
+        assert len(before) == 1 and f"{route.meta['refine']['grid_voyage_time_h']:.1f} h" in before[0]
+        assert "route (refined): " + f"{route.voyage_time_h:.1f} h" in lines
+        np.testing.assert_array_equal(lines[before[0]].get_xdata(), route.meta["grid_track_object"][0])
+    finally:
+        plt.close(fig)
