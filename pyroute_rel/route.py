@@ -290,10 +290,36 @@ def join_routes(routes: list[Route]) -> Route:
                   forbidden_by_criterion={k: sum(r.dp.forbidden_by_criterion.get(k, 0) for r in routes)
                                           for r0 in routes for k in r0.dp.forbidden_by_criterion})
     meta = dict(first.meta)
+    meta.update(_joined_refinement(routes))
     meta["legs_of_course"] = len(routes)
     meta["grids_object"] = [r.grid for r in routes]
     return Route(lon_deg=lon, lat_deg=lat, elapsed_h=elapsed, departure=first.departure, legs=legs,
                  nodes=np.concatenate([r.nodes for r in routes]), grid=first.grid, dp=dp, meta=meta)
+
+
+def _joined_refinement(routes: list[Route]) -> dict[str, Any]:
+    """``meta["refine"]`` and the grid track of a course whose legs were refined (:mod:`pyroute_rel.refine`): level
+    i's voyage time sums every leg's time after its level i (a leg that stopped earlier counts its best), its arcs
+    the arcs the legs costed at that level, its half-width and spacing are the widest legs'."""
+    infos = [r.meta.get("refine") for r in routes]
+    if not any(infos):
+        return {}
+    n = max(len(i["levels"]) for i in infos if i)
+    levels = []
+    for k in range(n):
+        at = [i["levels"][min(k, len(i["levels"]) - 1)] if i and i["levels"] else None for i in infos]
+        levels.append({
+            "half_width_km": max(lv["half_width_km"] for lv in at if lv),
+            "spacing_km": max(lv["spacing_km"] for lv in at if lv),
+            "voyage_time_h": sum(lv["voyage_time_h"] if lv else r.voyage_time_h for lv, r in zip(at, routes,
+                                                                                                  strict=True)),
+            "arcs_evaluated": sum(i["levels"][k]["arcs_evaluated"] for i in infos if i and k < len(i["levels"])),
+        })
+    tracks = [r.meta.get("grid_track_object") or (r.lon_deg, r.lat_deg, r.voyage_time_h) for r in routes]
+    lon = np.concatenate([tracks[0][0], *(t[0][1:] for t in tracks[1:])])
+    lat = np.concatenate([tracks[0][1], *(t[1][1:] for t in tracks[1:])])
+    grid_h = sum(i["grid_voyage_time_h"] if i else r.voyage_time_h for i, r in zip(infos, routes, strict=True))
+    return {"refine": {"levels": levels, "grid_voyage_time_h": grid_h}, "grid_track_object": (lon, lat, grid_h)}
 
 
 def _iso(t: np.datetime64) -> str:

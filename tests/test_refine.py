@@ -217,3 +217,24 @@ def test_refine_weather_patch_detour_is_found(tmp_path) -> None:
     _, costs = path_costs(c_grid, c_problem, list(c_res.path()))
     assert np.all(costs.p_f <= 0.5)
     assert c_res.finish_h <= res.finish_h
+
+
+def test_refining_a_course_with_a_waypoint_refines_each_leg() -> None:
+    sc = scenario_from_mapping({
+        "route": {"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "waypoints": [[-35.0, 38.0]]},
+        "grid": {"n_ranks": 40}, "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+        "avoid": {"land": False},
+    })
+    plain = sc.route()
+    refined = replace(sc, refine=2).route()
+    info = refined.meta["refine"]
+    assert refined.voyage_time_h < plain.voyage_time_h
+    # steady weather: each leg's grid time does not depend on when it starts, so the grid times add up to the plain
+    assert info["grid_voyage_time_h"] == pytest.approx(plain.voyage_time_h, rel=1e-12)
+    assert info["levels"][-1]["voyage_time_h"] == pytest.approx(refined.voyage_time_h, rel=1e-12)
+    # the track still passes the mark
+    mark = np.flatnonzero((np.abs(refined.lon_deg + 35.0) < 1e-9) & (np.abs(refined.lat_deg - 38.0) < 1e-9))
+    assert mark.size == 1
+    lon, lat, grid_h = refined.meta["grid_track_object"]
+    np.testing.assert_array_equal(lon, plain.lon_deg)
+    assert grid_h == info["grid_voyage_time_h"]
