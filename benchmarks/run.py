@@ -87,6 +87,21 @@ print(json.dumps({{"seconds": cold, "warm_dp_seconds": t, "arcs": res.arcs_evalu
                   "arcs_per_s": res.arcs_evaluated / t, "voyage_h": route.voyage_time_h, "peak_rss_mb": rss_mb()}}))
 """)
 
+case("refine_default_route", None,
+     "default route of the example at apf 1 refined in five corridors (--refine 5): extra time and voyage gain")(f"""
+from dataclasses import replace
+sc = load_scenario({str(EXAMPLE)!r}).with_options(apf=1.0)
+sc.route()  # warm: failure table, land
+t_plain, plain = best_of(lambda: sc.route())
+ref = replace(sc, refine=5)
+t_ref, refined = best_of(lambda: ref.route())
+lv = refined.meta["refine"]["levels"]
+print(json.dumps({{"seconds": t_ref, "plain_s": t_plain, "extra_s": t_ref - t_plain,
+                  "per_level_s": (t_ref - t_plain) / len(lv), "arcs_refine": sum(x["arcs_evaluated"] for x in lv),
+                  "voyage_h_grid": plain.voyage_time_h, "voyage_h_refined": refined.voyage_time_h,
+                  "peak_rss_mb": rss_mb()}}))
+""")
+
 case("gci_study_square_five_grids", 30.0,
      "the paper's five-grid square GCI study (41, 57, 81, 115, 161 nodes), apf 1, no land (issue: under 30 s)")(f"""
 from pyroute_rel.study import run_study, square_levels
