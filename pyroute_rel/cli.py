@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from . import __version__
-from .errors import PyrouteError
+from .errors import PyrouteError, ScenarioError
 
 __all__ = ["main", "build_parser"]
 
@@ -119,7 +119,14 @@ def _cmd_route(args: argparse.Namespace) -> int:
         half_width_km=args.half_width_km, land=False if args.no_land else None, prune=args.prune,
         refine=args.refine,
     )
+    if args.out:
+        from .route import check_out_dir
+
+        check_out_dir(args.out)  # before the work, not after it
     if args.departures:
+        if args.out:
+            raise ScenarioError("--out writes one route's files; with --departures use --json for the table, or "
+                                "route each departure on its own")
         return _departure_sweep(scenario, args)
     t0 = time.perf_counter()
     route = scenario.route(progress=not args.quiet)

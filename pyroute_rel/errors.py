@@ -19,6 +19,7 @@ __all__ = [
     "GridError",
     "ConvergenceError",
     "NoFeasibleRouteError",
+    "OutputError",
 ]
 
 
@@ -75,3 +76,7 @@ class NoFeasibleRouteError(PyrouteError, RuntimeError):
     The message says at which rank the front of reachable nodes died and which criteria (failure
     criteria, polar limits, land, zones, missing weather) forbade the arcs there.
     """
+
+
+class OutputError(PyrouteError, OSError):
+    """An output folder or file cannot be written (a file in the way, no permission, disk full)."""

@@ -119,57 +119,79 @@ def _pct(value: float | None) -> str:
 
 
 def _validate(
-    h: npt.ArrayLike, phi: npt.ArrayLike, *, func: str, n_exact: int | None = None, n_min: int | None = None
+    h: npt.ArrayLike,
+    phi: npt.ArrayLike,
+    *,
+    func: str,
+    n_exact: int | None = None,
+    n_min: int | None = None,
+    names: tuple[str, str] | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """Check (h, phi) once at the public boundary and return them sorted fine -> coarse."""
+    """Check (h, phi) once at the public boundary and return them sorted fine -> coarse.
+
+    ``names``: what the messages call h and phi (e.g. the CLI's ``("--h", "--phi")``, then without the ``func``
+    prefix and with 1-based value numbers); default ``'h'`` and ``'phi'`` after ``func:``.
+    """
+    pre = "" if names else f"{func}: "
+    nh, nphi = names if names else ("'h'", "'phi'")
+
+    def at(i: int, n: int) -> str:
+        return f"value {i + 1} of {n}" if names else f"position {i}"
+
     arrays = []
-    for name, values in (("h", h), ("phi", phi)):
+    for name, values in ((nh, h), (nphi, phi)):
         try:
             arr = np.asarray(values, dtype=float)
         except (TypeError, ValueError):
             shown = " ".join(repr(values).split())
             shown = shown if len(shown) <= 80 else shown[:77] + "..."
-            raise ConvergenceError(f"{func}: '{name}' must be a sequence of numbers (got {shown})") from None
+            raise ConvergenceError(f"{pre}{name} must be a sequence of numbers (got {shown})") from None
         if arr.ndim != 1:
-            raise ConvergenceError(f"{func}: '{name}' must be one-dimensional (got shape {arr.shape})")
+            raise ConvergenceError(f"{pre}{name} must be one-dimensional (got shape {arr.shape})")
         arrays.append(arr)
     h_arr, phi_arr = arrays
     if h_arr.size != phi_arr.size:
         raise ConvergenceError(
-            f"{func}: 'h' and 'phi' must have the same length (got {h_arr.size} and {phi_arr.size})"
+            f"{pre}{nh} and {nphi} must have the same length (got {h_arr.size} and {phi_arr.size})"
         )
     n = h_arr.size
     if n_exact is not None and n != n_exact:
-        raise ConvergenceError(f"{func} needs exactly {n_exact} grids (got {n})")
+        raise ConvergenceError(f"{nh} and {nphi} need exactly {n_exact} values each (got {n})" if names
+                               else f"{func} needs exactly {n_exact} grids (got {n})")
     if n_min is not None and n < n_min:
-        raise ConvergenceError(f"{func} needs at least {n_min} grids (got {n})")
+        raise ConvergenceError(f"{nh} and {nphi} need at least {n_min} values each, one per grid (got {n})"
+                               if names else f"{func} needs at least {n_min} grids (got {n})")
     bad = np.flatnonzero(~np.isfinite(h_arr) | ~(h_arr > 0.0))
     if bad.size:
         i = int(bad[0])
+        what = " (grid spacings)" if names else ""
         raise ConvergenceError(
-            f"{func}: 'h' must be finite and > 0 (got {float(h_arr[i])!r} at position {i})"
+            f"{pre}{nh}{what} must be finite and > 0 (got {float(h_arr[i])!r} at {at(i, n)})"
         )
     bad = np.flatnonzero(~np.isfinite(phi_arr))
     if bad.size:
         i = int(bad[0])
-        raise ConvergenceError(f"{func}: 'phi' must be finite (got {float(phi_arr[i])!r} at position {i})")
+        raise ConvergenceError(f"{pre}{nphi} must be finite (got {float(phi_arr[i])!r} at {at(i, n)})")
+    if n and not math.isfinite(float(np.max(phi_arr)) - float(np.min(phi_arr))):
+        raise ConvergenceError(f"{pre}{nphi} differences overflow the float range (got {phi_arr.tolist()})")
     order = np.argsort(h_arr, kind="stable")
     h_sorted, phi_sorted = h_arr[order], phi_arr[order]
     dup = np.flatnonzero(np.diff(h_sorted) == 0.0)
     if dup.size:
         raise ConvergenceError(
-            f"{func}: 'h' values must be distinct (got {float(h_sorted[int(dup[0])])!r} more than once)"
+            f"{pre}{nh} values must be distinct (got {float(h_sorted[int(dup[0])])!r} more than once)"
         )
     return h_sorted, phi_sorted
 
 
-def _check_safety_factor(safety_factor: float, func: str) -> float:
+def _check_safety_factor(safety_factor: float, func: str, name: str | None = None) -> float:
     try:
         fs = float(safety_factor)
     except (TypeError, ValueError):
         fs = math.nan
     if not (math.isfinite(fs) and fs > 0.0):
-        raise ConvergenceError(f"{func}: 'safety_factor' must be a finite number > 0 (got {safety_factor!r})")
+        label = name if name else f"{func}: 'safety_factor'"
+        raise ConvergenceError(f"{label} must be a finite number > 0 (got {safety_factor!r})")
     return fs
 
 
@@ -833,7 +855,11 @@ class StudyResult:
 
 
 def convergence_study(
-    h: Sequence[float] | npt.ArrayLike, phi: Sequence[float] | npt.ArrayLike, *, safety_factor: float = 1.25
+    h: Sequence[float] | npt.ArrayLike,
+    phi: Sequence[float] | npt.ArrayLike,
+    *,
+    safety_factor: float = 1.25,
+    names: tuple[str, str, str] | None = None,
 ) -> StudyResult:
     """Grid-convergence study: Celik's three-grid GCI on every consecutive triplet, least squares for 4+.
 
@@ -842,6 +868,8 @@ def convergence_study(
     h : Representative grid spacings, at least three, any order, distinct, > 0 [any length unit, e.g. km].
     phi : Values paired with ``h`` [any unit, e.g. h].
     safety_factor : Fs of the three-grid GCI [-] (the least-squares procedure picks its own, 1.25 or 3).
+    names : What error messages call ``h``, ``phi`` and ``safety_factor``, e.g. the CLI options
+        ``("--h", "--phi", "--safety-factor")``; default: the parameter names after ``convergence_study:``.
 
     Returns
     -------
@@ -865,8 +893,8 @@ def convergence_study(
     (2, 2.0, 'power')
     """
     func = "convergence_study"
-    fs = _check_safety_factor(safety_factor, func)
-    h_s, phi_s = _validate(h, phi, func=func, n_min=3)
+    fs = _check_safety_factor(safety_factor, func, None if names is None else names[2])
+    h_s, phi_s = _validate(h, phi, func=func, n_min=3, names=None if names is None else (names[0], names[1]))
     triplets = tuple(
         grid_convergence(h_s[k : k + 3], phi_s[k : k + 3], safety_factor=fs) for k in range(h_s.size - 2)
     )

@@ -45,6 +45,11 @@ if TYPE_CHECKING:
 
 __all__ = ["Grid", "make_grid", "plan_grid", "rank_points", "auto_samples", "LAYOUTS", "START", "FINISH"]
 
+#: Most candidate arcs a grid may have (n_ranks x n_nodes x arcs per node): routing costs about 150-300 bytes per
+#: arc at its peak, so 40 M arcs take 6-12 GB (the paper's square 320 x 320, 32.8 M arcs, routes in 1.1 GB without
+#: failure model and samples). Larger grids are refused before anything is allocated.
+MAX_ARCS = 40_000_000
+
 #: networkx node labels of the start and finish nodes; other nodes are ``(rank, node)`` tuples.
 START = "start"
 FINISH = "finish"
@@ -301,6 +306,12 @@ def make_grid(
     lon, lat = rank_points((lon_s, lat_s), (lon_f, lat_f), np.broadcast_to(offset, (n_ranks, n_nodes)))
 
     width = min(2 * band + 1, n_nodes)
+    if n_ranks * n_nodes * width > MAX_ARCS:
+        raise GridError(
+            f"the grid would have {n_ranks * n_nodes * width / 1e6:.0f} M candidate arcs ({n_ranks} ranks x "
+            f"{n_nodes} nodes x {width} arcs per node), more than the {MAX_ARCS / 1e6:.0f} M that fit in memory: "
+            "use fewer ranks or nodes, a larger spacing_km (a smaller aspect) or a smaller max_deviation_deg"
+        )
     j = np.arange(n_nodes)
     first = np.clip(j - band, 0, n_nodes - width)
     src = first[:, None] + np.arange(width)[None, :]

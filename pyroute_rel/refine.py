@@ -48,6 +48,8 @@ CORRIDOR_NODES = 33
 FIRST_HALF_WIDTH = 8.0
 #: A corridor the track stays inside is followed by one this many times narrower (else one as wide, recentred).
 SHRINK = 4.0
+#: Corridors are not made finer than this node spacing [km]: a metre is far below any weather or polar detail.
+MIN_SPACING_KM = 1e-3
 
 
 @dataclass(frozen=True)
@@ -154,8 +156,9 @@ def refine(
 
     Returns
     -------
-    The best corridor grid, its problem and DP result (the input grid, ``problem_for(grid)`` and ``result`` when no
-    level improved), and one :class:`RefineLevel` per level solved. A level that would lengthen the voyage (possible
+    The best corridor grid, its problem and DP result (the input grid, ``problem`` and ``result`` when no level
+    improved), and one :class:`RefineLevel` per level solved (fewer than ``levels`` once the corridors would be
+    finer than :data:`MIN_SPACING_KM`). A level that would lengthen the voyage (possible
     only with costs that are not FIFO, see :mod:`pyroute_rel.solve`) ends the refinement.
     """
     if isinstance(levels, bool) or not isinstance(levels, int) or levels < 1:
@@ -164,6 +167,8 @@ def refine(
     history: list[RefineLevel] = []
     best = (grid, problem, result)
     for _ in range(levels):
+        if 2.0 * half / (n_nodes - 1) < MIN_SPACING_KM:  # nothing left to gain: stop
+            break
         corridor = corridor_grid(best[0], track_offsets_km(best[0], best[2]), half_width_km=half, n_nodes=n_nodes)
         sub = problem if problem_for is None else problem_for(corridor)
         res = forward_dp(corridor, sub)

@@ -13,6 +13,7 @@ indicator for comparing routes on the same grid, not as a calibrated probability
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
 import os
@@ -33,7 +34,7 @@ if TYPE_CHECKING:
     from .solve import DPResult, RoutingProblem
     from .weather import Conditions
 
-__all__ = ["Route", "build_route", "join_routes", "atomic_write", "write_outputs", "OUTPUT_FILES"]
+__all__ = ["Route", "build_route", "join_routes", "atomic_write", "check_out_dir", "write_outputs", "OUTPUT_FILES"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -336,16 +337,46 @@ def _fmt(x: Any) -> str:
     return f"{v:.6g}" if np.isfinite(v) else ""
 
 
+@functools.lru_cache(maxsize=1)
+def _file_mode() -> int:
+    """The mode a new file gets from ``open`` under this process's umask (0o644 for the usual 022)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+def check_out_dir(path: str | os.PathLike[str], *, option: str = "--out") -> Path:
+    """Refuse, before any work, an output folder that cannot be written: a file, a folder under a file, or a place
+    without write permission (:class:`~pyroute_rel.errors.OutputError`, naming ``option``). Creates nothing."""
+    from .errors import OutputError, show
+
+    out = Path(path)
+    if str(path).strip() == "":
+        raise OutputError(f"{option} needs a folder name (got an empty string)")
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{option} {show(out)} is a file, not a folder")
+    here = out
+    while not here.exists() and here != here.parent:
+        here = here.parent
+    if not here.is_dir():
+        raise OutputError(f"{option} {show(out)}: {show(here)} is a file, not a folder")
+    if not os.access(here, os.W_OK | os.X_OK):
+        raise OutputError(f"{option} {show(out)}: no permission to write in {show(here)}")
+    return out
+
+
 def atomic_write(path: str | os.PathLike[str], writer: Callable[[Path], object]) -> None:
     """Write a file atomically: ``writer`` writes a temporary file in the same folder, then it is renamed.
 
-    A failure inside ``writer`` leaves neither a partial file nor the temporary file behind.
+    A failure inside ``writer`` leaves neither a partial file nor the temporary file behind. The file gets the
+    usual mode of a new file (0o644 under umask 022), not the temporary file's private 0o600.
     """
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     try:
         writer(Path(tmp))
+        os.chmod(tmp, _file_mode())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -363,9 +394,14 @@ def write_outputs(route: Route, out_dir: str | os.PathLike[str], *, plot: bool =
     All files are first rendered into a temporary folder inside ``out_dir`` and moved into place only when
     every one succeeded, so a failure leaves no partial or stale set of outputs.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=".pyroute-rel-", dir=out))
+    from .errors import OutputError, show
+
+    out = check_out_dir(out_dir, option="output folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=".pyroute-rel-", dir=out))
+    except OSError as exc:
+        raise OutputError(f"output folder {show(out)}: {exc.strerror or exc}") from None
     try:
         summary = route.summary()
         if extra:
@@ -385,6 +421,8 @@ def write_outputs(route: Route, out_dir: str | os.PathLike[str], *, plot: bool =
             os.replace(staging / name, out / name)
             written.append(out / name)
         return written
+    except OSError as exc:
+        raise OutputError(f"output folder {show(out)}: cannot write ({exc.strerror or exc})") from None
     finally:
         for p in staging.glob("*"):
             p.unlink(missing_ok=True)

@@ -27,7 +27,7 @@ import numpy as np
 from .avoid import Avoid, check_points, obstacle_mask
 from .cost import WaveLoss
 from .errors import PyrouteError, ScenarioError, brief, show
-from .geodesy import along_track_km, cross_track_km, distance_km, intermediate_point
+from .geodesy import along_track_km, cross_track_km, crossing_fraction, distance_km, intermediate_point
 from .grid import DEFAULT_N_RANKS, LAYOUTS, Grid, auto_samples, plan_grid
 from .polar import BEYOND_MODES, Polar, get_polar
 from .solve import RoutingProblem, solve
@@ -78,6 +78,8 @@ SCHEMA: dict[str, dict[str, str]] = {
     },
 }
 WEATHER_KINDS = ("uniform", "file")
+#: Consecutive marks of a course (start, waypoints, finish) must be at least this far apart [km].
+MIN_LEG_KM = 1.0
 
 
 @dataclass(frozen=True)
@@ -331,16 +333,25 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
             raise ScenarioError(f"[route].{key} is missing ({SCHEMA['route'][key]})")
     start = _point(route["start"], "[route].start")
     finish = _point(route["finish"], "[route].finish")
-    if finish_line is not None:
-        off = abs(float(cross_track_km(*finish_line[0], *finish_line[1], *finish)))
-        if off > 1.0:
-            raise ScenarioError(f"[route].finish {list(finish)} must lie on [route].finish_line ({off:.1f} km off it)")
+    for name, point, line in (("start", start, start_line), ("finish", finish, finish_line)):
+        if line is not None and (off := _off_line_km(line, point)) > 1.0:
+            raise ScenarioError(f"[route].{name} {list(point)} must lie on [route].{name}_line ({off:.1f} km off it)")
+    if start_line is not None and finish_line is not None:
+        frac = crossing_fraction(*start_line[0], *start_line[1], *finish_line[0], *finish_line[1])
+        if np.isfinite(frac).any():
+            raise ScenarioError("[route].start_line crosses [route].finish_line: the course would end where it starts")
     raw_wp = route.get("waypoints", [])
     if not isinstance(raw_wp, list):
         raise ScenarioError("[route].waypoints must be a list of [lon, lat] points [deg]")
     waypoints = tuple(_point(p, f"[route].waypoints[{i}]") for i, p in enumerate(raw_wp))
-    if abs(start[0] - finish[0]) < 1e-9 and abs(start[1] - finish[1]) < 1e-9:
-        raise ScenarioError(f"[route].start equals [route].finish ({list(start)}): nothing to route")
+    marks = [("[route].start", start), *((f"[route].waypoints[{i}]", w) for i, w in enumerate(waypoints)),
+             ("[route].finish", finish)]
+    for (name_a, a), (name_b, b) in zip(marks[:-1], marks[1:], strict=True):
+        gap = float(distance_km(*a, *b))
+        if gap < MIN_LEG_KM:
+            what = "the same point" if gap < 1e-6 else f"{gap * 1000.0:.0f} m apart"
+            raise ScenarioError(f"{name_a} {list(a)} and {name_b} {list(b)} are {what}: consecutive marks must be at "
+                                f"least {MIN_LEG_KM:g} km apart (nothing to route between them)")
     departure = parse_departure(route.get("departure", "2018-06-01T00:00:00Z"), "[route].departure")
     step = route.get("time_step_h")
     if step is not None:
@@ -566,6 +577,15 @@ def _nearest_on_line(
     along = float(along_track_km(c_lon, c_lat, d_lon, d_lat, *p))
     lon, lat = intermediate_point(c_lon, c_lat, d_lon, d_lat, min(max(along / length, 0.0), 1.0))
     return float(lon), float(lat)
+
+
+def _off_line_km(line: tuple[tuple[float, float], tuple[float, float]], point: tuple[float, float]) -> float:
+    """Distance [km] from a point to a great-circle segment (to the nearer end beyond the segment's ends)."""
+    (a_lon, a_lat), (b_lon, b_lat) = line
+    along = float(along_track_km(a_lon, a_lat, b_lon, b_lat, *point))
+    if 0.0 <= along <= float(distance_km(a_lon, a_lat, b_lon, b_lat)):
+        return abs(float(cross_track_km(a_lon, a_lat, b_lon, b_lat, *point)))
+    return min(float(distance_km(a_lon, a_lat, *point)), float(distance_km(b_lon, b_lat, *point)))
 
 
 def _point(v: Any, where: str) -> tuple[float, float]:

@@ -88,7 +88,7 @@ GOOD = EXAMPLE.read_text()
     [
         (lambda d: d / "missing.toml", "scenario file not found"),
         (lambda d: write(d, GOOD.replace("n_nodes = 160", "n_nodez = 160")), "unknown key 'n_nodez'"),
-        (lambda d: write(d, GOOD.replace("finish = [-60.0, 17.5]", "finish = [-12.0, 45.0]")), "equals"),
+        (lambda d: write(d, GOOD.replace("finish = [-60.0, 17.5]", "finish = [-12.0, 45.0]")), "are the same point"),
         (lambda d: write(d, GOOD.replace('departure = "2018-06-01T00:00:00Z"', 'departure = "June 1st"')),
          "ISO 8601"),
         (lambda d: write(d, GOOD.replace("apf = 1.0", "apf = 1.5")), r"\[failure\].apf must be a probability"),
@@ -191,3 +191,35 @@ def test_departure_sweep_routes_each_departure_like_a_single_route(capsys) -> No
     assert main([*args, "--departures", "2018-06-01T00:00:00Z,June"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "--departures" in err
+
+
+def test_out_that_cannot_be_a_folder_is_refused_before_routing(tmp_path, capsys) -> None:
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    for out in (a_file, a_file / "sub"):
+        assert main(["route", str(EXAMPLE), "--n-ranks", "10", "--quiet", "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and "--out" in err and "is a file, not a folder" in err
+    assert a_file.read_text() == "x"
+    assert main(["route", str(EXAMPLE), "--n-ranks", "10", "--quiet", "--departures", "2018-06-01T00:00:00Z",
+                 "--out", str(tmp_path / "o")]) == 2
+    assert "--departures" in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
+def test_output_files_get_the_usual_file_mode(tmp_path) -> None:
+    import os
+    import stat
+
+    assert main(["route", str(EXAMPLE), "--n-ranks", "10", "--quiet", "--out", str(tmp_path / "o")]) == 0
+    mask = os.umask(0)
+    os.umask(mask)
+    modes = {p.name: stat.S_IMODE(p.stat().st_mode) for p in (tmp_path / "o").iterdir()}
+    assert len(modes) == 5 and set(modes.values()) == {0o666 & ~mask}, modes  # route.png was 0o600
+
+
+def test_a_grid_too_big_for_memory_is_refused(tmp_path, capsys) -> None:
+    # max_deviation_deg = 89.99 was accepted and made an all-to-all grid of 1857 nodes per rank (552 M arcs)
+    assert main(["route", str(EXAMPLE), "--quiet", "--aspect", "30", "--max-deviation", "89.99"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "M candidate arcs (160 ranks x 1797 nodes x 1797" in err
+    assert "max_deviation_deg" in err

@@ -76,6 +76,17 @@ def test_waypoints_pass_the_marks_and_add_up() -> None:
     ({"start": [-12.0, 45.0], "finish_line": [[-60.0, 10.0], [-60.0, 10.0]]}, "must differ"),
     ({"start": [-12.0, 45.0], "finish_line": [-60.0, 10.0]}, r"finish_line\[0\] must be \[lon, lat\]"),
     ({"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "waypoints": [[-30.0, 95.0]]}, r"waypoints\[0\]"),
+    # a start off its start line (QA: it was accepted and routed from the line's end, away from the finish)
+    ({"start": [-10.0, 30.0], "start_line": [[-20.0, 39.0], [-20.0, 41.0]], "finish": [-30.0, 35.0]},
+     r"\[route\]\.start \[-10\.0, 30\.0\] must lie on \[route\]\.start_line \(1355\.\d km off it\)"),
+    # beyond the end of the finish line, though on its great circle
+    ({"start": [-12.0, 45.0], "finish": [-60.0, 30.0], "finish_line": FINISH_LINE}, "must lie on"),
+    ({"start_line": [[-20.0, 35.0], [-20.0, 40.0]], "finish_line": [[-25.0, 37.0], [-15.0, 37.0]]},
+     r"start_line crosses \[route\]\.finish_line"),
+    ({"start": [-180.0, 40.0], "finish": [180.0, 40.0]}, r"are the same point: consecutive marks"),
+    ({"start": [-20.0, 40.0], "finish": [-20.0, 40.000001]}, r"are 0 m apart"),
+    ({"start": [-20.0, 40.0], "finish": [-30.0, 35.0], "waypoints": [[-25.0, 38.0], [-25.0, 38.0]]},
+     r"\[route\]\.waypoints\[0\] \[-25\.0, 38\.0\] and \[route\]\.waypoints\[1\] .* same point"),
 ])
 def test_bad_courses(route: dict, match: str) -> None:
     with pytest.raises(ScenarioError, match=match):
