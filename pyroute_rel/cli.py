@@ -123,7 +123,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
         from .route import check_out_dir
 
         check_out_dir(args.out)  # before the work, not after it
-    if args.departures:
+    if args.departures is not None:
         if args.out:
             raise ScenarioError("--out writes one route's files; with --departures use --json for the table, or "
                                 "route each departure on its own")
@@ -153,11 +153,14 @@ def _cmd_route(args: argparse.Namespace) -> int:
 
 def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
     """Route one scenario for several departure times (planning): a table, or JSON with --json."""
-    from .errors import NoFeasibleRouteError
+    from .errors import NoFeasibleRouteError, WeatherCoverageError
     from .scenario import parse_departure
     from .solve import _progress_bar
 
     times = [parse_departure(t.strip(), "--departures") for t in args.departures.split(",") if t.strip()]
+    if not times:
+        raise ScenarioError(f"--departures needs at least one ISO 8601 UTC time, comma-separated (got "
+                            f"{args.departures!r})")
     grids = scenario.leg_grids()  # one set of grids: arc geometry and obstacle masks are computed once
     rows = []
     bar = _progress_bar(len(times), enabled=not args.quiet, desc="departures", unit="departure")
@@ -165,7 +168,7 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
         row: dict[str, Any] = {"departure": str(dep) + "Z", "voyage_time_h": None, "feasible": False}
         try:
             route = scenario.with_options(departure=str(dep)).route(grids=grids)
-        except NoFeasibleRouteError as exc:
+        except (NoFeasibleRouteError, WeatherCoverageError) as exc:  # this departure only: the others still route
             row["reason"] = str(exc)
         else:
             row.update({"voyage_time_h": route.voyage_time_h, "feasible": True, "arrival": route.summary()["arrival"],

@@ -620,11 +620,38 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
     else:
         detail = f"all {n_live} arcs into it from reachable nodes are forbidden: " + "; ".join(parts)
     hint = ""
-    if problem.failure is not None and failure_arcs.any():
+    weather_arcs = live & (reason & REASONS["weather"] != 0)
+    short = _coverage_short(grid, problem, k, t0, weather_arcs) if weather_arcs.any() else None
+    if short is not None:
+        hint = f" (the weather does not cover these arcs: {short})"
+    elif problem.failure is not None and failure_arcs.any():
         hint = " (raise --apf, or widen the grid to go around)"
     elif np.any(live & (reason & REASONS["obstacle"] != 0)):
         hint = " (widen the grid: [grid].half_width_km / --half-width-km, to go around)"
     return f"no feasible route: the front died at {where} ({along:.0f} km along the route, {pos}); {detail}{hint}"
+
+
+def _coverage_short(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray, arcs: BoolArray) -> str | None:
+    """Why arcs with missing weather lack it, when the reason is the weather's extent: they (or the time they take,
+    at least length / the polar's top speed) lie outside what the source covers. None when it covers them (NaN
+    inside the data, e.g. a land mask or a hole)."""
+    from .errors import WeatherCoverageError
+
+    lon0, lat0, lon1, lat1, src, _ = grid.arcs(k)
+    ends = [np.broadcast_to(a, src.shape)[arcs] for a in (lon0, lat0, lon1, lat1)]
+    lon = np.concatenate([ends[0], ends[2]])
+    lat = np.concatenate([ends[1], ends[3]])
+    speed = problem.speed_bound_kn()
+    sail_h = geodesy.distance_nm(*ends) / speed if speed else np.zeros(ends[0].size)
+    start = np.datetime64(str(np.asarray(problem.departure).astype("datetime64[s]")))
+    first = start + np.timedelta64(int(np.floor(float(t0[arcs].min()) * 3600.0)), "s")
+    last = start + np.timedelta64(int(np.ceil(float((t0[arcs] + sail_h).max()) * 3600.0)), "s")
+    lon_range = (float(lon.min()), float(lon.max())) if np.ptp(lon) <= 180.0 else (-180.0, 180.0)
+    try:
+        problem.weather.check_coverage(lon_range, (float(lat.min()), float(lat.max())), (first, last))
+    except WeatherCoverageError as exc:
+        return str(exc)
+    return None
 
 
 def _criteria_counts(

@@ -250,6 +250,15 @@ def _parse_ring(raw: Any, where: str) -> FloatArray:
         )
     if len(xy) < 3 or (len(xy) == 3 and np.array_equal(xy[0], xy[-1])):
         raise ScenarioError(f"{where}: a ring needs at least 3 distinct positions (got {len(xy)})")
+    jump = np.abs(np.diff(np.vstack([xy, xy[:1]])[:, 0])) > 180.0
+    if jump.any():  # lon/lat rings are planar (RFC 7946): such an edge runs the long way round, not across the seam
+        i = int(np.argmax(jump))
+        a, b = xy[i], xy[(i + 1) % len(xy)]
+        raise ScenarioError(
+            f"{where}: the edge from [{a[0]:g}, {a[1]:g}] to [{b[0]:g}, {b[1]:g}] spans {abs(b[0] - a[0]):g} deg of "
+            "longitude; a zone across the antimeridian must be split into polygons on either side of it "
+            "(a MultiPolygon, RFC 7946 section 3.1.9)"
+        )
     return xy
 
 

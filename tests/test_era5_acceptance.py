@@ -128,3 +128,34 @@ def test_bad_weather_file_exit_2_one_line_no_output(tmp_path: Path, capsys: pyte
     assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
     assert needle in err
     assert not out.exists()
+
+
+def test_departure_sweep_reports_an_uncovered_departure_as_a_row(tmp_path: Path,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """One departure outside the file's time range is a 'no route' row; the others still route (QA: it aborted)."""
+    import json
+
+    from pyroute_rel.cli import main
+
+    era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
+    (tmp_path / "f.toml").write_text(TOML.format(weather='kind = "file"\npaths = ["era5.nc"]'))
+    code = main(["route", str(tmp_path / "f.toml"), "--quiet", "--json",
+                 "--departures", "2018-06-01T00:00:00Z,2019-01-01T00:00:00Z"])
+    rows = json.loads(capsys.readouterr().out)["departures"]
+    assert code == 0 and [r["feasible"] for r in rows] == [True, False]
+    assert "era5.nc" in rows[1]["reason"] and "2018-07" in rows[1]["reason"]
+
+
+def test_voyage_outlasting_the_file_says_so(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Departing 5 days before the file ends: the front dies where the data stop, and the message says the weather
+    does not cover those arcs in time (QA: it said only 'missing weather data (NaN)')."""
+    from pyroute_rel.cli import main
+
+    era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
+    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace("2018-06-01T00:00:00Z",
+                                                                           "2018-07-15T00:00:00Z")
+    (tmp_path / "late.toml").write_text(text)
+    assert main(["route", str(tmp_path / "late.toml"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "missing weather data (NaN)" in err
+    assert "the weather does not cover these arcs" in err and "era5.nc" in err and "(time not covered)" in err

@@ -498,6 +498,10 @@ POLY = {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]}
         ),
         ({"type": "Feature", "properties": {"name": 3}, "geometry": POLY}, "'name' must be a non-empty string"),
         ({**POLY, "crs": {"type": "name", "properties": {"name": "EPSG:3857"}}}, "CRS84"),
+        # drawn across the antimeridian without splitting: in planar lon/lat it is a band round the globe, which
+        # blocked an Atlantic course (QA)
+        ({"type": "Polygon", "coordinates": [[[179, 36], [-179, 36], [-179, 39], [179, 39], [179, 36]]]},
+         r"edge from \[179, 36\] to \[-179, 36\] spans 358 deg of longitude.*split.*RFC 7946"),
     ],
 )
 def test_bad_geojson_raises_scenario_error_naming_the_file(tmp_path, content, match):
