@@ -195,7 +195,7 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
 
 def _route_text(route: Any, elapsed: float, out: str | None) -> str:
     s = route.summary()
-    days, hours = divmod(route.voyage_time_h, 24.0)
+    days, hours = divmod(round(route.voyage_time_h, 1), 24.0)  # 311.98 h is 13 d 0.0 h, not 12 d 24.0 h
     lines = [
         f"voyage time      {route.voyage_time_h:.2f} h ({int(days)} d {hours:.1f} h)",
         f"distance         {route.distance_nm:.1f} nm",

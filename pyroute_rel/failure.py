@@ -498,6 +498,9 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
 def _resolve(name_or_path: str | os.PathLike[str]) -> Traversable:
     text = os.fspath(name_or_path)
     shipped = list_failure_models()
+    if not text.strip():
+        raise FailureModelError(f"failure model name is empty: expected a shipped name, one of {shipped}, or the path "
+                                "of a .toml file")
     if text in shipped:
         return _shipped().joinpath(f"{text}.toml")
     path = Path(text).expanduser()

@@ -26,7 +26,7 @@ import numpy as np
 
 from .avoid import Avoid, check_points, obstacle_mask
 from .cost import WaveLoss
-from .errors import PyrouteError, ScenarioError, brief, show
+from .errors import FailureModelError, PyrouteError, ScenarioError, brief, show
 from .geodesy import along_track_km, cross_track_km, crossing_fraction, distance_km, intermediate_point
 from .grid import DEFAULT_N_RANKS, LAYOUTS, Grid, auto_samples, plan_grid
 from .polar import BEYOND_MODES, Polar, get_polar
@@ -127,6 +127,8 @@ class Scenario:
             elif key == "apf":
                 checked[key] = _prob(value, "--apf")
             elif key == "failure_model":
+                if not str(value).strip():
+                    raise ScenarioError("--failure-model needs a shipped model name, a model file or 'none' (got '')")
                 checked[key] = None if str(value).lower() == "none" else str(value)
             elif key == "departure":
                 checked[key] = parse_departure(value, "--departures")
@@ -179,7 +181,10 @@ class Scenario:
         candidate = self.base_dir / name
         if ("/" in name or name.endswith(".toml")) and candidate.exists():
             name = str(candidate)
-        model = load_failure_model(name)
+        try:
+            model = load_failure_model(name)
+        except FailureModelError as exc:
+            raise FailureModelError(f"{self.source}: [failure].model {self.failure_model!r}: {exc}") from None
         have = getattr(self.weather, "fields", None)
         if have is not None:
             needs = {"hs_m": {"hs_m"}, "awd_deg": {"wave_dir_deg"}, "tws_kn": {"tws_kn"}, "twa_deg": {"twd_deg"},
@@ -356,12 +361,17 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     step = route.get("time_step_h")
     if step is not None:
         step = _positive(step, "[route].time_step_h")
+        if step > 48.0:
+            raise ScenarioError(f"[route].time_step_h must be in (0, 48] [h] (got {step:g})")
     max_wait = route.get("max_wait_h", 0.0)
     max_wait = _number(max_wait, "[route].max_wait_h")
     if max_wait < 0:
         raise ScenarioError(f"[route].max_wait_h must be >= 0 [h] (got {max_wait:g})")
     if max_wait > 0 and step is None:
         raise ScenarioError("[route].max_wait_h needs [route].time_step_h (waiting is modelled on a time lattice)")
+    if step is not None and max_wait / step > 10_000:
+        raise ScenarioError(f"[route].max_wait_h / [route].time_step_h must be at most 10000 wait steps per node (got "
+                            f"{max_wait:g} h / {step:g} h): use a larger time_step_h")
     prune = route.get("prune", True)
     if not isinstance(prune, bool):
         raise ScenarioError(f"[route].prune must be true or false (got {prune!r})")
@@ -373,6 +383,8 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     n_ranks = None if "n_ranks" not in grid else _int(grid["n_ranks"], "[grid].n_ranks", 1)
     n_nodes = None if "n_nodes" not in grid else _int(grid["n_nodes"], "[grid].n_nodes", 1)
     aspect = None if "aspect" not in grid else _positive(grid["aspect"], "[grid].aspect")
+    if aspect is not None and not 0.01 <= aspect <= 1000.0:
+        raise ScenarioError(f"[grid].aspect (rank spacing / lateral spacing) must be in [0.01, 1000] (got {aspect:g})")
     half_width = None if "half_width_km" not in grid else _number(grid["half_width_km"], "[grid].half_width_km")
     if half_width is not None and half_width < 0:
         raise ScenarioError(f"[grid].half_width_km must be >= 0 [km] (got {half_width:g})")
@@ -496,6 +508,8 @@ def parse_departure(value: Any, where: str = "departure") -> np.datetime64:
 
     if isinstance(value, dt.datetime):
         t = value
+    elif isinstance(value, dt.date):  # a TOML date literal (departure = 2018-06-01): midnight UTC
+        t = dt.datetime(value.year, value.month, value.day)
     elif isinstance(value, str):
         try:
             t = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))

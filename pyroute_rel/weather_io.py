@@ -245,6 +245,9 @@ def weather_from_mapping(
 
 
 def _open_file(path: Path) -> list[xr.Dataset]:
+    if path.is_dir():
+        raise WeatherError(f"weather file '{path}' is a folder: list the NetCDF or GRIB files in it under "
+                           "[weather].paths")
     if not path.is_file():
         raise WeatherError(f"weather file '{path}' does not exist")
     try:

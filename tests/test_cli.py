@@ -96,6 +96,16 @@ GOOD = EXAMPLE.read_text()
         (lambda d: write(d, GOOD.replace("n_ranks = 160", "n_ranks = 0")), r"n_ranks must be >= 1"),
         (lambda d: write(d, GOOD + "\n[extra]\nx = 1\n"), r"unknown table \[extra\]"),
         (lambda d: write(d, "[route\nstart = 1"), "not valid TOML"),
+        # QA: these named no field before
+        (lambda d: write(d, GOOD.replace("[route]", "[route]\ntime_step_h = 100", 1)),
+         r"s\.toml: \[route\]\.time_step_h must be in \(0, 48\] \[h\] \(got 100\)"),
+        (lambda d: write(d, GOOD.replace("[route]", "[route]\ntime_step_h = 0.01\nmax_wait_h = 5000", 1)),
+         r"\[route\]\.max_wait_h / \[route\]\.time_step_h must be at most 10000"),
+        (lambda d: write(d, GOOD.replace("[grid]", "[grid]\naspect = 1e6", 1)), r"\[grid\]\.aspect .* \(got 1e\+06\)"),
+        (lambda d: write(d, GOOD.replace('model = "dickson2018"', 'model = "nope.toml"')),
+         r"s\.toml: \[failure\]\.model 'nope\.toml': .*nope\.toml: file not found"),
+        (lambda d: write(d, GOOD.split("[weather]")[0] + '[weather]\nkind = "file"\npaths = ["."]\n'),
+         r"is a folder: list the NetCDF or GRIB files in it under \[weather\]\.paths"),
         (lambda d: write(d, GOOD.replace('polar = "maribot_vane"', 'polar = "bad.pol"'))
          and write(d, "TWA\\TWS\t8\t4\n45\t1\t2\n90\t1\t2\n", "bad.pol") and d / "s.toml", "increasing"),
     ],
@@ -223,3 +233,16 @@ def test_a_grid_too_big_for_memory_is_refused(tmp_path, capsys) -> None:
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "M candidate arcs (160 ranks x 1797 nodes x 1797" in err
     assert "max_deviation_deg" in err
+
+
+def test_toml_date_literal_departs_at_midnight_utc(tmp_path, capsys) -> None:
+    path = write(tmp_path, GOOD.replace('departure = "2018-06-01T00:00:00Z"', "departure = 2018-06-02"))
+    assert main(["route", str(path), "--n-ranks", "10", "--quiet", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["departure"] == "2018-06-02T00:00:00Z"
+
+
+def test_empty_failure_model_names_are_refused(capsys) -> None:
+    assert main(["route", str(EXAMPLE), "--quiet", "--failure-model", ""]) == 2
+    assert "--failure-model needs a shipped model name" in capsys.readouterr().err
+    assert main(["failure", ""]) == 2
+    assert "failure model name is empty" in capsys.readouterr().err  # was ".: cannot read (Is a directory)"
