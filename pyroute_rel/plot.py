@@ -49,12 +49,13 @@ def failure_field(
     Returns ``(lon [deg], lat [deg], p_f, n_fired)`` 2-D arrays; the heading at each point is the
     great-circle course towards the finish.
     """
-    lon = np.linspace(grid.lon_deg.min(), grid.lon_deg.max(), n)
+    view = _unwrap(grid.start[0])
+    lon = np.linspace(view(grid.lon_deg).min(), view(grid.lon_deg).max(), n)
     lat = np.linspace(grid.lat_deg.min(), grid.lat_deg.max(), n)
-    glon, glat = np.meshgrid(lon, lat)
+    glon, glat = np.meshgrid(lon, lat)  # longitudes may run past +-180 (a course across the antimeridian)
     heading = geodesy.initial_bearing_deg(glon, glat, grid.finish[0], grid.finish[1])
     t = np.datetime64("2000-01-01") if time is None else time
-    cond = weather.sample(glon, glat, t)
+    cond = weather.sample((glon + 180.0) % 360.0 - 180.0, glat, t)
     q = arc_quantities(cond, heading)
     need = {k: q[k] for k in failure.quantities}
     p = np.asarray(failure.p_fail(need), dtype=float)
@@ -62,15 +63,26 @@ def failure_field(
     return glon, glat, p, fired
 
 
+def _unwrap(ref_deg: float) -> Any:
+    """Longitudes [deg] -> within 180 deg of ``ref_deg``, so a map of a course across the antimeridian is continuous
+    (it may run past +-180)."""
+    def view(lon: Any) -> Any:
+        x = np.asarray(lon, dtype=float)
+        return x + 360.0 * np.round((ref_deg - x) / 360.0)  # whole turns only: longitudes in view stay exact
+
+    return view
+
+
 def _draw_grid_outline(ax: Axes, grid: Grid) -> None:
+    view = _unwrap(grid.start[0])
     edge_lon = np.concatenate([grid.lon_deg[:, 0], grid.lon_deg[::-1, -1], grid.lon_deg[:1, 0]])
     edge_lat = np.concatenate([grid.lat_deg[:, 0], grid.lat_deg[::-1, -1], grid.lat_deg[:1, 0]])
-    ax.plot(edge_lon, edge_lat, color="0.6", lw=0.8, ls="--", label="grid extent")
+    ax.plot(view(edge_lon), edge_lat, color="0.6", lw=0.8, ls="--", label="grid extent")
     gc_lon, gc_lat = geodesy.intermediate_point(*grid.start, *grid.finish, np.linspace(0, 1, 100))
-    ax.plot(gc_lon, gc_lat, color="0.4", lw=0.8, ls=":", label="great circle")
+    ax.plot(view(gc_lon), gc_lat, color="0.4", lw=0.8, ls=":", label="great circle")
 
 
-def _draw_patches(ax: Axes, weather: Any) -> None:
+def _draw_patches(ax: Axes, weather: Any, view: Any) -> None:
     from matplotlib.patches import Rectangle
 
     for i, patch in enumerate(getattr(weather, "patches", ())):
@@ -78,10 +90,10 @@ def _draw_patches(ax: Axes, weather: Any) -> None:
         if len(label) > 40:
             label = label[:37] + "..."
         desc = ", ".join(f"{k}={v:g}" for k, v in patch.values.items())
-        ax.add_patch(Rectangle((patch.lon[0], patch.lat[0]), patch.lon[1] - patch.lon[0],
+        ax.add_patch(Rectangle((float(view(patch.lon[0])), patch.lat[0]), patch.lon[1] - patch.lon[0],
                                patch.lat[1] - patch.lat[0], fill=False, ec="k", lw=1.0))
         # label each box at a different corner so nested boxes stay readable
-        corner = (patch.lon[0], patch.lat[1]) if i % 2 == 0 else (patch.lon[0], patch.lat[0])
+        corner = (float(view(patch.lon[0])), patch.lat[1] if i % 2 == 0 else patch.lat[0])
         ax.annotate(f"{label}: {desc}", corner, xytext=(1, 2 if i % 2 == 0 else -2), textcoords="offset points",
                     va="bottom" if i % 2 == 0 else "top", fontsize=6.5)
 
@@ -91,12 +103,23 @@ def _draw_coast(ax: Axes, grid: Grid) -> None:
         from .obstacles import land_geometry
     except ImportError:
         return
-    try:
-        land = land_geometry((float(grid.lon_deg.min()) - 2, float(grid.lat_deg.min()) - 2,
-                              float(grid.lon_deg.max()) + 2, float(grid.lat_deg.max()) + 2))
-    except Exception:  # the map is still useful without a coastline
-        return
-    _fill_polygons(ax, land, facecolor="0.85", edgecolor="0.5", linewidth=0.4, zorder=0)
+    import shapely
+
+    lon = _unwrap(grid.start[0])(grid.lon_deg)
+    west, east = float(lon.min()) - 2, float(lon.max()) + 2
+    south, north = max(float(grid.lat_deg.min()) - 2, -90.0), min(float(grid.lat_deg.max()) + 2, 90.0)
+    pieces = []
+    for shift in (-360.0, 0.0, 360.0):  # the view may run past +-180: read each side of the seam, shifted
+        w, e = max(west + shift, -180.0), min(east + shift, 180.0)
+        if e - w < 1e-6:
+            continue
+        try:
+            land = land_geometry((w, south, e, north))
+        except Exception:  # the map is still useful without a coastline
+            return
+        pieces.append(shapely.transform(land, lambda xy, d=shift: xy - (d, 0.0)) if shift else land)
+    for land in pieces:
+        _fill_polygons(ax, land, facecolor="0.85", edgecolor="0.5", linewidth=0.4, zorder=0)
 
 
 def _fill_polygons(ax: Axes, geometry: Any, **style: Any) -> None:
@@ -134,6 +157,8 @@ def plot_routes(
     """
     plt = _pyplot()
     grid = routes[0].grid
+    view = _unwrap(grid.start[0])  # continuous longitudes across the antimeridian
+    import shapely
     fig, ax = plt.subplots(figsize=(9, 6.5), dpi=110)
     if failure is not None and weather is not None:
         glon, glat, p, fired = failure_field(grid, weather, failure)
@@ -145,40 +170,44 @@ def plot_routes(
     if coast:
         _draw_coast(ax, grid)
     for zone in zones:
-        _fill_polygons(ax, getattr(zone, "geometry", zone), facecolor="tab:purple", alpha=0.25, linewidth=0.8,
-                       edgecolor="tab:purple")
+        shape = shapely.transform(getattr(zone, "geometry", zone),
+                                  lambda xy: np.column_stack([view(xy[:, 0]), xy[:, 1]]))
+        _fill_polygons(ax, shape, facecolor="tab:purple", alpha=0.25, linewidth=0.8, edgecolor="tab:purple")
     _draw_grid_outline(ax, grid)
     if weather is not None:
-        _draw_patches(ax, weather)
+        _draw_patches(ax, weather, view)
     labels = list(labels) if labels is not None else [f"route {i + 1}" for i in range(len(routes))]
     for i, (route, label) in enumerate(zip(routes, labels, strict=True)):
         before = route.meta.get("grid_track_object")
         if before is not None:  # a refined route: the grid's own track, thin, for comparison
-            ax.plot(before[0], before[1], color=_COLOURS[i % len(_COLOURS)], lw=0.8, ls=":",
+            ax.plot(view(before[0]), before[1], color=_COLOURS[i % len(_COLOURS)], lw=0.8, ls=":",
                     label=f"{label} on the grid, before refinement: {before[2]:.1f} h")
-        ax.plot(route.lon_deg, route.lat_deg, color=_COLOURS[i % len(_COLOURS)], lw=1.6,
+        ax.plot(view(route.lon_deg), route.lat_deg, color=_COLOURS[i % len(_COLOURS)], lw=1.6,
                 label=f"{label}{' (refined)' if before is not None else ''}: {route.voyage_time_h:.1f} h")
     if grid.start_lon is not None and grid.start_lat is not None:
-        ax.plot(grid.start_lon, grid.start_lat, "k-", lw=2.5, label="start line")
+        ax.plot(view(grid.start_lon), grid.start_lat, "k-", lw=2.5, label="start line")
     if grid.finish_line is not None:
         (c_lon, c_lat), (d_lon, d_lat) = grid.finish_line
         f_lon, f_lat = geodesy.intermediate_point(c_lon, c_lat, d_lon, d_lat, np.linspace(0.0, 1.0, 50))
-        ax.plot(f_lon, f_lat, "k-", lw=2.5, label="finish line")
-    ax.plot(routes[0].lon_deg[0], routes[0].lat_deg[0], "k^", ms=7, label="start")
-    ax.plot(routes[0].lon_deg[-1], routes[0].lat_deg[-1], "ks", ms=7, label="finish")
+        ax.plot(view(f_lon), f_lat, "k-", lw=2.5, label="finish line")
+    ax.plot(view(routes[0].lon_deg[0]), routes[0].lat_deg[0], "k^", ms=7, label="start")
+    ax.plot(view(routes[0].lon_deg[-1]), routes[0].lat_deg[-1], "ks", ms=7, label="finish")
     ax.set_xlabel("longitude [deg]")
+    from matplotlib.ticker import FuncFormatter
+
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{(x + 180.0) % 360.0 - 180.0:g}"))  # -175, not 185
     ax.set_ylabel("latitude [deg]")
     # frame the routes, patches and zones (the grid outline may extend beyond: it is clipped)
-    xs = [np.asarray(r.lon_deg) for r in routes]
+    xs = [view(r.lon_deg) for r in routes]
     ys = [np.asarray(r.lat_deg) for r in routes]
     for patch in getattr(weather, "patches", ()) if weather is not None else ():
-        xs.append(np.asarray(patch.lon))
+        xs.append(view(np.asarray(patch.lon)))
         ys.append(np.asarray(patch.lat))
     if grid.finish_line is not None:
-        xs.append(np.array([p[0] for p in grid.finish_line]))
+        xs.append(view(np.array([p[0] for p in grid.finish_line])))
         ys.append(np.array([p[1] for p in grid.finish_line]))
     if grid.start_lon is not None and grid.start_lat is not None:
-        xs.append(grid.start_lon)
+        xs.append(view(grid.start_lon))
         ys.append(grid.start_lat)
     x_all, y_all = np.concatenate(xs), np.concatenate(ys)
     pad_x = max(3.0, 0.15 * float(np.ptp(x_all)))

@@ -153,10 +153,12 @@ class Route:
     def to_geojson(self) -> dict[str, Any]:
         """GeoJSON FeatureCollection: the track as a LineString plus one Point per track point."""
         times = self.time
+        parts = _split_at_antimeridian(self.lon_deg, self.lat_deg)
+        geometry = ({"type": "LineString", "coordinates": parts[0]} if len(parts) == 1
+                    else {"type": "MultiLineString", "coordinates": parts})
         line = {
             "type": "Feature",
-            "geometry": {"type": "LineString", "coordinates": [[float(a), float(b)] for a, b in
-                                                                zip(self.lon_deg, self.lat_deg, strict=True)]},
+            "geometry": geometry,
             "properties": {
                 "name": "route",
                 "voyage_time_h": self.voyage_time_h,
@@ -215,6 +217,28 @@ def _put(values: FloatArray, i: npt.NDArray[np.intp], new: FloatArray) -> FloatA
     out = np.array(values, dtype=float)  # a copy
     out[i] = new
     return out
+
+
+def _split_at_antimeridian(lon: FloatArray, lat: FloatArray) -> list[list[list[float]]]:
+    """A track's [lon, lat] coordinates, in parts split where a leg crosses the antimeridian (RFC 7946 section
+    3.1.9), each part ending or starting on +-180 at the leg's great-circle crossing latitude.
+
+    >>> _split_at_antimeridian(np.array([178.0, -178.0]), np.array([0.0, 0.0]))
+    [[[178.0, 0.0], [180.0, 0.0]], [[-180.0, 0.0], [-178.0, 0.0]]]
+    """
+    parts: list[list[list[float]]] = [[[float(lon[0]), float(lat[0])]]]
+    for i in range(1, len(lon)):
+        a, b = float(lon[i - 1]), float(lon[i])
+        if abs(b - a) > 180.0:  # the short way round crosses +-180
+            frac = float(geodesy.crossing_fraction(a, float(lat[i - 1]), b, float(lat[i]), 180.0, -89.999, 180.0,
+                                                   89.999))
+            frac = frac if np.isfinite(frac) else 0.5
+            _, x_lat = geodesy.intermediate_point(a, float(lat[i - 1]), b, float(lat[i]), frac)
+            side = 180.0 if a > 0 else -180.0
+            parts[-1].append([side, float(x_lat)])
+            parts.append([[-side, float(x_lat)]])
+        parts[-1].append([b, float(lat[i])])
+    return parts
 
 
 def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:

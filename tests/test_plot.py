@@ -82,3 +82,36 @@ def test_a_refined_route_map_draws_the_grid_track_too() -> None:
         np.testing.assert_array_equal(lines[before[0]].get_xdata(), route.meta["grid_track_object"][0])
     finally:
         plt.close(fig)
+
+
+def test_a_course_across_the_antimeridian_maps_continuously_and_splits_its_geojson(tmp_path) -> None:
+    import json
+
+    from pyroute_rel.cli import main
+    from pyroute_rel.plot import plot_route
+    from pyroute_rel.scenario import scenario_from_mapping
+
+    sc = scenario_from_mapping({"route": {"start": [170.0, 30.0], "finish": [-170.0, 32.0]}, "grid": {"n_ranks": 20},
+                                "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0}})
+    route = sc.route()
+    fig = plot_route(route)
+    try:
+        ax = fig.axes[0]
+        (track,) = [ln for ln in ax.get_lines() if ln.get_label().startswith("route")]
+        x = np.asarray(track.get_xdata())
+        assert np.all(np.abs(np.diff(x)) < 5.0) and x[0] == 170.0 and x[-1] == 190.0  # no jump across the map
+        lo, hi = ax.get_xlim()
+        assert 160.0 < lo < 170.0 and 190.0 < hi < 200.0  # framed on the course, not the whole world
+        assert ax.xaxis.get_major_formatter()(185.0, 0) == "-175"
+    finally:
+        plt.close(fig)
+    # GeoJSON: split at +-180 into a MultiLineString (RFC 7946 section 3.1.9), the parts meeting on the seam
+    path = tmp_path / "am.toml"
+    path.write_text('[route]\nstart = [170.0, 30.0]\nfinish = [-170.0, 32.0]\n[grid]\nn_ranks = 20\n'
+                    '[weather]\nkind = "uniform"\ntws_kn = 15.0\ntwd_deg = 0.0\n')
+    assert main(["route", str(path), "--quiet", "--out", str(tmp_path / "o")]) == 0
+    geom = json.loads((tmp_path / "o" / "route.geojson").read_text())["features"][0]["geometry"]
+    assert geom["type"] == "MultiLineString" and len(geom["coordinates"]) == 2
+    west, east = geom["coordinates"]
+    assert west[-1][0] == 180.0 and east[0][0] == -180.0 and west[-1][1] == east[0][1]
+    assert all(lon > 0 for lon, _ in west) and all(lon < 0 for lon, _ in east)
