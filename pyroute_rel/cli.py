@@ -201,7 +201,7 @@ def _route_text(route: Any, elapsed: float, out: str | None) -> str:
         f"distance         {route.distance_nm:.1f} nm",
         f"departure        {s['departure']}",
         f"arrival          {s['arrival']}",
-        f"grid             {route.grid.n_ranks} ranks x {route.grid.n_nodes} nodes, lateral spacing "
+        f"grid             {_grid_ranks(s['grid'])} x {route.grid.n_nodes} nodes, lateral spacing "
         f"{route.grid.spacing_km:.2f} km, rank spacing {route.grid.rank_spacing_km:.2f} km",
         f"arcs             {s['arcs']['evaluated']} evaluated, {s['arcs']['forbidden']} forbidden"
         + (f", {s['arcs']['pruned']} skipped (could not win)" if s["arcs"]["pruned"] else ""),
@@ -213,6 +213,13 @@ def _route_text(route: Any, elapsed: float, out: str | None) -> str:
     if out:
         lines.append(f"outputs          {Path(out)}/ (route.geojson, route.gpx, route.csv, summary.json, route.png)")
     return "\n".join(lines)
+
+
+def _grid_ranks(grid: dict[str, Any]) -> str:
+    legs = grid.get("legs")
+    if not legs:
+        return f"{grid['n_ranks']} ranks"
+    return f"{grid['n_ranks']} ranks in {len(legs)} legs ({', '.join(str(g['n_ranks']) for g in legs)})"
 
 
 def _refine_lines(info: Any) -> list[str]:

@@ -113,6 +113,14 @@ class Route:
         n = self.grid.n_nodes
         return n > 2 and bool(np.any((self.nodes == 0) | (self.nodes == n - 1)))
 
+    def _legs_grids(self) -> dict[str, Any]:
+        """For a course through waypoints: the ranks of all legs and each leg's grid (the other keys are the first
+        leg's)."""
+        grids = self.meta.get("grids_object")
+        if not grids:
+            return {}
+        return {"n_ranks": sum(g.n_ranks for g in grids), "legs": [g.describe() for g in grids]}
+
     def summary(self) -> dict[str, Any]:
         """The JSON contract of ``pyroute-rel route --json`` (see the README)."""
         times = self.time
@@ -132,6 +140,7 @@ class Route:
                 "half_width_km": self.grid.half_width_km,
                 "band": self.grid.band,
                 "touches_edge": self.touches_edge,
+                **self._legs_grids(),
             },
             "arcs": {
                 "evaluated": self.dp.arcs_evaluated,

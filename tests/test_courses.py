@@ -69,6 +69,10 @@ def test_waypoints_pass_the_marks_and_add_up() -> None:
         solve(grids[1], whole.problem(grid=grids[0]))
     assert route.voyage_time_h == pytest.approx(leg1.voyage_time_h + leg2.voyage_time_h, abs=1e-3)
     assert route.elapsed_h[hit[0]] == pytest.approx(leg1.voyage_time_h, rel=1e-9)
+    # the summary's grid counts the ranks of both legs and describes each (it described the first leg only)
+    grid = route.summary()["grid"]
+    assert grid["n_ranks"] == grids[0].n_ranks + grids[1].n_ranks
+    assert [g["n_ranks"] for g in grid["legs"]] == [grids[0].n_ranks, grids[1].n_ranks]
 
 
 @pytest.mark.parametrize("route,match", [
