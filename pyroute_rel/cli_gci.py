@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import re
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -12,6 +14,16 @@ from typing import Any
 __all__ = ["add_gci_parser"]
 
 EXIT_OK, EXIT_GATE = 0, 1
+
+#: Arguments that are (lists of) numbers even when they start with '-' ("--h -1,2,4", "--max-gci -1e-3"), so that
+#: argparse hands them to the option's type and the validation can say what is wrong, instead of reading them as
+#: an unknown option. argparse's own pattern covers only single plain numbers such as "-1" or "-.5".
+_NEGATIVE_NUMBERS = re.compile(r"^-(\.?\d[\d.,eE+\-]*|inf|infinity|nan)$", re.IGNORECASE)
+
+#: Options of ``gci study`` that only apply to one --refinement.
+_ANGULAR_ONLY = (("aspect0", "--aspect0"), ("half_width_km", "--half-width-km"),
+                 ("max_deviation_deg", "--max-deviation"))
+_ANGULAR_DEFAULTS = {"aspect0": 2.0, "half_width_km": 1200.0, "max_deviation_deg": 60.0}
 
 
 def add_gci_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], None],
@@ -37,16 +49,28 @@ def add_gci_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], Non
                         "spacing both shrink, lateral faster, banded arcs (--n-ranks)")
     s.add_argument("--n-nodes", type=csv_ints, help="square: nodes per rank of each grid, e.g. 41,57,81,115,161")
     s.add_argument("--n-ranks", type=csv_ints, help="ranks of each grid (square: default = --n-nodes)")
-    s.add_argument("--half-width-km", type=float, default=1200.0, help="angular: domain half-width [km]")
-    s.add_argument("--max-deviation", type=float, default=60.0, dest="max_deviation_deg",
-                   help="angular: largest arc angle from the rank direction [deg]")
-    s.add_argument("--aspect0", type=float, default=2.0, help="angular: rank/lateral spacing of the coarsest grid")
+    s.add_argument("--half-width-km", type=float,
+                   help=f"angular: domain half-width [km] (default {_ANGULAR_DEFAULTS['half_width_km']:g})")
+    s.add_argument("--max-deviation", type=float, dest="max_deviation_deg",
+                   help="angular: largest arc angle from the rank direction [deg] "
+                        f"(default {_ANGULAR_DEFAULTS['max_deviation_deg']:g})")
+    s.add_argument("--aspect0", type=float,
+                   help="angular: rank/lateral spacing of the coarsest grid "
+                        f"(default {_ANGULAR_DEFAULTS['aspect0']:g})")
     s.add_argument("--apf", type=float, help="acceptable probability of failure")
     s.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
     s.add_argument("--no-land", action="store_true", help="do not avoid land (overrides [avoid].land)")
     _gate_args(s)
     add_common(s)
     s.set_defaults(func=_cmd_study)
+    # options both parsers know (gate, --json, --out, --quiet, ...) may come before or after 'study': the
+    # subparser must not overwrite a value given before 'study' with its default
+    shared = {a.dest for a in g._actions}
+    for action in s._actions:
+        if action.dest in shared:
+            action.default = argparse.SUPPRESS
+    for parser in (g, s):
+        parser._negative_number_matcher = _NEGATIVE_NUMBERS
 
 
 def _gate_args(p: argparse.ArgumentParser) -> None:
@@ -55,9 +79,27 @@ def _gate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", help="folder for gci.csv, gci.json and gci.png")
     p.add_argument("--max-gci", type=float, help="exit 1 when GCI_fine (a fraction, e.g. 0.01) exceeds this")
     p.add_argument("--require-asymptotic", action="store_true",
-                   help="with --max-gci: also exit 1 unless the finest triplet converges monotonically with an "
-                        "asymptotic ratio within --asymptotic-tol of 1")
-    p.add_argument("--asymptotic-tol", type=float, default=0.1, help="tolerance on |ratio - 1| (default 0.1)")
+                   help="exit 1 unless the finest triplet converges monotonically with an asymptotic ratio within "
+                        "--asymptotic-tol of 1 (a gate on its own, or in addition to --max-gci)")
+    p.add_argument("--asymptotic-tol", type=float, default=0.1,
+                   help="tolerance on |ratio - 1| of --require-asymptotic (default 0.1)")
+
+
+def _check_gate_args(args: argparse.Namespace) -> None:
+    """Refuse bad gate and output options before any work (one line naming the option)."""
+    from .errors import ConvergenceError
+    from .route import check_out_dir
+
+    fs = args.safety_factor
+    if not (math.isfinite(fs) and fs > 0.0):
+        raise ConvergenceError(f"--safety-factor must be a finite number > 0 (got {fs:g})")
+    if args.max_gci is not None and not (math.isfinite(args.max_gci) and args.max_gci >= 0.0):
+        raise ConvergenceError(f"--max-gci must be a finite fraction >= 0, e.g. 0.01 for 1 % (got {args.max_gci:g})")
+    tol = args.asymptotic_tol
+    if not (math.isfinite(tol) and tol >= 0.0):
+        raise ConvergenceError(f"--asymptotic-tol must be a finite number >= 0, e.g. 0.1 (got {tol:g})")
+    if args.out is not None:
+        check_out_dir(args.out)
 
 
 def _gate(fin: Any, args: argparse.Namespace) -> str | None:
@@ -77,14 +119,15 @@ def _gate(fin: Any, args: argparse.Namespace) -> str | None:
 
 
 def _write_out(out: str, payload: dict[str, Any], csv_text: str, study: Any, title: str) -> None:
+    """Write gci.png, gci.csv and gci.json into ``out``: all three, or none."""
     from .gci_plot import plot_convergence
-    from .route import atomic_write
+    from .route import write_together
 
-    folder = Path(out)
-    folder.mkdir(parents=True, exist_ok=True)
-    plot_convergence(study, path=folder / "gci.png", title=title)
-    atomic_write(folder / "gci.csv", lambda p: p.write_text(csv_text, encoding="utf-8"))
-    atomic_write(folder / "gci.json", lambda p: p.write_text(json.dumps(payload, indent=1), encoding="utf-8"))
+    write_together(out, {
+        "gci.png": lambda p: plot_convergence(study, path=p, title=title),
+        "gci.csv": lambda p: p.write_text(csv_text, encoding="utf-8"),
+        "gci.json": lambda p: p.write_text(json.dumps(payload, indent=1), encoding="utf-8"),
+    }, option="--out")
 
 
 def _finish(payload: dict[str, Any], text: str, fin: Any, args: argparse.Namespace) -> int:
@@ -104,32 +147,59 @@ def _cmd_gci(args: argparse.Namespace) -> int:
 
     if args.h is None or args.phi is None:
         raise ConvergenceError("give --h and --phi (three or more values each), or use 'pyroute-rel gci study'")
-    study = convergence_study(args.h, args.phi, safety_factor=args.safety_factor)
+    _check_gate_args(args)
+    study = convergence_study(args.h, args.phi, safety_factor=args.safety_factor,
+                              names=("--h", "--phi", "--safety-factor"))
     payload = study.to_dict()
     fin = study.finest
     payload.update({k: payload["finest"][k] for k in ("p", "phi_ext", "gci_fine", "gci_coarse", "e_a",
                                                        "asymptotic_ratio", "convergence", "method")})
     csv_text = "h,phi\n" + "".join(f"{h:.10g},{p:.10g}\n" for h, p in zip(study.h, study.phi, strict=True))
-    if args.out:
+    if args.out is not None:
         _write_out(args.out, payload, csv_text, study, f"{len(study.h)} grids: {fin.convergence}")
     return _finish(payload, study.report(), fin, args)
 
 
-def _cmd_study(args: argparse.Namespace) -> int:
+def _check_study_args(args: argparse.Namespace) -> None:
+    """Refuse options of ``gci study`` that are missing, out of range or do not apply to the --refinement."""
     from .errors import ConvergenceError
-    from .geodesy import distance_km
-    from .scenario import load_scenario
-    from .study import angular_levels, run_study, square_levels
 
-    scenario = load_scenario(args.scenario).with_options(apf=args.apf, failure_model=args.failure_model,
-                                                         land=False if args.no_land else None)
+    if args.h is not None or args.phi is not None:
+        raise ConvergenceError("--h and --phi give values to 'pyroute-rel gci'; 'gci study' routes its own grids "
+                               "(drop --h/--phi or the word 'study')")
     if args.refinement == "square":
         if not args.n_nodes:
             raise ConvergenceError("gci study --refinement square needs --n-nodes, e.g. 41,57,81,115,161")
-        levels = square_levels(args.n_nodes, args.n_ranks)
+        given = [opt for dest, opt in _ANGULAR_ONLY if getattr(args, dest) is not None]
+        if given:
+            raise ConvergenceError(f"{', '.join(given)} only apply to --refinement angular (the square grids are "
+                                   "n x n, all-to-all): drop them or add --refinement angular")
     else:
+        if args.n_nodes is not None:
+            raise ConvergenceError("--n-nodes only applies to --refinement square (the angular grids derive their "
+                                   "nodes from --half-width-km and --aspect0): drop it or use --n-ranks")
         if not args.n_ranks:
             raise ConvergenceError("gci study --refinement angular needs --n-ranks, e.g. 21,41,81")
+        for dest, _ in _ANGULAR_ONLY:
+            if getattr(args, dest) is None:
+                setattr(args, dest, _ANGULAR_DEFAULTS[dest])
+    _check_gate_args(args)
+
+
+def _cmd_study(args: argparse.Namespace) -> int:
+    from .geodesy import distance_km
+    from .scenario import load_scenario
+    from .study import angular_levels, check_study_scenario, run_study, square_levels
+
+    _check_study_args(args)
+    if args.refinement == "square":
+        square_levels(args.n_nodes, args.n_ranks)  # refuse bad counts before loading anything
+    scenario = load_scenario(args.scenario).with_options(apf=args.apf, failure_model=args.failure_model,
+                                                         land=False if args.no_land else None)
+    check_study_scenario(scenario)
+    if args.refinement == "square":
+        levels = square_levels(args.n_nodes, args.n_ranks)
+    else:
         length = float(distance_km(*scenario.start, *scenario.finish))
         levels = angular_levels(length, args.n_ranks, aspect0=args.aspect0, half_width_km=args.half_width_km,
                                 max_deviation_deg=args.max_deviation_deg)
@@ -149,7 +219,7 @@ def _cmd_study(args: argparse.Namespace) -> int:
         lines.append(f"{r['n_ranks']:>6} {r['n_nodes']:>6} {r['h_km']:>10.3f} {r['spacing_km']:>12.3f} "
                      f"{r['arcs']:>11} {r['voyage_time_h']:>12.4f} {r['runtime_s']:>11.2f}")
     text = "\n".join(lines) + "\n\n" + result.study.report()
-    if args.out:
+    if args.out is not None:
         _write_out(args.out, payload, result.csv(), result.study,
                    f"{Path(args.scenario).name}: {args.refinement} refinement")
     return _finish(payload, text, result.study.finest, args)

@@ -34,7 +34,8 @@ if TYPE_CHECKING:
     from .solve import DPResult, RoutingProblem
     from .weather import Conditions
 
-__all__ = ["Route", "build_route", "join_routes", "atomic_write", "check_out_dir", "write_outputs", "OUTPUT_FILES"]
+__all__ = ["Route", "build_route", "join_routes", "atomic_write", "check_out_dir", "write_outputs", "write_together",
+           "OUTPUT_FILES"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -420,43 +421,55 @@ def _write_text(path: Path, text: str) -> None:
     atomic_write(path, lambda p: p.write_text(text, encoding="utf-8"))
 
 
-def write_outputs(route: Route, out_dir: str | os.PathLike[str], *, plot: bool = True,
-                  extra: dict[str, Any] | None = None) -> list[Path]:
-    """Write ``route.geojson``, ``route.gpx``, ``route.csv``, ``summary.json`` and ``route.png`` to a folder.
-
-    All files are first rendered into a temporary folder inside ``out_dir`` and moved into place only when
-    every one succeeded, so a failure leaves no partial or stale set of outputs.
-    """
+def write_together(out_dir: str | os.PathLike[str], writers: dict[str, Callable[[Path], object]], *,
+                   option: str = "output folder") -> list[Path]:
+    """Write a set of files into a folder, all or none: ``writers[name](path)`` renders each into a temporary folder
+    inside ``out_dir``, and the files are moved into place only when every one succeeded (with the usual mode of a
+    new file). A failure leaves no partial or stale file, nor the folder when this call created it; an error writing
+    is an :class:`~pyroute_rel.errors.OutputError` naming ``option``. Returns the paths written."""
     from .errors import OutputError, show
 
-    out = check_out_dir(out_dir, option="output folder")
+    out = check_out_dir(out_dir, option=option)
+    created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=".pyroute-rel-", dir=out))
     except OSError as exc:
-        raise OutputError(f"output folder {show(out)}: {exc.strerror or exc}") from None
+        raise OutputError(f"{option} {show(out)}: {exc.strerror or exc}") from None
     try:
-        summary = route.summary()
-        if extra:
-            summary.update(extra)
-        (staging / "route.geojson").write_text(json.dumps(route.to_geojson(), indent=1), encoding="utf-8")
-        (staging / "route.gpx").write_text(route.to_gpx(), encoding="utf-8")
-        (staging / "route.csv").write_text(route.to_csv(), encoding="utf-8")
-        (staging / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
-        names = ["route.geojson", "route.gpx", "route.csv", "summary.json"]
-        if plot:
-            from .plot import plot_route
-
-            plot_route(route, path=staging / "route.png")
-            names.append("route.png")
+        for name, writer in writers.items():
+            writer(staging / name)
+            os.chmod(staging / name, _file_mode())
         written = []
-        for name in names:
+        for name in writers:
             os.replace(staging / name, out / name)
             written.append(out / name)
         return written
     except OSError as exc:
-        raise OutputError(f"output folder {show(out)}: cannot write ({exc.strerror or exc})") from None
+        raise OutputError(f"{option} {show(out)}: cannot write ({exc.strerror or exc})") from None
     finally:
         for p in staging.glob("*"):
             p.unlink(missing_ok=True)
         staging.rmdir()
+        if created and not any(out.iterdir()):
+            out.rmdir()
+
+
+def write_outputs(route: Route, out_dir: str | os.PathLike[str], *, plot: bool = True,
+                  extra: dict[str, Any] | None = None) -> list[Path]:
+    """Write ``route.geojson``, ``route.gpx``, ``route.csv``, ``summary.json`` and ``route.png`` to a folder, all or
+    none (:func:`write_together`)."""
+    summary = route.summary()
+    if extra:
+        summary.update(extra)
+    writers: dict[str, Callable[[Path], object]] = {
+        "route.geojson": lambda p: p.write_text(json.dumps(route.to_geojson(), indent=1), encoding="utf-8"),
+        "route.gpx": lambda p: p.write_text(route.to_gpx(), encoding="utf-8"),
+        "route.csv": lambda p: p.write_text(route.to_csv(), encoding="utf-8"),
+        "summary.json": lambda p: p.write_text(json.dumps(summary, indent=1), encoding="utf-8"),
+    }
+    if plot:
+        from .plot import plot_route
+
+        writers["route.png"] = lambda p: plot_route(route, path=p)
+    return write_together(out_dir, writers)

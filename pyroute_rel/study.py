@@ -19,6 +19,7 @@ Refinement paths (:data:`REFINEMENTS`)
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -34,7 +35,8 @@ from .solve import forward_dp
 if TYPE_CHECKING:
     from .scenario import Scenario
 
-__all__ = ["GridLevel", "RoutedStudy", "square_levels", "angular_levels", "run_study", "REFINEMENTS"]
+__all__ = ["GridLevel", "RoutedStudy", "square_levels", "angular_levels", "check_study_scenario", "run_study",
+           "REFINEMENTS"]
 
 REFINEMENTS = ("square", "angular")
 
@@ -88,12 +90,37 @@ class RoutedStudy:
         return "\n".join(lines) + "\n"
 
 
+def _whole_numbers(values: Sequence[int], option: str) -> list[int]:
+    """Refuse anything but whole numbers >= 1 (naming the CLI option they came from)."""
+    out = list(values)
+    if not out:
+        raise ConvergenceError(f"{option} needs one whole number >= 1 per grid (got none)")
+    for v in out:
+        if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
+            raise ConvergenceError(f"{option} must be whole numbers >= 1, one per grid (got {v!r} in {out})")
+    return [int(v) for v in out]
+
+
+def _positive(value: float, option: str, unit: str = "") -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not (math.isfinite(value) and value > 0):
+        raise ConvergenceError(f"{option} must be a finite number > 0{unit} (got {value!r})")
+    return float(value)
+
+
 def square_levels(n_nodes: Sequence[int], n_ranks: Sequence[int] | None = None) -> list[GridLevel]:
-    """The paper's square all-to-all grids (``n_ranks = n_nodes`` unless given)."""
-    ranks = list(n_nodes) if n_ranks is None else list(n_ranks)
-    if len(ranks) != len(n_nodes):
-        raise ConvergenceError(f"--n-ranks needs one value per grid ({len(n_nodes)}), got {len(ranks)}")
-    return [GridLevel(n_ranks=int(r), n_nodes=int(n)) for r, n in zip(ranks, n_nodes, strict=True)]
+    """The paper's square all-to-all grids (``n_ranks = n_nodes`` unless given).
+
+    Raises
+    ------
+    ConvergenceError
+        A count that is not a whole number >= 1 (named by its CLI option, ``--n-nodes`` or ``--n-ranks``), or
+        ``n_ranks`` of another length than ``n_nodes``.
+    """
+    nodes = _whole_numbers(n_nodes, "--n-nodes")
+    ranks = list(nodes) if n_ranks is None else _whole_numbers(n_ranks, "--n-ranks")
+    if len(ranks) != len(nodes):
+        raise ConvergenceError(f"--n-ranks needs one value per grid ({len(nodes)}), got {len(ranks)}")
+    return [GridLevel(n_ranks=r, n_nodes=n) for r, n in zip(ranks, nodes, strict=True)]
 
 
 def angular_levels(
@@ -109,16 +136,47 @@ def angular_levels(
     Level ``i`` has ``n_ranks[i]`` ranks (rank spacing ``L / (n_ranks + 1)``) and aspect ratio
     ``aspect0 * n_ranks[i] / n_ranks[0]``, so the lateral spacing falls as the square of the rank spacing
     and the angular resolution ``atan(1 / aspect)`` improves with every level. The half-width is fixed.
+
+    Raises
+    ------
+    ConvergenceError
+        ``n_ranks`` not whole numbers >= 1, ``aspect0``, ``half_width_km`` or ``route_length_km`` not finite
+        and > 0, or ``max_deviation_deg`` outside (0, 90) (named by their CLI options).
     """
+    ranks = _whole_numbers(n_ranks, "--n-ranks")
+    aspect0 = _positive(aspect0, "--aspect0 (rank spacing / lateral spacing of the coarsest grid)")
+    half_width_km = _positive(half_width_km, "--half-width-km", " [km]")
+    route_length_km = _positive(route_length_km, "route length", " [km]")
+    if isinstance(max_deviation_deg, bool) or not (isinstance(max_deviation_deg, int | float)
+                                                   and 0.0 < max_deviation_deg < 90.0):
+        raise ConvergenceError(f"--max-deviation must be in (0, 90) [deg] (got {max_deviation_deg!r})")
     levels = []
-    for nr in n_ranks:
+    for nr in ranks:
         rank_spacing = route_length_km / (nr + 1)
-        aspect = aspect0 * nr / n_ranks[0]
+        aspect = aspect0 * nr / ranks[0]
         spacing = rank_spacing / aspect
         n_nodes = 2 * int(np.ceil(half_width_km / spacing)) + 1
-        levels.append(GridLevel(n_ranks=int(nr), n_nodes=n_nodes, spacing_km=spacing,
-                                max_deviation_deg=max_deviation_deg))
+        levels.append(GridLevel(n_ranks=nr, n_nodes=n_nodes, spacing_km=spacing,
+                                max_deviation_deg=float(max_deviation_deg)))
     return levels
+
+
+def check_study_scenario(scenario: Scenario) -> None:
+    """Refuse, before any routing, a scenario a study cannot route as ``pyroute-rel route`` would.
+
+    A course with waypoints (one grid per leg) is refused; a start, finish (or the start/finish line's
+    reference points) on land or inside an exclusion zone is refused with the message of
+    :meth:`~pyroute_rel.scenario.Scenario.route`.
+    """
+    from .avoid import check_points
+    from .errors import ScenarioError
+
+    if scenario.waypoints:
+        raise ScenarioError(
+            f"gci study does not support [route].waypoints yet ({len(scenario.waypoints)} given): study each leg "
+            "as its own scenario"
+        )
+    check_points([("[route].start", scenario.start), ("[route].finish", scenario.finish)], scenario.avoid)
 
 
 def run_study(
@@ -132,19 +190,45 @@ def run_study(
     """Route ``scenario`` on every level and estimate the discretisation error of the voyage time.
 
     ``h`` is the lateral spacing for square grids and the rank spacing otherwise [km]. The failure model is
-    compiled once and shared by all levels.
+    compiled once and shared by all levels. The grids run from the scenario's start (or ``[route].start_line``) to
+    its finish (or ``[route].finish_line``), as in :meth:`~pyroute_rel.scenario.Scenario.route`; every grid is
+    built and the start, finish and weather coverage are checked before the first is routed.
+
+    Raises
+    ------
+    ScenarioError
+        The scenario has waypoints, or its start or finish is on land or inside an exclusion zone.
+    GridError, WeatherCoverageError
+        A grid cannot be built, or the weather does not cover its ends or the departure.
+    ConvergenceError
+        Fewer than three levels, an unknown refinement, a bad safety factor, or no feasible route on a grid.
     """
     if len(levels) < 3:
         raise ConvergenceError(f"a study needs at least three grids (got {len(levels)})")
+    if refinement not in REFINEMENTS:
+        raise ConvergenceError(f"refinement must be one of {list(REFINEMENTS)} (got {refinement!r})")
+    if isinstance(safety_factor, bool) or not (isinstance(safety_factor, int | float) and math.isfinite(safety_factor)
+                                               and safety_factor > 0):
+        raise ConvergenceError(f"safety_factor must be a finite number > 0 (got {safety_factor!r})")
     from dataclasses import replace
 
     from .grid import auto_samples
 
+    check_study_scenario(scenario)
     failure = scenario.load_failure()
+    grids = [make_grid(scenario.start, scenario.finish, n_ranks=lv.n_ranks, n_nodes=lv.n_nodes,
+                       spacing_km=lv.spacing_km, max_deviation_deg=lv.max_deviation_deg,
+                       start_line=scenario.start_line, finish_line=scenario.finish_line) for lv in levels]
+    for grid in grids:  # as Scenario.route: the weather must cover the end points and the departure
+        s_lon, s_lat = grid.start_points
+        lons, lats = [*s_lon, grid.finish[0]], [*s_lat, grid.finish[1]]
+        scenario.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)),
+                                        (scenario.departure, scenario.departure))
+    todo = grids[::-1]  # routed grids are dropped one by one, with what forward_dp cached on them
+    del grids
     rows = []
     for i, lv in enumerate(levels):
-        grid = make_grid(scenario.start, scenario.finish, n_ranks=lv.n_ranks, n_nodes=lv.n_nodes,
-                         spacing_km=lv.spacing_km, max_deviation_deg=lv.max_deviation_deg)
+        grid = todo.pop()
         problem = scenario.problem(failure=failure, grid=grid)
         if scenario.samples_per_arc is None:
             problem = replace(problem, samples=auto_samples(grid))
@@ -165,6 +249,6 @@ def run_study(
         rows.append(row)
         if progress is not None:
             progress(i, len(levels), row)
-    study = convergence_study([float(r["h_km"] or 0.0) for r in rows], [float(r["voyage_time_h"] or 0.0) for r in rows],
-                              safety_factor=safety_factor)
+    study = convergence_study([float(r["h_km"] or 0.0) for r in rows],
+                              [float(r["voyage_time_h"] or 0.0) for r in rows], safety_factor=safety_factor)
     return RoutedStudy(refinement=refinement, rows=tuple(rows), study=study)
