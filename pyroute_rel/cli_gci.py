@@ -197,6 +197,9 @@ def _cmd_study(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario).with_options(apf=args.apf, failure_model=args.failure_model,
                                                          land=False if args.no_land else None)
     check_study_scenario(scenario)
+    if scenario.refine and not args.quiet:
+        print(f"pyroute-rel: note: [grid].refine = {scenario.refine} is not applied: a study measures its grids' own "
+              "voyage times", file=sys.stderr)
     if args.refinement == "square":
         levels = square_levels(args.n_nodes, args.n_ranks)
     else:

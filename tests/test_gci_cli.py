@@ -332,3 +332,13 @@ def test_a_failed_write_is_an_output_error_and_leaves_nothing(tmp_path: Path, ca
     code, _, err = run([*args, "--out", str(tmp_path / "old")], capsys)
     assert code == 0, err
     assert sorted(p.name for p in (tmp_path / "old").iterdir()) == ["gci.csv", "gci.json", "gci.png"]
+
+
+def test_study_says_it_does_not_refine(tmp_path, capsys) -> None:
+    from pyroute_rel.cli import main
+
+    src = Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml"
+    path = tmp_path / "r.toml"
+    path.write_text(src.read_text().replace("[grid]", "[grid]\nrefine = 2", 1))
+    assert main(["gci", "study", str(path), "--n-nodes", "11,15,21", "--no-land", "--json"]) == 0
+    assert "[grid].refine = 2 is not applied" in capsys.readouterr().err
