@@ -137,8 +137,9 @@ def _cmd_route(args: argparse.Namespace) -> int:
         from .route import write_outputs
 
         write_outputs(route, args.out, extra={"runtime_s": elapsed})
-    if scenario.layout == "angular" and scenario.n_nodes is not None and not args.json:
-        print(f"pyroute-rel: note: n_nodes = {scenario.n_nodes} applies to layout = 'square'; the angular layout "
+    if scenario.layout == "angular" and args.n_nodes is not None and not args.json:
+        # only for --n-nodes: a scenario file may set n_nodes for its square layout (the examples do, and say so)
+        print(f"pyroute-rel: note: --n-nodes {args.n_nodes} applies to layout = 'square'; the angular layout "
               f"used {route.grid.n_nodes} nodes per rank (half-width {route.grid.half_width_km:.0f} km, aspect "
               f"{route.grid.aspect:g}, arcs within {route.grid.max_deviation_deg:g} deg)", file=sys.stderr)
     if route.touches_edge:

@@ -246,3 +246,11 @@ def test_empty_failure_model_names_are_refused(capsys) -> None:
     assert "--failure-model needs a shipped model name" in capsys.readouterr().err
     assert main(["failure", ""]) == 2
     assert "failure model name is empty" in capsys.readouterr().err  # was ".: cannot read (Is a directory)"
+
+
+def test_n_nodes_note_only_for_the_command_line_option(capsys) -> None:
+    assert main(["route", str(EXAMPLE), "--n-ranks", "10", "--quiet"]) == 0  # the file sets n_nodes: no note
+    assert "note" not in capsys.readouterr().err
+    assert main(["route", str(EXAMPLE), "--n-ranks", "10", "--quiet", "--n-nodes", "31"]) == 0
+    err = capsys.readouterr().err
+    assert "--n-nodes 31 applies to layout = 'square'" in err and "nodes per rank" in err
