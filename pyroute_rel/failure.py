@@ -33,6 +33,8 @@ import importlib.metadata
 import io
 import itertools
 import json
+import math
+import numbers
 import os
 import re
 import tomllib
@@ -583,7 +585,7 @@ def _parse_spec(doc: dict[str, Any], label: str, *, default_name: str) -> dict[s
 
 
 def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)):
         raise FailureModelError(f"{where} must be a finite number (got {value!r})")
     return float(value)
 

@@ -31,6 +31,7 @@ Proc. International Robotic Sailing Conference 2018.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -285,7 +286,7 @@ def make_grid(
     rank_spacing = length / (n_ranks + 1)
     if spacing_km is None:
         spacing_km = rank_spacing
-    if not (isinstance(spacing_km, int | float) and math.isfinite(spacing_km) and spacing_km > 0):
+    if not (isinstance(spacing_km, numbers.Real) and math.isfinite(spacing_km) and spacing_km > 0):
         raise GridError(f"spacing_km must be a positive number of km (got {spacing_km!r})")
     spacing_km = float(spacing_km)
     half = (n_nodes - 1) / 2.0 * spacing_km
@@ -295,7 +296,7 @@ def make_grid(
             "spacing_km (at most 5000 km from the great circle)"
         )
     if max_deviation_deg is not None:
-        if not (isinstance(max_deviation_deg, int | float) and 0.0 < max_deviation_deg < 90.0):
+        if not (isinstance(max_deviation_deg, numbers.Real) and 0.0 < max_deviation_deg < 90.0):
             raise GridError(f"max_deviation_deg must be in (0, 90) [deg] (got {max_deviation_deg!r})")
         band = int(math.floor(math.tan(math.radians(max_deviation_deg)) * rank_spacing / spacing_km + 1e-9))
         band = min(band, n_nodes - 1)
@@ -369,6 +370,11 @@ def rank_points(
     [1.0, 1.0, 0.0, -1.0]
     """
     off = np.asarray(offset_km, dtype=np.float64)
+    if off.ndim < 1 or off.shape[0] < 1 or not np.all(np.isfinite(off)):
+        raise GridError(f"offset_km must be finite offsets [km] with one row per rank (got shape {off.shape})")
+    length = float(geodesy.distance_km(start[0], start[1], finish[0], finish[1]))
+    if not (1e-6 < length < 0.99 * math.pi * geodesy.EARTH_RADIUS_KM):
+        raise GridError(f"start {list(start)} and finish {list(finish)} must differ and not be antipodal")
     n_ranks = off.shape[0]
     fractions = np.arange(1, n_ranks + 1) / (n_ranks + 1)
     c_lon, c_lat = geodesy.intermediate_point(start[0], start[1], finish[0], finish[1], fractions)
@@ -457,7 +463,8 @@ def plan_grid(
     if layout not in LAYOUTS:
         raise GridError(f"layout must be one of {list(LAYOUTS)} (got {layout!r})")
     if layout == "square":
-        return make_grid(start, finish, n_ranks=n_ranks or DEFAULT_N_RANKS, n_nodes=n_nodes or DEFAULT_N_RANKS,
+        return make_grid(start, finish, n_ranks=DEFAULT_N_RANKS if n_ranks is None else n_ranks,
+                         n_nodes=DEFAULT_N_RANKS if n_nodes is None else n_nodes,
                          spacing_km=spacing_km, max_deviation_deg=max_deviation_deg, start_line=start_line,
                          finish_line=finish_line)
     n_ranks = DEFAULT_N_RANKS if n_ranks is None else n_ranks
@@ -467,14 +474,14 @@ def plan_grid(
     rank_spacing = length / (n_ranks + 1)
     if spacing_km is None:
         a = DEFAULT_ASPECT if aspect is None else aspect
-        if not (isinstance(a, int | float) and math.isfinite(a) and 0.01 <= a <= 1000.0):
+        if not (isinstance(a, numbers.Real) and math.isfinite(a) and 0.01 <= a <= 1000.0):
             raise GridError(f"aspect (rank spacing / lateral spacing) must be in [0.01, 1000] (got {a!r})")
         spacing_km = rank_spacing / float(a)
     if half_width_km is None:
         half_width_km = DEFAULT_HALF_WIDTH_KM
-    if not (isinstance(half_width_km, int | float) and math.isfinite(half_width_km) and half_width_km >= 0):
+    if not (isinstance(half_width_km, numbers.Real) and math.isfinite(half_width_km) and half_width_km >= 0):
         raise GridError(f"half_width_km must be a non-negative number of km (got {half_width_km!r})")
-    if not (isinstance(spacing_km, int | float) and math.isfinite(spacing_km) and spacing_km > 0):
+    if not (isinstance(spacing_km, numbers.Real) and math.isfinite(spacing_km) and spacing_km > 0):
         raise GridError(f"spacing_km must be a positive number of km (got {spacing_km!r})")
     nodes = 2 * int(math.ceil(half_width_km / spacing_km - 1e-9)) + 1
     if nodes > 20001:

@@ -35,6 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import GridError
+from .geodesy import EARTH_RADIUS_KM
 from .grid import Grid, rank_points
 from .solve import DPResult, RoutingProblem, forward_dp
 
@@ -97,6 +98,10 @@ def corridor_grid(grid: Grid, centre_km: npt.ArrayLike, *, half_width_km: float,
         raise GridError(f"n_nodes must be an odd whole number >= 3 (got {n_nodes!r})")
     if not (np.isfinite(half_width_km) and half_width_km > 0.0):
         raise GridError(f"half_width_km must be a positive number of km (got {half_width_km!r})")
+    reach = float(np.max(np.abs(centre))) + half_width_km
+    if reach > 0.25 * np.pi * EARTH_RADIUS_KM:
+        raise GridError(f"the corridor reaches {reach:.0f} km from the great circle: at most 5000 km (ranks would "
+                        "converge), as for any grid")
     offset = np.linspace(-half_width_km, half_width_km, n_nodes)
     node = centre[:, None] + offset[None, :]  # offset of every node from the great circle [km]
     lon, lat = rank_points(grid.start, grid.finish, node)
@@ -123,6 +128,8 @@ def corridor_grid(grid: Grid, centre_km: npt.ArrayLike, *, half_width_km: float,
 def track_offsets_km(grid: Grid, result: DPResult) -> FloatArray:
     """Lateral offset [km] of the DP track on every rank, (n_ranks,); ranks past a finish-line crossing repeat the
     last point's offset (a corridor there is never reached by a better track anyway)."""
+    if not isinstance(result, DPResult) or result.arrival_h.shape != (grid.n_ranks, grid.n_nodes):
+        raise GridError(f"result must be the DPResult of this grid ({grid.n_ranks} ranks x {grid.n_nodes} nodes)")
     nodes = result.path()
     offsets = grid.node_offsets_km()
     if nodes.size == 0:
@@ -163,6 +170,10 @@ def refine(
     """
     if isinstance(levels, bool) or not isinstance(levels, int) or levels < 1:
         raise GridError(f"refine levels must be a whole number >= 1 (got {levels!r})")
+    if isinstance(n_nodes, bool) or not isinstance(n_nodes, int) or n_nodes < 3 or n_nodes % 2 == 0:
+        raise GridError(f"n_nodes must be an odd whole number >= 3 (got {n_nodes!r})")
+    if not np.isfinite(result.finish_h):
+        raise GridError("result has no route to refine (the finish is unreachable on the grid)")
     half = FIRST_HALF_WIDTH * grid.spacing_km
     history: list[RefineLevel] = []
     best = (grid, problem, result)

@@ -16,6 +16,7 @@ Paths are relative to the scenario file's folder.
 from __future__ import annotations
 
 import math
+import numbers
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
@@ -531,7 +532,7 @@ def parse_departure(value: Any, where: str = "departure") -> np.datetime64:
 
 def _number(v: Any, where: str) -> float:
     try:
-        ok = not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(float(v))
+        ok = not isinstance(v, bool) and isinstance(v, numbers.Real) and math.isfinite(float(v))
     except OverflowError:  # an int beyond the float range
         ok = False
     if not ok:

@@ -125,6 +125,24 @@ class RoutingProblem:
             raise ScenarioError(f"samples_per_arc must be a whole number in [1, 64] (got {self.samples!r})")
         if self.beyond not in BEYOND_MODES:
             raise ScenarioError(f"beyond must be one of {list(BEYOND_MODES)} (got {self.beyond!r})")
+        try:
+            dep: Any = np.asarray(self.departure).astype("datetime64[s]")
+        except (TypeError, ValueError):
+            dep = np.asarray(np.datetime64("NaT"))
+        if dep.shape != () or np.isnat(dep) or isinstance(self.departure, bool | int | float):
+            raise ScenarioError(f"departure must be a UTC time (numpy datetime64 or ISO 8601 string) (got "
+                                f"{self.departure!r})")
+        for name, ok, what in (
+            ("weather", hasattr(self.weather, "sample") and hasattr(self.weather, "check_coverage"),
+             "a weather source (UniformWeather, GriddedWeather, ...)"),
+            ("polar", isinstance(self.polar, Polar), "a Polar (pyroute_rel.polar.get_polar)"),
+            ("failure", self.failure is None or hasattr(self.failure, "p_fail"),
+             "a FailureModel (pyroute_rel.failure.load_failure_model) or None"),
+            ("blocked", self.blocked is None or callable(self.blocked), "an obstacle mask callback or None"),
+            ("wave_loss", self.wave_loss is None or isinstance(self.wave_loss, WaveLoss), "a WaveLoss or None"),
+        ):
+            if not ok:
+                raise ScenarioError(f"RoutingProblem.{name} must be {what} (got {type(getattr(self, name)).__name__})")
 
     @property
     def n_wait(self) -> int:

@@ -20,6 +20,7 @@ Refinement paths (:data:`REFINEMENTS`)
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -102,7 +103,7 @@ def _whole_numbers(values: Sequence[int], option: str) -> list[int]:
 
 
 def _positive(value: float, option: str, unit: str = "") -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not (math.isfinite(value) and value > 0):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not (math.isfinite(value) and value > 0):
         raise ConvergenceError(f"{option} must be a finite number > 0{unit} (got {value!r})")
     return float(value)
 
@@ -147,7 +148,7 @@ def angular_levels(
     aspect0 = _positive(aspect0, "--aspect0 (rank spacing / lateral spacing of the coarsest grid)")
     half_width_km = _positive(half_width_km, "--half-width-km", " [km]")
     route_length_km = _positive(route_length_km, "route length", " [km]")
-    if isinstance(max_deviation_deg, bool) or not (isinstance(max_deviation_deg, int | float)
+    if isinstance(max_deviation_deg, bool) or not (isinstance(max_deviation_deg, numbers.Real)
                                                    and 0.0 < max_deviation_deg < 90.0):
         raise ConvergenceError(f"--max-deviation must be in (0, 90) [deg] (got {max_deviation_deg!r})")
     levels = []
@@ -207,7 +208,7 @@ def run_study(
         raise ConvergenceError(f"a study needs at least three grids (got {len(levels)})")
     if refinement not in REFINEMENTS:
         raise ConvergenceError(f"refinement must be one of {list(REFINEMENTS)} (got {refinement!r})")
-    if isinstance(safety_factor, bool) or not (isinstance(safety_factor, int | float) and math.isfinite(safety_factor)
+    if isinstance(safety_factor, bool) or not (isinstance(safety_factor, numbers.Real) and math.isfinite(safety_factor)
                                                and safety_factor > 0):
         raise ConvergenceError(f"safety_factor must be a finite number > 0 (got {safety_factor!r})")
     from dataclasses import replace

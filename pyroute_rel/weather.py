@@ -23,6 +23,7 @@ Proc. International Robotic Sailing Conference 2018, section 3.2 (control weathe
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -121,6 +122,20 @@ class Patch:
     values: Mapping[str, float]
     name: str = ""
 
+    def __post_init__(self) -> None:
+        where = f"Patch {self.name!r}" if self.name else "Patch"
+        object.__setattr__(self, "lon", _range(self.lon, f"{where}.lon", -180.0, 180.0))
+        object.__setattr__(self, "lat", _range(self.lat, f"{where}.lat", -90.0, 90.0))
+        if not isinstance(self.values, Mapping) or not self.values:
+            raise ScenarioError(f"{where}.values must be a non-empty mapping of field -> value (fields: "
+                                f"{', '.join(FIELDS)}) (got {brief(self.values)})")
+        bad = [k for k in self.values if k not in FIELDS]
+        if bad:
+            raise ScenarioError(f"{where}.values: unknown field {bad[0]!r} (expected one of {', '.join(FIELDS)})")
+        object.__setattr__(self, "values", {k: _checked_value(k, v, f"{where}.values") for k, v in self.values.items()})
+        if not isinstance(self.name, str):
+            raise ScenarioError(f"{where}.name must be a string (got {brief(self.name)})")
+
     def contains(self, lon_deg: FloatArray, lat_deg: FloatArray) -> npt.NDArray[np.bool_]:
         """Boolean mask of the points inside the box."""
         return (
@@ -162,6 +177,18 @@ class UniformWeather:
     current_u_ms: float = 0.0
     current_v_ms: float = 0.0
     patches: tuple[Patch, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        for name in FIELDS:
+            value = getattr(self, name)
+            if name == "wave_period_s" and isinstance(value, float) and math.isnan(value):
+                continue  # unknown
+            object.__setattr__(self, name, _checked_value(name, value, "UniformWeather"))
+        patches = self.patches
+        if isinstance(patches, Patch) or not isinstance(patches, Sequence) or isinstance(patches, str) or not all(
+                isinstance(p, Patch) for p in patches):
+            raise ScenarioError(f"UniformWeather.patches must be a sequence of Patch (got {brief(patches)})")
+        object.__setattr__(self, "patches", tuple(patches))
 
     @property
     def steady(self) -> bool:
@@ -231,7 +258,7 @@ class UniformWeather:
 
 def _checked_value(key: str, value: Any, where: str) -> float:
     label, lo, hi = FIELDS[key]
-    if isinstance(value, bool) or not isinstance(value, int | float):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ScenarioError(f"{where}.{key} must be a number ({label}) (got {value!r})")
     try:
         v = float(value)
@@ -249,7 +276,7 @@ def _range(value: Any, where: str, lo: float, hi: float) -> tuple[float, float]:
         not isinstance(value, Sequence)
         or isinstance(value, str)
         or len(value) != 2
-        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+        or not all(isinstance(v, numbers.Real) and not isinstance(v, bool) for v in value)
     ):
         raise ScenarioError(f"{where} must be a pair [min, max] of numbers [deg] (got {value!r})")
     try:

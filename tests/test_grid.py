@@ -127,3 +127,16 @@ def test_plan_grid_layouts() -> None:
     assert hw.half_width_km >= 1000.0 > hw.half_width_km - hw.spacing_km and hw.n_nodes % 2 == 1
     with pytest.raises(GridError, match="layout"):
         plan_grid(START_PT, FINISH_PT, layout="hexagonal")
+
+
+def test_square_plan_refuses_bad_counts_and_numpy_scalars_are_numbers() -> None:
+    from pyroute_rel.grid import plan_grid
+
+    s, f = (-12.0, 45.0), (-60.0, 17.5)
+    with pytest.raises(GridError, match=r"n_ranks must be a whole number >= 1 \(got 0\)"):
+        plan_grid(s, f, layout="square", n_ranks=0, n_nodes=5)  # was silently 160 ranks
+    with pytest.raises(GridError, match=r"n_nodes must be a whole number >= 1 \(got 0\)"):
+        plan_grid(s, f, layout="square", n_ranks=5, n_nodes=0)
+    a = make_grid(s, f, n_ranks=5, n_nodes=5, spacing_km=np.float32(50.0), max_deviation_deg=np.float64(45.0))
+    b = make_grid(s, f, n_ranks=5, n_nodes=5, spacing_km=50.0, max_deviation_deg=45.0)
+    np.testing.assert_array_equal(a.lon_deg, b.lon_deg)

@@ -238,3 +238,17 @@ def test_refining_a_course_with_a_waypoint_refines_each_leg() -> None:
     lon, lat, grid_h = refined.meta["grid_track_object"]
     np.testing.assert_array_equal(lon, plain.lon_deg)
     assert grid_h == info["grid_voyage_time_h"]
+
+
+def test_refine_refuses_results_and_settings_that_cannot_work() -> None:
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=6, n_nodes=7, spacing_km=50.0)
+    other = make_grid(START_PT, FINISH_PT, n_ranks=5, n_nodes=7, spacing_km=50.0)
+    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=0.0),
+                             polar=constant_polar(), samples=1)
+    res = forward_dp(grid, problem)
+    with pytest.raises(GridError, match="odd whole number >= 3"):
+        refine(grid, problem, res, levels=2, n_nodes=1)  # was ZeroDivisionError
+    with pytest.raises(GridError, match="the DPResult of this grid"):
+        refine(grid, problem, forward_dp(other, problem), levels=1)  # was IndexError
+    with pytest.raises(GridError, match="reaches 6000 km"):
+        corridor_grid(grid, np.zeros(6), half_width_km=6000.0)

@@ -273,3 +273,37 @@ def test_pruning_finds_the_same_route_over_time_varying_gridded_weather_and_land
                           polar=get_polar("maribot_vane"), blocked=obstacle_mask(caribbean, Avoid(land=True)))
     assert forward_dp(caribbean, replace(land, prune=False)).forbidden_by_reason["obstacle"] > 0  # land in the way
     _same_dp(caribbean, land)
+
+
+@pytest.mark.parametrize(("change", "match"), [
+    ({"departure": None}, r"departure must be a UTC time .* \(got None\)"),  # routed with NaT times before
+    ({"departure": np.datetime64("NaT")}, "departure must be a UTC time"),
+    ({"departure": "garbage"}, "departure must be a UTC time"),
+    ({"polar": "maribot_vane"}, r"RoutingProblem\.polar must be a Polar .* \(got str\)"),
+    ({"weather": None}, r"RoutingProblem\.weather must be a weather source"),
+    ({"blocked": 5}, r"RoutingProblem\.blocked must be an obstacle mask callback"),
+])
+def test_routing_problem_refuses_what_it_cannot_route(change, match) -> None:
+    from pyroute_rel.errors import ScenarioError
+
+    base = {"departure": DEP, "weather": UniformWeather(tws_kn=12.0, twd_deg=0.0), "polar": get_polar("maribot_vane")}
+    with pytest.raises(ScenarioError, match=match):
+        RoutingProblem(**{**base, **change})
+
+
+@pytest.mark.parametrize(("make", "match"), [
+    (lambda: UniformWeather(tws_kn=-1.0, twd_deg=0.0), r"UniformWeather\.tws_kn must be in \[0, 200\]"),
+    (lambda: UniformWeather(tws_kn=float("nan"), twd_deg=0.0), r"tws_kn must be in"),
+    (lambda: UniformWeather(tws_kn="15", twd_deg=0.0), r"tws_kn must be a number"),
+    (lambda: UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=Patch((0, 1), (0, 1), {"hs_m": 4.0})),
+     r"patches must be a sequence of Patch"),
+    (lambda: Patch((1.0, 0.0), (0.0, 1.0), {"hs_m": 4.0}), r"Patch\.lon must satisfy -180 <= min < max <= 180"),
+    (lambda: Patch((0.0, 1.0), (0.0, 1.0), {"bogus": 4.0}), r"unknown field 'bogus'"),
+    (lambda: Patch((0.0, 1.0), (0.0, 1.0), {"hs_m": -4.0}), r"hs_m must be in \[0, 30\]"),
+])
+def test_control_weather_constructors_validate(make, match) -> None:
+    from pyroute_rel.errors import ScenarioError
+
+    with pytest.raises(ScenarioError, match=match):
+        make()
+    assert UniformWeather(tws_kn=15.0, twd_deg=360.0).twd_deg == 0.0  # the documented [0, 360)
