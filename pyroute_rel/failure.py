@@ -74,6 +74,9 @@ QUANTITIES: dict[str, str] = {
     "twa_deg": "true wind angle [deg] in [0, 180], 0 = wind from dead ahead",
     "wave_period_s": "wave period [s] (NaN when the weather lacks it)",
 }
+#: Physical range of each quantity (angles folded to [0, 180] as the cost module computes them).
+_QUANTITY_RANGES = {"hs_m": (0.0, math.inf), "awd_deg": (0.0, 180.0), "tws_kn": (0.0, math.inf),
+                    "twa_deg": (0.0, 180.0), "wave_period_s": (0.0, math.inf)}
 _UNITS = {"hs_m": "m", "awd_deg": "deg", "tws_kn": "kn", "twa_deg": "deg", "wave_period_s": "s"}
 
 #: Comparison operators of a two-state (threshold) criterion.
@@ -246,6 +249,13 @@ class FailureModel:
         >>> m.p_fail({"hs_m": [3.9, 4.0, 4.0, 5.0], "awd_deg": [90.0, 90.0, 59.0, float("nan")]}).tolist()
         [0.0, 0.9, 1.0, nan]
         """
+        for name, (lo, hi) in _QUANTITY_RANGES.items():
+            if name in quantities:
+                v = np.asarray(quantities[name], dtype=float)
+                bad = np.isfinite(v) & ((v < lo) | (v > hi))
+                if bad.any():
+                    raise FailureModelError(f"p_fail: {name} must be in [{lo:g}, {hi:g}] ({QUANTITIES[name]}) "
+                                            f"(got {v[bad].ravel()[0]:g})")
         idx, unknown = self._indices(quantities)
         p = self._full[tuple(idx)]
         if unknown:

@@ -430,6 +430,9 @@ def write_together(out_dir: str | os.PathLike[str], writers: dict[str, Callable[
     from .errors import OutputError, show
 
     out = check_out_dir(out_dir, option=option)
+    for name in writers:
+        if not name or Path(name).name != name or name in (".", ".."):
+            raise OutputError(f"{option}: file names must be plain names inside the folder (got {name!r})")
     created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -472,4 +475,7 @@ def write_outputs(route: Route, out_dir: str | os.PathLike[str], *, plot: bool =
         from .plot import plot_route
 
         writers["route.png"] = lambda p: plot_route(route, path=p)
-    return write_together(out_dir, writers)
+    written = write_together(out_dir, writers)
+    for name in set(OUTPUT_FILES) - set(writers):  # e.g. a route.png from an earlier run with a plot: stale now
+        (Path(out_dir) / name).unlink(missing_ok=True)
+    return written

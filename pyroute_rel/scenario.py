@@ -137,10 +137,13 @@ class Scenario:
                 if value not in LAYOUTS:
                     raise ScenarioError(f"--layout must be one of {list(LAYOUTS)} (got {value!r})")
                 checked[key] = value
-            elif key == "land":
-                checked["avoid"] = replace(self.avoid, land=bool(value))
-            elif key == "prune":
-                checked[key] = bool(value)
+            elif key in ("land", "prune"):
+                if not isinstance(value, bool | np.bool_):
+                    raise ScenarioError(f"{key} must be True or False (got {value!r})")
+                if key == "land":
+                    checked["avoid"] = replace(self.avoid, land=bool(value))
+                else:
+                    checked[key] = bool(value)
             elif key in ("spacing_km", "max_deviation_deg", "samples_per_arc", "beyond", "time_step_h",
                          "max_wait_h", "aspect", "half_width_km"):
                 checked[key] = value

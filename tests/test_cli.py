@@ -254,3 +254,20 @@ def test_n_nodes_note_only_for_the_command_line_option(capsys) -> None:
     assert main(["route", str(EXAMPLE), "--n-ranks", "10", "--quiet", "--n-nodes", "31"]) == 0
     err = capsys.readouterr().err
     assert "--n-nodes 31 applies to layout = 'square'" in err and "nodes per rank" in err
+
+
+def test_write_outputs_without_a_plot_leaves_no_stale_map(tmp_path) -> None:
+    from pyroute_rel.errors import OutputError, ScenarioError
+    from pyroute_rel.route import write_outputs, write_together
+    from pyroute_rel.scenario import load_scenario
+
+    route = load_scenario(EXAMPLE).with_options(n_ranks=10, land=False).route()
+    write_outputs(route, tmp_path / "o")
+    assert (tmp_path / "o" / "route.png").exists()
+    write_outputs(route, tmp_path / "o", plot=False)
+    assert not (tmp_path / "o" / "route.png").exists()  # it described the earlier run
+    with pytest.raises(OutputError, match="plain names"):
+        write_together(tmp_path / "o", {"../escape.txt": lambda p: p.write_text("x")})
+    assert not (tmp_path / "escape.txt").exists()
+    with pytest.raises(ScenarioError, match="land must be True or False"):
+        load_scenario(EXAMPLE).with_options(land="no")  # was read as True

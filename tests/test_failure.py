@@ -149,10 +149,12 @@ def test_thresholds_are_exact_and_gather_broadcasts():
     assert float(m.p_fail({"hs_m": 4.0, "awd_deg": 60.0})) == 0.9
 
 
-_values = st.one_of(st.floats(-1.0, 200.0, allow_nan=False), st.sampled_from([4.0, 60.0, 0.0, 180.0]))
+# physical ranges (p_fail refuses others): hs_m >= 0, awd_deg in [0, 180]; thresholds and ends included
+_hs = st.one_of(st.floats(0.0, 30.0, allow_nan=False), st.sampled_from([4.0, 0.0, 60.0]))
+_awd = st.one_of(st.floats(0.0, 180.0, allow_nan=False), st.sampled_from([4.0, 60.0, 0.0, 180.0]))
 
 
-@given(st.lists(st.tuples(_values, _values), min_size=1, max_size=20))
+@given(st.lists(st.tuples(_hs, _awd), min_size=1, max_size=20))
 @settings(max_examples=100, deadline=None)
 def test_dickson_gather_equals_brute_force(pairs):
     m = load_failure_model("dickson2018")
@@ -544,3 +546,12 @@ def test_every_shipped_model_quantity_is_known():
         m = load_failure_model(name)
         assert m.quantities <= set(QUANTITIES)
         assert list(itertools.islice(m.evidence_states(), 1))
+
+
+def test_p_fail_refuses_quantities_out_of_their_range() -> None:
+    m = load_failure_model("dickson2018")
+    # 400 deg would fold to 40 deg (head seas, 0.9) but gathered as "not < 60" (0.0): refused instead
+    with pytest.raises(FailureModelError, match=r"awd_deg must be in \[0, 180\].*\(got 400\)"):
+        m.p_fail({"hs_m": 1.0, "awd_deg": 400.0})
+    with pytest.raises(FailureModelError, match=r"hs_m must be in \[0, inf\]"):
+        m.p_fail({"hs_m": -1.0, "awd_deg": 90.0})
