@@ -14,6 +14,7 @@ the arcs the solver would pick.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -43,6 +44,24 @@ class Avoid:
     margin_km: float = 0.0
     resolution: str = "intermediate"
     zones: tuple[Any, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.land, bool | np.bool_):
+            raise ScenarioError(f"Avoid.land must be True or False (got {self.land!r})")
+        margin = self.margin_km
+        if isinstance(margin, bool) or not isinstance(margin, numbers.Real) or not 0.0 <= float(margin) <= 200.0:
+            raise ScenarioError(f"Avoid.margin_km must be a number of km in [0, 200] (got {margin!r})")
+        if self.resolution != "intermediate":
+            from .obstacles import RESOLUTIONS
+
+            if self.resolution not in RESOLUTIONS:
+                raise ScenarioError(f"Avoid.resolution must be one of {list(RESOLUTIONS)} (got {self.resolution!r})")
+        zones = self.zones
+        if isinstance(zones, str | bytes) or not isinstance(zones, Sequence) or not all(
+                hasattr(z, "geometry") and hasattr(z, "active") for z in zones):
+            raise ScenarioError("Avoid.zones must be a sequence of Zone (pyroute_rel.zones.load_zones(paths)) (got "
+                                f"{zones!r:.60})")
+        object.__setattr__(self, "zones", tuple(zones))
 
     @property
     def active(self) -> bool:

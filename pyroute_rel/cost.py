@@ -39,6 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
+from .errors import ScenarioError
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import Polar, boat_speed_kn
 from .weather import Conditions, WeatherSource
@@ -206,6 +207,8 @@ def arc_geometry(
     """
     a = geodesy.to_xyz(lon0_deg, lat0_deg)
     b = geodesy.to_xyz(lon1_deg, lat1_deg)
+    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 1:
+        raise ScenarioError(f"samples must be a whole number >= 1 (sub-segments per arc) (got {samples!r})")
     return geometry_from_xyz(a, b, samples=samples)
 
 
@@ -314,6 +317,8 @@ def arc_costs(
     >>> round(float(c.time_h), 3)  # 60.04 nm at 4.1667 kn (bilinear between TWA 85 and 100)
     14.409
     """
+    if not (0.0 <= apf <= 1.0):  # also refuses NaN
+        raise ScenarioError(f"apf must be a probability in [0, 1] (got {apf!r})")
     geom = arc_geometry(lon0_deg, lat0_deg, lon1_deg, lat1_deg, samples=samples)
     t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape) if geom.shape else np.asarray(t0_h, float)
     return geometry_costs(geom, t0, departure=departure, weather=weather, polar=polar, failure=failure,

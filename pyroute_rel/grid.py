@@ -324,13 +324,13 @@ def make_grid(
         start_valid = np.abs(offset) <= max(reach, spacing_km / 2.0)
     s_lon = s_lat = None
     if start_line is not None:
-        (a_lon, a_lat), (b_lon, b_lat) = (_checked_point(p, "start_line end") for p in start_line)
+        (a_lon, a_lat), (b_lon, b_lat) = _checked_line(start_line, "start_line")
         line_km = float(geodesy.distance_km(a_lon, a_lat, b_lon, b_lat))
         n_start = int(min(max(2, math.ceil(line_km / spacing_km) + 1), 401))
         s_lon, s_lat = geodesy.intermediate_point(a_lon, a_lat, b_lon, b_lat, np.linspace(0.0, 1.0, n_start))
     fin_line = None
     if finish_line is not None:
-        a, b = (_checked_point(p, "finish_line end") for p in finish_line)
+        a, b = _checked_line(finish_line, "finish_line")
         if float(geodesy.distance_km(*a, *b)) < 1e-3:
             raise GridError("finish_line end points must differ")
         fin_line = (a, b)
@@ -382,6 +382,12 @@ def rank_points(
     shape = (n_ranks,) + (1,) * (off.ndim - 1)
     return geodesy.destination_point(c_lon.reshape(shape), c_lat.reshape(shape),
                                      ((course + 90.0) % 360.0).reshape(shape), off)
+
+
+def _checked_line(line: Any, name: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    if isinstance(line, str) or not hasattr(line, "__len__") or len(line) != 2:
+        raise GridError(f"{name} must be two (lon, lat) end points [deg] (got {line!r:.60})")
+    return _checked_point(line[0], f"{name} end"), _checked_point(line[1], f"{name} end")
 
 
 def _checked_point(p: Any, name: str) -> tuple[float, float]:

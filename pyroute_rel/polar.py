@@ -73,7 +73,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .errors import PolarError, show
+from .errors import OutputError, PolarError, show
 
 __all__ = [
     "Polar",
@@ -265,7 +265,7 @@ def boat_speed_kn(
 
     Raises
     ------
-    ValueError
+    PolarError (a ValueError)
         ``beyond`` is not one of :data:`BEYOND_MODES`, or some TWS is negative.
 
     References
@@ -290,13 +290,13 @@ def boat_speed_kn(
     [0.0, 0.0]
     """
     if beyond not in BEYOND_MODES:
-        raise ValueError(f"'beyond' must be one of {list(BEYOND_MODES)} (got {beyond!r})")
+        raise PolarError(f"'beyond' must be one of {list(BEYOND_MODES)} (got {beyond!r})")
     a, w = np.broadcast_arrays(fold_twa_deg(twa_deg), np.asarray(tws_kn, dtype=np.float64))
     shape = a.shape
     a = a.reshape(-1)  # 1-D (a copy when broadcast) so that every step below works in place
     w = w.reshape(-1)
     if np.any(w < 0.0):
-        raise ValueError(f"'tws_kn' must be >= 0 [kn] (got {np.nanmin(w):g})")
+        raise PolarError(f"'tws_kn' must be >= 0 [kn] (got {np.nanmin(w):g})")
 
     twa, tws, table = polar.twa_deg, polar.tws_kn, polar.speed_kn
     n_tws = tws.size
@@ -509,7 +509,10 @@ def _write_matrix(polar: Polar, path: Path, label: str, sep: str) -> Path:
     lines = [sep.join([label, *map(_fmt, polar.tws_kn)])]
     for twa, row in zip(polar.twa_deg, polar.speed_kn, strict=True):
         lines.append(sep.join([_fmt(twa), *map(_fmt, row)]))
-    _atomic_write_text(path, "\n".join(lines) + "\n")
+    try:
+        _atomic_write_text(path, "\n".join(lines) + "\n")
+    except OSError as exc:
+        raise OutputError(f"cannot write polar file {show(path)} ({exc.strerror or exc})") from None
     return path
 
 

@@ -304,3 +304,19 @@ def test_gridded_uniform_field_costs_like_the_uniform_source(current, wave_loss,
     np.testing.assert_array_equal(got.reason[ok], ref.reason[ok])
     np.testing.assert_allclose(got.time_h[ok], ref.time_h[ok], rtol=1e-6)
     np.testing.assert_allclose(got.p_f[ok], ref.p_f[ok], atol=1e-9)
+
+
+def test_arc_costs_refuses_samples_and_apf_it_cannot_use() -> None:
+    from pyroute_rel.cost import arc_costs, arc_geometry
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.polar import get_polar
+    from pyroute_rel.weather import UniformWeather
+
+    kw = {"departure": np.datetime64("2018-06-01T00:00"), "weather": UniformWeather(tws_kn=12.0, twd_deg=0.0),
+          "polar": get_polar("maribot_vane")}
+    with pytest.raises(ScenarioError, match=r"samples must be a whole number >= 1"):
+        arc_costs(0.0, 0.0, 1.0, 0.0, 0.0, samples=0, **kw)  # was time inf with reason 0 ("ok")
+    with pytest.raises(ScenarioError, match=r"samples must be a whole number >= 1"):
+        arc_geometry(0.0, 0.0, 2.0, 0.0, samples=-1)  # was empty arrays and a negative length
+    with pytest.raises(ScenarioError, match=r"apf must be a probability in \[0, 1\] \(got nan\)"):
+        arc_costs(0.0, 0.0, 1.0, 0.0, 0.0, apf=float("nan"), **kw)

@@ -115,3 +115,18 @@ def test_finish_line_crossings_prefilter_is_exact(options) -> None:
         np.testing.assert_array_equal(_crossing(grid, k), ref, err_msg=f"rank {k}")
         crossings += int(np.isfinite(ref).sum())
     assert crossings > 100  # precondition: the grid reaches the line
+
+
+def test_avoid_and_course_lines_validate_their_arguments() -> None:
+    from pyroute_rel.avoid import Avoid
+    from pyroute_rel.errors import GridError
+    from pyroute_rel.grid import make_grid
+
+    for kw, match in [({"land": "no"}, "Avoid.land must be True or False"),
+                      ({"margin_km": -1.0}, r"margin_km must be a number of km in \[0, 200\]"),
+                      ({"zones": "zones.geojson"}, "Avoid.zones must be a sequence of Zone"),
+                      ({"resolution": "ultra"}, "Avoid.resolution must be one of")]:
+        with pytest.raises(ScenarioError, match=match):
+            Avoid(**kw)
+    with pytest.raises(GridError, match=r"finish_line must be two \(lon, lat\) end points"):
+        make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=3, n_nodes=3, finish_line=((0.0, 0.0),))

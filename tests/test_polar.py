@@ -561,3 +561,14 @@ def test_example_file_is_the_builtin_written_by_write_pol(tmp_path):
     assert read_pol(example) == VANE
     assert example.read_text().splitlines()[0] == "TWA\\TWS\t0\t4\t8\t12\t16\t20"
     assert example.read_bytes() == write_pol(VANE, tmp_path / "maribot_vane.pol").read_bytes()
+
+
+def test_polar_errors_are_domain_errors(tmp_path) -> None:
+    from pyroute_rel.errors import OutputError, PolarError
+    from pyroute_rel.polar import boat_speed_kn, get_polar, write_pol
+
+    vane = get_polar("maribot_vane")
+    with pytest.raises(PolarError, match=r"'tws_kn' must be >= 0"):
+        boat_speed_kn(vane, 90.0, -1.0)
+    with pytest.raises(OutputError, match=r"cannot write polar file .*missing_dir"):
+        write_pol(vane, tmp_path / "missing_dir" / "v.pol")
