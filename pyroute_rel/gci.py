@@ -386,6 +386,9 @@ def grid_convergence(
     e_a = _rel(eps21, phi1)
     e_a32 = _rel(eps32, phi2)
     notes: list[str] = []
+    if phi1 == 0.0 or phi2 == 0.0:
+        notes.append("phi is 0 on a fine grid: relative errors and GCI against it are infinite; judge the absolute "
+                     "differences (or shift phi away from 0)")
     if min(r21, r32) < _R_RECOMMENDED:
         notes.append(
             f"refinement ratio {min(r21, r32):.4g} is below the {_R_RECOMMENDED} recommended "

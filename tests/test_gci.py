@@ -587,3 +587,9 @@ def test_study_levels_refuse_bad_counts_and_sizes() -> None:
     levels = angular_levels(3000.0, [5, 9, 17], aspect0=2.0, half_width_km=600.0)
     assert [lv.n_ranks for lv in levels] == [5, 9, 17]
     assert levels[0].spacing_km == pytest.approx(3000.0 / 6 / 2.0)  # rank spacing / aspect0
+
+
+def test_zero_phi_on_the_fine_grid_says_why_errors_are_infinite() -> None:
+    r = grid_convergence([1.0, 2.0, 4.0], [0.0, 1.0, 3.0])
+    assert r.e_a == math.inf and "phi is 0 on a fine grid" in r.note
+    assert "phi is 0" not in grid_convergence([1.0, 2.0, 4.0], [1.0, 2.0, 4.0]).note
