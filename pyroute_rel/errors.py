@@ -20,6 +20,7 @@ __all__ = [
     "ConvergenceError",
     "NoFeasibleRouteError",
     "OutputError",
+    "CoordinateError",
 ]
 
 
@@ -80,3 +81,7 @@ class NoFeasibleRouteError(PyrouteError, RuntimeError):
 
 class OutputError(PyrouteError, OSError):
     """An output folder or file cannot be written (a file in the way, no permission, disk full)."""
+
+
+class CoordinateError(PyrouteError, ValueError):
+    """A position is off the globe: a latitude outside [-90, 90] deg."""

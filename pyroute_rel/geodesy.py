@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from .errors import CoordinateError
+
 __all__ = [
     "EARTH_RADIUS_KM",
     "KM_PER_NM",
@@ -88,9 +90,19 @@ def bearing_deg(east: npt.ArrayLike, north: npt.ArrayLike) -> FloatArray:
     return d
 
 
+def _lat(lat_deg: npt.ArrayLike) -> FloatArray:
+    """Latitudes [deg] as a float array; :class:`~pyroute_rel.errors.CoordinateError` off [-90, 90] (NaN passes:
+    it gives NaN results, as documented)."""
+    lat = np.asarray(lat_deg, dtype=float)
+    if np.any(np.abs(lat) > 90.0):
+        bad = lat[np.abs(lat) > 90.0].ravel()[0]
+        raise CoordinateError(f"latitude must be in [-90, 90] [deg] (got {bad:g})")
+    return lat
+
+
 def _central_angle(lon1: FloatArray, lat1: FloatArray, lon2: FloatArray, lat2: FloatArray) -> FloatArray:
     """Central angle [rad] by the haversine formula (well conditioned for short arcs)."""
-    phi1, phi2 = np.radians(lat1), np.radians(lat2)
+    phi1, phi2 = np.radians(_lat(lat1)), np.radians(_lat(lat2))
     dphi = phi2 - phi1
     dlmb = np.radians(np.asarray(lon2, dtype=float) - lon1)
     h = np.sin(dphi / 2.0) ** 2 + np.cos(phi1) * np.cos(phi2) * np.sin(dlmb / 2.0) ** 2
@@ -135,8 +147,8 @@ def initial_bearing_deg(
     >>> initial_bearing_deg(0.0, 0.0, [1.0, 0.0], [0.0, 1.0]).round(6).tolist()
     [90.0, 0.0]
     """
-    phi1 = np.radians(np.asarray(lat1_deg, dtype=float))
-    phi2 = np.radians(np.asarray(lat2_deg, dtype=float))
+    phi1 = np.radians(_lat(lat1_deg))
+    phi2 = np.radians(_lat(lat2_deg))
     dlmb = np.radians(np.asarray(lon2_deg, dtype=float) - np.asarray(lon1_deg, dtype=float))
     y = np.sin(dlmb) * np.cos(phi2)
     x = np.cos(phi1) * np.sin(phi2) - np.sin(phi1) * np.cos(phi2) * np.cos(dlmb)
@@ -150,7 +162,7 @@ def to_xyz(lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> FloatArray:
     [0.0, 1.0, 0.0]
     """
     lmb = np.radians(np.asarray(lon_deg, dtype=float))
-    phi = np.radians(np.asarray(lat_deg, dtype=float))
+    phi = np.radians(_lat(lat_deg))
     cphi = np.cos(phi)
     return np.stack(np.broadcast_arrays(cphi * np.cos(lmb), cphi * np.sin(lmb), np.sin(phi)), axis=-1)
 
@@ -217,7 +229,7 @@ def destination_point(
     >>> round(float(lon), 4), round(float(lat), 4)
     (1.0, 0.0)
     """
-    phi1 = np.radians(np.asarray(lat_deg, dtype=float))
+    phi1 = np.radians(_lat(lat_deg))
     lmb1 = np.radians(np.asarray(lon_deg, dtype=float))
     theta = np.radians(np.asarray(bearing_deg, dtype=float))
     delta = np.asarray(dist_km, dtype=float) / EARTH_RADIUS_KM

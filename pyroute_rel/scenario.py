@@ -116,7 +116,11 @@ class Scenario:
     refine: int = 0
 
     def with_options(self, **changes: Any) -> Scenario:
-        """A copy with some settings changed (validated like the file's)."""
+        """A copy with some settings changed (validated like the file's, with the command-line option named).
+
+        ``None`` leaves a setting as it is (the CLI passes None for options not given), so a setting cannot be reset
+        to None here: build the scenario from a mapping without it (:func:`scenario_from_mapping`) instead.
+        """
         checked: dict[str, Any] = {}
         for key, value in changes.items():
             if value is None:
