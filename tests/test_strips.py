@@ -94,7 +94,28 @@ def test_shadows_equal_the_arc_by_arc_test(seed, lon, lat, course, banded, singl
     area = shapely.intersection(shapely.union_all(pieces), shapely.box(-180, -90, 180, 90))
     (got,) = fans_blocked([group], [ob.tiles_tree(area)])[0]
     assert got is not None
-    np.testing.assert_array_equal(got, reference(group, area))
+    assert_equal_but_for_tangents(got, reference(group, area), group, area)
+
+
+def assert_equal_but_for_tangents(got: np.ndarray, ref: np.ndarray, group: Group, area: shapely.Geometry) -> None:
+    """Both methods are exact to under a metre (module notes of obstacles and strips): they must agree on every arc
+    except one that passes within 1 m of the area's boundary, where either answer is right. Hypothesis found such an
+    arc (6 mm from an island, seed 9215192 at lat 62.9)."""
+    for row, col in np.argwhere(got != ref):
+        if group.band is None:
+            i, j = col, row
+        else:
+            i, j = row, row - group.band + col
+        a_lon, a_lat, b_lon, b_lat = group.src_lon[i], group.src_lat[i], group.dst_lon[j], group.dst_lat[j]
+        n = int(np.ceil(float(geodesy.distance_km(a_lon, a_lat, b_lon, b_lat)) / 0.05)) + 1  # 50 m steps
+        x, y = geodesy.intermediate_point(a_lon, a_lat, b_lon, b_lat, np.linspace(0.0, 1.0, n))
+        line = shapely.LineString(np.column_stack([x, y]))
+        km_per_deg = geodesy.EARTH_RADIUS_KM * np.pi / 180.0  # lon/lat lengths times this over-state km: strict
+        if got[row, col]:  # blocked by strips only: the arc must pass within 1 m of the area
+            miss_km = line.distance(area) * km_per_deg
+        else:  # blocked arc by arc only: the arc may only graze the area, under 1 m of it inside
+            miss_km = line.intersection(area).length * km_per_deg
+        assert miss_km < 1e-3, f"arc {i} -> {j}: strips {got[row, col]}, arc by arc {ref[row, col]}, {miss_km:.4g} km"
 
 
 def test_real_coast_rank_pairs_equal_the_arc_by_arc_test() -> None:
