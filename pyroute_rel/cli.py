@@ -75,6 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--max-deviation", type=float, dest="max_deviation_deg",
                    help="largest arc angle from the rank direction [deg] (overrides [grid].max_deviation_deg)")
     r.add_argument("--samples", type=int, dest="samples_per_arc", help="weather samples per arc")
+    r.add_argument("--sample-km", type=float, dest="sample_km",
+                   help="weather samples along arcs at most this far apart [km] (default 25; overrides "
+                        "[grid].sample_km); a count with --samples instead")
     r.add_argument("--refine", type=int, metavar="LEVELS",
                    help="refine the track in LEVELS corridor grids around it, each solved exactly: its points slide "
                         "along the ranks (0 = none; overrides [grid].refine)")
@@ -117,7 +120,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
         spacing_km=args.spacing_km, max_deviation_deg=args.max_deviation_deg, samples_per_arc=args.samples_per_arc,
         time_step_h=args.time_step_h, max_wait_h=args.max_wait_h, layout=args.layout, aspect=args.aspect,
         half_width_km=args.half_width_km, land=False if args.no_land else None, prune=args.prune,
-        refine=args.refine,
+        refine=args.refine, sample_km=args.sample_km,
     )
     if args.out:
         from .route import check_out_dir

@@ -4,7 +4,8 @@ A scenario has these tables (unknown tables or keys are refused with the file an
 
     [route]    start = [lon, lat]  finish = [lon, lat]  departure = "2018-06-01T00:00:00Z"
     [grid]     layout = "angular" | "square"  n_ranks = 160  n_nodes = 160  (all optional; see grid.plan_grid)
-               spacing_km, aspect, half_width_km, max_deviation_deg, samples_per_arc = 1, refine = 0
+               spacing_km, aspect, half_width_km, max_deviation_deg, samples_per_arc = 1 | sample_km = 25,
+               refine = 0
     [boat]     polar = "maribot_vane" | "path/to/file.pol"   beyond = "clamp" | "forbid"
     [weather]  kind = "uniform" (tws_kn, twd_deg, hs_m, wave_dir_deg, ... and [[weather.patch]] boxes)
                kind = "file"    (paths = [...], see pyroute_rel.weather_io)
@@ -29,7 +30,7 @@ from .avoid import Avoid, check_points, obstacle_mask
 from .cost import WaveLoss
 from .errors import FailureModelError, PyrouteError, ScenarioError, brief, show
 from .geodesy import along_track_km, cross_track_km, crossing_fraction, distance_km, intermediate_point
-from .grid import DEFAULT_N_RANKS, LAYOUTS, Grid, auto_samples, plan_grid
+from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, LAYOUTS, Grid, auto_samples, plan_grid
 from .polar import BEYOND_MODES, Polar, get_polar
 from .solve import RoutingProblem, solve
 from .weather import UniformWeather, WeatherSource
@@ -61,7 +62,8 @@ SCHEMA: dict[str, dict[str, str]] = {
         "aspect": "rank spacing / lateral spacing (angular layout)",
         "half_width_km": "distance from the great circle to the outermost nodes [km] (angular layout)",
         "max_deviation_deg": "largest arc angle from the rank direction [deg]",
-        "samples_per_arc": "weather samples per arc",
+        "samples_per_arc": "weather samples per arc (default: as many as sample_km asks)",
+        "sample_km": "weather samples along arcs at most this far apart [km] (default 25)",
         "refine": "whole number >= 0: corridor refinements of the track (0 = none; see pyroute_rel.refine)",
     },
     "boat": {
@@ -114,6 +116,7 @@ class Scenario:
     avoid: Avoid = field(default_factory=Avoid)
     wave_loss: WaveLoss | None = None
     refine: int = 0
+    sample_km: float | None = None
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's, with the command-line option named).
@@ -129,6 +132,11 @@ class Scenario:
                 checked[key] = _int(value, f"--{key.replace('_', '-')}", 1)
             elif key == "refine":
                 checked[key] = _int(value, "--refine", 0)
+            elif key == "sample_km":
+                km = _number(value, "--sample-km")
+                if not 0.1 <= km <= 1000.0:
+                    raise ScenarioError(f"--sample-km must be in [0.1, 1000] [km] (got {km:g})")
+                checked[key] = km
             elif key == "apf":
                 checked[key] = _prob(value, "--apf")
             elif key == "failure_model":
@@ -217,10 +225,17 @@ class Scenario:
         samples = self.samples_per_arc
         if grid is None:
             grid = self.make_grid()
-        if samples is None:
-            samples = auto_samples(grid)
+        km = self.sample_km
+        if samples is None and km is None:
+            samples = auto_samples(grid, sample_km=DEFAULT_SAMPLE_KM)
+        elif samples is None and km is not None:  # the user's spacing is kept: never a silent cap
+            samples = auto_samples(grid, sample_km=km, max_samples=10**6)
+            if samples > 64:
+                raise ScenarioError(f"sample_km = {km:g} needs {samples} weather samples per arc on this grid (at "
+                                    "most 64): use a larger sample_km or more ranks")
         if blocked == "auto":
             blocked = obstacle_mask(grid, self.avoid)
+        assert samples is not None
         return RoutingProblem(
             departure=self.departure, weather=self.weather, polar=self.polar,
             failure=failure if failure is not None else self.load_failure(), apf=self.apf,
@@ -408,6 +423,13 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     if samples is not None and samples > 64:
         raise ScenarioError(f"[grid].samples_per_arc must be at most 64 (got {samples})")
     refine = _int(grid.get("refine", 0), "[grid].refine", 0)
+    sample_km = None
+    if "sample_km" in grid:
+        sample_km = _number(grid["sample_km"], "[grid].sample_km")
+        if not 0.1 <= sample_km <= 1000.0:
+            raise ScenarioError(f"[grid].sample_km must be in [0.1, 1000] [km] (got {sample_km:g})")
+        if samples is not None:
+            raise ScenarioError("[grid]: give samples_per_arc (a count) or sample_km (a spacing), not both")
 
     boat = table.get("boat", {})
     polar_name = boat.get("polar", "maribot_vane")
@@ -447,7 +469,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
         prune=prune,
         layout=layout, aspect=aspect, half_width_km=half_width, start_line=start_line, finish_line=finish_line,
-        waypoints=waypoints, avoid=avoid, wave_loss=wave_loss, refine=refine,
+        waypoints=waypoints, avoid=avoid, wave_loss=wave_loss, refine=refine, sample_km=sample_km,
     )
 
 

@@ -211,9 +211,7 @@ def run_study(
     if isinstance(safety_factor, bool) or not (isinstance(safety_factor, numbers.Real) and math.isfinite(safety_factor)
                                                and safety_factor > 0):
         raise ConvergenceError(f"safety_factor must be a finite number > 0 (got {safety_factor!r})")
-    from dataclasses import replace
 
-    from .grid import auto_samples
 
     check_study_scenario(scenario)
     failure = scenario.load_failure()
@@ -230,9 +228,7 @@ def run_study(
     rows = []
     for i, lv in enumerate(levels):
         grid = todo.pop()
-        problem = scenario.problem(failure=failure, grid=grid)
-        if scenario.samples_per_arc is None:
-            problem = replace(problem, samples=auto_samples(grid))
+        problem = scenario.problem(failure=failure, grid=grid)  # samples per arc from the scenario's spacing
         t0 = time.perf_counter()
         res = forward_dp(grid, problem)
         dt = time.perf_counter() - t0

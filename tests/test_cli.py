@@ -271,3 +271,20 @@ def test_write_outputs_without_a_plot_leaves_no_stale_map(tmp_path) -> None:
     assert not (tmp_path / "escape.txt").exists()
     with pytest.raises(ScenarioError, match="land must be True or False"):
         load_scenario(EXAMPLE).with_options(land="no")  # was read as True
+
+
+def test_sample_km_sets_the_spacing_and_is_never_capped(tmp_path, capsys) -> None:
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.grid import auto_samples
+    from pyroute_rel.scenario import load_scenario
+
+    sc = load_scenario(EXAMPLE).with_options(n_ranks=20, land=False, failure_model="none")
+    grid = sc.make_grid()
+    assert sc.problem(grid=grid).samples == auto_samples(grid)  # default: 25 km
+    # 20 ranks: arcs up to sqrt(2) x 256 km = 362 km; 10 km apart needs 37 samples (the automatic rule stops at 16)
+    assert sc.with_options(sample_km=10.0).problem(grid=grid).samples == 37
+    with pytest.raises(ScenarioError, match=r"sample_km = 5 needs 73 weather samples per arc on this grid \(at most"):
+        sc.with_options(sample_km=5.0).problem(grid=grid)
+    path = write(tmp_path, GOOD.replace("[grid]", "[grid]\nsample_km = 10\nsamples_per_arc = 3", 1))
+    assert main(["route", str(path), "--quiet"]) == 2
+    assert "samples_per_arc (a count) or sample_km (a spacing), not both" in capsys.readouterr().err
