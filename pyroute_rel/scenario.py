@@ -587,9 +587,7 @@ def _prob(v: Any, where: str) -> float:
 
 
 def _int(v: Any, where: str, lo: int) -> int:
-    if isinstance(v, str) and v.strip().lstrip("-").isdigit():
-        v = int(v)
-    if isinstance(v, bool) or not isinstance(v, int):
+    if isinstance(v, bool) or not isinstance(v, int | np.integer):  # "20" is refused, as for every number
         raise ScenarioError(f"{where} must be a whole number (got {v!r})")
     if v < lo:
         raise ScenarioError(f"{where} must be >= {lo} (got {brief(v)})")

@@ -130,3 +130,8 @@ def test_avoid_and_course_lines_validate_their_arguments() -> None:
             Avoid(**kw)
     with pytest.raises(GridError, match=r"finish_line must be two \(lon, lat\) end points"):
         make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=3, n_nodes=3, finish_line=((0.0, 0.0),))
+
+
+def test_whole_numbers_given_as_strings_are_refused_like_other_numbers() -> None:
+    with pytest.raises(ScenarioError, match=r"\[grid\]\.n_ranks must be a whole number \(got '20'\)"):
+        scenario({"start": [-12.0, 45.0], "finish": [-60.0, 17.5]}, n_ranks="20")
