@@ -88,11 +88,10 @@ def _gate_args(p: argparse.ArgumentParser) -> None:
 def _check_gate_args(args: argparse.Namespace) -> None:
     """Refuse bad gate and output options before any work (one line naming the option)."""
     from .errors import ConvergenceError
+    from .gci import _check_safety_factor
     from .route import check_out_dir
 
-    fs = args.safety_factor
-    if not (math.isfinite(fs) and fs > 0.0):
-        raise ConvergenceError(f"--safety-factor must be a finite number > 0 (got {fs:g})")
+    _check_safety_factor(args.safety_factor, "gci", "--safety-factor")
     if args.max_gci is not None and not (math.isfinite(args.max_gci) and args.max_gci >= 0.0):
         raise ConvergenceError(f"--max-gci must be a finite fraction >= 0, e.g. 0.01 for 1 % (got {args.max_gci:g})")
     tol = args.asymptotic_tol

@@ -64,6 +64,11 @@ class RefineLevel:
     arcs_evaluated: int
 
 
+def _check_n_nodes(n_nodes: int) -> None:
+    if isinstance(n_nodes, bool) or not isinstance(n_nodes, int) or n_nodes < 3 or n_nodes % 2 == 0:
+        raise GridError(f"n_nodes must be an odd whole number >= 3 (got {n_nodes!r})")
+
+
 def corridor_grid(grid: Grid, centre_km: npt.ArrayLike, *, half_width_km: float,
                   n_nodes: int = CORRIDOR_NODES) -> Grid:
     """A grid on ``grid``'s rank lines with ``n_nodes`` nodes across ``centre_km[k] +- half_width_km`` on rank k.
@@ -94,8 +99,7 @@ def corridor_grid(grid: Grid, centre_km: npt.ArrayLike, *, half_width_km: float,
     if centre.shape != (grid.n_ranks,) or not np.all(np.isfinite(centre)):
         raise GridError(f"centre_km must be {grid.n_ranks} finite offsets [km], one per rank (got shape "
                         f"{centre.shape})")
-    if isinstance(n_nodes, bool) or not isinstance(n_nodes, int) or n_nodes < 3 or n_nodes % 2 == 0:
-        raise GridError(f"n_nodes must be an odd whole number >= 3 (got {n_nodes!r})")
+    _check_n_nodes(n_nodes)
     if not (np.isfinite(half_width_km) and half_width_km > 0.0):
         raise GridError(f"half_width_km must be a positive number of km (got {half_width_km!r})")
     reach = float(np.max(np.abs(centre))) + half_width_km
@@ -170,8 +174,7 @@ def refine(
     """
     if isinstance(levels, bool) or not isinstance(levels, int) or levels < 1:
         raise GridError(f"refine levels must be a whole number >= 1 (got {levels!r})")
-    if isinstance(n_nodes, bool) or not isinstance(n_nodes, int) or n_nodes < 3 or n_nodes % 2 == 0:
-        raise GridError(f"n_nodes must be an odd whole number >= 3 (got {n_nodes!r})")
+    _check_n_nodes(n_nodes)
     if not np.isfinite(result.finish_h):
         raise GridError("result has no route to refine (the finish is unreachable on the grid)")
     half = FIRST_HALF_WIDTH * grid.spacing_km

@@ -309,8 +309,8 @@ def join_routes(routes: list[Route]) -> Route:
     from dataclasses import replace as _replace
 
     first = routes[0]
-    lon = np.concatenate([first.lon_deg, *(r.lon_deg[1:] for r in routes[1:])])
-    lat = np.concatenate([first.lat_deg, *(r.lat_deg[1:] for r in routes[1:])])
+    lon = _chain([r.lon_deg for r in routes])
+    lat = _chain([r.lat_deg for r in routes])
     offsets = [0.0]
     for r in routes[:-1]:
         offsets.append(offsets[-1] + r.voyage_time_h)
@@ -332,6 +332,11 @@ def join_routes(routes: list[Route]) -> Route:
                  nodes=np.concatenate([r.nodes for r in routes]), grid=first.grid, dp=dp, meta=meta)
 
 
+def _chain(tracks: list[FloatArray]) -> FloatArray:
+    """Legs' point arrays joined into one track: each leg after the first starts where the previous one ended."""
+    return np.concatenate([tracks[0], *(t[1:] for t in tracks[1:])])
+
+
 def _joined_refinement(routes: list[Route]) -> dict[str, Any]:
     """``meta["refine"]`` and the grid track of a course whose legs were refined (:mod:`pyroute_rel.refine`): level
     i's voyage time sums every leg's time after its level i (a leg that stopped earlier counts its best), its arcs
@@ -351,8 +356,8 @@ def _joined_refinement(routes: list[Route]) -> dict[str, Any]:
             "arcs_evaluated": sum(i["levels"][k]["arcs_evaluated"] for i in infos if i and k < len(i["levels"])),
         })
     tracks = [r.meta.get("grid_track_object") or (r.lon_deg, r.lat_deg, r.voyage_time_h) for r in routes]
-    lon = np.concatenate([tracks[0][0], *(t[0][1:] for t in tracks[1:])])
-    lat = np.concatenate([tracks[0][1], *(t[1][1:] for t in tracks[1:])])
+    lon = _chain([t[0] for t in tracks])
+    lat = _chain([t[1] for t in tracks])
     grid_h = sum(i["grid_voyage_time_h"] if i else r.voyage_time_h for i, r in zip(infos, routes, strict=True))
     return {"refine": {"levels": levels, "grid_voyage_time_h": grid_h}, "grid_track_object": (lon, lat, grid_h)}
 

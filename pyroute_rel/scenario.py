@@ -29,7 +29,7 @@ import numpy as np
 from .avoid import Avoid, check_points, obstacle_mask
 from .cost import WaveLoss
 from .errors import FailureModelError, PyrouteError, ScenarioError, brief, show
-from .geodesy import along_track_km, cross_track_km, crossing_fraction, distance_km, intermediate_point
+from .geodesy import along_track_km, crossing_fraction, distance_km, intermediate_point
 from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, LAYOUTS, Grid, auto_samples, plan_grid
 from .polar import BEYOND_MODES, Polar, get_polar
 from .solve import RoutingProblem, solve
@@ -133,10 +133,7 @@ class Scenario:
             elif key == "refine":
                 checked[key] = _int(value, "--refine", 0)
             elif key == "sample_km":
-                km = _number(value, "--sample-km")
-                if not 0.1 <= km <= 1000.0:
-                    raise ScenarioError(f"--sample-km must be in [0.1, 1000] [km] (got {km:g})")
-                checked[key] = km
+                checked[key] = _sample_km(value, "--sample-km")
             elif key == "apf":
                 checked[key] = _prob(value, "--apf")
             elif key == "failure_model":
@@ -162,6 +159,11 @@ class Scenario:
             else:
                 raise ScenarioError(f"unknown scenario option {key!r}")
         return replace(self, **checked)
+
+    def marks(self) -> list[tuple[str, tuple[float, float]]]:
+        """The course's marks in order, named by their scenario field: start, waypoints, finish."""
+        return [("[route].start", self.start), *((f"[route].waypoints[{i}]", w) for i, w in enumerate(self.waypoints)),
+                ("[route].finish", self.finish)]
 
     def make_grid(self) -> Grid:
         """The scenario's rank digraph (the first leg's when the course has waypoints)."""
@@ -253,8 +255,7 @@ class Scenario:
         """
         from .route import join_routes
 
-        check_points([("[route].start", self.start), *((f"[route].waypoints[{i}]", p) for i, p in
-                      enumerate(self.waypoints)), ("[route].finish", self.finish)], self.avoid)
+        check_points(self.marks(), self.avoid)
         failure = self.load_failure()
         routes = []
         departure = self.departure
@@ -276,7 +277,6 @@ class Scenario:
         route.meta["zones_object"] = self.avoid.zones
         route.meta["land"] = self.avoid.land
         return route
-
 
     def _refined(self, route: Route, problem: RoutingProblem) -> Route:
         """The route with its track refined in corridors (:mod:`pyroute_rel.refine`); the grid, its DP result and
@@ -425,9 +425,7 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     refine = _int(grid.get("refine", 0), "[grid].refine", 0)
     sample_km = None
     if "sample_km" in grid:
-        sample_km = _number(grid["sample_km"], "[grid].sample_km")
-        if not 0.1 <= sample_km <= 1000.0:
-            raise ScenarioError(f"[grid].sample_km must be in [0.1, 1000] [km] (got {sample_km:g})")
+        sample_km = _sample_km(grid["sample_km"], "[grid].sample_km")
         if samples is not None:
             raise ScenarioError("[grid]: give samples_per_arc (a count) or sample_km (a spacing), not both")
 
@@ -586,6 +584,13 @@ def _prob(v: Any, where: str) -> float:
     return x
 
 
+def _sample_km(v: Any, where: str) -> float:
+    km = _number(v, where)
+    if not 0.1 <= km <= 1000.0:
+        raise ScenarioError(f"{where} must be in [0.1, 1000] [km] (got {km:g})")
+    return km
+
+
 def _int(v: Any, where: str, lo: int) -> int:
     if isinstance(v, bool) or not isinstance(v, int | np.integer):  # "20" is refused, as for every number
         raise ScenarioError(f"{where} must be a whole number (got {v!r})")
@@ -622,12 +627,8 @@ def _nearest_on_line(
 
 
 def _off_line_km(line: tuple[tuple[float, float], tuple[float, float]], point: tuple[float, float]) -> float:
-    """Distance [km] from a point to a great-circle segment (to the nearer end beyond the segment's ends)."""
-    (a_lon, a_lat), (b_lon, b_lat) = line
-    along = float(along_track_km(a_lon, a_lat, b_lon, b_lat, *point))
-    if 0.0 <= along <= float(distance_km(a_lon, a_lat, b_lon, b_lat)):
-        return abs(float(cross_track_km(a_lon, a_lat, b_lon, b_lat, *point)))
-    return min(float(distance_km(a_lon, a_lat, *point)), float(distance_km(b_lon, b_lat, *point)))
+    """Distance [km] from a point to a great-circle segment: to the segment's point nearest it."""
+    return float(distance_km(*point, *_nearest_on_line(line, point)))
 
 
 def _point(v: Any, where: str) -> tuple[float, float]:

@@ -41,6 +41,7 @@ from .cost import (
     ArcCosts,
     ArcGeometry,
     WaveLoss,
+    _to_datetime,
     arc_costs,
     arc_quantities,
     geometry_costs,
@@ -552,7 +553,7 @@ def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.date
     """Departure times for obstacle masks that depend on time (None when neither weather nor zones do)."""
     if getattr(problem.weather, "steady", False) and not getattr(problem.blocked, "timed", False):
         return None
-    return _times(problem.departure, t0)
+    return _to_datetime(problem.departure, t0)
 
 
 def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[np.datetime64] | None) -> BoolArray:
@@ -583,11 +584,6 @@ def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[
         tot[hit] = np.inf
         m *= 4
     return hit
-
-
-def _times(departure: np.datetime64, t_h: FloatArray) -> npt.NDArray[np.datetime64]:
-    ms = np.where(np.isfinite(t_h), t_h, 0.0) * 3.6e6
-    return np.asarray(departure).astype("datetime64[ms]") + ms.astype("timedelta64[ms]")
 
 
 def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) -> str:
@@ -661,9 +657,7 @@ def _coverage_short(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray,
     lat = np.concatenate([ends[1], ends[3]])
     speed = problem.speed_bound_kn()
     sail_h = geodesy.distance_nm(*ends) / speed if speed else np.zeros(ends[0].size)
-    start = np.datetime64(str(np.asarray(problem.departure).astype("datetime64[s]")))
-    first = start + np.timedelta64(int(np.floor(float(t0[arcs].min()) * 3600.0)), "s")
-    last = start + np.timedelta64(int(np.ceil(float((t0[arcs] + sail_h).max()) * 3600.0)), "s")
+    first, last = _to_datetime(problem.departure, np.array([t0[arcs].min(), (t0[arcs] + sail_h).max()]))
     lon_range = (float(lon.min()), float(lon.max())) if np.ptp(lon) <= 180.0 else (-180.0, 180.0)
     try:
         problem.weather.check_coverage(lon_range, (float(lat.min()), float(lat.max())), (first, last))
@@ -684,7 +678,7 @@ def _criteria_counts(
     frac = (np.arange(problem.samples) + 0.5) / problem.samples
     lon_s, lat_s = geodesy.intermediate_point(a[0][:, None], a[1][:, None], a[2][:, None], a[3][:, None], frac)
     course = geodesy.initial_bearing_deg(lon_s, lat_s, a[2][:, None], a[3][:, None])
-    time = problem.departure if getattr(problem.weather, "steady", False) else _times(
+    time = problem.departure if getattr(problem.weather, "steady", False) else _to_datetime(
         problem.departure, np.broadcast_to(a[4][:, None], lon_s.shape)
     )
     cond = problem.weather.sample(lon_s, lat_s, time)

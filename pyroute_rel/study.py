@@ -177,7 +177,7 @@ def check_study_scenario(scenario: Scenario) -> None:
             f"gci study does not support [route].waypoints yet ({len(scenario.waypoints)} given): study each leg "
             "as its own scenario"
         )
-    check_points([("[route].start", scenario.start), ("[route].finish", scenario.finish)], scenario.avoid)
+    check_points(scenario.marks(), scenario.avoid)  # no waypoints here: start and finish
 
 
 def run_study(
