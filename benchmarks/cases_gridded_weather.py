@@ -11,7 +11,8 @@ computed once per grid whatever the weather and reported as "grid_geometry_s" ("
 BUILD = """
 import xarray as xr
 from dataclasses import replace
-from pyroute_rel.weather_io import GriddedWeather
+from pyroute_rel.weather.readers import weather_from_dataset
+from pyroute_rel.weather.readers import GriddedWeather
 from pyroute_rel.grid import plan_grid
 lon = np.arange(-70.0, 0.0001, 0.25); lat = np.arange(5.0, 55.0001, 0.25)
 time_ = np.datetime64("2018-06-01T00") + np.arange(40 * 24) * np.timedelta64(1, "h")
@@ -28,7 +29,7 @@ ds = xr.Dataset({"u10": (dims, u10, {"units": "m s**-1"}), "v10": (dims, v10, {"
                 coords={"time": time_, "latitude": lat, "longitude": lon})
 del u10, v10, swh, mwd
 t0 = time.perf_counter()
-weather = GriddedWeather.from_dataset(ds, source="synthetic 0.25 deg hourly 40 days")
+weather = weather_from_dataset(ds, source="synthetic 0.25 deg hourly 40 days")
 build_s = time.perf_counter() - t0
 del ds
 sc = load_scenario(%r).with_options(land=False)
@@ -36,9 +37,11 @@ sc = replace(sc, weather=weather)
 """
 
 CASES = {}
-for _name, _layout, _prune in (("weather_file_square_160", "square", True),
-                               ("weather_file_default_grid", "angular", True),
-                               ("weather_file_square_160_every_arc", "square", False)):
+for _name, _layout, _prune in (
+    ("weather_file_square_160", "square", True),
+    ("weather_file_default_grid", "angular", True),
+    ("weather_file_square_160_every_arc", "square", False),
+):
     CASES[_name] = (
         "from pathlib import Path\nEXAMPLE = str(Path('examples/microtransat_control.toml').resolve())\n"
         + BUILD % "examples/microtransat_control.toml"

@@ -30,8 +30,8 @@ _CODE = """
 import os, shutil, tempfile
 os.environ["PYROUTE_REL_CACHE_DIR"] = disk = tempfile.mkdtemp(prefix="bench-cache-")
 from dataclasses import replace
-from pyroute_rel import obstacles as ob
-from pyroute_rel.avoid import Avoid, obstacle_mask
+from pyroute_rel.obstacles import land as ob
+from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
 sc = load_scenario({path!r}).with_options({options})
 avoid = {avoid}
 
@@ -82,8 +82,7 @@ print(json.dumps({{"seconds": cold_s, "cold_s": cold_s, "cold_disk_s": cold_disk
 """
 
 _SETTINGS = {
-    "square": ('layout="square", n_nodes=160, n_ranks=160, samples_per_arc=1',
-               "the paper's square 160x160 grid"),
+    "square": ('layout="square", n_nodes=160, n_ranks=160, samples_per_arc=1', "the paper's square 160x160 grid"),
     "angular": ("", "the default angular grid (160 ranks, aspect 6, 45 deg, half-width 1000 km)"),
 }
 _AVOIDS = {

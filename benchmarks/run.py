@@ -44,8 +44,11 @@ def best_of(fn, n=3):
 """
 
 for n in (80, 160, 320):
-    case(f"dp_all_to_all_{n}", 1.0 if n == 160 else None,
-         f"paper's square all-to-all grid {n}x{n}, apf 1, DP + arc costs (issue 2: 160x160 under 1 s)")(f"""
+    case(
+        f"dp_all_to_all_{n}",
+        1.0 if n == 160 else None,
+        f"paper's square all-to-all grid {n}x{n}, apf 1, DP + arc costs (issue 2: 160x160 under 1 s)",
+    )(f"""
 sc = load_scenario({str(EXAMPLE)!r}).with_options(layout="square", n_nodes={n}, n_ranks={n}, failure_model="none",
                                                   land=False, samples_per_arc=1)
 grid = sc.make_grid(); problem = sc.problem()
@@ -55,8 +58,11 @@ print(json.dumps({{"seconds": t, "cold_seconds": cold, "arcs": res.arcs_evaluate
                   "peak_rss_mb": rss_mb(), "voyage_h": res.finish_h}}))
 """)
 
-case("dp_failure_model_160", None,
-     "160x160 with the dickson2018 failure model at apf 0.5 (issue 3: at most 1.5x the time without)")(f"""
+case(
+    "dp_failure_model_160",
+    None,
+    "160x160 with the dickson2018 failure model at apf 0.5 (issue 3: at most 1.5x the time without)",
+)(f"""
 sc0 = load_scenario({str(EXAMPLE)!r}).with_options(layout="square", failure_model="none", land=False, samples_per_arc=1)
 sc1 = load_scenario({str(EXAMPLE)!r}).with_options(layout="square", apf=0.5, land=False, samples_per_arc=1)
 g = sc0.make_grid(); p0 = sc0.problem(); p1 = sc1.problem()
@@ -73,9 +79,12 @@ print(json.dumps({{"seconds": t1, "without_model_s": t0, "ratio": t1 / t0, "medi
 """)
 
 for _apf in (1.0, 0.95, 0.5):
-    case(f"default_route_apf{_apf:g}", 2.0,
-         f"default route of the example at apf {_apf:g} (angular grid, land on, failure model): load + route, "
-         "first in the process (issue 8: under 2 s each)")(f"""
+    case(
+        f"default_route_apf{_apf:g}",
+        2.0,
+        f"default route of the example at apf {_apf:g} (angular grid, land on, failure model): load + route, "
+        "first in the process (issue 8: under 2 s each)",
+    )(f"""
 t0 = time.perf_counter()
 sc = load_scenario({str(EXAMPLE)!r}).with_options(apf={_apf})
 route = sc.route()
@@ -87,8 +96,11 @@ print(json.dumps({{"seconds": cold, "warm_dp_seconds": t, "arcs": res.arcs_evalu
                   "arcs_per_s": res.arcs_evaluated / t, "voyage_h": route.voyage_time_h, "peak_rss_mb": rss_mb()}}))
 """)
 
-case("refine_default_route", None,
-     "default route of the example at apf 1 refined in five corridors (--refine 5): extra time and voyage gain")(f"""
+case(
+    "refine_default_route",
+    None,
+    "default route of the example at apf 1 refined in five corridors (--refine 5): extra time and voyage gain",
+)(f"""
 from dataclasses import replace
 sc = load_scenario({str(EXAMPLE)!r}).with_options(apf=1.0)
 sc.route()  # warm: failure table, land
@@ -102,9 +114,12 @@ print(json.dumps({{"seconds": t_ref, "plain_s": t_plain, "extra_s": t_ref - t_pl
                   "peak_rss_mb": rss_mb()}}))
 """)
 
-case("gci_study_square_five_grids", 30.0,
-     "the paper's five-grid square GCI study (41, 57, 81, 115, 161 nodes), apf 1, no land (issue: under 30 s)")(f"""
-from pyroute_rel.study import run_study, square_levels
+case(
+    "gci_study_square_five_grids",
+    30.0,
+    "the paper's five-grid square GCI study (41, 57, 81, 115, 161 nodes), apf 1, no land (issue: under 30 s)",
+)(f"""
+from pyroute_rel.gci.study import run_study, square_levels
 sc = load_scenario({str(EXAMPLE)!r}).with_options(apf=1.0, land=False)
 t0 = time.perf_counter()
 st = run_study(sc, square_levels([41, 57, 81, 115, 161]))
@@ -214,8 +229,11 @@ def main() -> int:
             if "error" in r:
                 print(f"{name:28s} ERROR {r['error']}")
                 continue
-            extra = ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in r.items()
-                              if k not in ("name", "what", "pass", "target_s"))
+            extra = ", ".join(
+                f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
+                for k, v in r.items()
+                if k not in ("name", "what", "pass", "target_s")
+            )
             verdict = "PASS" if r["pass"] else "FAIL"
             print(f"{name:28s} {verdict}  {extra}\n{'':28s} ({r['what']})")
     if args.json:

@@ -20,7 +20,7 @@ import json
 import time
 from pathlib import Path
 
-from pyroute_rel.gci import convergence_study
+from pyroute_rel.gci.numbers import convergence_study
 from pyroute_rel.grid import make_grid, plan_grid
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.solve import forward_dp
@@ -51,9 +51,12 @@ def main() -> None:
     ref_ranks = (21, 41, 81) if args.quick else (41, 81, 161)
     # the finest reference level is costly with auto sampling: 161 ranks x aspect 16 (~10^7 arcs x 4 samples)
     square_n = (41, 81) if args.quick else (41, 57, 81, 115, 161)
-    candidates = [(nr, a, dev) for nr in ((40, 80) if args.quick else (40, 60, 80, 120, 160))
-                  for a in ((4.0, 8.0) if args.quick else (4.0, 6.0, 8.0, 12.0))
-                  for dev in (45.0, 60.0)]
+    candidates = [
+        (nr, a, dev)
+        for nr in ((40, 80) if args.quick else (40, 60, 80, 120, 160))
+        for a in ((4.0, 8.0) if args.quick else (4.0, 6.0, 8.0, 12.0))
+        for dev in (45.0, 60.0)
+    ]
     for apf in LEVELS:
         sc = base.with_options(apf=apf)
         failure = sc.load_failure()
@@ -64,8 +67,17 @@ def main() -> None:
             aspect = 4.0 * 2**i
             g = plan_grid(start, finish, n_ranks=nr, aspect=aspect, half_width_km=half_width, max_deviation_deg=60.0)
             t, arcs, dt = route_time(sc, g, failure)
-            ang.append({"n_ranks": nr, "aspect": aspect, "n_nodes": g.n_nodes, "h_km": g.rank_spacing_km,
-                        "voyage_time_h": t, "arcs": arcs, "runtime_s": dt})
+            ang.append(
+                {
+                    "n_ranks": nr,
+                    "aspect": aspect,
+                    "n_nodes": g.n_nodes,
+                    "h_km": g.rank_spacing_km,
+                    "voyage_time_h": t,
+                    "arcs": arcs,
+                    "runtime_s": dt,
+                }
+            )
             print(f"apf {apf}: angular {nr} ranks, aspect {aspect:g}: {t:.3f} h, {arcs} arcs, {dt:.1f} s", flush=True)
         study = convergence_study([r["h_km"] for r in ang], [r["voyage_time_h"] for r in ang])
         fin = study.finest
@@ -84,8 +96,17 @@ def main() -> None:
         for nr, aspect, dev in candidates:
             g = plan_grid(start, finish, n_ranks=nr, aspect=aspect, half_width_km=half_width, max_deviation_deg=dev)
             t, arcs, dt = route_time(sc, g, failure)
-            cands.append({"n_ranks": nr, "aspect": aspect, "max_deviation_deg": dev, "voyage_time_h": t,
-                          "arcs": arcs, "runtime_s": dt, "error": (t - converged) / converged})
+            cands.append(
+                {
+                    "n_ranks": nr,
+                    "aspect": aspect,
+                    "max_deviation_deg": dev,
+                    "voyage_time_h": t,
+                    "arcs": arcs,
+                    "runtime_s": dt,
+                    "error": (t - converged) / converged,
+                }
+            )
         level["candidates"] = cands
         results["levels"][str(apf)] = level
 
@@ -98,9 +119,17 @@ def main() -> None:
         if all(abs(e) <= 0.005 for e in errs):
             ok.append((arcs, key, errs))
     ok.sort()
-    results["cheapest_within_0.5pct"] = None if not ok else {
-        "n_ranks": ok[0][1][0], "aspect": ok[0][1][1], "max_deviation_deg": ok[0][1][2], "arcs": ok[0][0],
-        "errors": ok[0][2]}
+    results["cheapest_within_0.5pct"] = (
+        None
+        if not ok
+        else {
+            "n_ranks": ok[0][1][0],
+            "aspect": ok[0][1][1],
+            "max_deviation_deg": ok[0][1][2],
+            "arcs": ok[0][0],
+            "errors": ok[0][2],
+        }
+    )
     print("cheapest within 0.5 %:", results["cheapest_within_0.5pct"])
     (out / "convergence.json").write_text(json.dumps(results, indent=1))
     plot(results, out / "convergence.png")
@@ -116,13 +145,24 @@ def plot(results: dict, path: Path) -> None:
     for ax, apf in zip(axes, LEVELS, strict=True):
         lv = results["levels"][str(apf)]
         sq, ang = lv["square"], lv["angular"]
-        ax.plot([r["arcs"] for r in sq], [r["voyage_time_h"] for r in sq], "s-", color="tab:red",
-                label="square n x n (paper)")
-        ax.plot([r["arcs"] for r in ang], [r["voyage_time_h"] for r in ang], "o-", color="tab:blue",
-                label="angular refinement")
+        ax.plot(
+            [r["arcs"] for r in sq],
+            [r["voyage_time_h"] for r in sq],
+            "s-",
+            color="tab:red",
+            label="square n x n (paper)",
+        )
+        ax.plot(
+            [r["arcs"] for r in ang],
+            [r["voyage_time_h"] for r in ang],
+            "o-",
+            color="tab:blue",
+            label="angular refinement",
+        )
         c = lv["candidates"]
-        ax.scatter([x["arcs"] for x in c], [x["voyage_time_h"] for x in c], s=10, color="0.5",
-                   label="candidate defaults")
+        ax.scatter(
+            [x["arcs"] for x in c], [x["voyage_time_h"] for x in c], s=10, color="0.5", label="candidate defaults"
+        )
         conv = lv["converged_h"]
         ax.axhline(conv, color="k", lw=0.8, ls="--", label=f"converged {conv:.1f} h")
         ax.axhspan(conv * 0.995, conv * 1.005, color="k", alpha=0.07, label="±0.5 %")

@@ -55,8 +55,14 @@ def main() -> None:
     for day in range(0, int(r1.voyage_time_h // 24) + 1, 5):
         i = int(np.argmin(np.abs(r1.elapsed_h - 24.0 * day)))
         ax.plot(r1.lon_deg[i], r1.lat_deg[i], "o", color="tab:red", ms=4)
-        ax.annotate(str(times[i])[5:10], (r1.lon_deg[i], r1.lat_deg[i]), xytext=(4, 4), textcoords="offset points",
-                    color="w", fontsize=8)
+        ax.annotate(
+            str(times[i])[5:10],
+            (r1.lon_deg[i], r1.lat_deg[i]),
+            xytext=(4, 4),
+            textcoords="offset points",
+            color="w",
+            fontsize=8,
+        )
     ax.plot(*r1.grid.start, "w^", ms=8)
     ax.plot(*r1.grid.finish, "ws", ms=8)
     ax.set_xlabel("longitude [deg]")

@@ -34,22 +34,36 @@ def main() -> None:
         route = base.with_options(apf=apf).route()
         routes.append(route)
         crossed = _areas_crossed(route, base.weather)
-        rows.append({"apf": apf, "voyage_time_h": route.voyage_time_h, "paper_h": PAPER[apf],
-                     "max_p_f": route.max_failure_probability, "areas_crossed": crossed})
+        rows.append(
+            {
+                "apf": apf,
+                "voyage_time_h": route.voyage_time_h,
+                "paper_h": PAPER[apf],
+                "max_p_f": route.max_failure_probability,
+                "areas_crossed": crossed,
+            }
+        )
     print("| apf | voyage [h] | increment [h] | paper [h] | paper increment [h] | max leg p_f | areas crossed |")
     print("|---|---|---|---|---|---|---|")
     prev = prev_paper = None
     for r in rows:
         inc = "" if prev is None else f"+{r['voyage_time_h'] - prev:.1f}"
         pinc = "" if prev_paper is None else f"+{r['paper_h'] - prev_paper:.0f}"
-        print(f"| {r['apf']:g} | {r['voyage_time_h']:.2f} | {inc} | {r['paper_h']:.2f} | {pinc} | "
-              f"{r['max_p_f']:.2f} | {', '.join(r['areas_crossed']) or 'none'} |")
+        print(
+            f"| {r['apf']:g} | {r['voyage_time_h']:.2f} | {inc} | {r['paper_h']:.2f} | {pinc} | "
+            f"{r['max_p_f']:.2f} | {', '.join(r['areas_crossed']) or 'none'} |"
+        )
         prev, prev_paper = r["voyage_time_h"], r["paper_h"]
     g = routes[0].grid
-    plot_routes(routes, labels=[f"apf {r['apf']:g}" for r in rows], weather=base.weather,
-                failure=routes[0].meta.get("failure_object"), coast=False,
-                title=f"Dickson et al. (2018) section 3.2, {g.n_ranks} ranks x {g.n_nodes} nodes ({args.layout})",
-                path=out / f"paper_routes_{args.layout}.png")
+    plot_routes(
+        routes,
+        labels=[f"apf {r['apf']:g}" for r in rows],
+        weather=base.weather,
+        failure=routes[0].meta.get("failure_object"),
+        coast=False,
+        title=f"Dickson et al. (2018) section 3.2, {g.n_ranks} ranks x {g.n_nodes} nodes ({args.layout})",
+        path=out / f"paper_routes_{args.layout}.png",
+    )
     (out / f"paper_routes_{args.layout}.json").write_text(json.dumps(rows, indent=1))
 
 
@@ -64,16 +78,22 @@ def _areas_crossed(route, weather) -> list[str]:
     from pyroute_rel.geodesy import intermediate_point
 
     frac = np.linspace(0.0, 1.0, 201)
-    lon, lat = intermediate_point(route.lon_deg[:-1, None], route.lat_deg[:-1, None], route.lon_deg[1:, None],
-                                  route.lat_deg[1:, None], frac)
+    lon, lat = intermediate_point(
+        route.lon_deg[:-1, None], route.lat_deg[:-1, None], route.lon_deg[1:, None], route.lat_deg[1:, None], frac
+    )
     out = []
     for p in weather.patches:
         inside = p.contains(lon, lat)
         if inside.any():
             li, la = lon[inside], lat[inside]
-            depth_km = np.minimum.reduce([(li - p.lon[0]) * 111.2 * np.cos(np.radians(la)),
-                                         (p.lon[1] - li) * 111.2 * np.cos(np.radians(la)),
-                                         (la - p.lat[0]) * 111.2, (p.lat[1] - la) * 111.2]).max()
+            depth_km = np.minimum.reduce(
+                [
+                    (li - p.lon[0]) * 111.2 * np.cos(np.radians(la)),
+                    (p.lon[1] - li) * 111.2 * np.cos(np.radians(la)),
+                    (la - p.lat[0]) * 111.2,
+                    (p.lat[1] - la) * 111.2,
+                ]
+            ).max()
             out.append(f"{p.name} ({depth_km:.0f} km deep)")
     return out
 

@@ -32,23 +32,31 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
 
     race = load_scenario(HERE / "microtransat_real_course.toml")
-    paper = dataclasses.replace(race, start=(-12.0, 45.0), finish=(-60.0, 17.5), start_line=None, finish_line=None,
-                                apf=1.0)
+    paper = dataclasses.replace(
+        race, start=(-12.0, 45.0), finish=(-60.0, 17.5), start_line=None, finish_line=None, apf=1.0
+    )
     routes, labels = [], []
     for name, sc in ((f"race course, apf {race.apf:g}", race), ("45N 12W -> 17.5N 60W, apf 1", paper)):
         t0 = time.perf_counter()
         route = sc.route()
-        print(f"{name}: {route.voyage_time_h:.1f} h, {route.distance_nm:.0f} nm, max leg p_f "
-              f"{route.max_failure_probability:.2f}, {route.grid.n_ranks} x {route.grid.n_nodes} grid, "
-              f"routed in {time.perf_counter() - t0:.1f} s")
+        print(
+            f"{name}: {route.voyage_time_h:.1f} h, {route.distance_nm:.0f} nm, max leg p_f "
+            f"{route.max_failure_probability:.2f}, {route.grid.n_ranks} x {route.grid.n_nodes} grid, "
+            f"routed in {time.perf_counter() - t0:.1f} s"
+        )
         routes.append(route)
         labels.append(name)
 
     g = routes[0].grid
     # no failure shading: it is drawn for the heading towards the grid's finish, which misleads south of it
-    fig = plot_routes(routes, labels=labels, weather=race.weather, zones=race.avoid.zones,
-                      title=f"Microtransat East->West: land + {race.avoid.margin_km:g} km margin, exclusion zone "
-                      f"({g.n_ranks} ranks x {g.n_nodes} nodes)")
+    fig = plot_routes(
+        routes,
+        labels=labels,
+        weather=race.weather,
+        zones=race.avoid.zones,
+        title=f"Microtransat East->West: land + {race.avoid.margin_km:g} km margin, exclusion zone "
+        f"({g.n_ranks} ranks x {g.n_nodes} nodes)",
+    )
     ax = fig.axes[0]
     from matplotlib.patches import Patch
 

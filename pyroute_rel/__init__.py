@@ -1,5 +1,120 @@
-"""pyroute_rel: reliability-informed routing for autonomous sailing craft."""
+"""pyroute_rel: reliability-informed routing for autonomous sailing craft.
+
+The one entry point is a scenario: :func:`load_scenario` reads a TOML file into a :class:`Scenario`, and
+:meth:`Scenario.route` plans the route, returning a :class:`Route` (track, per-leg conditions, failure
+probabilities). Everything a user handles is importable from here; the modules hold the functions underneath.
+
+>>> import pyroute_rel as pr
+>>> sc = pr.scenario_from_mapping({
+...     "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0], "departure": "2018-06-01T00:00:00Z"},
+...     "grid": {"n_ranks": 20}, "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+...     "avoid": {"land": False}, "failure": {"model": "none"}})
+>>> route = sc.route()
+>>> round(route.voyage_time_h, 1) > 0, route.max_failure_probability
+(True, 0.0)
+
+Names are loaded on first use, so ``import pyroute_rel`` stays cheap (the command line starts fast).
+"""
 
 from __future__ import annotations
 
+import importlib
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+# public name -> module that defines it
+_EXPORTS: dict[str, str] = {
+    # the entry point
+    "load_scenario": "scenario",
+    "scenario_from_mapping": "scenario",
+    "Scenario": "scenario",
+    "Route": "route",
+    # building blocks a user assembles or inspects
+    "Polar": "polar",
+    "get_polar": "polar",
+    "read_polar": "polar",
+    "boat_speed_kn": "polar",
+    "FailureModel": "failure",
+    "load_failure_model": "failure",
+    "list_failure_models": "failure",
+    "WeatherSource": "weather.base",
+    "Conditions": "weather.base",
+    "UniformWeather": "weather.uniform",
+    "Patch": "weather.uniform",
+    "GriddedWeather": "weather.gridded",
+    "open_weather": "weather.readers",
+    "weather_from_dataset": "weather.readers",
+    "Avoid": "obstacles.mask",
+    "load_zones": "obstacles.zones",
+    "Grid": "grid",
+    "make_grid": "grid",
+    "plan_grid": "grid",
+    "RoutingProblem": "solve",
+    "forward_dp": "solve",
+    "route_on_grid": "route",
+    "refine": "refine",
+    "write_outputs": "outputs",
+    # grid convergence
+    "grid_convergence": "gci.numbers",
+    "least_squares_convergence": "gci.numbers",
+    "convergence_study": "gci.numbers",
+    # errors
+    "PyrouteError": "errors",
+    "ScenarioError": "errors",
+    "PolarError": "errors",
+    "WeatherError": "errors",
+    "WeatherCoverageError": "errors",
+    "FailureModelError": "errors",
+    "GridError": "errors",
+    "ConvergenceError": "errors",
+    "NoFeasibleRouteError": "errors",
+    "OutputError": "errors",
+    "CoordinateError": "errors",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))
+
+
+if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use
+    from .errors import (
+        ConvergenceError,
+        CoordinateError,
+        FailureModelError,
+        GridError,
+        NoFeasibleRouteError,
+        OutputError,
+        PolarError,
+        PyrouteError,
+        ScenarioError,
+        WeatherCoverageError,
+        WeatherError,
+    )
+    from .failure import FailureModel, list_failure_models, load_failure_model
+    from .gci.numbers import convergence_study, grid_convergence, least_squares_convergence
+    from .grid import Grid, make_grid, plan_grid
+    from .obstacles.mask import Avoid
+    from .obstacles.zones import load_zones
+    from .outputs import write_outputs
+    from .polar import Polar, boat_speed_kn, get_polar, read_polar
+    from .refine import refine
+    from .route import Route, route_on_grid
+    from .scenario import Scenario, load_scenario, scenario_from_mapping
+    from .solve import RoutingProblem, forward_dp
+    from .weather.base import Conditions, WeatherSource
+    from .weather.gridded import GriddedWeather
+    from .weather.readers import open_weather, weather_from_dataset
+    from .weather.uniform import Patch, UniformWeather

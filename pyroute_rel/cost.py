@@ -41,8 +41,10 @@ import numpy.typing as npt
 from . import geodesy
 from .errors import ScenarioError
 from .parallel import default_workers, row_blocks, thread_map
-from .polar import Polar, boat_speed_kn
-from .weather import Conditions, WeatherSource
+from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
+from .times import hours_after
+from .units import KN_PER_MS
+from .weather.base import Conditions, WeatherSource
 
 if TYPE_CHECKING:
     from .failure import FailureModel
@@ -57,14 +59,8 @@ __all__ = [
     "geometry_costs",
     "arc_quantities",
     "REASONS",
-    "KN_PER_MS",
 ]
 
-#: Knots per metre per second (1 kn = 1852 m / 3600 s).
-KN_PER_MS = 3600.0 / 1852.0
-#: Slowest useful speed over ground [kn]: below it (near-calm air, a current almost as strong as the boat) an arc
-#: is forbidden as "no speed" rather than sailed for thousands of hours.
-MIN_SPEED_KN = 0.01
 
 #: Bit flags saying why an arc is forbidden.
 REASONS: dict[str, int] = {
@@ -226,10 +222,12 @@ def geometry_from_xyz(
     a, b = np.broadcast_arrays(a_xyz, b_xyz)
     n = default_workers() if workers is None else int(workers)
     if n > 1 and a.ndim > 1 and a.size // 3 * samples >= PARALLEL_MIN_ARCS:
-        parts = thread_map(lambda rows: geometry_from_xyz(a[rows], b[rows], samples=samples, workers=1),
-                           row_blocks(a.shape[0], n), n)
-        return ArcGeometry(*(np.concatenate([getattr(g, f) for g in parts]) for f in
-                             ("lon_deg", "lat_deg", "course_deg", "seg_nm")))
+        parts = thread_map(
+            lambda rows: geometry_from_xyz(a[rows], b[rows], samples=samples, workers=1), row_blocks(a.shape[0], n), n
+        )
+        return ArcGeometry(
+            *(np.concatenate([getattr(g, f) for g in parts]) for f in ("lon_deg", "lat_deg", "course_deg", "seg_nm"))
+        )
     # component by component: numpy's reductions over a last axis of 3 cost more than the arithmetic
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
     bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
@@ -321,8 +319,17 @@ def arc_costs(
         raise ScenarioError(f"apf must be a probability in [0, 1] (got {apf!r})")
     geom = arc_geometry(lon0_deg, lat0_deg, lon1_deg, lat1_deg, samples=samples)
     t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape) if geom.shape else np.asarray(t0_h, float)
-    return geometry_costs(geom, t0, departure=departure, weather=weather, polar=polar, failure=failure,
-                          apf=apf, beyond=beyond, wave_loss=wave_loss)
+    return geometry_costs(
+        geom,
+        t0,
+        departure=departure,
+        weather=weather,
+        polar=polar,
+        failure=failure,
+        apf=apf,
+        beyond=beyond,
+        wave_loss=wave_loss,
+    )
 
 
 #: Arcs (times samples) per block below which the cost and geometry kernels do not split work between threads.
@@ -358,17 +365,35 @@ def geometry_costs(
         split_seg = geom.seg_nm.shape[:1] == shape[:1]
 
         def part(rows: slice) -> ArcCosts:
-            g = ArcGeometry(lon_deg=geom.lon_deg[rows], lat_deg=geom.lat_deg[rows],
-                            course_deg=geom.course_deg[rows], seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm)
-            return geometry_costs(g, t0[rows], departure=departure, weather=weather, polar=polar, failure=failure,
-                                  apf=apf, beyond=beyond, wave_loss=wave_loss, workers=1)
+            g = ArcGeometry(
+                lon_deg=geom.lon_deg[rows],
+                lat_deg=geom.lat_deg[rows],
+                course_deg=geom.course_deg[rows],
+                seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm,
+            )
+            return geometry_costs(
+                g,
+                t0[rows],
+                departure=departure,
+                weather=weather,
+                polar=polar,
+                failure=failure,
+                apf=apf,
+                beyond=beyond,
+                wave_loss=wave_loss,
+                workers=1,
+            )
 
         done = thread_map(part, row_blocks(shape[0], n), n)
         bits = None
         if any(c.fired_bits is not None for c in done):
             bits = np.concatenate([c.bits() for c in done])
-        return ArcCosts(time_h=np.concatenate([c.time_h for c in done]), p_f=np.concatenate([c.p_f for c in done]),
-                        reason=np.concatenate([c.reason for c in done]), fired_bits=bits)
+        return ArcCosts(
+            time_h=np.concatenate([c.time_h for c in done]),
+            p_f=np.concatenate([c.p_f for c in done]),
+            reason=np.concatenate([c.reason for c in done]),
+            fired_bits=bits,
+        )
     samples = geom.samples
 
     # a source that can locate points once (gridded data) samples the same points at two sets of times below
@@ -394,10 +419,19 @@ def geometry_costs(
                 if timing:
                     return wind[2], np.empty(0), np.empty(0, np.uint8), None
         else:
-            time = departure if time_h is None else _to_datetime(departure, time_h)
+            time = departure if time_h is None else hours_after(departure, time_h)
             cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
-        return _sample_costs(cond, geom.course_deg, geom.seg_nm, polar, None if timing else failure, apf, beyond,
-                             wave_loss, wind=None if wind is None else wind[:2])
+        return _sample_costs(
+            cond,
+            geom.course_deg,
+            geom.seg_nm,
+            polar,
+            None if timing else failure,
+            apf,
+            beyond,
+            wave_loss,
+            wind=None if wind is None else wind[:2],
+        )
 
     if steady:
         dt, p_f, reason, fired = evaluate(None)
@@ -429,11 +463,6 @@ def geometry_costs(
 
 #: Conditions the timing pass of time-varying weather needs (with a wave speed loss, ``hs_m`` too).
 _TIMING_FIELDS = ("tws_kn", "twd_deg", "current_u_ms", "current_v_ms")
-
-
-def _to_datetime(departure: np.datetime64, time_h: FloatArray) -> npt.NDArray[np.datetime64]:
-    ms = np.where(np.isfinite(time_h), time_h, 0.0) * 3.6e6
-    return np.asarray(departure).astype("datetime64[ms]") + ms.astype("timedelta64[ms]")
 
 
 def _sample_costs(

@@ -18,8 +18,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from .cost import MIN_SPEED_KN
-from .polar import BEYOND_MODES, Polar
+from .polar import BEYOND_MODES, MIN_SPEED_KN, Polar
 
 __all__ = ["sail_wind"]
 
@@ -49,15 +48,17 @@ def sail_wind(
     Returns
     -------
     ``twa_deg`` in [0, 180] and ``speed_kn`` (NaN where the wind is missing), and ``time_h`` (``inf`` where the
-    wind is missing or the speed is below :data:`~pyroute_rel.cost.MIN_SPEED_KN`: the numpy kernel's time
+    wind is missing or the speed is below :data:`~pyroute_rel.polar.MIN_SPEED_KN`: the numpy kernel's time
     without a failure model).
     """
     if beyond not in BEYOND_MODES:
         raise ValueError(f"'beyond' must be one of {list(BEYOND_MODES)} (got {beyond!r})")
     shape = np.broadcast_shapes(tws_kn.shape, twd_deg.shape, course_deg.shape, seg_nm.shape)
     # contiguous, writable float64 everywhere: one compiled signature (a read-only array would be another)
-    flat = [np.require(np.broadcast_to(a, shape), np.float64, ("C", "W")).reshape(-1)
-            for a in (tws_kn, twd_deg, course_deg, seg_nm)]
+    flat = [
+        np.require(np.broadcast_to(a, shape), np.float64, ("C", "W")).reshape(-1)
+        for a in (tws_kn, twd_deg, course_deg, seg_nm)
+    ]
     twa, v, dt = (np.empty(flat[0].size) for _ in range(3))
     tables = [np.require(t, np.float64, ("C", "W")).reshape(-1) for t in (polar.twa_deg, polar.tws_kn, polar.speed_kn)]
     _wind_kernel(*flat, *tables, beyond == "forbid", MIN_SPEED_KN, twa, v, dt)  # type: ignore[call-arg]

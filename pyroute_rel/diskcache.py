@@ -1,7 +1,7 @@
 """The on-disk cache: results that are costly to make and never change for the same inputs.
 
 Compiled failure tables (:mod:`pyroute_rel.failure`) and coastlines grown by a margin
-(:mod:`pyroute_rel.obstacles`) are kept here between runs, each under a name that hashes everything it
+(:mod:`pyroute_rel.obstacles.land`) are kept here between runs, each under a name that hashes everything it
 depends on, so an entry is never stale: a changed input is another name.
 
 The folder is ``$PYROUTE_REL_CACHE_DIR``, else ``$XDG_CACHE_HOME/pyroute_rel``, else ``~/.cache/pyroute_rel``.
@@ -91,8 +91,9 @@ def write(name: str, save: Callable[[BinaryIO], None] | bytes, *, keep: int | No
         tmp = None
         if keep is not None:
             kind = name.split("-", 1)[0] + "-"
-            entries = sorted((p for p in folder.iterdir() if p.name.startswith(kind)),
-                             key=lambda p: p.stat().st_mtime, reverse=True)
+            entries = sorted(
+                (p for p in folder.iterdir() if p.name.startswith(kind)), key=lambda p: p.stat().st_mtime, reverse=True
+            )
             for old in entries[keep:]:
                 old.unlink(missing_ok=True)
     except OSError:

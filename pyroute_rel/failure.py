@@ -75,8 +75,13 @@ QUANTITIES: dict[str, str] = {
     "wave_period_s": "wave period [s] (NaN when the weather lacks it)",
 }
 #: Physical range of each quantity (angles folded to [0, 180] as the cost module computes them).
-_QUANTITY_RANGES = {"hs_m": (0.0, math.inf), "awd_deg": (0.0, 180.0), "tws_kn": (0.0, math.inf),
-                    "twa_deg": (0.0, 180.0), "wave_period_s": (0.0, math.inf)}
+_QUANTITY_RANGES = {
+    "hs_m": (0.0, math.inf),
+    "awd_deg": (0.0, 180.0),
+    "tws_kn": (0.0, math.inf),
+    "twa_deg": (0.0, 180.0),
+    "wave_period_s": (0.0, math.inf),
+}
 _UNITS = {"hs_m": "m", "awd_deg": "deg", "tws_kn": "kn", "twa_deg": "deg", "wave_period_s": "s"}
 
 #: Comparison operators of a two-state (threshold) criterion.
@@ -95,8 +100,19 @@ NETWORK_FORMATS: dict[str, tuple[str, str]] = {
 
 _MODEL_KEYS = ("name", "description", "network", "references", "target", "criteria")
 _TARGET_KEYS = ("node", "state")
-_CRITERION_KEYS = ("node", "quantity", "operator", "threshold", "fired", "bins", "states", "closed", "nominal",
-                   "if_missing", "note")
+_CRITERION_KEYS = (
+    "node",
+    "quantity",
+    "operator",
+    "threshold",
+    "fired",
+    "bins",
+    "states",
+    "closed",
+    "nominal",
+    "if_missing",
+    "note",
+)
 _PROB_ATOL = 1e-6
 _CACHE_FORMAT = "1"
 _SHIPPED_TABLES = "compiled_tables.json"  # compiled tables of the shipped models, in failure_models/
@@ -212,8 +228,9 @@ class FailureModel:
     def _check_quantities(self, quantities: Mapping[str, npt.ArrayLike]) -> None:
         missing = sorted(self.quantities - set(quantities))
         if missing:
-            raise FailureModelError(f"failure model '{self.name}' needs quantities {missing} "
-                                    f"(got {sorted(quantities)})")
+            raise FailureModelError(
+                f"failure model '{self.name}' needs quantities {missing} (got {sorted(quantities)})"
+            )
 
     def _indices(self, quantities: Mapping[str, npt.ArrayLike]) -> tuple[list[Any], list[Any]]:
         """Per criterion: node-state index (``len(states)`` = unobserved) and where a NaN gives an unknown."""
@@ -254,8 +271,9 @@ class FailureModel:
                 v = np.asarray(quantities[name], dtype=float)
                 bad = np.isfinite(v) & ((v < lo) | (v > hi))
                 if bad.any():
-                    raise FailureModelError(f"p_fail: {name} must be in [{lo:g}, {hi:g}] ({QUANTITIES[name]}) "
-                                            f"(got {v[bad].ravel()[0]:g})")
+                    raise FailureModelError(
+                        f"p_fail: {name} must be in [{lo:g}, {hi:g}] ({QUANTITIES[name]}) (got {v[bad].ravel()[0]:g})"
+                    )
         idx, unknown = self._indices(quantities)
         p = self._full[tuple(idx)]
         if unknown:
@@ -362,20 +380,24 @@ class FailureModel:
                 d["bins"] = list(c.edges)
                 d["closed"] = c.closed
                 d["bin_states"] = list(c.bin_states)
-            d.update(states=list(c.states), nominal=list(c.nominal), if_missing=c.if_missing,
-                     description=c.describe())
+            d.update(states=list(c.states), nominal=list(c.nominal), if_missing=c.if_missing, description=c.describe())
             crit.append(d)
-        table = [{"evidence": ev, "p_fail": float(p)}
-                 for ev, p in zip(self.evidence_states(), self.table.ravel(), strict=True)]
+        table = [
+            {"evidence": ev, "p_fail": float(p)}
+            for ev, p in zip(self.evidence_states(), self.table.ravel(), strict=True)
+        ]
         return {
             "model": self.name,
             "path": self.path,
             "description": self.description,
             "target": {"node": self.target, "state": self.fail_state},
             "criteria": crit,
-            "network": {"path": self.network_path, "nodes": list(self.nodes),
-                        "states": {n: list(self.node_states[n]) for n in self.nodes},
-                        "edges": [list(e) for e in self.edges]},
+            "network": {
+                "path": self.network_path,
+                "nodes": list(self.nodes),
+                "states": {n: list(self.node_states[n]) for n in self.nodes},
+                "edges": [list(e) for e in self.edges],
+            },
             "references": list(self.references),
             "table": table,
         }
@@ -416,8 +438,14 @@ class _Kernel:
                 fill = None
             else:
                 fill = (len(c.states) if c.if_missing == "prior" else c.states.index(c.if_missing)) * stride
-            rules.append(_Rule(edges=np.asarray(c.edges, dtype=float), contrib=c._lut() * stride,
-                               right=c.closed == "left", fill=fill))
+            rules.append(
+                _Rule(
+                    edges=np.asarray(c.edges, dtype=float),
+                    contrib=c._lut() * stride,
+                    right=c.closed == "left",
+                    fill=fill,
+                )
+            )
             fired = np.uint32(1 << axis) * FailureModel._fired_lut(c).astype(np.uint32)
             shape = [1] * full.ndim
             shape[axis] = -1
@@ -499,11 +527,19 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     full = compiled.table
     full.setflags(write=False)
     return FailureModel(
-        name=spec["name"], path=label, description=spec["description"], network_path=net_label,
-        target=spec["target"]["node"], fail_state=spec["target"]["state"], criteria=criteria,
-        nodes=tuple(compiled.nodes), edges=tuple((a, b) for a, b in compiled.edges),
+        name=spec["name"],
+        path=label,
+        description=spec["description"],
+        network_path=net_label,
+        target=spec["target"]["node"],
+        fail_state=spec["target"]["state"],
+        criteria=criteria,
+        nodes=tuple(compiled.nodes),
+        edges=tuple((a, b) for a, b in compiled.edges),
         node_states={n: tuple(s) for n, s in compiled.states.items()},
-        table=full[tuple(slice(0, n) for n in shape)], references=tuple(spec["references"]), _full=full,
+        table=full[tuple(slice(0, n) for n in shape)],
+        references=tuple(spec["references"]),
+        _full=full,
     )
 
 
@@ -511,15 +547,17 @@ def _resolve(name_or_path: str | os.PathLike[str]) -> Traversable:
     text = os.fspath(name_or_path)
     shipped = list_failure_models()
     if not text.strip():
-        raise FailureModelError(f"failure model name is empty: expected a shipped name, one of {shipped}, or the path "
-                                "of a .toml file")
+        raise FailureModelError(
+            f"failure model name is empty: expected a shipped name, one of {shipped}, or the path of a .toml file"
+        )
     if text in shipped:
         return _shipped().joinpath(f"{text}.toml")
     path = Path(text).expanduser()
     if path.suffix.lower() == ".toml" or path.exists() or os.sep in text or "/" in text:
         return path
-    raise FailureModelError(f"failure model {text!r} not found: expected a shipped name, one of {shipped}, "
-                            "or the path of a .toml file")
+    raise FailureModelError(
+        f"failure model {text!r} not found: expected a shipped name, one of {shipped}, or the path of a .toml file"
+    )
 
 
 def _sibling(toml_file: Traversable, name: str) -> Traversable:
@@ -579,8 +617,10 @@ def _parse_spec(doc: dict[str, Any], label: str, *, default_name: str) -> dict[s
         "description": doc.get("description", ""),
         "network": _text(doc["network"], f"{label}: 'network'"),
         "references": refs,
-        "target": {"node": _text(target["node"], f"{label}: [target] 'node'"),
-                   "state": _text(target["state"], f"{label}: [target] 'state'")},
+        "target": {
+            "node": _text(target["node"], f"{label}: [target] 'node'"),
+            "state": _text(target["state"], f"{label}: [target] 'state'"),
+        },
         "criteria": [],
     }
     try:
@@ -617,8 +657,10 @@ def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:
     c["quantity"] = quantity
     threshold_form = "operator" in raw or "threshold" in raw
     if threshold_form == ("bins" in raw):
-        raise FailureModelError(f"{where}: give either 'operator' and 'threshold' (two-state node) or 'bins' "
-                                "(edges of the node's states), not both or neither")
+        raise FailureModelError(
+            f"{where}: give either 'operator' and 'threshold' (two-state node) or 'bins' "
+            "(edges of the node's states), not both or neither"
+        )
     if threshold_form:
         for key in ("operator", "threshold", "fired"):
             if key not in raw:
@@ -629,8 +671,11 @@ def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:
                 raise FailureModelError(f"{where}: key {key!r} belongs to binned criteria, not with 'operator'")
         if raw["operator"] not in OPERATORS:
             raise FailureModelError(f"{where}: 'operator' {_choices(raw['operator'], OPERATORS)}")
-        c.update(operator=raw["operator"], threshold=_number(raw["threshold"], f"{where}: 'threshold'"),
-                 fired=_text(raw["fired"], f"{where}: 'fired'"))
+        c.update(
+            operator=raw["operator"],
+            threshold=_number(raw["threshold"], f"{where}: 'threshold'"),
+            fired=_text(raw["fired"], f"{where}: 'fired'"),
+        )
     else:
         if "fired" in raw:
             raise FailureModelError(f"{where}: key 'fired' belongs to threshold criteria; use 'nominal' with 'bins'")
@@ -649,8 +694,9 @@ def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:
         nominal = raw.get("nominal")
         if isinstance(nominal, str):
             nominal = [nominal]
-        if nominal is not None and (not isinstance(nominal, list) or not nominal
-                                    or not all(isinstance(s, str) for s in nominal)):
+        if nominal is not None and (
+            not isinstance(nominal, list) or not nominal or not all(isinstance(s, str) for s in nominal)
+        ):
             raise FailureModelError(f"{where}: 'nominal' must be a state name or a list of them (got {nominal!r})")
         c.update(edges=edges, closed=closed, states=states, nominal=nominal)
     if_missing = raw.get("if_missing", "nan")
@@ -659,8 +705,9 @@ def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:
     return c
 
 
-def _check_structure(spec: dict[str, Any], states: Mapping[str, list[str]], label: str,
-                     net_label: str) -> tuple[Criterion, ...]:
+def _check_structure(
+    spec: dict[str, Any], states: Mapping[str, list[str]], label: str, net_label: str
+) -> tuple[Criterion, ...]:
     """Check the criteria and the target against the network's nodes and states."""
     nodes = list(states)
     t, fail = spec["target"]["node"], spec["target"]["state"]
@@ -689,33 +736,61 @@ def _check_structure(spec: dict[str, Any], states: Mapping[str, list[str]], labe
 
         if "operator" in c:
             if len(ns) != 2:
-                raise FailureModelError(f"{where}: wrong cardinality: a threshold criterion needs a two-state "
-                                        f"node but {node} has {len(ns)} states {list(ns)}; use 'bins'")
+                raise FailureModelError(
+                    f"{where}: wrong cardinality: a threshold criterion needs a two-state "
+                    f"node but {node} has {len(ns)} states {list(ns)}; use 'bins'"
+                )
             fired = state(c["fired"], "'fired'")
             other = ns[1 - ns.index(fired)]
             op = c["operator"]
             closed = "left" if op in (">=", "<") else "right"
             bin_states = (other, fired) if op in (">=", ">") else (fired, other)
-            crit = Criterion(node, c["quantity"], ns, (c["threshold"],), bin_states, (other,), closed, op,
-                             c["threshold"], c["if_missing"])
+            crit = Criterion(
+                node,
+                c["quantity"],
+                ns,
+                (c["threshold"],),
+                bin_states,
+                (other,),
+                closed,
+                op,
+                c["threshold"],
+                c["if_missing"],
+            )
         else:
             n_bins = len(c["edges"]) + 1
             if c["states"] is None:
                 if n_bins != len(ns):
-                    raise FailureModelError(f"{where}: wrong cardinality: {len(c['edges'])} bin edges make {n_bins} "
-                                            f"bins but node {node} has {len(ns)} states {list(ns)}")
+                    raise FailureModelError(
+                        f"{where}: wrong cardinality: {len(c['edges'])} bin edges make {n_bins} "
+                        f"bins but node {node} has {len(ns)} states {list(ns)}"
+                    )
                 bin_states = ns
             else:
                 if len(c["states"]) != n_bins:
-                    raise FailureModelError(f"{where}: wrong cardinality: {len(c['edges'])} bin edges make {n_bins} "
-                                            f"bins but 'states' names {len(c['states'])}")
+                    raise FailureModelError(
+                        f"{where}: wrong cardinality: {len(c['edges'])} bin edges make {n_bins} "
+                        f"bins but 'states' names {len(c['states'])}"
+                    )
                 bin_states = tuple(state(s, "'states' entry") for s in c["states"])
             nominal = tuple(state(s, "'nominal' state") for s in (c["nominal"] or [bin_states[0]]))
-            crit = Criterion(node, c["quantity"], ns, tuple(c["edges"]), tuple(bin_states), nominal, c["closed"],
-                             None, None, c["if_missing"])
+            crit = Criterion(
+                node,
+                c["quantity"],
+                ns,
+                tuple(c["edges"]),
+                tuple(bin_states),
+                nominal,
+                c["closed"],
+                None,
+                None,
+                c["if_missing"],
+            )
         if crit.if_missing not in MISSING_RULES and crit.if_missing not in ns:
-            raise FailureModelError(f"{where}: 'if_missing' must be one of {list(MISSING_RULES)} or a state of "
-                                    f"{node} {list(ns)} (got {crit.if_missing!r})")
+            raise FailureModelError(
+                f"{where}: 'if_missing' must be one of {list(MISSING_RULES)} or a state of "
+                f"{node} {list(ns)} (got {crit.if_missing!r})"
+            )
         out.append(crit)
     return tuple(out)
 
@@ -769,8 +844,9 @@ def _parse_network(net_bytes: bytes, net_label: str, suffix: str) -> Any:
         for name, n, body in _DECL.findall(re.sub(r"//[^\n]*", "", text)):
             declared = [s.strip() for s in body.split(",") if s.strip()]
             if int(n) != len(declared):
-                raise FailureModelError(f"{net_label}: variable {name} declares [ {n} ] states but lists "
-                                        f"{len(declared)} {declared}")
+                raise FailureModelError(
+                    f"{net_label}: variable {name} declares [ {n} ] states but lists {len(declared)} {declared}"
+                )
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -798,9 +874,11 @@ def _parse_network(net_bytes: bytes, net_label: str, suffix: str) -> Any:
             at = np.unravel_index(col, cards) if parents else ()
             given = ", ".join(f"{p}={cpd.state_names[p][k]}" for p, k in zip(parents, at, strict=True))
             what = f"P({name} | {given})" if parents else f"P({name})"
-            raise FailureModelError(f"{net_label}: CPT of {name}: {what} = {values[:, col].tolist()} sums to "
-                                    f"{sums[col]:.6g}; each column must be probabilities summing to 1 "
-                                    f"(tolerance {_PROB_ATOL:g})")
+            raise FailureModelError(
+                f"{net_label}: CPT of {name}: {what} = {values[:, col].tolist()} sums to "
+                f"{sums[col]:.6g}; each column must be probabilities summing to 1 "
+                f"(tolerance {_PROB_ATOL:g})"
+            )
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -836,9 +914,11 @@ def _compile(net_bytes: bytes, net_label: str, spec: dict[str, Any], label: str)
     if zero.any():
         at = np.unravel_index(int(np.flatnonzero(zero)[0]), zero.shape)
         ev = ", ".join(f"{c.node}={(c.states + ('unobserved',))[k]}" for c, k in zip(criteria, at, strict=True))
-        raise FailureModelError(f"{net_label}: evidence ({ev}) has probability 0 in the network, so "
-                                f"P({target}={fail} | evidence) is undefined; give every criterion state a "
-                                "positive probability")
+        raise FailureModelError(
+            f"{net_label}: evidence ({ev}) has probability 0 in the network, so "
+            f"P({target}={fail} | evidence) is undefined; give every criterion state a "
+            "positive probability"
+        )
     table = values[states[target].index(fail)] / evidence
     return _Compiled(nodes=names, edges=edges, states=states, table=np.clip(table, 0.0, 1.0))
 
@@ -894,8 +974,12 @@ def _shipped_tables() -> dict[str, _Compiled]:
         out = {}
         for entry in doc["models"].values():
             table = np.array(entry["table"], dtype=float).reshape(entry["shape"])
-            out[entry["key"]] = _Compiled(nodes=list(entry["nodes"]), edges=[list(e) for e in entry["edges"]],
-                                          states={k: list(v) for k, v in entry["states"].items()}, table=table)
+            out[entry["key"]] = _Compiled(
+                nodes=list(entry["nodes"]),
+                edges=[list(e) for e in entry["edges"]],
+                states={k: list(v) for k, v in entry["states"].items()},
+                table=table,
+            )
         return out
     except (OSError, ValueError, KeyError, TypeError):
         return {}
@@ -912,11 +996,19 @@ def write_shipped_tables() -> Path:
         net_file = _sibling(toml_file, spec["network"])
         net_bytes = net_file.read_bytes()
         c = _compile(net_bytes, str(net_file), spec, str(toml_file))
-        models[name] = {"key": _content_key(toml_bytes, net_bytes), "nodes": c.nodes, "edges": c.edges,
-                        "states": c.states, "shape": list(c.table.shape), "table": c.table.ravel().tolist()}
-    doc = {"about": "P(fail | evidence) of the shipped failure models, compiled with pgmpy by "
-                    "`python -m pyroute_rel.failure`; used only while the model files' hashes match",
-           "models": models}
+        models[name] = {
+            "key": _content_key(toml_bytes, net_bytes),
+            "nodes": c.nodes,
+            "edges": c.edges,
+            "states": c.states,
+            "shape": list(c.table.shape),
+            "table": c.table.ravel().tolist(),
+        }
+    doc = {
+        "about": "P(fail | evidence) of the shipped failure models, compiled with pgmpy by "
+        "`python -m pyroute_rel.failure`; used only while the model files' hashes match",
+        "models": models,
+    }
     path = Path(str(_shipped().joinpath(_SHIPPED_TABLES)))
     tmp = path.with_suffix(".tmp")
     lines = [f" {json.dumps(name)}: {json.dumps(entry)}" for name, entry in models.items()]  # a line per model
@@ -941,8 +1033,12 @@ def _disk_get(key: str) -> _Compiled | None:
         with np.load(io.BytesIO(data), allow_pickle=False) as npz:
             meta = json.loads(str(npz["meta"]))
             table = np.array(npz["table"], dtype=float)
-        return _Compiled(nodes=list(meta["nodes"]), edges=[list(e) for e in meta["edges"]],
-                         states={k: list(v) for k, v in meta["states"].items()}, table=table)
+        return _Compiled(
+            nodes=list(meta["nodes"]),
+            edges=[list(e) for e in meta["edges"]],
+            states={k: list(v) for k, v in meta["states"].items()},
+            table=table,
+        )
 
     return diskcache.load(f"failure-{key}.npz", decode)  # None when absent or corrupt: compile again
 

@@ -19,6 +19,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import CoordinateError
+from .units import EARTH_RADIUS_KM, KM_PER_NM
 
 __all__ = [
     "EARTH_RADIUS_KM",
@@ -39,10 +40,6 @@ __all__ = [
     "crossing_fraction",
 ]
 
-#: Mean Earth radius R1 of GRS80 / WGS84 [km].
-EARTH_RADIUS_KM = 6371.0088
-#: One international nautical mile [km].
-KM_PER_NM = 1.852
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -167,7 +164,7 @@ def to_xyz(lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> FloatArray:
     return np.stack(np.broadcast_arrays(cphi * np.cos(lmb), cphi * np.sin(lmb), np.sin(phi)), axis=-1)
 
 
-def _from_xyz(xyz: FloatArray) -> tuple[FloatArray, FloatArray]:
+def from_xyz(xyz: FloatArray) -> tuple[FloatArray, FloatArray]:
     x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
     lat = np.degrees(np.arctan2(z, np.hypot(x, y)))
     lon = wrap_lon(np.degrees(np.arctan2(y, x)))
@@ -207,7 +204,7 @@ def intermediate_point(
     anti = np.abs(omega - np.pi) < 1e-12
     p = wa * a + wb * b
     p = np.where(anti, np.nan, p)
-    return _from_xyz(p)
+    return from_xyz(p)
 
 
 def destination_point(
@@ -235,9 +232,7 @@ def destination_point(
     delta = np.asarray(dist_km, dtype=float) / EARTH_RADIUS_KM
     sphi2 = np.sin(phi1) * np.cos(delta) + np.cos(phi1) * np.sin(delta) * np.cos(theta)
     phi2 = np.arcsin(np.clip(sphi2, -1.0, 1.0))
-    lmb2 = lmb1 + np.arctan2(
-        np.sin(theta) * np.sin(delta) * np.cos(phi1), np.cos(delta) - np.sin(phi1) * np.sin(phi2)
-    )
+    lmb2 = lmb1 + np.arctan2(np.sin(theta) * np.sin(delta) * np.cos(phi1), np.cos(delta) - np.sin(phi1) * np.sin(phi2))
     return wrap_lon(np.degrees(lmb2)), np.degrees(phi2)
 
 
@@ -257,7 +252,9 @@ def cross_track_km(
     111.195
     """
     d13 = _central_angle(
-        np.asarray(lon1_deg, float), np.asarray(lat1_deg, float), np.asarray(lon_deg, float),
+        np.asarray(lon1_deg, float),
+        np.asarray(lat1_deg, float),
+        np.asarray(lon_deg, float),
         np.asarray(lat_deg, float),
     )
     t13 = np.radians(initial_bearing_deg(lon1_deg, lat1_deg, lon_deg, lat_deg))
@@ -279,7 +276,9 @@ def along_track_km(
     556.0
     """
     d13 = _central_angle(
-        np.asarray(lon1_deg, float), np.asarray(lat1_deg, float), np.asarray(lon_deg, float),
+        np.asarray(lon1_deg, float),
+        np.asarray(lat1_deg, float),
+        np.asarray(lon_deg, float),
         np.asarray(lat_deg, float),
     )
     xt = cross_track_km(lon1_deg, lat1_deg, lon2_deg, lat2_deg, lon_deg, lat_deg) / EARTH_RADIUS_KM

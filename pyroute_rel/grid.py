@@ -144,8 +144,9 @@ class Grid:
     @property
     def n_arcs(self) -> int:
         """Number of arcs in the digraph, start and finish arcs included."""
-        inner = (int(self.arc_valid.sum()) * (self.n_ranks - 1) if self.rank_valid is None
-                 else int(self.rank_valid.sum()))
+        inner = (
+            int(self.arc_valid.sum()) * (self.n_ranks - 1) if self.rank_valid is None else int(self.rank_valid.sum())
+        )
         return inner + int(self.start_pattern.sum()) + int(self.finish_valid.sum())
 
     @property
@@ -196,14 +197,31 @@ class Grid:
         src, valid = self.pattern(k)
         if k == 0:
             s_lon, s_lat = self.start_points
-            return (np.broadcast_to(s_lon[None, :], src.shape), np.broadcast_to(s_lat[None, :], src.shape),
-                    self.lon_deg[0][:, None], self.lat_deg[0][:, None], src, valid)
+            return (
+                np.broadcast_to(s_lon[None, :], src.shape),
+                np.broadcast_to(s_lat[None, :], src.shape),
+                self.lon_deg[0][:, None],
+                self.lat_deg[0][:, None],
+                src,
+                valid,
+            )
         if k == self.n_ranks:
-            return (self.lon_deg[-1][None, :], self.lat_deg[-1][None, :], np.full((1, self.n_nodes), self.finish[0]),
-                    np.full((1, self.n_nodes), self.finish[1]), src, valid)
-        return (self.lon_deg[k - 1][src], self.lat_deg[k - 1][src],
-                np.broadcast_to(self.lon_deg[k][:, None], src.shape),
-                np.broadcast_to(self.lat_deg[k][:, None], src.shape), src, valid)
+            return (
+                self.lon_deg[-1][None, :],
+                self.lat_deg[-1][None, :],
+                np.full((1, self.n_nodes), self.finish[0]),
+                np.full((1, self.n_nodes), self.finish[1]),
+                src,
+                valid,
+            )
+        return (
+            self.lon_deg[k - 1][src],
+            self.lat_deg[k - 1][src],
+            np.broadcast_to(self.lon_deg[k][:, None], src.shape),
+            np.broadcast_to(self.lat_deg[k][:, None], src.shape),
+            src,
+            valid,
+        )
 
     def to_networkx(self, weight: npt.ArrayLike | None = None) -> nx.DiGraph:
         """Export the digraph to networkx.
@@ -380,8 +398,9 @@ def rank_points(
     c_lon, c_lat = geodesy.intermediate_point(start[0], start[1], finish[0], finish[1], fractions)
     course = geodesy.initial_bearing_deg(c_lon, c_lat, finish[0], finish[1])
     shape = (n_ranks,) + (1,) * (off.ndim - 1)
-    return geodesy.destination_point(c_lon.reshape(shape), c_lat.reshape(shape),
-                                     ((course + 90.0) % 360.0).reshape(shape), off)
+    return geodesy.destination_point(
+        c_lon.reshape(shape), c_lat.reshape(shape), ((course + 90.0) % 360.0).reshape(shape), off
+    )
 
 
 def _checked_line(line: Any, name: str) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -469,10 +488,16 @@ def plan_grid(
     if layout not in LAYOUTS:
         raise GridError(f"layout must be one of {list(LAYOUTS)} (got {layout!r})")
     if layout == "square":
-        return make_grid(start, finish, n_ranks=DEFAULT_N_RANKS if n_ranks is None else n_ranks,
-                         n_nodes=DEFAULT_N_RANKS if n_nodes is None else n_nodes,
-                         spacing_km=spacing_km, max_deviation_deg=max_deviation_deg, start_line=start_line,
-                         finish_line=finish_line)
+        return make_grid(
+            start,
+            finish,
+            n_ranks=DEFAULT_N_RANKS if n_ranks is None else n_ranks,
+            n_nodes=DEFAULT_N_RANKS if n_nodes is None else n_nodes,
+            spacing_km=spacing_km,
+            max_deviation_deg=max_deviation_deg,
+            start_line=start_line,
+            finish_line=finish_line,
+        )
     n_ranks = DEFAULT_N_RANKS if n_ranks is None else n_ranks
     if isinstance(n_ranks, bool) or not isinstance(n_ranks, int | np.integer) or n_ranks < 1:
         raise GridError(f"n_ranks must be a whole number >= 1 (got {n_ranks!r})")
@@ -496,5 +521,13 @@ def plan_grid(
             "lower aspect or half_width_km"
         )
     dev = DEFAULT_MAX_DEVIATION_DEG if max_deviation_deg is None else max_deviation_deg
-    return make_grid(start, finish, n_ranks=n_ranks, n_nodes=nodes, spacing_km=spacing_km, max_deviation_deg=dev,
-                     start_line=start_line, finish_line=finish_line)
+    return make_grid(
+        start,
+        finish,
+        n_ranks=n_ranks,
+        n_nodes=nodes,
+        spacing_km=spacing_km,
+        max_deviation_deg=dev,
+        start_line=start_line,
+        finish_line=finish_line,
+    )

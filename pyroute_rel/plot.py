@@ -66,6 +66,7 @@ def failure_field(
 def _unwrap(ref_deg: float) -> Any:
     """Longitudes [deg] -> within 180 deg of ``ref_deg``, so a map of a course across the antimeridian is continuous
     (it may run past +-180)."""
+
     def view(lon: Any) -> Any:
         x = np.asarray(lon, dtype=float)
         return x + 360.0 * np.round((ref_deg - x) / 360.0)  # whole turns only: longitudes in view stay exact
@@ -90,17 +91,31 @@ def _draw_patches(ax: Axes, weather: Any, view: Any) -> None:
         if len(label) > 40:
             label = label[:37] + "..."
         desc = ", ".join(f"{k}={v:g}" for k, v in patch.values.items())
-        ax.add_patch(Rectangle((float(view(patch.lon[0])), patch.lat[0]), patch.lon[1] - patch.lon[0],
-                               patch.lat[1] - patch.lat[0], fill=False, ec="k", lw=1.0))
+        ax.add_patch(
+            Rectangle(
+                (float(view(patch.lon[0])), patch.lat[0]),
+                patch.lon[1] - patch.lon[0],
+                patch.lat[1] - patch.lat[0],
+                fill=False,
+                ec="k",
+                lw=1.0,
+            )
+        )
         # label each box at a different corner so nested boxes stay readable
         corner = (float(view(patch.lon[0])), patch.lat[1] if i % 2 == 0 else patch.lat[0])
-        ax.annotate(f"{label}: {desc}", corner, xytext=(1, 2 if i % 2 == 0 else -2), textcoords="offset points",
-                    va="bottom" if i % 2 == 0 else "top", fontsize=6.5)
+        ax.annotate(
+            f"{label}: {desc}",
+            corner,
+            xytext=(1, 2 if i % 2 == 0 else -2),
+            textcoords="offset points",
+            va="bottom" if i % 2 == 0 else "top",
+            fontsize=6.5,
+        )
 
 
 def _draw_coast(ax: Axes, grid: Grid) -> None:
     try:
-        from .obstacles import land_geometry
+        from .obstacles.land import land_geometry
     except ImportError:
         return
     import shapely
@@ -159,6 +174,7 @@ def plot_routes(
     grid = routes[0].grid
     view = _unwrap(grid.start[0])  # continuous longitudes across the antimeridian
     import shapely
+
     fig, ax = plt.subplots(figsize=(9, 6.5), dpi=110)
     if failure is not None and weather is not None:
         glon, glat, p, fired = failure_field(grid, weather, failure)
@@ -170,8 +186,9 @@ def plot_routes(
     if coast:
         _draw_coast(ax, grid)
     for zone in zones:
-        shape = shapely.transform(getattr(zone, "geometry", zone),
-                                  lambda xy: np.column_stack([view(xy[:, 0]), xy[:, 1]]))
+        shape = shapely.transform(
+            getattr(zone, "geometry", zone), lambda xy: np.column_stack([view(xy[:, 0]), xy[:, 1]])
+        )
         _fill_polygons(ax, shape, facecolor="tab:purple", alpha=0.25, linewidth=0.8, edgecolor="tab:purple")
     _draw_grid_outline(ax, grid)
     if weather is not None:
@@ -180,10 +197,21 @@ def plot_routes(
     for i, (route, label) in enumerate(zip(routes, labels, strict=True)):
         before = route.meta.get("grid_track_object")
         if before is not None:  # a refined route: the grid's own track, thin, for comparison
-            ax.plot(view(before[0]), before[1], color=_COLOURS[i % len(_COLOURS)], lw=0.8, ls=":",
-                    label=f"{label} on the grid, before refinement: {before[2]:.1f} h")
-        ax.plot(view(route.lon_deg), route.lat_deg, color=_COLOURS[i % len(_COLOURS)], lw=1.6,
-                label=f"{label}{' (refined)' if before is not None else ''}: {route.voyage_time_h:.1f} h")
+            ax.plot(
+                view(before[0]),
+                before[1],
+                color=_COLOURS[i % len(_COLOURS)],
+                lw=0.8,
+                ls=":",
+                label=f"{label} on the grid, before refinement: {before[2]:.1f} h",
+            )
+        ax.plot(
+            view(route.lon_deg),
+            route.lat_deg,
+            color=_COLOURS[i % len(_COLOURS)],
+            lw=1.6,
+            label=f"{label}{' (refined)' if before is not None else ''}: {route.voyage_time_h:.1f} h",
+        )
     if grid.start_lon is not None and grid.start_lat is not None:
         ax.plot(view(grid.start_lon), grid.start_lat, "k-", lw=2.5, label="start line")
     if grid.finish_line is not None:
@@ -221,7 +249,7 @@ def plot_routes(
     ax.set_title(title or f"{grid.n_ranks} ranks x {grid.n_nodes} nodes")
     fig.tight_layout()
     if path is not None:
-        from .route import atomic_write
+        from .files import atomic_write
 
         out_path = Path(path)
         atomic_write(out_path, lambda tmp: fig.savefig(tmp, format="png"))
@@ -234,8 +262,14 @@ def plot_route(route: Route, *, path: str | os.PathLike[str] | None = None, titl
     extra = route.meta.get("weather_object")
     failure = route.meta.get("failure_object")
     t = title or (
-        f"{route.voyage_time_h:.1f} h, apf {route.meta.get('apf', 1.0):g}, "
-        f"max p_f {route.max_failure_probability:.2f}"
+        f"{route.voyage_time_h:.1f} h, apf {route.meta.get('apf', 1.0):g}, max p_f {route.max_failure_probability:.2f}"
     )
-    return plot_routes([route], labels=["route"], weather=extra, failure=failure, title=t, path=path,
-                       zones=route.meta.get("zones_object", ()))
+    return plot_routes(
+        [route],
+        labels=["route"],
+        weather=extra,
+        failure=failure,
+        title=t,
+        path=path,
+        zones=route.meta.get("zones_object", ()),
+    )

@@ -62,7 +62,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import secrets
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -74,9 +73,11 @@ import numpy.typing as npt
 
 from . import geodesy
 from .errors import OutputError, PolarError, show
+from .files import atomic_write_text
 
 __all__ = [
     "Polar",
+    "MIN_SPEED_KN",
     "BEYOND_MODES",
     "POLAR_SUFFIXES",
     "BUILTIN_POLARS",
@@ -89,6 +90,10 @@ __all__ = [
     "read_polar",
     "get_polar",
 ]
+
+#: Slowest useful speed over ground [kn]: below it (near-calm air, a current almost as strong as the boat) an arc
+#: is forbidden as "no speed" rather than sailed for thousands of hours.
+MIN_SPEED_KN = 0.01
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -155,20 +160,14 @@ class Polar:
             if not np.all(np.isfinite(axis)):
                 raise PolarError(f"{where}: '{label}' must be finite [{unit}] (got {axis.tolist()})")
             if not np.all(np.diff(axis) > 0):
-                raise PolarError(
-                    f"{where}: '{label}' must be strictly increasing [{unit}] (got {axis.tolist()})"
-                )
+                raise PolarError(f"{where}: '{label}' must be strictly increasing [{unit}] (got {axis.tolist()})")
         if twa[0] < 0.0 or twa[-1] > 180.0:
-            raise PolarError(
-                f"{where}: 'twa_deg' must lie within [0, 180] [deg] (got {twa[0]:g} to {twa[-1]:g})"
-            )
+            raise PolarError(f"{where}: 'twa_deg' must lie within [0, 180] [deg] (got {twa[0]:g} to {twa[-1]:g})")
         if tws[0] < 0.0:
             raise PolarError(f"{where}: 'tws_kn' must be >= 0 [kn] (got {tws[0]:g})")
         expected = (twa.size, tws.size)
         if speed.shape != expected:
-            raise PolarError(
-                f"{where}: 'speed_kn' must have shape (n_twa, n_tws) = {expected} (got {speed.shape})"
-            )
+            raise PolarError(f"{where}: 'speed_kn' must have shape (n_twa, n_tws) = {expected} (got {speed.shape})")
         for bad, rule in ((~np.isfinite(speed), "finite"), (speed < 0.0, ">= 0")):
             if np.any(bad):
                 i, j = np.argwhere(bad)[0]
@@ -209,9 +208,7 @@ def _as_readonly(value: Any, label: str, where: str) -> FloatArray:
     try:
         arr = np.array(value, dtype=np.float64)  # always a copy: the caller's array stays theirs
     except (TypeError, ValueError) as exc:
-        raise PolarError(
-            f"{where}: '{label}' must be an array of numbers (got {type(value).__name__})"
-        ) from exc
+        raise PolarError(f"{where}: '{label}' must be an array of numbers (got {type(value).__name__})") from exc
     arr.setflags(write=False)
     return arr
 
@@ -467,9 +464,7 @@ def read_pol(path: str | os.PathLike[str], *, name: str | None = None) -> Polar:
         The file cannot be read or is malformed (one line naming the file and line).
     """
     path = Path(path)
-    return _parse_matrix(
-        _read_lines(path), path, name or path.stem, split=_split_pol, labels=_POL_LABELS, csv=False
-    )
+    return _parse_matrix(_read_lines(path), path, name or path.stem, split=_split_pol, labels=_POL_LABELS, csv=False)
 
 
 def read_polar_csv(path: str | os.PathLike[str], *, name: str | None = None) -> Polar:
@@ -482,9 +477,7 @@ def read_polar_csv(path: str | os.PathLike[str], *, name: str | None = None) -> 
         The file cannot be read or is malformed (one line naming the file and line).
     """
     path = Path(path)
-    return _parse_matrix(
-        _read_lines(path), path, name or path.stem, split=_split_csv, labels=_CSV_LABELS, csv=True
-    )
+    return _parse_matrix(_read_lines(path), path, name or path.stem, split=_split_csv, labels=_CSV_LABELS, csv=True)
 
 
 def write_pol(polar: Polar, path: str | os.PathLike[str]) -> Path:
@@ -510,26 +503,10 @@ def _write_matrix(polar: Polar, path: Path, label: str, sep: str) -> Path:
     for twa, row in zip(polar.twa_deg, polar.speed_kn, strict=True):
         lines.append(sep.join([_fmt(twa), *map(_fmt, row)]))
     try:
-        _atomic_write_text(path, "\n".join(lines) + "\n")
+        atomic_write_text(path, "\n".join(lines) + "\n")
     except OSError as exc:
         raise OutputError(f"cannot write polar file {show(path)} ({exc.strerror or exc})") from None
     return path
-
-
-def _atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to a new file beside ``path`` and move it over ``path`` in one step."""
-    tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.tmp")
-    try:
-        # os.open with mode 0o666 lets the umask decide the permissions, as for a plain open()
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def _read_lines(path: Path) -> list[str]:
@@ -571,15 +548,11 @@ def _parse_matrix(
 ) -> Polar:
     """Parse a TWA\\TWS matrix; every problem is a one-line :class:`PolarError` naming file and line."""
     rows: Iterable[tuple[int, list[str]]] = (
-        (n, split(s))
-        for n, s in enumerate((ln.strip() for ln in raw_lines), start=1)
-        if s and not s.startswith("#")
+        (n, split(s)) for n, s in enumerate((ln.strip() for ln in raw_lines), start=1) if s and not s.startswith("#")
     )
     rows = iter(rows)
     expected_label = (
-        "'twa_deg\\tws_kn' (or 'TWA\\TWS' or an empty cell)"
-        if csv
-        else "'TWA\\TWS' (or 'TWA/TWS' or an empty cell)"
+        "'twa_deg\\tws_kn' (or 'TWA\\TWS' or an empty cell)" if csv else "'TWA\\TWS' (or 'TWA/TWS' or an empty cell)"
     )
 
     def fail(line_no: int, message: str) -> PolarError:

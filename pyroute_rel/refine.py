@@ -69,8 +69,7 @@ def _check_n_nodes(n_nodes: int) -> None:
         raise GridError(f"n_nodes must be an odd whole number >= 3 (got {n_nodes!r})")
 
 
-def corridor_grid(grid: Grid, centre_km: npt.ArrayLike, *, half_width_km: float,
-                  n_nodes: int = CORRIDOR_NODES) -> Grid:
+def corridor_grid(grid: Grid, centre_km: npt.ArrayLike, *, half_width_km: float, n_nodes: int = CORRIDOR_NODES) -> Grid:
     """A grid on ``grid``'s rank lines with ``n_nodes`` nodes across ``centre_km[k] +- half_width_km`` on rank k.
 
     Every node joins every node of the next rank whose lateral offset differs by at most
@@ -97,15 +96,18 @@ def corridor_grid(grid: Grid, centre_km: npt.ArrayLike, *, half_width_km: float,
     """
     centre = np.asarray(centre_km, dtype=np.float64)
     if centre.shape != (grid.n_ranks,) or not np.all(np.isfinite(centre)):
-        raise GridError(f"centre_km must be {grid.n_ranks} finite offsets [km], one per rank (got shape "
-                        f"{centre.shape})")
+        raise GridError(
+            f"centre_km must be {grid.n_ranks} finite offsets [km], one per rank (got shape {centre.shape})"
+        )
     _check_n_nodes(n_nodes)
     if not (np.isfinite(half_width_km) and half_width_km > 0.0):
         raise GridError(f"half_width_km must be a positive number of km (got {half_width_km!r})")
     reach = float(np.max(np.abs(centre))) + half_width_km
     if reach > 0.25 * np.pi * EARTH_RADIUS_KM:
-        raise GridError(f"the corridor reaches {reach:.0f} km from the great circle: at most 5000 km (ranks would "
-                        "converge), as for any grid")
+        raise GridError(
+            f"the corridor reaches {reach:.0f} km from the great circle: at most 5000 km (ranks would "
+            "converge), as for any grid"
+        )
     offset = np.linspace(-half_width_km, half_width_km, n_nodes)
     node = centre[:, None] + offset[None, :]  # offset of every node from the great circle [km]
     lon, lat = rank_points(grid.start, grid.finish, node)
@@ -119,12 +121,24 @@ def corridor_grid(grid: Grid, centre_km: npt.ArrayLike, *, half_width_km: float,
             start_valid = np.abs(node[0]) <= max(reach, grid.spacing_km / 2.0) + slack
         finish_valid = np.abs(node[-1]) <= max(reach, grid.spacing_km / 2.0) + slack
     return Grid(
-        start=grid.start, finish=grid.finish, lon_deg=lon, lat_deg=lat, offset_km=offset,
-        route_length_km=grid.route_length_km, rank_spacing_km=grid.rank_spacing_km,
-        spacing_km=float(offset[1] - offset[0]), max_deviation_deg=grid.max_deviation_deg, band=n_nodes - 1,
+        start=grid.start,
+        finish=grid.finish,
+        lon_deg=lon,
+        lat_deg=lat,
+        offset_km=offset,
+        route_length_km=grid.route_length_km,
+        rank_spacing_km=grid.rank_spacing_km,
+        spacing_km=float(offset[1] - offset[0]),
+        max_deviation_deg=grid.max_deviation_deg,
+        band=n_nodes - 1,
         src_index=np.broadcast_to(np.arange(n_nodes, dtype=np.intp), (n_nodes, n_nodes)).copy(),
-        arc_valid=np.ones((n_nodes, n_nodes), dtype=bool), start_valid=start_valid, finish_valid=finish_valid,
-        start_lon=grid.start_lon, start_lat=grid.start_lat, finish_line=grid.finish_line, centre_km=centre,
+        arc_valid=np.ones((n_nodes, n_nodes), dtype=bool),
+        start_valid=start_valid,
+        finish_valid=finish_valid,
+        start_lon=grid.start_lon,
+        start_lat=grid.start_lat,
+        finish_line=grid.finish_line,
+        centre_km=centre,
         rank_valid=rank_valid,
     )
 
@@ -161,7 +175,7 @@ def refine(
     levels : Number of corridor solves (>= 1).
     problem_for : The routing problem for a corridor grid. Default: ``problem`` itself, which suits problems
         without obstacles; with an obstacle mask (it belongs to one grid) pass a builder that makes the corridor's
-        own (:func:`pyroute_rel.avoid.obstacle_mask` with ``parent=grid`` reuses the grid's land). Keep
+        own (:func:`pyroute_rel.obstacles.mask.obstacle_mask` with ``parent=grid`` reuses the grid's land). Keep
         ``samples`` equal to ``problem``'s, so an arc costs the same in both.
     n_nodes : Nodes across each corridor (odd, >= 3).
 
@@ -186,8 +200,14 @@ def refine(
         corridor = corridor_grid(best[0], track_offsets_km(best[0], best[2]), half_width_km=half, n_nodes=n_nodes)
         sub = problem if problem_for is None else problem_for(corridor)
         res = forward_dp(corridor, sub)
-        history.append(RefineLevel(half_width_km=half, spacing_km=corridor.spacing_km,
-                                   voyage_time_h=float(res.finish_h), arcs_evaluated=int(res.arcs_evaluated)))
+        history.append(
+            RefineLevel(
+                half_width_km=half,
+                spacing_km=corridor.spacing_km,
+                voyage_time_h=float(res.finish_h),
+                arcs_evaluated=int(res.arcs_evaluated),
+            )
+        )
         if not res.finish_h <= best[2].finish_h:
             # the previous track is a path of the corridor, so under FIFO costs the DP finds it or better; costs
             # that are not FIFO (an arc that opens later, without waiting) can make the earliest arrival worse

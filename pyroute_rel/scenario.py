@@ -8,7 +8,7 @@ A scenario has these tables (unknown tables or keys are refused with the file an
                refine = 0
     [boat]     polar = "maribot_vane" | "path/to/file.pol"   beyond = "clamp" | "forbid"
     [weather]  kind = "uniform" (tws_kn, twd_deg, hs_m, wave_dir_deg, ... and [[weather.patch]] boxes)
-               kind = "file"    (paths = [...], see pyroute_rel.weather_io)
+               kind = "file"    (paths = [...], see pyroute_rel.weather.readers)
     [failure]  model = "dickson2018" | "path/to/model.toml" | "none"   apf = 1.0
 
 Paths are relative to the scenario file's folder.
@@ -26,18 +26,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .avoid import Avoid, check_points, obstacle_mask
 from .cost import WaveLoss
 from .errors import FailureModelError, PyrouteError, ScenarioError, brief, show
 from .geodesy import along_track_km, crossing_fraction, distance_km, intermediate_point
 from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, LAYOUTS, Grid, auto_samples, plan_grid
+from .obstacles.mask import Avoid, check_points, obstacle_mask
 from .polar import BEYOND_MODES, Polar, get_polar
-from .solve import RoutingProblem, solve
+from .route import Route, build_route, join_routes, route_on_grid
+from .solve import RoutingProblem
 from .weather import UniformWeather, WeatherSource
 
 if TYPE_CHECKING:
     from .failure import FailureModel
-    from .route import Route
 
 __all__ = ["Scenario", "load_scenario", "scenario_from_mapping", "parse_departure", "WEATHER_KINDS"]
 
@@ -153,8 +153,16 @@ class Scenario:
                     checked["avoid"] = replace(self.avoid, land=bool(value))
                 else:
                     checked[key] = bool(value)
-            elif key in ("spacing_km", "max_deviation_deg", "samples_per_arc", "beyond", "time_step_h",
-                         "max_wait_h", "aspect", "half_width_km"):
+            elif key in (
+                "spacing_km",
+                "max_deviation_deg",
+                "samples_per_arc",
+                "beyond",
+                "time_step_h",
+                "max_wait_h",
+                "aspect",
+                "half_width_km",
+            ):
                 checked[key] = value
             else:
                 raise ScenarioError(f"unknown scenario option {key!r}")
@@ -162,8 +170,11 @@ class Scenario:
 
     def marks(self) -> list[tuple[str, tuple[float, float]]]:
         """The course's marks in order, named by their scenario field: start, waypoints, finish."""
-        return [("[route].start", self.start), *((f"[route].waypoints[{i}]", w) for i, w in enumerate(self.waypoints)),
-                ("[route].finish", self.finish)]
+        return [
+            ("[route].start", self.start),
+            *((f"[route].waypoints[{i}]", w) for i, w in enumerate(self.waypoints)),
+            ("[route].finish", self.finish),
+        ]
 
     def make_grid(self) -> Grid:
         """The scenario's rank digraph (the first leg's when the course has waypoints)."""
@@ -181,12 +192,21 @@ class Scenario:
             if len(marks) > 2:
                 n = self.n_ranks if self.n_ranks is not None else DEFAULT_N_RANKS
                 n_ranks = max(1, round(n * lengths[i] / total))
-            grids.append(plan_grid(
-                a, b, layout=self.layout, n_ranks=n_ranks, n_nodes=n_nodes, spacing_km=self.spacing_km,
-                aspect=self.aspect, half_width_km=self.half_width_km, max_deviation_deg=self.max_deviation_deg,
-                start_line=self.start_line if i == 0 else None,
-                finish_line=self.finish_line if i == len(marks) - 2 else None,
-            ))
+            grids.append(
+                plan_grid(
+                    a,
+                    b,
+                    layout=self.layout,
+                    n_ranks=n_ranks,
+                    n_nodes=n_nodes,
+                    spacing_km=self.spacing_km,
+                    aspect=self.aspect,
+                    half_width_km=self.half_width_km,
+                    max_deviation_deg=self.max_deviation_deg,
+                    start_line=self.start_line if i == 0 else None,
+                    finish_line=self.finish_line if i == len(marks) - 2 else None,
+                )
+            )
         return grids
 
     def load_failure(self) -> FailureModel | None:
@@ -205,8 +225,13 @@ class Scenario:
             raise FailureModelError(f"{self.source}: [failure].model {self.failure_model!r}: {exc}") from None
         have = getattr(self.weather, "fields", None)
         if have is not None:
-            needs = {"hs_m": {"hs_m"}, "awd_deg": {"wave_dir_deg"}, "tws_kn": {"tws_kn"}, "twa_deg": {"twd_deg"},
-                     "wave_period_s": {"wave_period_s"}}
+            needs = {
+                "hs_m": {"hs_m"},
+                "awd_deg": {"wave_dir_deg"},
+                "tws_kn": {"tws_kn"},
+                "twa_deg": {"twd_deg"},
+                "wave_period_s": {"wave_period_s"},
+            }
             missing = sorted({f for q in model.quantities for f in needs.get(q, set())} - set(have))
             if missing:
                 raise ScenarioError(
@@ -233,16 +258,26 @@ class Scenario:
         elif samples is None and km is not None:  # the user's spacing is kept: never a silent cap
             samples = auto_samples(grid, sample_km=km, max_samples=10**6)
             if samples > 64:
-                raise ScenarioError(f"sample_km = {km:g} needs {samples} weather samples per arc on this grid (at "
-                                    "most 64): use a larger sample_km or more ranks")
+                raise ScenarioError(
+                    f"sample_km = {km:g} needs {samples} weather samples per arc on this grid (at "
+                    "most 64): use a larger sample_km or more ranks"
+                )
         if blocked == "auto":
             blocked = obstacle_mask(grid, self.avoid)
         assert samples is not None
         return RoutingProblem(
-            departure=self.departure, weather=self.weather, polar=self.polar,
-            failure=failure if failure is not None else self.load_failure(), apf=self.apf,
-            samples=samples, beyond=self.beyond, blocked=blocked, time_step_h=self.time_step_h,
-            max_wait_h=self.max_wait_h, wave_loss=self.wave_loss, prune=self.prune,
+            departure=self.departure,
+            weather=self.weather,
+            polar=self.polar,
+            failure=failure if failure is not None else self.load_failure(),
+            apf=self.apf,
+            samples=samples,
+            beyond=self.beyond,
+            blocked=blocked,
+            time_step_h=self.time_step_h,
+            max_wait_h=self.max_wait_h,
+            wave_loss=self.wave_loss,
+            prune=self.prune,
         )
 
     def route(self, *, progress: bool = False, grids: list[Grid] | None = None) -> Route:
@@ -253,8 +288,6 @@ class Scenario:
         follows. ``grids``: the legs' grids from an earlier :meth:`leg_grids` of this course, to reuse what is
         cached on them (arc geometry, obstacle masks) when routing it again, e.g. for another departure.
         """
-        from .route import join_routes
-
         check_points(self.marks(), self.avoid)
         failure = self.load_failure()
         routes = []
@@ -267,7 +300,7 @@ class Scenario:
             lats = [*s_lat, grid.finish[1]]
             self.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)), (departure, departure))
             leg_problem = replace(self.problem(failure=failure, grid=grid), departure=departure)
-            leg = solve(grid, leg_problem, progress=progress)
+            leg = route_on_grid(grid, leg_problem, progress=progress)
             if self.refine:
                 leg = self._refined(leg, leg_problem)
             routes.append(leg)
@@ -282,21 +315,37 @@ class Scenario:
         """The route with its track refined in corridors (:mod:`pyroute_rel.refine`); the grid, its DP result and
         nodes stay those of the grid routed on, the levels are reported in ``meta["refine"]``."""
         from .refine import refine
-        from .route import build_route
 
         grid = route.grid
 
         def problem_for(corridor: Grid) -> RoutingProblem:
             return replace(problem, blocked=obstacle_mask(corridor, self.avoid, parent=grid))
 
-        c_grid, c_problem, c_result, levels = refine(grid, problem, route.dp, levels=self.refine,
-                                                     problem_for=problem_for)
+        c_grid, c_problem, c_result, levels = refine(
+            grid, problem, route.dp, levels=self.refine, problem_for=problem_for
+        )
         better = c_grid is not grid
-        out = replace(build_route(c_grid, c_problem, c_result), grid=grid, nodes=route.nodes, dp=route.dp,
-                      meta=dict(route.meta)) if better else route
+        out = (
+            replace(
+                build_route(c_grid, c_problem, c_result),
+                grid=grid,
+                nodes=route.nodes,
+                dp=route.dp,
+                meta=dict(route.meta),
+            )
+            if better
+            else route
+        )
         out.meta["refine"] = {
-            "levels": [{"half_width_km": lv.half_width_km, "spacing_km": lv.spacing_km,
-                        "voyage_time_h": lv.voyage_time_h, "arcs_evaluated": lv.arcs_evaluated} for lv in levels],
+            "levels": [
+                {
+                    "half_width_km": lv.half_width_km,
+                    "spacing_km": lv.spacing_km,
+                    "voyage_time_h": lv.voyage_time_h,
+                    "arcs_evaluated": lv.arcs_evaluated,
+                }
+                for lv in levels
+            ],
             "grid_voyage_time_h": route.voyage_time_h,
         }
         out.meta["grid_track_object"] = (route.lon_deg, route.lat_deg, route.voyage_time_h)  # for the map
@@ -372,14 +421,19 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     if not isinstance(raw_wp, list):
         raise ScenarioError("[route].waypoints must be a list of [lon, lat] points [deg]")
     waypoints = tuple(_point(p, f"[route].waypoints[{i}]") for i, p in enumerate(raw_wp))
-    marks = [("[route].start", start), *((f"[route].waypoints[{i}]", w) for i, w in enumerate(waypoints)),
-             ("[route].finish", finish)]
+    marks = [
+        ("[route].start", start),
+        *((f"[route].waypoints[{i}]", w) for i, w in enumerate(waypoints)),
+        ("[route].finish", finish),
+    ]
     for (name_a, a), (name_b, b) in zip(marks[:-1], marks[1:], strict=True):
         gap = float(distance_km(*a, *b))
         if gap < MIN_LEG_KM:
             what = "the same point" if gap < 1e-6 else f"{gap * 1000.0:.0f} m apart"
-            raise ScenarioError(f"{name_a} {list(a)} and {name_b} {list(b)} are {what}: consecutive marks must be at "
-                                f"least {MIN_LEG_KM:g} km apart (nothing to route between them)")
+            raise ScenarioError(
+                f"{name_a} {list(a)} and {name_b} {list(b)} are {what}: consecutive marks must be at "
+                f"least {MIN_LEG_KM:g} km apart (nothing to route between them)"
+            )
     departure = parse_departure(route.get("departure", "2018-06-01T00:00:00Z"), "[route].departure")
     step = route.get("time_step_h")
     if step is not None:
@@ -393,8 +447,10 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
     if max_wait > 0 and step is None:
         raise ScenarioError("[route].max_wait_h needs [route].time_step_h (waiting is modelled on a time lattice)")
     if step is not None and max_wait / step > 10_000:
-        raise ScenarioError(f"[route].max_wait_h / [route].time_step_h must be at most 10000 wait steps per node (got "
-                            f"{max_wait:g} h / {step:g} h): use a larger time_step_h")
+        raise ScenarioError(
+            f"[route].max_wait_h / [route].time_step_h must be at most 10000 wait steps per node (got "
+            f"{max_wait:g} h / {step:g} h): use a larger time_step_h"
+        )
     prune = route.get("prune", True)
     if not isinstance(prune, bool):
         raise ScenarioError(f"[route].prune must be true or false (got {prune!r})")
@@ -440,8 +496,10 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         try:
             if not isinstance(raw, list) or not all(isinstance(r, list) and len(r) == 2 for r in raw):
                 raise ValueError("expected a list of [hs_m, factor] pairs")
-            wave_loss = WaveLoss(hs_m=[_number(r[0], "[boat].wave_speed_loss") for r in raw],
-                                 factor=[_number(r[1], "[boat].wave_speed_loss") for r in raw])
+            wave_loss = WaveLoss(
+                hs_m=[_number(r[0], "[boat].wave_speed_loss") for r in raw],
+                factor=[_number(r[1], "[boat].wave_speed_loss") for r in raw],
+            )
         except ValueError as exc:
             raise ScenarioError(f"[boat].wave_speed_loss: {exc} (got {raw!r})") from None
     beyond = boat.get("beyond", "clamp")
@@ -450,8 +508,14 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
 
     avoid = _avoid(table.get("avoid", {}), base_dir)
     grid_sizes = {"half_width_km": half_width, "n_ranks": n_ranks, "n_nodes": n_nodes}
-    bbox = _course_bbox(start, finish, waypoints, start_line, finish_line,
-                        grid_table={k: v for k, v in grid_sizes.items() if v is not None})
+    bbox = _course_bbox(
+        start,
+        finish,
+        waypoints,
+        start_line,
+        finish_line,
+        grid_table={k: v for k, v in grid_sizes.items() if v is not None},
+    )
     weather = _weather(table.get("weather"), base_dir, bbox=bbox, departure=departure)
 
     failure = table.get("failure", {})
@@ -462,12 +526,34 @@ def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
         model = None
     apf = _prob(failure.get("apf", 1.0), "[failure].apf")
     return Scenario(
-        source=source, start=start, finish=finish, departure=departure, n_ranks=n_ranks, n_nodes=n_nodes,
-        spacing_km=spacing, max_deviation_deg=dev, samples_per_arc=samples, polar=polar, beyond=beyond,
-        weather=weather, failure_model=model, apf=apf, base_dir=base_dir, time_step_h=step, max_wait_h=max_wait,
+        source=source,
+        start=start,
+        finish=finish,
+        departure=departure,
+        n_ranks=n_ranks,
+        n_nodes=n_nodes,
+        spacing_km=spacing,
+        max_deviation_deg=dev,
+        samples_per_arc=samples,
+        polar=polar,
+        beyond=beyond,
+        weather=weather,
+        failure_model=model,
+        apf=apf,
+        base_dir=base_dir,
+        time_step_h=step,
+        max_wait_h=max_wait,
         prune=prune,
-        layout=layout, aspect=aspect, half_width_km=half_width, start_line=start_line, finish_line=finish_line,
-        waypoints=waypoints, avoid=avoid, wave_loss=wave_loss, refine=refine, sample_km=sample_km,
+        layout=layout,
+        aspect=aspect,
+        half_width_km=half_width,
+        start_line=start_line,
+        finish_line=finish_line,
+        waypoints=waypoints,
+        avoid=avoid,
+        wave_loss=wave_loss,
+        refine=refine,
+        sample_km=sample_km,
     )
 
 
@@ -479,8 +565,8 @@ def _avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:
     if not 0.0 <= margin <= 200.0:
         raise ScenarioError(f"[avoid].margin_km must be in [0, 200] [km] (got {margin:g})")
     resolution = raw.get("resolution", "intermediate")
-    from .obstacles import RESOLUTIONS
-    from .zones import load_zones
+    from .obstacles.land import RESOLUTIONS
+    from .obstacles.zones import load_zones
 
     if not isinstance(resolution, str) or resolution not in RESOLUTIONS:
         raise ScenarioError(f"[avoid].resolution must be one of {list(RESOLUTIONS)} (got {resolution!r})")
@@ -493,8 +579,9 @@ def _avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:
     return Avoid(land=land, margin_km=margin, resolution=resolution, zones=tuple(zones))
 
 
-def _course_bbox(start: Any, finish: Any, waypoints: Any, start_line: Any, finish_line: Any, *,
-                 grid_table: Mapping[str, Any]) -> tuple[float, float, float, float]:
+def _course_bbox(
+    start: Any, finish: Any, waypoints: Any, start_line: Any, finish_line: Any, *, grid_table: Mapping[str, Any]
+) -> tuple[float, float, float, float]:
     """A lon/lat box [deg] sure to hold the grid: the course's points widened by the grid's half-width."""
     pts = [start, finish, *waypoints, *(start_line or ()), *(finish_line or ())]
     lon = np.array([p[0] for p in pts])
@@ -508,20 +595,24 @@ def _course_bbox(start: Any, finish: Any, waypoints: Any, start_line: Any, finis
     half = min(float(half), 1e4)
     pad_lat = float(half) / 111.0 + 1.0
     pad_lon = pad_lat / max(np.cos(np.radians(min(80.0, float(np.max(np.abs(lat))) + pad_lat))), 0.2)
-    return (max(float(lon.min()) - pad_lon, -180.0), max(float(lat.min()) - pad_lat, -89.0),
-            min(float(lon.max()) + pad_lon, 180.0), min(float(lat.max()) + pad_lat, 89.0))
+    return (
+        max(float(lon.min()) - pad_lon, -180.0),
+        max(float(lat.min()) - pad_lat, -89.0),
+        min(float(lon.max()) + pad_lon, 180.0),
+        min(float(lat.max()) + pad_lat, 89.0),
+    )
 
 
 def _weather(raw: Any, base_dir: Path, *, bbox: Any = None, departure: Any = None) -> WeatherSource:
     if raw is None:
-        raise ScenarioError("[weather] is missing (kind = \"uniform\" with tws_kn and twd_deg, or kind = \"file\")")
+        raise ScenarioError('[weather] is missing (kind = "uniform" with tws_kn and twd_deg, or kind = "file")')
     if not isinstance(raw, Mapping):
         raise ScenarioError("[weather] must be a table")
     kind = raw.get("kind", "uniform")
     if kind == "uniform":
         return UniformWeather.from_mapping(raw)
     if kind == "file":
-        from .weather_io import weather_from_mapping
+        from .weather.readers import weather_from_mapping
 
         window = None
         if departure is not None:  # the voyage window: from departure, for up to 120 days

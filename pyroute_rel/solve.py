@@ -26,7 +26,6 @@ Dickson, T., Blake, J. and Sear, D. (2018). Reliability informed routing for Aut
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -36,27 +35,27 @@ import numpy.typing as npt
 
 from . import geodesy
 from .cost import (
-    KN_PER_MS,
     REASONS,
     ArcCosts,
     ArcGeometry,
     WaveLoss,
-    _to_datetime,
     arc_costs,
     arc_quantities,
     geometry_costs,
     geometry_from_xyz,
 )
-from .errors import NoFeasibleRouteError, ScenarioError
+from .errors import ScenarioError
 from .grid import Grid
 from .polar import BEYOND_MODES, Polar
+from .progress import progress_bar
+from .times import hours_after
+from .units import KN_PER_MS
 from .weather import WeatherSource
 
 if TYPE_CHECKING:
     from .failure import FailureModel
-    from .route import Route
 
-__all__ = ["solve", "DPResult", "forward_dp", "RoutingProblem"]
+__all__ = ["DPResult", "forward_dp", "RoutingProblem", "explain_infeasible", "leg_costs", "path_costs", "grid_geometry"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -131,14 +130,21 @@ class RoutingProblem:
         except (TypeError, ValueError):
             dep = np.asarray(np.datetime64("NaT"))
         if dep.shape != () or np.isnat(dep) or isinstance(self.departure, bool | int | float):
-            raise ScenarioError(f"departure must be a UTC time (numpy datetime64 or ISO 8601 string) (got "
-                                f"{self.departure!r})")
+            raise ScenarioError(
+                f"departure must be a UTC time (numpy datetime64 or ISO 8601 string) (got {self.departure!r})"
+            )
         for name, ok, what in (
-            ("weather", hasattr(self.weather, "sample") and hasattr(self.weather, "check_coverage"),
-             "a weather source (UniformWeather, GriddedWeather, ...)"),
+            (
+                "weather",
+                hasattr(self.weather, "sample") and hasattr(self.weather, "check_coverage"),
+                "a weather source (UniformWeather, GriddedWeather, ...)",
+            ),
             ("polar", isinstance(self.polar, Polar), "a Polar (pyroute_rel.polar.get_polar)"),
-            ("failure", self.failure is None or hasattr(self.failure, "p_fail"),
-             "a FailureModel (pyroute_rel.failure.load_failure_model) or None"),
+            (
+                "failure",
+                self.failure is None or hasattr(self.failure, "p_fail"),
+                "a FailureModel (pyroute_rel.failure.load_failure_model) or None",
+            ),
             ("blocked", self.blocked is None or callable(self.blocked), "an obstacle mask callback or None"),
             ("wave_loss", self.wave_loss is None or isinstance(self.wave_loss, WaveLoss), "a WaveLoss or None"),
         ):
@@ -174,16 +180,33 @@ class RoutingProblem:
     def geometry_costs(self, geom: ArcGeometry, t0_h: Any) -> ArcCosts:
         """Arc costs on precomputed geometry."""
         return geometry_costs(
-            geom, t0_h, departure=self.departure, weather=self.weather, polar=self.polar, failure=self.failure,
-            apf=float(self.apf), beyond=self.beyond, wave_loss=self.wave_loss,
+            geom,
+            t0_h,
+            departure=self.departure,
+            weather=self.weather,
+            polar=self.polar,
+            failure=self.failure,
+            apf=float(self.apf),
+            beyond=self.beyond,
+            wave_loss=self.wave_loss,
         )
 
     def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
         """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`)."""
         return arc_costs(
-            lon0, lat0, lon1, lat1, t0_h,
-            departure=self.departure, weather=self.weather, polar=self.polar, failure=self.failure,
-            apf=float(self.apf), samples=self.samples, beyond=self.beyond, wave_loss=self.wave_loss,
+            lon0,
+            lat0,
+            lon1,
+            lat1,
+            t0_h,
+            departure=self.departure,
+            weather=self.weather,
+            polar=self.polar,
+            failure=self.failure,
+            apf=float(self.apf),
+            samples=self.samples,
+            beyond=self.beyond,
+            wave_loss=self.wave_loss,
         )
 
 
@@ -297,8 +320,10 @@ def forward_dp(
     """
     n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
     if getattr(problem.blocked, "grid", grid) is not grid:
-        raise ValueError("the problem's obstacle mask was built for another grid: build the problem for this grid "
-                         "(Scenario.problem(grid=...))")
+        raise ValueError(
+            "the problem's obstacle mask was built for another grid: build the problem for this grid "
+            "(Scenario.problem(grid=...))"
+        )
     arrival = np.full((n_ranks, n_nodes), np.inf)
     back = np.full((n_ranks, n_nodes), -1, dtype=np.intp)
     finish_h, finish_back = np.inf, -1
@@ -315,7 +340,7 @@ def forward_dp(
     cross_at: tuple[int, int, int, float, float] | None = None
     bound = problem.speed_bound_kn() if problem.prune else None
     prune = bound is not None and bound > 0.0 and problem.n_wait == 0 and not line and cost_hook is None
-    bar = _progress_bar(n_ranks + 1, enabled=progress)
+    bar = progress_bar(n_ranks + 1, enabled=progress)
     try:
         for k in range(n_ranks + 1):
             src, valid = grid.pattern(k)
@@ -401,8 +426,13 @@ def forward_dp(
         bar.close()
     end: dict[str, Any] = {}
     if line:
-        end = {"end_rank": n_ranks, "end_node": 0, "end_src": finish_back, "end_fraction": 1.0,
-               "end_wait_h": 0.0 if wait_into is None else float(wait_into[n_ranks, 0])}
+        end = {
+            "end_rank": n_ranks,
+            "end_node": 0,
+            "end_src": finish_back,
+            "end_fraction": 1.0,
+            "end_wait_h": 0.0 if wait_into is None else float(wait_into[n_ranks, 0]),
+        }
         if cross_at is not None and cross_best < finish_h:
             finish_h = cross_best
             k_c, j_c, i_c, f_c, w_c = cross_at
@@ -424,28 +454,6 @@ def forward_dp(
         wait_h=wait_into,
         **end,
     )
-
-
-def solve(
-    grid: Grid,
-    problem: RoutingProblem,
-    *,
-    progress: bool = False,
-) -> Route:
-    """Find the minimum-time route on the grid that respects the failure model (forward DP).
-
-    Raises
-    ------
-    NoFeasibleRouteError
-        When every path has a forbidden arc; the message says at which rank the front of reachable nodes
-        died and which criteria forbade the arcs there.
-    """
-    from .route import build_route
-
-    result = forward_dp(grid, problem, progress=progress)
-    if result.dead_rank is not None or not np.isfinite(result.finish_h):
-        raise NoFeasibleRouteError(explain_infeasible(grid, problem, result))
-    return build_route(grid, problem, result)
 
 
 def _crossing(grid: Grid, k: int) -> FloatArray:
@@ -525,18 +533,26 @@ def _pruned_costs(
     rest = live & ~first & (lower <= best[:, None])
     if rest.any():
         more = _costs_of(problem, geom, t0, rest)
-        costs = ArcCosts(time_h=np.where(rest, more.time_h, costs.time_h), p_f=np.where(rest, more.p_f, costs.p_f),
-                         reason=np.where(rest, more.reason, costs.reason).astype(np.uint8),
-                         fired_bits=None if costs.fired_bits is None and more.fired_bits is None else np.where(
-                             rest, more.bits(), costs.bits()))
+        costs = ArcCosts(
+            time_h=np.where(rest, more.time_h, costs.time_h),
+            p_f=np.where(rest, more.p_f, costs.p_f),
+            reason=np.where(rest, more.reason, costs.reason).astype(np.uint8),
+            fired_bits=None
+            if costs.fired_bits is None and more.fired_bits is None
+            else np.where(rest, more.bits(), costs.bits()),
+        )
     return costs, first | rest
 
 
 def _costs_of(problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray, pick: BoolArray) -> ArcCosts:
     """Costs of the picked arcs of a block, laid out on the whole block (others: inf, NaN, no flags)."""
     shape = pick.shape
-    sub = ArcGeometry(*(np.broadcast_to(a, shape + (a.shape[-1],))[pick]
-                        for a in (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm)))
+    sub = ArcGeometry(
+        *(
+            np.broadcast_to(a, shape + (a.shape[-1],))[pick]
+            for a in (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm)
+        )
+    )
     c = problem.geometry_costs(sub, np.broadcast_to(t0, shape)[pick])
     time_h = np.full(shape, np.inf)
     p_f = np.full(shape, np.nan)
@@ -553,7 +569,7 @@ def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.date
     """Departure times for obstacle masks that depend on time (None when neither weather nor zones do)."""
     if getattr(problem.weather, "steady", False) and not getattr(problem.blocked, "timed", False):
         return None
-    return _to_datetime(problem.departure, t0)
+    return hours_after(problem.departure, t0)
 
 
 def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[np.datetime64] | None) -> BoolArray:
@@ -574,8 +590,11 @@ def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[
             break
         r = rows[need]
         mm = min(m, width)
-        idx = np.argpartition(tot[r], mm - 1, axis=1)[:, :mm] if mm < width else np.broadcast_to(
-            np.arange(width), (r.size, width))
+        idx = (
+            np.argpartition(tot[r], mm - 1, axis=1)[:, :mm]
+            if mm < width
+            else np.broadcast_to(np.arange(width), (r.size, width))
+        )
         select = np.zeros(tot.shape, dtype=bool)
         select[r[:, None], idx] = True
         select &= np.isfinite(tot)
@@ -625,8 +644,11 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
             parts.append(f"{label} on {n} arcs")
     if n_live == 0:
         detail = "no arc into it starts from a reachable node"
-        earlier = [f"{labels.get(name, 'the failure model (p_f > apf)')} on {n} arcs"
-                   for name, n in result.forbidden_by_reason.items() if n]
+        earlier = [
+            f"{labels.get(name, 'the failure model (p_f > apf)')} on {n} arcs"
+            for name, n in result.forbidden_by_reason.items()
+            if n
+        ]
         if earlier:
             detail += " (the reachable nodes were cut off before: " + "; ".join(earlier) + ")"
         if grid.max_deviation_deg is not None:
@@ -657,7 +679,7 @@ def _coverage_short(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray,
     lat = np.concatenate([ends[1], ends[3]])
     speed = problem.speed_bound_kn()
     sail_h = geodesy.distance_nm(*ends) / speed if speed else np.zeros(ends[0].size)
-    first, last = _to_datetime(problem.departure, np.array([t0[arcs].min(), (t0[arcs] + sail_h).max()]))
+    first, last = hours_after(problem.departure, np.array([t0[arcs].min(), (t0[arcs] + sail_h).max()]))
     lon_range = (float(lon.min()), float(lon.max())) if np.ptp(lon) <= 180.0 else (-180.0, 180.0)
     try:
         problem.weather.check_coverage(lon_range, (float(lat.min()), float(lat.max())), (first, last))
@@ -666,9 +688,7 @@ def _coverage_short(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray,
     return None
 
 
-def _criteria_counts(
-    grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray, arcs: BoolArray
-) -> dict[str, int]:
+def _criteria_counts(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray, arcs: BoolArray) -> dict[str, int]:
     """How many of the given arcs have each failure criterion fired somewhere along them."""
     model = problem.failure
     assert model is not None
@@ -678,31 +698,16 @@ def _criteria_counts(
     frac = (np.arange(problem.samples) + 0.5) / problem.samples
     lon_s, lat_s = geodesy.intermediate_point(a[0][:, None], a[1][:, None], a[2][:, None], a[3][:, None], frac)
     course = geodesy.initial_bearing_deg(lon_s, lat_s, a[2][:, None], a[3][:, None])
-    time = problem.departure if getattr(problem.weather, "steady", False) else _to_datetime(
-        problem.departure, np.broadcast_to(a[4][:, None], lon_s.shape)
+    time = (
+        problem.departure
+        if getattr(problem.weather, "steady", False)
+        else hours_after(problem.departure, np.broadcast_to(a[4][:, None], lon_s.shape))
     )
     cond = problem.weather.sample(lon_s, lat_s, time)
     q = arc_quantities(cond, course)
     fired = np.asarray(model.fired({name: q[name] for name in model.quantities}))
     per_arc = np.asarray(fired.any(axis=-1))
     return {c.describe(): int(per_arc[i].sum()) for i, c in enumerate(model.criteria)}
-
-
-class _NullBar:
-    def update(self, n: int = 1) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-def _progress_bar(total: int, *, enabled: bool, desc: str = "routing", unit: str = "rank") -> Any:
-    """A tqdm bar on a terminal (stderr is a TTY), nothing otherwise."""
-    if not enabled or not sys.stderr.isatty():
-        return _NullBar()
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc=desc, unit=unit, leave=False, file=sys.stderr)
 
 
 def path_costs(

@@ -27,10 +27,10 @@ import shapely
 import shapely.geometry
 from pyproj import CRS, Geod, Transformer
 
-from pyroute_rel import obstacles as ob
-from pyroute_rel import zones as zn
 from pyroute_rel.cli import main
 from pyroute_rel.errors import NoFeasibleRouteError
+from pyroute_rel.obstacles import land as ob
+from pyroute_rel.obstacles import zones as zn
 from pyroute_rel.scenario import scenario_from_mapping
 
 R_KM = 6371.0088
@@ -55,12 +55,14 @@ def globe():
 
 
 def guadeloupe(margin_km: float = 0.0, *, land: bool = True, half_width_km: float = 150.0):
-    return scenario_from_mapping({
-        "route": GUADELOUPE,
-        "grid": {"n_ranks": 40, "aspect": 4.0, "half_width_km": half_width_km},
-        "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
-        "avoid": {"land": land, "margin_km": margin_km},
-    })
+    return scenario_from_mapping(
+        {
+            "route": GUADELOUPE,
+            "grid": {"n_ranks": 40, "aspect": 4.0, "half_width_km": half_width_km},
+            "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+            "avoid": {"land": land, "margin_km": margin_km},
+        }
+    )
 
 
 @pytest.fixture(scope="module")
@@ -182,15 +184,22 @@ twd_deg = 0.0
     return path
 
 
-@pytest.mark.parametrize(("route", "avoid", "expected"), [
-    # Basse-Terre, Guadeloupe (land in both sources: tests/test_obstacles.py)
-    ("start = [-57.0, 16.25]\nfinish = [-61.65, 16.05]", "", "[route].finish [-61.65, 16.05] is on land (GSHHG"),
-    # 5 km east of Barbados (at sea in both sources) but inside a 10 km margin
-    ("start = [-59.4075, 13.2]\nfinish = [-50.0, 13.2]", "margin_km = 10",
-     "[route].start [-59.4075, 13.2] is on land or within margin_km = 10 of a coast"),
-])
-def test_start_or_finish_on_land_exits_2_naming_the_point(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                          globe, route: str, avoid: str, expected: str) -> None:
+@pytest.mark.parametrize(
+    ("route", "avoid", "expected"),
+    [
+        # Basse-Terre, Guadeloupe (land in both sources: tests/test_obstacles.py)
+        ("start = [-57.0, 16.25]\nfinish = [-61.65, 16.05]", "", "[route].finish [-61.65, 16.05] is on land (GSHHG"),
+        # 5 km east of Barbados (at sea in both sources) but inside a 10 km margin
+        (
+            "start = [-59.4075, 13.2]\nfinish = [-50.0, 13.2]",
+            "margin_km = 10",
+            "[route].start [-59.4075, 13.2] is on land or within margin_km = 10 of a coast",
+        ),
+    ],
+)
+def test_start_or_finish_on_land_exits_2_naming_the_point(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], globe, route: str, avoid: str, expected: str
+) -> None:
     path = _scenario_file(tmp_path, route, avoid)
     code = main(["route", str(path), "--out", str(tmp_path / "out"), "--quiet"])
     out, err = capsys.readouterr()
@@ -237,11 +246,14 @@ def test_zone_across_the_course_is_avoided(free_route) -> None:
     assert route.dp.forbidden_by_reason["obstacle"] > 0
 
 
-@pytest.mark.parametrize(("valid_from", "valid_to", "avoided"), [
-    pytest.param("2017-01-01T00:00:00Z", "2017-12-31T23:59:59Z", False, id="only-in-2017"),
-    pytest.param("2018-06-01T00:00:00Z", "2018-06-03T00:00:00Z", False, id="over-before-arrival"),
-    pytest.param("2018-06-03T00:00:00Z", "2018-06-30T00:00:00Z", True, id="active-on-arrival"),
-])
+@pytest.mark.parametrize(
+    ("valid_from", "valid_to", "avoided"),
+    [
+        pytest.param("2017-01-01T00:00:00Z", "2017-12-31T23:59:59Z", False, id="only-in-2017"),
+        pytest.param("2018-06-01T00:00:00Z", "2018-06-03T00:00:00Z", False, id="over-before-arrival"),
+        pytest.param("2018-06-03T00:00:00Z", "2018-06-30T00:00:00Z", True, id="active-on-arrival"),
+    ],
+)
 def test_zone_time_window(tmp_path: Path, free_route, valid_from: str, valid_to: str, avoided: bool) -> None:
     doc = json.loads(ZONE_FILE.read_text())
     doc["features"][0]["properties"].update(valid_from=valid_from, valid_to=valid_to)
@@ -251,7 +263,8 @@ def test_zone_time_window(tmp_path: Path, free_route, valid_from: str, valid_to:
     # precondition: the free route reaches the zone after 3 June 2018
     first = int(np.argmax(_zone_hits(free_route, zone)))
     assert free_route.departure + np.timedelta64(int(free_route.elapsed_h[first] * 3600), "s") > np.datetime64(
-        "2018-06-03")
+        "2018-06-03"
+    )
     route = _control(path).route()
     if avoided:
         assert not _zone_hits(route, zone).any()
@@ -269,8 +282,22 @@ def test_zone_time_window(tmp_path: Path, free_route, valid_from: str, valid_to:
 
 def test_real_course_example_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str], globe) -> None:
     out = tmp_path / "out"
-    code = main(["route", str(REAL), "--n-ranks", "40", "--aspect", "3", "--half-width-km", "600",
-                 "--json", "--quiet", "--out", str(out)])
+    code = main(
+        [
+            "route",
+            str(REAL),
+            "--n-ranks",
+            "40",
+            "--aspect",
+            "3",
+            "--half-width-km",
+            "600",
+            "--json",
+            "--quiet",
+            "--out",
+            str(out),
+        ]
+    )
     stdout, err = capsys.readouterr()
     assert code == 0, err
     d = json.loads(stdout)
@@ -306,13 +333,16 @@ def test_real_course_example_end_to_end(tmp_path: Path, capsys: pytest.CaptureFi
     assert json.loads((out / "summary.json").read_text())["voyage_time_h"] == pytest.approx(d["voyage_time_h"])
 
 
-@pytest.mark.parametrize("window", [("2018-06-03T00:00:00Z", "2018-06-30T00:00:00Z"),
-                                    ("2018-06-01T00:00:00Z", "2018-06-03T00:00:00Z")], ids=["active", "over"])
+@pytest.mark.parametrize(
+    "window",
+    [("2018-06-03T00:00:00Z", "2018-06-30T00:00:00Z"), ("2018-06-01T00:00:00Z", "2018-06-03T00:00:00Z")],
+    ids=["active", "over"],
+)
 def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window, monkeypatch) -> None:
     # three independent ways to the same DP: the default sweep (every arc by rank-pair shadows, module strips),
     # the lazy arc-by-arc test of only the arcs the solver would pick (land and zones, a zone's window applied at
     # departure), and the eager path of a run with a cost hook, which masks every arc of every rank first
-    from pyroute_rel.avoid import ObstacleMask
+    from pyroute_rel.obstacles.mask import ObstacleMask
     from pyroute_rel.solve import forward_dp
 
     doc = json.loads(ZONE_FILE.read_text())

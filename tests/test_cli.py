@@ -26,8 +26,14 @@ def test_route_json_contract(capsys: pytest.CaptureFixture[str]) -> None:
     code, out, err = run(["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land", "--no-prune"], capsys)
     assert code == 0, err
     d = json.loads(out)
-    for key, typ in [("voyage_time_h", float), ("distance_nm", float), ("departure", str), ("arrival", str),
-                     ("max_failure_probability", float), ("voyage_failure_probability", float)]:
+    for key, typ in [
+        ("voyage_time_h", float),
+        ("distance_nm", float),
+        ("departure", str),
+        ("arrival", str),
+        ("max_failure_probability", float),
+        ("voyage_failure_probability", float),
+    ]:
         assert isinstance(d[key], typ), key
     assert d["grid"]["n_ranks"] == 21 and d["grid"]["n_nodes"] == 21 and d["grid"]["spacing_km"] > 0
     assert d["arcs"]["evaluated"] == 21 + 20 * 21 * 21 + 21
@@ -89,29 +95,43 @@ GOOD = EXAMPLE.read_text()
         (lambda d: d / "missing.toml", "scenario file not found"),
         (lambda d: write(d, GOOD.replace("n_nodes = 160", "n_nodez = 160")), "unknown key 'n_nodez'"),
         (lambda d: write(d, GOOD.replace("finish = [-60.0, 17.5]", "finish = [-12.0, 45.0]")), "are the same point"),
-        (lambda d: write(d, GOOD.replace('departure = "2018-06-01T00:00:00Z"', 'departure = "June 1st"')),
-         "ISO 8601"),
+        (lambda d: write(d, GOOD.replace('departure = "2018-06-01T00:00:00Z"', 'departure = "June 1st"')), "ISO 8601"),
         (lambda d: write(d, GOOD.replace("apf = 1.0", "apf = 1.5")), r"\[failure\].apf must be a probability"),
         (lambda d: write(d, GOOD.replace("start = [-12.0, 45.0]", "start = [-12.0, 95.0]")), "latitude"),
         (lambda d: write(d, GOOD.replace("n_ranks = 160", "n_ranks = 0")), r"n_ranks must be >= 1"),
         (lambda d: write(d, GOOD + "\n[extra]\nx = 1\n"), r"unknown table \[extra\]"),
         (lambda d: write(d, "[route\nstart = 1"), "not valid TOML"),
         # QA: these named no field before
-        (lambda d: write(d, GOOD.replace("[route]", "[route]\ntime_step_h = 100", 1)),
-         r"s\.toml: \[route\]\.time_step_h must be in \(0, 48\] \[h\] \(got 100\)"),
-        (lambda d: write(d, GOOD.replace("[route]", "[route]\ntime_step_h = 0.01\nmax_wait_h = 5000", 1)),
-         r"\[route\]\.max_wait_h / \[route\]\.time_step_h must be at most 10000"),
+        (
+            lambda d: write(d, GOOD.replace("[route]", "[route]\ntime_step_h = 100", 1)),
+            r"s\.toml: \[route\]\.time_step_h must be in \(0, 48\] \[h\] \(got 100\)",
+        ),
+        (
+            lambda d: write(d, GOOD.replace("[route]", "[route]\ntime_step_h = 0.01\nmax_wait_h = 5000", 1)),
+            r"\[route\]\.max_wait_h / \[route\]\.time_step_h must be at most 10000",
+        ),
         (lambda d: write(d, GOOD.replace("[grid]", "[grid]\naspect = 1e6", 1)), r"\[grid\]\.aspect .* \(got 1e\+06\)"),
-        (lambda d: write(d, GOOD.replace('model = "dickson2018"', 'model = "nope.toml"')),
-         r"s\.toml: \[failure\]\.model 'nope\.toml': .*nope\.toml: file not found"),
-        (lambda d: write(d, GOOD.split("[weather]")[0] + '[weather]\nkind = "file"\npaths = ["."]\n'),
-         r"is a folder: list the NetCDF or GRIB files in it under \[weather\]\.paths"),
-        (lambda d: write(d, GOOD.replace('polar = "maribot_vane"', 'polar = "bad.pol"'))
-         and write(d, "TWA\\TWS\t8\t4\n45\t1\t2\n90\t1\t2\n", "bad.pol") and d / "s.toml", "increasing"),
+        (
+            lambda d: write(d, GOOD.replace('model = "dickson2018"', 'model = "nope.toml"')),
+            r"s\.toml: \[failure\]\.model 'nope\.toml': .*nope\.toml: file not found",
+        ),
+        (
+            lambda d: write(d, GOOD.split("[weather]")[0] + '[weather]\nkind = "file"\npaths = ["."]\n'),
+            r"is a folder: list the NetCDF or GRIB files in it under \[weather\]\.paths",
+        ),
+        (
+            lambda d: (
+                write(d, GOOD.replace('polar = "maribot_vane"', 'polar = "bad.pol"'))
+                and write(d, "TWA\\TWS\t8\t4\n45\t1\t2\n90\t1\t2\n", "bad.pol")
+                and d / "s.toml"
+            ),
+            "increasing",
+        ),
     ],
 )
-def test_bad_input_exit_2_one_line_no_output(tmp_path: Path, capsys: pytest.CaptureFixture[str], make,
-                                             message: str) -> None:
+def test_bad_input_exit_2_one_line_no_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], make, message: str
+) -> None:
     scenario = make(tmp_path)
     out = tmp_path / "out"
     code, stdout, err = run(["route", str(scenario), "--out", str(out), "--quiet"], capsys)
@@ -125,8 +145,9 @@ def test_bad_input_exit_2_one_line_no_output(tmp_path: Path, capsys: pytest.Capt
     assert not out.exists() or not any(out.iterdir())
 
 
-def test_start_on_land_and_everything_forbidden_are_explained(tmp_path: Path,
-                                                                capsys: pytest.CaptureFixture[str]) -> None:
+def test_start_on_land_and_everything_forbidden_are_explained(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "out"
     on_land = write(tmp_path, GOOD.replace("start = [-12.0, 45.0]", "start = [2.35, 48.85]"))  # Paris
     code, _, err = run(["route", str(on_land), "--out", str(out), "--quiet"], capsys)
@@ -161,14 +182,16 @@ def test_usage_error_is_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_console_script_runs_as_a_subprocess(tmp_path: Path) -> None:
-    proc = subprocess.run([sys.executable, "-m", "pyroute_rel.cli", "route", str(tmp_path / "nope.toml")],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "pyroute_rel.cli", "route", str(tmp_path / "nope.toml")], capture_output=True, text=True
+    )
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and "not found" in proc.stderr
 
 
-def test_bad_thread_count_in_the_environment_is_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+def test_bad_thread_count_in_the_environment_is_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     monkeypatch.setenv("PYROUTE_REL_THREADS", "two")
     out = tmp_path / "out"
     code, _, err = run(["route", str(write(tmp_path, GOOD)), "--out", str(out), "--quiet"], capsys)
@@ -182,8 +205,12 @@ def test_route_prune_must_be_a_boolean() -> None:
     from pyroute_rel.scenario import scenario_from_mapping
 
     with pytest.raises(ScenarioError, match=r"\[route\]\.prune must be true or false \(got 'yes'\)"):
-        scenario_from_mapping({"route": {"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "prune": "yes"},
-                               "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0}})
+        scenario_from_mapping(
+            {
+                "route": {"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "prune": "yes"},
+                "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+            }
+        )
 
 
 def test_departure_sweep_routes_each_departure_like_a_single_route(capsys) -> None:
@@ -211,8 +238,22 @@ def test_out_that_cannot_be_a_folder_is_refused_before_routing(tmp_path, capsys)
         err = capsys.readouterr().err.strip()
         assert err.count("\n") == 0 and "--out" in err and "is a file, not a folder" in err
     assert a_file.read_text() == "x"
-    assert main(["route", str(EXAMPLE), "--n-ranks", "10", "--quiet", "--departures", "2018-06-01T00:00:00Z",
-                 "--out", str(tmp_path / "o")]) == 2
+    assert (
+        main(
+            [
+                "route",
+                str(EXAMPLE),
+                "--n-ranks",
+                "10",
+                "--quiet",
+                "--departures",
+                "2018-06-01T00:00:00Z",
+                "--out",
+                str(tmp_path / "o"),
+            ]
+        )
+        == 2
+    )
     assert "--departures" in capsys.readouterr().err and not (tmp_path / "o").exists()
 
 
@@ -258,7 +299,8 @@ def test_n_nodes_note_only_for_the_command_line_option(capsys) -> None:
 
 def test_write_outputs_without_a_plot_leaves_no_stale_map(tmp_path) -> None:
     from pyroute_rel.errors import OutputError, ScenarioError
-    from pyroute_rel.route import write_outputs, write_together
+    from pyroute_rel.files import write_together
+    from pyroute_rel.outputs import write_outputs
     from pyroute_rel.scenario import load_scenario
 
     route = load_scenario(EXAMPLE).with_options(n_ranks=10, land=False).route()

@@ -9,15 +9,21 @@ from hypothesis import strategies as st
 from pyproj import Geod  # at import: pyproj loaded after cfgrib/ecCodes cannot find its database (a warning)
 
 from pyroute_rel import geodesy
-from pyroute_rel.cost import KN_PER_MS, REASONS, WaveLoss, arc_costs, arc_geometry
+from pyroute_rel.cost import REASONS, WaveLoss, arc_costs, arc_geometry
 from pyroute_rel.failure import load_failure_model
 from pyroute_rel.polar import Polar, get_polar
+from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather import UniformWeather
+from pyroute_rel.weather.readers import weather_from_dataset
 
 DEP = np.datetime64("2018-06-01T00:00")
 # a flat polar: 5 kn at every TWA from 30 deg and every TWS from 4 kn (so speed does not depend on heading)
-FLAT = Polar(name="flat", twa_deg=np.array([0.0, 29.9, 30.0, 180.0]), tws_kn=np.array([0.0, 4.0, 40.0]),
-             speed_kn=np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 5.0, 5.0], [0.0, 5.0, 5.0]]))
+FLAT = Polar(
+    name="flat",
+    twa_deg=np.array([0.0, 29.9, 30.0, 180.0]),
+    tws_kn=np.array([0.0, 4.0, 40.0]),
+    speed_kn=np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 5.0, 5.0], [0.0, 5.0, 5.0]]),
+)
 EAST = (0.0, 0.0, 1.0, 0.0)  # one degree of the equator, course 090
 DIST_NM = float(geodesy.distance_nm(*EAST))
 
@@ -82,8 +88,9 @@ def test_apf_rule_is_p_f_greater_than_apf() -> None:
     assert float(at.p_f) == pytest.approx(0.9) and np.isfinite(at.time_h) and int(at.reason) == 0
     assert np.isinf(below.time_h) and int(below.reason) == REASONS["failure"]
     # head seas too (waves from 090 on a 090 course): both criteria, p_f = 1.0, forbidden below apf 1
-    both = cost(UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=4.0, wave_dir_deg=90.0), polar=polar,
-                failure=model, apf=0.95)
+    both = cost(
+        UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=4.0, wave_dir_deg=90.0), polar=polar, failure=model, apf=0.95
+    )
     assert float(both.p_f) == pytest.approx(1.0) and np.isinf(both.time_h)
     assert np.isfinite(cost(w, polar=polar, failure=model, apf=1.0).time_h)
 
@@ -93,8 +100,9 @@ def test_arc_p_f_is_the_worst_sample_along_it() -> None:
 
     model = load_failure_model("dickson2018")
     # 4 m waves on the eastern quarter of the arc only: one sample of four sees them
-    w = UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=1.0,
-                       patches=(Patch(lon=(0.75, 2.0), lat=(-1.0, 1.0), values={"hs_m": 4.0}),))
+    w = UniformWeather(
+        tws_kn=12.0, twd_deg=0.0, hs_m=1.0, patches=(Patch(lon=(0.75, 2.0), lat=(-1.0, 1.0), values={"hs_m": 4.0}),)
+    )
     assert float(cost(w, failure=model, samples=4).p_f) == pytest.approx(0.9)
     assert float(cost(w, failure=model, samples=1).p_f) == pytest.approx(0.0)  # the midpoint misses it
 
@@ -103,8 +111,10 @@ def test_wave_speed_loss_from_a_scenario() -> None:
     from pyroute_rel.errors import ScenarioError
     from pyroute_rel.scenario import scenario_from_mapping
 
-    base = {"route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0]},
-            "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0, "hs_m": 2.0}}
+    base = {
+        "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0]},
+        "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0, "hs_m": 2.0},
+    }
     sc = scenario_from_mapping({**base, "boat": {"wave_speed_loss": [[0.0, 1.0], [4.0, 0.6]]}})
     assert sc.wave_loss is not None and float(sc.wave_loss.factor(2.0)) == pytest.approx(0.8)
     with pytest.raises(ScenarioError, match=r"\[boat\].wave_speed_loss"):
@@ -131,8 +141,6 @@ def test_forbidden_arcs_record_which_criteria_fired() -> None:
 def _varying_field():
     import xarray as xr
 
-    from pyroute_rel.weather_io import GriddedWeather
-
     lon = np.arange(-40.0, -19.9, 0.5)
     lat = np.arange(20.0, 40.1, 0.5)
     time = np.datetime64("2018-06-01T00") + np.arange(48) * np.timedelta64(1, "h")
@@ -142,10 +150,16 @@ def _varying_field():
     hs = 2.0 + 2.5 * np.cos(la / 3.0 + t / 9.0)
     hs[:, 10:12, 20:23] = np.nan  # an island: arcs next to it are forbidden as missing weather
     dims = ("time", "latitude", "longitude")
-    ds = xr.Dataset({"u10": (dims, -speed * np.sin(frm)), "v10": (dims, -speed * np.cos(frm)), "swh": (dims, hs),
-                     "mwd": (dims, np.degrees(frm) % 360.0)},
-                    coords={"time": time, "latitude": lat, "longitude": lon})
-    return GriddedWeather.from_dataset(ds)
+    ds = xr.Dataset(
+        {
+            "u10": (dims, -speed * np.sin(frm)),
+            "v10": (dims, -speed * np.cos(frm)),
+            "swh": (dims, hs),
+            "mwd": (dims, np.degrees(frm) % 360.0),
+        },
+        coords={"time": time, "latitude": lat, "longitude": lon},
+    )
+    return weather_from_dataset(ds)
 
 
 def test_threads_split_a_block_without_changing_a_number() -> None:
@@ -158,8 +172,13 @@ def test_threads_split_a_block_without_changing_a_number() -> None:
     lon1, lat1 = rng.uniform(-39, -21, (n_dst, 1)), rng.uniform(21, 39, (n_dst, 1))
     geom = arc_geometry(lon0, lat0, lon1, lat1, samples=3)
     t0 = rng.uniform(0.0, 20.0, (n_dst, width))
-    kw = dict(departure=np.datetime64("2018-06-01T00:00"), weather=_varying_field(),
-              polar=get_polar("maribot_vane"), failure=load_failure_model("dickson2018"), apf=0.5)
+    kw = dict(
+        departure=np.datetime64("2018-06-01T00:00"),
+        weather=_varying_field(),
+        polar=get_polar("maribot_vane"),
+        failure=load_failure_model("dickson2018"),
+        apf=0.5,
+    )
     one = geometry_costs(geom, t0, workers=1, **kw)
     three = geometry_costs(geom, t0, workers=3, **kw)
     assert (one.reason & REASONS["failure"]).any() and (one.reason & REASONS["weather"]).any()
@@ -215,14 +234,26 @@ def test_arc_geometry_in_threads_is_the_same() -> None:
 
 
 # a polar whose table starts above 0 kn and above 0 deg, so the light-air and no-go rules both apply
-_OFFSET_POLAR = Polar("offset", twa_deg=[35.0, 60.0, 90.0, 130.0, 165.0], tws_kn=[3.0, 8.0, 14.0, 22.0],
-                      speed_kn=[[0.5, 1.5, 2.5, 3.0], [1.0, 2.5, 3.5, 4.0], [1.2, 3.0, 4.2, 4.8],
-                                [1.0, 2.8, 4.0, 4.6], [0.6, 2.0, 3.2, 3.9]])
+_OFFSET_POLAR = Polar(
+    "offset",
+    twa_deg=[35.0, 60.0, 90.0, 130.0, 165.0],
+    tws_kn=[3.0, 8.0, 14.0, 22.0],
+    speed_kn=[
+        [0.5, 1.5, 2.5, 3.0],
+        [1.0, 2.5, 3.5, 4.0],
+        [1.2, 3.0, 4.2, 4.8],
+        [1.0, 2.8, 4.0, 4.6],
+        [0.6, 2.0, 3.2, 3.9],
+    ],
+)
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), polar_name=st.sampled_from(["maribot_vane", "offset"]),
-       beyond=st.sampled_from(["clamp", "forbid"]))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    polar_name=st.sampled_from(["maribot_vane", "offset"]),
+    beyond=st.sampled_from(["clamp", "forbid"]),
+)
 def test_compiled_wind_kernel_is_bit_identical_to_numpy(seed, polar_name, beyond) -> None:
     """The compiled TWA, polar speed and sub-segment times (gridded weather, wind only) are exactly the numpy
     kernel's: inside and outside the polar table, on its nodes, in calm and missing wind."""
@@ -241,8 +272,15 @@ def test_compiled_wind_kernel_is_bit_identical_to_numpy(seed, polar_name, beyond
     twd[rng.random(tws.size) < 0.01] = np.nan
     seg = rng.uniform(0.0, 40.0, tws.size)
     nan = np.full(tws.size, np.nan)
-    cond = Conditions(tws_kn=tws, twd_deg=twd, hs_m=nan, wave_dir_deg=nan, wave_period_s=nan,
-                      current_u_ms=np.zeros(tws.size), current_v_ms=np.zeros(tws.size))
+    cond = Conditions(
+        tws_kn=tws,
+        twd_deg=twd,
+        hs_m=nan,
+        wave_dir_deg=nan,
+        wave_period_s=nan,
+        current_u_ms=np.zeros(tws.size),
+        current_v_ms=np.zeros(tws.size),
+    )
     with np.errstate(invalid="ignore"):
         expected = _sample_costs(cond, course, seg, polar, None, 1.0, beyond)[0]
     twa, speed, dt = sail_wind(tws, twd, course, seg, polar, beyond=beyond)
@@ -262,31 +300,46 @@ def test_gridded_uniform_field_costs_like_the_uniform_source(current, wave_loss,
 
     from pyroute_rel import cost_compiled
     from pyroute_rel.cost import geometry_costs
-    from pyroute_rel.weather_io import GriddedWeather
 
     calls = []
     compiled_wind = cost_compiled.sail_wind
     monkeypatch.setattr(cost_compiled, "sail_wind", lambda *a, **k: calls.append(1) or compiled_wind(*a, **k))
 
     tws_kn, twd, hs, wdir = 13.0, 70.0, 2.5, 250.0
-    uniform = UniformWeather(tws_kn=tws_kn, twd_deg=twd, hs_m=hs, wave_dir_deg=wdir, current_u_ms=current[0],
-                             current_v_ms=current[1])
+    uniform = UniformWeather(
+        tws_kn=tws_kn, twd_deg=twd, hs_m=hs, wave_dir_deg=wdir, current_u_ms=current[0], current_v_ms=current[1]
+    )
     lon, lat = np.arange(-45.0, -14.0, 1.0), np.arange(20.0, 41.0, 1.0)
     time = np.datetime64("2018-06-01T00") + np.arange(0, 2000, 6) * np.timedelta64(1, "h")  # outlasts every arc
     ms = tws_kn / KN_PER_MS
     full = np.ones((time.size, lat.size, lon.size))
     dims = ("time", "latitude", "longitude")
-    data = {"u10": (dims, -ms * np.sin(np.radians(twd)) * full), "v10": (dims, -ms * np.cos(np.radians(twd)) * full),
-            "swh": (dims, hs * full), "mwd": (dims, wdir * full)}
+    data = {
+        "u10": (dims, -ms * np.sin(np.radians(twd)) * full),
+        "v10": (dims, -ms * np.cos(np.radians(twd)) * full),
+        "swh": (dims, hs * full),
+        "mwd": (dims, wdir * full),
+    }
     if current != (0.0, 0.0):
         data.update(uo=(dims, current[0] * full), vo=(dims, current[1] * full))
-    gridded = GriddedWeather.from_dataset(xr.Dataset(data, coords={"time": time, "latitude": lat, "longitude": lon}))
+    gridded = weather_from_dataset(xr.Dataset(data, coords={"time": time, "latitude": lat, "longitude": lon}))
     rng = np.random.default_rng(11)
-    geom = arc_geometry(rng.uniform(-40, -20, (1, 60)), rng.uniform(25, 35, (1, 60)),
-                        rng.uniform(-40, -20, (50, 1)), rng.uniform(25, 35, (50, 1)), samples=2)
+    geom = arc_geometry(
+        rng.uniform(-40, -20, (1, 60)),
+        rng.uniform(25, 35, (1, 60)),
+        rng.uniform(-40, -20, (50, 1)),
+        rng.uniform(25, 35, (50, 1)),
+        samples=2,
+    )
     t0 = rng.uniform(0.0, 30.0, (50, 60))
-    kw = dict(departure=np.datetime64("2018-06-01T00:00"), polar=get_polar("maribot_vane"),
-              failure=load_failure_model("dickson2018"), apf=0.5, wave_loss=wave_loss, workers=1)
+    kw = dict(
+        departure=np.datetime64("2018-06-01T00:00"),
+        polar=get_polar("maribot_vane"),
+        failure=load_failure_model("dickson2018"),
+        apf=0.5,
+        wave_loss=wave_loss,
+        workers=1,
+    )
     got = geometry_costs(geom, t0, weather=gridded, **kw)
     assert bool(calls) == (current == (0.0, 0.0) and wave_loss is None)
     ref = geometry_costs(geom, t0, weather=uniform, **kw)
@@ -295,8 +348,16 @@ def test_gridded_uniform_field_costs_like_the_uniform_source(current, wave_loss,
     # missing weather there, as they should
     from pyroute_rel.cost import _sample_costs
 
-    dt = _sample_costs(uniform.sample(geom.lon_deg, geom.lat_deg, kw["departure"]), geom.course_deg, geom.seg_nm,
-                       kw["polar"], None, 1.0, "clamp", wave_loss)[0]
+    dt = _sample_costs(
+        uniform.sample(geom.lon_deg, geom.lat_deg, kw["departure"]),
+        geom.course_deg,
+        geom.seg_nm,
+        kw["polar"],
+        None,
+        1.0,
+        "clamp",
+        wave_loss,
+    )[0]
     last_sample_h = t0 + dt[..., 0] + 0.5 * dt[..., 1]
     late = np.isfinite(ref.time_h) & (last_sample_h > 1998.0 + 1e-6)
     assert np.all(got.reason[late] & REASONS["weather"])
@@ -312,8 +373,11 @@ def test_arc_costs_refuses_samples_and_apf_it_cannot_use() -> None:
     from pyroute_rel.polar import get_polar
     from pyroute_rel.weather import UniformWeather
 
-    kw = {"departure": np.datetime64("2018-06-01T00:00"), "weather": UniformWeather(tws_kn=12.0, twd_deg=0.0),
-          "polar": get_polar("maribot_vane")}
+    kw = {
+        "departure": np.datetime64("2018-06-01T00:00"),
+        "weather": UniformWeather(tws_kn=12.0, twd_deg=0.0),
+        "polar": get_polar("maribot_vane"),
+    }
     with pytest.raises(ScenarioError, match=r"samples must be a whole number >= 1"):
         arc_costs(0.0, 0.0, 1.0, 0.0, 0.0, samples=0, **kw)  # was time inf with reason 0 ("ok")
     with pytest.raises(ScenarioError, match=r"samples must be a whole number >= 1"):

@@ -47,8 +47,12 @@ def test_start_line_starts_on_the_line_and_is_no_slower() -> None:
     line = scenario({"start_line": START_LINE, "finish": [-60.0, 17.5]}).route()
     lon, lat = line.lon_deg[0], line.lat_deg[0]
     assert abs(float(geodesy.cross_track_km(*START_LINE[0], *START_LINE[1], lon, lat))) < 1e-6
-    mid = scenario({"start": [float(v) for v in geodesy.intermediate_point(*START_LINE[0], *START_LINE[1], 0.5)],
-                    "finish": [-60.0, 17.5]}).route()
+    mid = scenario(
+        {
+            "start": [float(v) for v in geodesy.intermediate_point(*START_LINE[0], *START_LINE[1], 0.5)],
+            "finish": [-60.0, 17.5],
+        }
+    ).route()
     assert line.voyage_time_h <= mid.voyage_time_h + 1e-9
 
 
@@ -61,12 +65,12 @@ def test_waypoints_pass_the_marks_and_add_up() -> None:
     # legs solved on their own: the same grids, the second leg departing at the first one's arrival
     grids = whole.leg_grids()
     assert len(grids) == 2 and grids[0].finish == (-30.0, 40.0) and grids[1].start == (-30.0, 40.0)
-    from pyroute_rel.solve import solve
+    from pyroute_rel.route import route_on_grid
 
-    leg1 = solve(grids[0], whole.problem(grid=grids[0]))
-    leg2 = solve(grids[1], whole.with_options(departure=str(leg1.arrival)).problem(grid=grids[1]))
+    leg1 = route_on_grid(grids[0], whole.problem(grid=grids[0]))
+    leg2 = route_on_grid(grids[1], whole.with_options(departure=str(leg1.arrival)).problem(grid=grids[1]))
     with pytest.raises(ValueError, match="another grid"):
-        solve(grids[1], whole.problem(grid=grids[0]))
+        route_on_grid(grids[1], whole.problem(grid=grids[0]))
     assert route.voyage_time_h == pytest.approx(leg1.voyage_time_h + leg2.voyage_time_h, abs=1e-3)
     assert route.elapsed_h[hit[0]] == pytest.approx(leg1.voyage_time_h, rel=1e-9)
     # the summary's grid counts the ranks of both legs and describes each (it described the first leg only)
@@ -75,23 +79,32 @@ def test_waypoints_pass_the_marks_and_add_up() -> None:
     assert [g["n_ranks"] for g in grid["legs"]] == [grids[0].n_ranks, grids[1].n_ranks]
 
 
-@pytest.mark.parametrize("route,match", [
-    ({"start": [-12.0, 45.0], "finish": [-50.0, 17.5], "finish_line": FINISH_LINE}, "must lie on"),
-    ({"start": [-12.0, 45.0], "finish_line": [[-60.0, 10.0], [-60.0, 10.0]]}, "must differ"),
-    ({"start": [-12.0, 45.0], "finish_line": [-60.0, 10.0]}, r"finish_line\[0\] must be \[lon, lat\]"),
-    ({"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "waypoints": [[-30.0, 95.0]]}, r"waypoints\[0\]"),
-    # a start off its start line (QA: it was accepted and routed from the line's end, away from the finish)
-    ({"start": [-10.0, 30.0], "start_line": [[-20.0, 39.0], [-20.0, 41.0]], "finish": [-30.0, 35.0]},
-     r"\[route\]\.start \[-10\.0, 30\.0\] must lie on \[route\]\.start_line \(1355\.\d km off it\)"),
-    # beyond the end of the finish line, though on its great circle
-    ({"start": [-12.0, 45.0], "finish": [-60.0, 30.0], "finish_line": FINISH_LINE}, "must lie on"),
-    ({"start_line": [[-20.0, 35.0], [-20.0, 40.0]], "finish_line": [[-25.0, 37.0], [-15.0, 37.0]]},
-     r"start_line crosses \[route\]\.finish_line"),
-    ({"start": [-180.0, 40.0], "finish": [180.0, 40.0]}, r"are the same point: consecutive marks"),
-    ({"start": [-20.0, 40.0], "finish": [-20.0, 40.000001]}, r"are 0 m apart"),
-    ({"start": [-20.0, 40.0], "finish": [-30.0, 35.0], "waypoints": [[-25.0, 38.0], [-25.0, 38.0]]},
-     r"\[route\]\.waypoints\[0\] \[-25\.0, 38\.0\] and \[route\]\.waypoints\[1\] .* same point"),
-])
+@pytest.mark.parametrize(
+    "route,match",
+    [
+        ({"start": [-12.0, 45.0], "finish": [-50.0, 17.5], "finish_line": FINISH_LINE}, "must lie on"),
+        ({"start": [-12.0, 45.0], "finish_line": [[-60.0, 10.0], [-60.0, 10.0]]}, "must differ"),
+        ({"start": [-12.0, 45.0], "finish_line": [-60.0, 10.0]}, r"finish_line\[0\] must be \[lon, lat\]"),
+        ({"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "waypoints": [[-30.0, 95.0]]}, r"waypoints\[0\]"),
+        # a start off its start line (QA: it was accepted and routed from the line's end, away from the finish)
+        (
+            {"start": [-10.0, 30.0], "start_line": [[-20.0, 39.0], [-20.0, 41.0]], "finish": [-30.0, 35.0]},
+            r"\[route\]\.start \[-10\.0, 30\.0\] must lie on \[route\]\.start_line \(1355\.\d km off it\)",
+        ),
+        # beyond the end of the finish line, though on its great circle
+        ({"start": [-12.0, 45.0], "finish": [-60.0, 30.0], "finish_line": FINISH_LINE}, "must lie on"),
+        (
+            {"start_line": [[-20.0, 35.0], [-20.0, 40.0]], "finish_line": [[-25.0, 37.0], [-15.0, 37.0]]},
+            r"start_line crosses \[route\]\.finish_line",
+        ),
+        ({"start": [-180.0, 40.0], "finish": [180.0, 40.0]}, r"are the same point: consecutive marks"),
+        ({"start": [-20.0, 40.0], "finish": [-20.0, 40.000001]}, r"are 0 m apart"),
+        (
+            {"start": [-20.0, 40.0], "finish": [-30.0, 35.0], "waypoints": [[-25.0, 38.0], [-25.0, 38.0]]},
+            r"\[route\]\.waypoints\[0\] \[-25\.0, 38\.0\] and \[route\]\.waypoints\[1\] .* same point",
+        ),
+    ],
+)
 def test_bad_courses(route: dict, match: str) -> None:
     with pytest.raises(ScenarioError, match=match):
         scenario(route)
@@ -118,14 +131,16 @@ def test_finish_line_crossings_prefilter_is_exact(options) -> None:
 
 
 def test_avoid_and_course_lines_validate_their_arguments() -> None:
-    from pyroute_rel.avoid import Avoid
     from pyroute_rel.errors import GridError
     from pyroute_rel.grid import make_grid
+    from pyroute_rel.obstacles.mask import Avoid
 
-    for kw, match in [({"land": "no"}, "Avoid.land must be True or False"),
-                      ({"margin_km": -1.0}, r"margin_km must be a number of km in \[0, 200\]"),
-                      ({"zones": "zones.geojson"}, "Avoid.zones must be a sequence of Zone"),
-                      ({"resolution": "ultra"}, "Avoid.resolution must be one of")]:
+    for kw, match in [
+        ({"land": "no"}, "Avoid.land must be True or False"),
+        ({"margin_km": -1.0}, r"margin_km must be a number of km in \[0, 200\]"),
+        ({"zones": "zones.geojson"}, "Avoid.zones must be a sequence of Zone"),
+        ({"resolution": "ultra"}, "Avoid.resolution must be one of"),
+    ]:
         with pytest.raises(ScenarioError, match=match):
             Avoid(**kw)
     with pytest.raises(GridError, match=r"finish_line must be two \(lon, lat\) end points"):

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from pyroute_rel.cost import KN_PER_MS
 from pyroute_rel.scenario import load_scenario
+from pyroute_rel.units import KN_PER_MS
 
 TOML = """
 [route]
@@ -70,8 +70,9 @@ def load_uniform():
 
 @pytest.mark.parametrize("lon360", [False, True])
 @pytest.mark.parametrize("lat_descending", [False, True])
-def test_era5_layout_uniform_field_routes_like_the_uniform_scenario(tmp_path: Path, uniform_time: float,
-                                                                   lon360: bool, lat_descending: bool) -> None:
+def test_era5_layout_uniform_field_routes_like_the_uniform_scenario(
+    tmp_path: Path, uniform_time: float, lon360: bool, lat_descending: bool
+) -> None:
     era5_file(tmp_path / "era5.nc", lon360=lon360, lat_descending=lat_descending)
     (tmp_path / "f.toml").write_text(TOML.format(weather='kind = "file"\npaths = ["era5.nc"]'))
     route = load_scenario(tmp_path / "f.toml").route()
@@ -84,8 +85,9 @@ def test_departure_after_the_file_is_a_coverage_error(tmp_path: Path, capsys: py
     from pyroute_rel.cli import main
 
     era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
-    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace("2018-06-01T00:00:00Z",
-                                                                           "2018-09-01T00:00:00Z")
+    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace(
+        "2018-06-01T00:00:00Z", "2018-09-01T00:00:00Z"
+    )
     (tmp_path / "late.toml").write_text(text)
     out = tmp_path / "out"
     code = main(["route", str(tmp_path / "late.toml"), "--out", str(out), "--quiet"])
@@ -99,16 +101,18 @@ def test_start_outside_the_file_is_a_coverage_error(tmp_path: Path) -> None:
     from pyroute_rel.errors import WeatherCoverageError
 
     era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
-    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace("start = [-12.0, 45.0]",
-                                                                           "start = [-12.0, 65.0]")
+    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace(
+        "start = [-12.0, 45.0]", "start = [-12.0, 65.0]"
+    )
     (tmp_path / "north.toml").write_text(text)
     with pytest.raises(WeatherCoverageError, match="era5.nc"):
         load_scenario(tmp_path / "north.toml").route()
 
 
 @pytest.mark.parametrize("damage,needle", [("nan", "NaN"), ("corrupt", "era5.nc")])
-def test_bad_weather_file_exit_2_one_line_no_output(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                    damage: str, needle: str) -> None:
+def test_bad_weather_file_exit_2_one_line_no_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], damage: str, needle: str
+) -> None:
     from pyroute_rel.cli import main
 
     path = era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
@@ -130,8 +134,9 @@ def test_bad_weather_file_exit_2_one_line_no_output(tmp_path: Path, capsys: pyte
     assert not out.exists()
 
 
-def test_departure_sweep_reports_an_uncovered_departure_as_a_row(tmp_path: Path,
-                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+def test_departure_sweep_reports_an_uncovered_departure_as_a_row(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """One departure outside the file's time range is a 'no route' row; the others still route (QA: it aborted)."""
     import json
 
@@ -139,8 +144,16 @@ def test_departure_sweep_reports_an_uncovered_departure_as_a_row(tmp_path: Path,
 
     era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
     (tmp_path / "f.toml").write_text(TOML.format(weather='kind = "file"\npaths = ["era5.nc"]'))
-    code = main(["route", str(tmp_path / "f.toml"), "--quiet", "--json",
-                 "--departures", "2018-06-01T00:00:00Z,2019-01-01T00:00:00Z"])
+    code = main(
+        [
+            "route",
+            str(tmp_path / "f.toml"),
+            "--quiet",
+            "--json",
+            "--departures",
+            "2018-06-01T00:00:00Z,2019-01-01T00:00:00Z",
+        ]
+    )
     rows = json.loads(capsys.readouterr().out)["departures"]
     assert code == 0 and [r["feasible"] for r in rows] == [True, False]
     assert "era5.nc" in rows[1]["reason"] and "2018-07" in rows[1]["reason"]
@@ -152,8 +165,9 @@ def test_voyage_outlasting_the_file_says_so(tmp_path: Path, capsys: pytest.Captu
     from pyroute_rel.cli import main
 
     era5_file(tmp_path / "era5.nc", lon360=False, lat_descending=False)
-    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace("2018-06-01T00:00:00Z",
-                                                                           "2018-07-15T00:00:00Z")
+    text = TOML.format(weather='kind = "file"\npaths = ["era5.nc"]').replace(
+        "2018-06-01T00:00:00Z", "2018-07-15T00:00:00Z"
+    )
     (tmp_path / "late.toml").write_text(text)
     assert main(["route", str(tmp_path / "late.toml"), "--quiet"]) == 2
     err = capsys.readouterr().err

@@ -186,8 +186,13 @@ def multistate_reference(engines):
     return ref
 
 
-_edge_values = {"tws_kn": [25.0, 35.0], "hs_m": [2.5, 4.0], "awd_deg": [45.0, 135.0], "twa_deg": [150.0],
-                "wave_period_s": [8.0]}
+_edge_values = {
+    "tws_kn": [25.0, 35.0],
+    "hs_m": [2.5, 4.0],
+    "awd_deg": [45.0, 135.0],
+    "twa_deg": [150.0],
+    "wave_period_s": [8.0],
+}
 _ranges = {"tws_kn": (0, 60), "hs_m": (0, 12), "awd_deg": (0, 180), "twa_deg": (0, 180), "wave_period_s": (1, 20)}
 
 
@@ -223,8 +228,10 @@ def _with_named_missing_state(tmp: Path) -> Path:
     return folder / "m.toml"
 
 
-@given(st.lists(st.tuples(*[st.one_of(_quantity(q), st.just(math.nan)) for q in _order]), min_size=1, max_size=12),
-       st.sampled_from(["dickson2018", "wind_wave_multistate", "named"]))
+@given(
+    st.lists(st.tuples(*[st.one_of(_quantity(q), st.just(math.nan)) for q in _order]), min_size=1, max_size=12),
+    st.sampled_from(["dickson2018", "wind_wave_multistate", "named"]),
+)
 @settings(max_examples=80, deadline=None)
 def test_kernel_flat_index_equals_reference_classifier(tmp_path_factory, rows, which):
     # the cost kernel's fast path (one comparison per threshold, one flat gather) against the reference
@@ -312,9 +319,11 @@ def test_shipped_tables_equal_a_fresh_pgmpy_compile():
 
 
 def test_first_run_of_a_shipped_model_needs_neither_pgmpy_nor_the_disk_cache(tmp_path):
-    code = ("import json, sys; from pyroute_rel.failure import load_failure_model; "
-            "t = {n: load_failure_model(n).table.tolist() for n in ('dickson2018', 'wind_wave_multistate')}; "
-            "print(json.dumps({'pgmpy': any(k.split('.')[0] == 'pgmpy' for k in sys.modules), 'tables': t}))")
+    code = (
+        "import json, sys; from pyroute_rel.failure import load_failure_model; "
+        "t = {n: load_failure_model(n).table.tolist() for n in ('dickson2018', 'wind_wave_multistate')}; "
+        "print(json.dumps({'pgmpy': any(k.split('.')[0] == 'pgmpy' for k in sys.modules), 'tables': t}))"
+    )
     env = {**os.environ, "PYROUTE_REL_CACHE_DIR": str(tmp_path / "empty")}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     got = json.loads(out.stdout)
@@ -344,10 +353,12 @@ def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
     toml = _copy_model(tmp_path / "m", "wind_wave_multistate")
     first = load_failure_model(toml)
     assert len(list(cache.glob("failure-*.npz"))) == 1
-    code = ("import json, sys; from pyroute_rel.failure import load_failure_model; "
-            f"m = load_failure_model({str(toml)!r}); "
-            "print(json.dumps({'pgmpy': any(k.split('.')[0] == 'pgmpy' for k in sys.modules), "
-            "'table': m.table.tolist(), 'edges': [list(e) for e in m.edges]}))")
+    code = (
+        "import json, sys; from pyroute_rel.failure import load_failure_model; "
+        f"m = load_failure_model({str(toml)!r}); "
+        "print(json.dumps({'pgmpy': any(k.split('.')[0] == 'pgmpy' for k in sys.modules), "
+        "'table': m.table.tolist(), 'edges': [list(e) for e in m.edges]}))"
+    )
     env = {**os.environ, "PYROUTE_REL_CACHE_DIR": str(cache)}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
     got = json.loads(out.stdout)
@@ -392,8 +403,9 @@ def test_editing_a_shipped_model_in_place_is_not_served_the_shipped_table(tmp_pa
     folder.mkdir()
     (folder / "dickson2018.toml").write_text((SHIPPED / "dickson2018.toml").read_text())  # same bytes as shipped
     (folder / "dickson2018.bif").write_text((SHIPPED / "dickson2018.bif").read_text().replace("0.1, 0.9;", "0.3, 0.7;"))
-    np.testing.assert_allclose(load_failure_model(folder / "dickson2018.toml").table, [[0.0, 0.7], [0.7, 1.0]],
-                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(
+        load_failure_model(folder / "dickson2018.toml").table, [[0.0, 0.7], [0.7, 1.0]], rtol=0, atol=1e-15
+    )
 
 
 def test_corrupt_cache_file_is_ignored(tmp_path, monkeypatch):
@@ -433,9 +445,14 @@ def test_cache_false_writes_nothing(tmp_path, monkeypatch):
 # ------------------------------------------------------------------------------------------- other formats
 
 
-@pytest.mark.parametrize(("ext", "writer", "method"), [(".xdsl", "XDSLWriter", "write_xdsl"),
-                                                       (".net", "NETWriter", "write_net"),
-                                                       (".xmlbif", "XMLBIFWriter", "write_xmlbif")])
+@pytest.mark.parametrize(
+    ("ext", "writer", "method"),
+    [
+        (".xdsl", "XDSLWriter", "write_xdsl"),
+        (".net", "NETWriter", "write_net"),
+        (".xmlbif", "XMLBIFWriter", "write_xmlbif"),
+    ],
+)
 def test_other_network_formats_give_the_same_table(tmp_path, ext, writer, method):
     """A network saved by pgmpy's writers for GeNIe, Hugin and XMLBIF compiles to the BIF model's table."""
     with warnings.catch_warnings():
@@ -462,53 +479,148 @@ _MULTI_BIF = (SHIPPED / "wind_wave_multistate.bif").read_text()
 # (id, TOML text, network text, file named in the message, pattern the message must contain)
 _BAD = [
     ("toml_syntax", _DICKSON_TOML.replace('node = "WH"', 'node = "WH'), _DICKSON_BIF, "toml", "TOML syntax error"),
-    ("unknown_key", _DICKSON_TOML.replace('name = "dickson2018"', 'nmae = "x"'), _DICKSON_BIF, "toml",
-     "unknown key 'nmae'"),
-    ("unknown_criterion_key", _DICKSON_TOML.replace('fired = "true"', 'fired = "true"\nthreshhold = 3', 1),
-     _DICKSON_BIF, "toml", r"criteria\[0\] \(WH\): unknown key 'threshhold'"),
-    ("unknown_quantity", _DICKSON_TOML.replace('"hs_m"', '"hs"'), _DICKSON_BIF, "toml",
-     r"'quantity' must be one of \['hs_m'.*\] \(got 'hs'\)"),
+    (
+        "unknown_key",
+        _DICKSON_TOML.replace('name = "dickson2018"', 'nmae = "x"'),
+        _DICKSON_BIF,
+        "toml",
+        "unknown key 'nmae'",
+    ),
+    (
+        "unknown_criterion_key",
+        _DICKSON_TOML.replace('fired = "true"', 'fired = "true"\nthreshhold = 3', 1),
+        _DICKSON_BIF,
+        "toml",
+        r"criteria\[0\] \(WH\): unknown key 'threshhold'",
+    ),
+    (
+        "unknown_quantity",
+        _DICKSON_TOML.replace('"hs_m"', '"hs"'),
+        _DICKSON_BIF,
+        "toml",
+        r"'quantity' must be one of \['hs_m'.*\] \(got 'hs'\)",
+    ),
     ("bad_operator", _DICKSON_TOML.replace('">="', '"=>"'), _DICKSON_BIF, "toml", r"'operator' must be one of"),
     ("missing_fired", _DICKSON_TOML.replace('fired = "true"', "", 1), _DICKSON_BIF, "toml", "missing key 'fired'"),
-    ("fired_not_a_state", _DICKSON_TOML.replace('fired = "true"', 'fired = "yes"', 1), _DICKSON_BIF, "toml",
-     r"'fired' 'yes' is not a state of WH"),
-    ("node_not_in_network", _DICKSON_TOML.replace('node = "WH"', 'node = "HW"'), _DICKSON_BIF, "toml",
-     "node 'HW' is not in the network"),
-    ("target_missing", _DICKSON_TOML.replace('node = "F"', 'node = "FAIL"'), _DICKSON_BIF, "toml",
-     r"\[target\] node 'FAIL' is not in the network"),
-    ("fail_state_missing", _DICKSON_TOML.replace('state = "fail"', 'state = "broken"'), _DICKSON_BIF, "toml",
-     r"\[target\] state 'broken' is not a state of F"),
-    ("no_target_table", _DICKSON_TOML.replace('[target]\nnode = "F"\nstate = "fail"', ""), _DICKSON_BIF, "toml",
-     r"missing table \[target\]"),
-    ("bad_if_missing", _DICKSON_TOML.replace('fired = "true"', 'fired = "true"\nif_missing = "zero"', 1),
-     _DICKSON_BIF, "toml", r"'if_missing' must be one of \['nan', 'prior'\] or a state of WH"),
-    ("wrong_cardinality_bins", _MULTI_TOML.replace("bins = [25.0, 35.0]", "bins = [25.0]"), _MULTI_BIF, "toml",
-     "wrong cardinality: 1 bin edges make 2 bins but node TWS has 3 states"),
-    ("threshold_on_multistate", _MULTI_TOML.replace("bins = [25.0, 35.0]", 'operator = ">="\nthreshold = 25.0\n'
-                                                    'fired = "gale"').replace('nominal = "light"', "", 1),
-     _MULTI_BIF, "toml", "wrong cardinality: a threshold criterion needs a two-state node but TWS has 3 states"),
-    ("bins_not_increasing", _MULTI_TOML.replace("bins = [25.0, 35.0]", "bins = [35.0, 25.0]"), _MULTI_BIF,
-     "toml", "'bins' must be strictly increasing"),
-    ("both_forms", _DICKSON_TOML.replace('fired = "true"', 'fired = "true"\nbins = [1.0]', 1), _DICKSON_BIF,
-     "toml", "either 'operator' and 'threshold'"),
-    ("bad_network_extension", _DICKSON_TOML.replace("dickson2018.bif", "dickson2018.txt"), _DICKSON_BIF, "toml",
-     r"extension must be one of \['.bif'"),
-    ("missing_cpt", _DICKSON_TOML, _DICKSON_BIF.replace("probability ( WD ) {\n  table 0.666667, 0.333333;\n}\n", ""),
-     "bif", "missing CPT: no probability table for WD"),
-    ("not_summing_to_1", _DICKSON_TOML, _DICKSON_BIF.replace("table 0.8, 0.2;", "table 0.8, 0.2001;"), "bif",
-     r"CPT of WH: P\(WH\) = \[0.8, 0.2001\] sums to 1.0001"),
-    ("missing_cpt_row", _DICKSON_TOML, _DICKSON_BIF.replace("  (true, true) 0.0, 1.0;\n", ""), "bif",
-     r"CPT of F: P\(F \| WH=true, WD=true\) = \[0.0, 0.0\] sums to 0"),
+    (
+        "fired_not_a_state",
+        _DICKSON_TOML.replace('fired = "true"', 'fired = "yes"', 1),
+        _DICKSON_BIF,
+        "toml",
+        r"'fired' 'yes' is not a state of WH",
+    ),
+    (
+        "node_not_in_network",
+        _DICKSON_TOML.replace('node = "WH"', 'node = "HW"'),
+        _DICKSON_BIF,
+        "toml",
+        "node 'HW' is not in the network",
+    ),
+    (
+        "target_missing",
+        _DICKSON_TOML.replace('node = "F"', 'node = "FAIL"'),
+        _DICKSON_BIF,
+        "toml",
+        r"\[target\] node 'FAIL' is not in the network",
+    ),
+    (
+        "fail_state_missing",
+        _DICKSON_TOML.replace('state = "fail"', 'state = "broken"'),
+        _DICKSON_BIF,
+        "toml",
+        r"\[target\] state 'broken' is not a state of F",
+    ),
+    (
+        "no_target_table",
+        _DICKSON_TOML.replace('[target]\nnode = "F"\nstate = "fail"', ""),
+        _DICKSON_BIF,
+        "toml",
+        r"missing table \[target\]",
+    ),
+    (
+        "bad_if_missing",
+        _DICKSON_TOML.replace('fired = "true"', 'fired = "true"\nif_missing = "zero"', 1),
+        _DICKSON_BIF,
+        "toml",
+        r"'if_missing' must be one of \['nan', 'prior'\] or a state of WH",
+    ),
+    (
+        "wrong_cardinality_bins",
+        _MULTI_TOML.replace("bins = [25.0, 35.0]", "bins = [25.0]"),
+        _MULTI_BIF,
+        "toml",
+        "wrong cardinality: 1 bin edges make 2 bins but node TWS has 3 states",
+    ),
+    (
+        "threshold_on_multistate",
+        _MULTI_TOML.replace("bins = [25.0, 35.0]", 'operator = ">="\nthreshold = 25.0\nfired = "gale"').replace(
+            'nominal = "light"', "", 1
+        ),
+        _MULTI_BIF,
+        "toml",
+        "wrong cardinality: a threshold criterion needs a two-state node but TWS has 3 states",
+    ),
+    (
+        "bins_not_increasing",
+        _MULTI_TOML.replace("bins = [25.0, 35.0]", "bins = [35.0, 25.0]"),
+        _MULTI_BIF,
+        "toml",
+        "'bins' must be strictly increasing",
+    ),
+    (
+        "both_forms",
+        _DICKSON_TOML.replace('fired = "true"', 'fired = "true"\nbins = [1.0]', 1),
+        _DICKSON_BIF,
+        "toml",
+        "either 'operator' and 'threshold'",
+    ),
+    (
+        "bad_network_extension",
+        _DICKSON_TOML.replace("dickson2018.bif", "dickson2018.txt"),
+        _DICKSON_BIF,
+        "toml",
+        r"extension must be one of \['.bif'",
+    ),
+    (
+        "missing_cpt",
+        _DICKSON_TOML,
+        _DICKSON_BIF.replace("probability ( WD ) {\n  table 0.666667, 0.333333;\n}\n", ""),
+        "bif",
+        "missing CPT: no probability table for WD",
+    ),
+    (
+        "not_summing_to_1",
+        _DICKSON_TOML,
+        _DICKSON_BIF.replace("table 0.8, 0.2;", "table 0.8, 0.2001;"),
+        "bif",
+        r"CPT of WH: P\(WH\) = \[0.8, 0.2001\] sums to 1.0001",
+    ),
+    (
+        "missing_cpt_row",
+        _DICKSON_TOML,
+        _DICKSON_BIF.replace("  (true, true) 0.0, 1.0;\n", ""),
+        "bif",
+        r"CPT of F: P\(F \| WH=true, WD=true\) = \[0.0, 0.0\] sums to 0",
+    ),
     ("bif_garbage", _DICKSON_TOML, "this is not a network", "bif", "network parse failure: no variables found"),
-    ("bif_undeclared", _DICKSON_TOML, _DICKSON_BIF.replace("variable WD {", "variable WX {"), "bif",
-     "network parse failure: KeyError"),
-    ("bif_declared_count", _DICKSON_TOML, _DICKSON_BIF.replace("[ 2 ] { pass, fail }", "[ 3 ] { pass, fail }"),
-     "bif", r"variable F declares \[ 3 \] states but lists 2"),
+    (
+        "bif_undeclared",
+        _DICKSON_TOML,
+        _DICKSON_BIF.replace("variable WD {", "variable WX {"),
+        "bif",
+        "network parse failure: KeyError",
+    ),
+    (
+        "bif_declared_count",
+        _DICKSON_TOML,
+        _DICKSON_BIF.replace("[ 2 ] { pass, fail }", "[ 3 ] { pass, fail }"),
+        "bif",
+        r"variable F declares \[ 3 \] states but lists 2",
+    ),
 ]
 
 
-@pytest.mark.parametrize(("toml_text", "net_text", "named", "pattern"), [b[1:] for b in _BAD],
-                         ids=[b[0] for b in _BAD])
+@pytest.mark.parametrize(("toml_text", "net_text", "named", "pattern"), [b[1:] for b in _BAD], ids=[b[0] for b in _BAD])
 def test_bad_model_files_give_one_line_errors(tmp_path, toml_text, net_text, named, pattern):
     toml = tmp_path / "model.toml"
     toml.write_text(toml_text)

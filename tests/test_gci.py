@@ -1,4 +1,4 @@
-"""Tests of pyroute_rel.gci (grid convergence) and pyroute_rel.gci_plot.
+"""Tests of pyroute_rel.gci.numbers (grid convergence) and pyroute_rel.gci.plot.
 
 References used as independent checks:
 - Celik et al. (2008), J. Fluids Eng. 130(7) 078001, doi:10.1115/1.2960953, Table 1 (worked examples).
@@ -20,7 +20,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from pyroute_rel.errors import ConvergenceError
-from pyroute_rel.gci import (
+from pyroute_rel.gci.numbers import (
     CONVERGENCE_LABELS,
     LeastSquaresResult,
     StudyResult,
@@ -519,7 +519,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"  # PNG specification (ISO/IEC 15948), secti
     ],
 )
 def test_plot_writes_png_atomically(tmp_path, h, phi) -> None:  # noqa: ANN001
-    from pyroute_rel.gci_plot import plot_convergence
+    from pyroute_rel.gci.plot import plot_convergence
 
     out = tmp_path / "convergence.png"
     fig = plot_convergence(convergence_study(h, phi), path=out, title="test")
@@ -534,7 +534,7 @@ def test_plot_without_path_returns_open_figure(tmp_path) -> None:  # noqa: ANN00
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from pyroute_rel.gci_plot import plot_convergence
+    from pyroute_rel.gci.plot import plot_convergence
 
     h = [1.0, 2.0, 4.0]
     fig = plot_convergence(convergence_study(h, [10.0 + v**2 for v in h]), ylabel="phi [h]")
@@ -550,8 +550,11 @@ def test_convergence_study_names_the_callers_options() -> None:
     """With ``names`` (the CLI's options) the messages name them instead of the function and its parameters; the
     result is unchanged."""
     names = ("--h", "--phi", "--safety-factor")
-    with pytest.raises(ConvergenceError, match=r"^--h \(grid spacings\) must be finite and > 0 \(got -1\.0 at value "
-                                               r"1 of 3\)$"):
+    with pytest.raises(
+        ConvergenceError,
+        match=r"^--h \(grid spacings\) must be finite and > 0 \(got -1\.0 at value "
+        r"1 of 3\)$",
+    ):
         convergence_study([-1.0, 2.0, 4.0], [1.0, 2.0, 3.0], names=names)
     with pytest.raises(ConvergenceError, match=r"^--h and --phi need at least 3 values each, one per grid \(got 2\)$"):
         convergence_study([1.0, 2.0], [1.0, 2.0], names=names)
@@ -560,8 +563,10 @@ def test_convergence_study_names_the_callers_options() -> None:
     with pytest.raises(ConvergenceError, match=r"^--safety-factor must be a finite number > 0 \(got -1\)$"):
         convergence_study([1.0, 2.0, 4.0], [1.0, 2.0, 3.0], safety_factor=-1, names=names)
     # values whose differences overflow are refused up front, by every entry point
-    for call in (lambda: convergence_study([1.0, 2.0, 4.0], [1e308, -1e308, 1.0], names=names),
-                 lambda: grid_convergence([1.0, 2.0, 4.0], [1e308, -1e308, 1.0])):
+    for call in (
+        lambda: convergence_study([1.0, 2.0, 4.0], [1e308, -1e308, 1.0], names=names),
+        lambda: grid_convergence([1.0, 2.0, 4.0], [1e308, -1e308, 1.0]),
+    ):
         with pytest.raises(ConvergenceError, match=r"phi'? differences overflow the float range"):
             call()
     h, phi = [1.0, 2.0, 4.0, 8.0], [12.0, 18.0, 42.0, 138.0]
@@ -570,7 +575,7 @@ def test_convergence_study_names_the_callers_options() -> None:
 
 def test_study_levels_refuse_bad_counts_and_sizes() -> None:
     """The routed study's refinement paths validate their inputs, naming the CLI options (QA 1 and 3)."""
-    from pyroute_rel.study import angular_levels, square_levels
+    from pyroute_rel.gci.study import angular_levels, square_levels
 
     with pytest.raises(ConvergenceError, match=r"--n-ranks must be whole numbers >= 1.*got 0"):
         angular_levels(3000.0, [0, 11, 21])

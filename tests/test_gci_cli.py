@@ -59,8 +59,22 @@ def test_gate_exit_codes(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_routed_square_study_equals_routing_each_grid(capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(["gci", "study", str(EXAMPLE), "--n-nodes", "9,13,17", "--apf", "1", "--no-land",
-                          "--failure-model", "none", "--json"], capsys)
+    code, out, err = run(
+        [
+            "gci",
+            "study",
+            str(EXAMPLE),
+            "--n-nodes",
+            "9,13,17",
+            "--apf",
+            "1",
+            "--no-land",
+            "--failure-model",
+            "none",
+            "--json",
+        ],
+        capsys,
+    )
     assert code == 0, err
     d = json.loads(out)
     sc = load_scenario(EXAMPLE).with_options(land=False, failure_model="none")
@@ -74,16 +88,39 @@ def test_routed_square_study_equals_routing_each_grid(capsys: pytest.CaptureFixt
 def test_angular_refinement_converges_where_the_square_grid_does_not(capsys: pytest.CaptureFixture[str]) -> None:
     """Issue acceptance: on the example at apf 0.5 the angular path is monotonic with GCI_fine < 1 %, while the
     paper's square grids stay > 5 % above its extrapolated value (they cannot turn by less than 45 deg)."""
-    code, out, err = run(["gci", "study", str(EXAMPLE), "--refinement", "angular", "--n-ranks", "41,81,161",
-                          "--aspect0", "4", "--max-deviation", "60", "--half-width-km", "1000", "--apf", "0.5",
-                          "--no-land", "--json", "--max-gci", "0.01", "--require-asymptotic"], capsys)
+    code, out, err = run(
+        [
+            "gci",
+            "study",
+            str(EXAMPLE),
+            "--refinement",
+            "angular",
+            "--n-ranks",
+            "41,81,161",
+            "--aspect0",
+            "4",
+            "--max-deviation",
+            "60",
+            "--half-width-km",
+            "1000",
+            "--apf",
+            "0.5",
+            "--no-land",
+            "--json",
+            "--max-gci",
+            "0.01",
+            "--require-asymptotic",
+        ],
+        capsys,
+    )
     assert code == 0, err
     d = json.loads(out)
     assert d["convergence"] == "monotonic" and d["gci_fine"] < 0.01
     spacing = [g["spacing_km"] / g["rank_spacing_km"] for g in d["grids"]]
     assert spacing[0] > spacing[1] > spacing[2]  # lateral spacing shrinks faster than the rank spacing
-    code, out, _ = run(["gci", "study", str(EXAMPLE), "--n-nodes", "41,57,81", "--apf", "0.5", "--no-land",
-                        "--json"], capsys)
+    code, out, _ = run(
+        ["gci", "study", str(EXAMPLE), "--n-nodes", "41,57,81", "--apf", "0.5", "--no-land", "--json"], capsys
+    )
     square = json.loads(out)
     assert all(g["voyage_time_h"] > 1.05 * d["phi_ext"] for g in square["grids"])
 
@@ -114,8 +151,8 @@ wave_dir_deg = 0.0
 model = "dickson2018"
 apf = 1.0
 """
-POINTS = 'start = [-20.0, 40.0]\nfinish = [-30.0, 35.0]'
-LINES = 'start_line = [[-20.0, 39.0], [-20.0, 41.0]]\nfinish_line = [[-30.0, 34.0], [-30.0, 36.0]]'
+POINTS = "start = [-20.0, 40.0]\nfinish = [-30.0, 35.0]"
+LINES = "start_line = [[-20.0, 39.0], [-20.0, 41.0]]\nfinish_line = [[-30.0, 34.0], [-30.0, 36.0]]"
 
 
 def scenario_file(tmp_path: Path, route: str = POINTS, name: str = "sc.toml") -> str:
@@ -141,24 +178,28 @@ def assert_user_error(code: int, err: str, *needles: str) -> None:
         (["--n-nodes", "5,7,9", "--n-ranks", "5,0,9"], ["--n-ranks", "got 0"]),
     ],
 )
-def test_study_refuses_counts_below_one(options: list[str], needles: list[str], tmp_path: Path,
-                                        capsys: pytest.CaptureFixture[str]) -> None:
+def test_study_refuses_counts_below_one(
+    options: list[str], needles: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """QA 1: --n-ranks 0 was a ZeroDivisionError (exit 3); --n-nodes 0 was reported as 'n_ranks'."""
     code, out, err = run(["gci", "study", scenario_file(tmp_path), *options, "--no-land"], capsys)
     assert_user_error(code, err, *needles)
     assert out == ""
 
 
-def test_study_routes_from_the_start_line_to_the_finish_line(tmp_path: Path,
-                                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_study_routes_from_the_start_line_to_the_finish_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """QA 2: the study routed point to point, ignoring [route].start_line / finish_line; each of its grids must give
     the voyage time `pyroute-rel route` gives on the same grid."""
     sc = scenario_file(tmp_path, LINES)
     code, out, err = run(["gci", "study", sc, "--n-nodes", "5,7,9", "--no-land", "--json"], capsys)
     assert code == 0, err
     square = json.loads(out)["grids"]
-    code, out, err = run(["route", sc, "--layout", "square", "--n-nodes", "9", "--n-ranks", "9", "--no-land",
-                          "--json", "--quiet"], capsys)
+    code, out, err = run(
+        ["route", sc, "--layout", "square", "--n-nodes", "9", "--n-ranks", "9", "--no-land", "--json", "--quiet"],
+        capsys,
+    )
     assert code == 0, err
     assert square[-1]["voyage_time_h"] == pytest.approx(json.loads(out)["voyage_time_h"], rel=1e-12)
     # the lines matter: point to point (the old behaviour) is slower on this course by more than 1 h
@@ -166,12 +207,46 @@ def test_study_routes_from_the_start_line_to_the_finish_line(tmp_path: Path,
     grid = make_grid(points.start, points.finish, n_ranks=9, n_nodes=9)
     assert forward_dp(grid, points.problem(grid=grid)).finish_h > square[-1]["voyage_time_h"] + 1.0
     # the angular path too: its finest grid against `route` with the same ranks, spacing, band and half-width
-    code, out, err = run(["gci", "study", sc, "--refinement", "angular", "--n-ranks", "5,9,17", "--aspect0", "2",
-                          "--half-width-km", "200", "--max-deviation", "60", "--no-land", "--json"], capsys)
+    code, out, err = run(
+        [
+            "gci",
+            "study",
+            sc,
+            "--refinement",
+            "angular",
+            "--n-ranks",
+            "5,9,17",
+            "--aspect0",
+            "2",
+            "--half-width-km",
+            "200",
+            "--max-deviation",
+            "60",
+            "--no-land",
+            "--json",
+        ],
+        capsys,
+    )
     assert code == 0, err
     fin = json.loads(out)["grids"][-1]
-    code, out, err = run(["route", sc, "--n-ranks", "17", "--spacing-km", repr(fin["spacing_km"]), "--max-deviation",
-                          "60", "--half-width-km", "200", "--no-land", "--json", "--quiet"], capsys)
+    code, out, err = run(
+        [
+            "route",
+            sc,
+            "--n-ranks",
+            "17",
+            "--spacing-km",
+            repr(fin["spacing_km"]),
+            "--max-deviation",
+            "60",
+            "--half-width-km",
+            "200",
+            "--no-land",
+            "--json",
+            "--quiet",
+        ],
+        capsys,
+    )
     assert code == 0, err
     assert fin["voyage_time_h"] == pytest.approx(json.loads(out)["voyage_time_h"], rel=1e-12)
 
@@ -181,7 +256,7 @@ def test_study_refuses_waypoints_and_a_start_on_land(tmp_path: Path, capsys: pyt
     wp = scenario_file(tmp_path, POINTS + "\nwaypoints = [[-22.0, 36.0], [-27.0, 38.0]]", "wp.toml")
     code, out, err = run(["gci", "study", wp, "--n-nodes", "5,7,9"], capsys)
     assert_user_error(code, err, "[route].waypoints", "gci study does not support", "each leg")
-    land = scenario_file(tmp_path, 'start = [-8.0, 40.0]\nfinish = [-30.0, 35.0]', "land.toml")  # inland Portugal
+    land = scenario_file(tmp_path, "start = [-8.0, 40.0]\nfinish = [-30.0, 35.0]", "land.toml")  # inland Portugal
     code, out, err = run(["gci", "study", land, "--n-nodes", "5,7,9"], capsys)
     assert_user_error(code, err, "[route].start", "on land")
     assert "no feasible route" not in err
@@ -198,20 +273,33 @@ def test_study_refuses_waypoints_and_a_start_on_land(tmp_path: Path, capsys: pyt
         (["--n-nodes", "9,11,13"], ["--n-nodes", "only applies to --refinement square"]),
     ],
 )
-def test_study_validates_the_angular_options(options: list[str], needles: list[str], tmp_path: Path,
-                                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_study_validates_the_angular_options(
+    options: list[str], needles: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """QA 3: --aspect0 -1 was reported as 'n_nodes ... (got -25)', --half-width-km -1 was accepted and --n-nodes
     silently ignored."""
-    code, _, err = run(["gci", "study", scenario_file(tmp_path), "--refinement", "angular", "--n-ranks", "5,9,17",
-                        *options, "--no-land"], capsys)
+    code, _, err = run(
+        [
+            "gci",
+            "study",
+            scenario_file(tmp_path),
+            "--refinement",
+            "angular",
+            "--n-ranks",
+            "5,9,17",
+            *options,
+            "--no-land",
+        ],
+        capsys,
+    )
     assert_user_error(code, err, *needles)
 
 
 @pytest.mark.parametrize("option", [["--aspect0", "4"], ["--half-width-km", "500"], ["--max-deviation", "45"]])
-def test_study_refuses_angular_options_on_square_grids(option: list[str], tmp_path: Path,
-                                                       capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run(["gci", "study", scenario_file(tmp_path), "--n-nodes", "5,7,9", *option, "--no-land"],
-                       capsys)
+def test_study_refuses_angular_options_on_square_grids(
+    option: list[str], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run(["gci", "study", scenario_file(tmp_path), "--n-nodes", "5,7,9", *option, "--no-land"], capsys)
     assert_user_error(code, err, option[0], "only apply to --refinement angular")
 
 
@@ -224,14 +312,17 @@ def test_negative_spacings_reach_the_validation(h_option: list[str], capsys: pyt
 
 @pytest.mark.parametrize(
     ("option", "needle"),
-    [(["--max-gci", "-1"], "--max-gci must be a finite fraction >= 0"),
-     (["--max-gci", "-1e-3"], "--max-gci must be a finite fraction >= 0"),
-     (["--max-gci", "inf"], "--max-gci must be a finite fraction >= 0"),
-     (["--asymptotic-tol", "-1"], "--asymptotic-tol must be a finite number >= 0"),
-     (["--safety-factor", "0"], "--safety-factor must be a finite number > 0")],
+    [
+        (["--max-gci", "-1"], "--max-gci must be a finite fraction >= 0"),
+        (["--max-gci", "-1e-3"], "--max-gci must be a finite fraction >= 0"),
+        (["--max-gci", "inf"], "--max-gci must be a finite fraction >= 0"),
+        (["--asymptotic-tol", "-1"], "--asymptotic-tol must be a finite number >= 0"),
+        (["--safety-factor", "0"], "--safety-factor must be a finite number > 0"),
+    ],
 )
-def test_gate_thresholds_are_validated(option: list[str], needle: str, tmp_path: Path,
-                                       capsys: pytest.CaptureFixture[str]) -> None:
+def test_gate_thresholds_are_validated(
+    option: list[str], needle: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """QA 5: a negative --max-gci or --asymptotic-tol was accepted and the gate then always failed (exit 1)."""
     code, _, err = run(["gci", "--h", "1,2,4", "--phi", "700.3,701.2,704.8", *option], capsys)
     assert_user_error(code, err, needle)
@@ -252,8 +343,9 @@ def test_require_asymptotic_is_a_gate_on_its_own(capsys: pytest.CaptureFixture[s
     assert code == 1 and err.count("\n") == 1 and "not in the asymptotic range" in err
     assert json.loads(out)["gate"]["passed"] is False
     # a tolerance of 0 lets only an exact ratio of 1 through
-    code, _, err = run(["gci", "--h", csv(h), "--phi", csv(mono), "--require-asymptotic", "--asymptotic-tol", "0"],
-                       capsys)
+    code, _, err = run(
+        ["gci", "--h", csv(h), "--phi", csv(mono), "--require-asymptotic", "--asymptotic-tol", "0"], capsys
+    )
     assert code == 1 and "|ratio - 1| <= 0" in err
 
 
@@ -277,19 +369,21 @@ def test_gate_options_before_study_are_not_dropped(tmp_path: Path, capsys: pytes
         ("1,2,4", "1e308,-1e308,1", ["--phi differences overflow"]),
     ],
 )
-def test_given_value_errors_name_the_options(h: str, phi: str, needles: list[str],
-                                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_given_value_errors_name_the_options(
+    h: str, phi: str, needles: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
     """QA 6: messages were prefixed 'convergence_study:' / 'grid_convergence:' instead of naming --h / --phi."""
     code, _, err = run(["gci", "--h", h, "--phi", phi], capsys)
     assert_user_error(code, err, *needles)
     assert "convergence_study" not in err and "grid_convergence" not in err and "'h'" not in err
 
 
-def test_out_that_is_a_file_fails_before_any_work(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+def test_out_that_is_a_file_fails_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """QA 7: --out naming a file (or a folder under a file) was FileExistsError / NotADirectoryError, exit 3, and
     the study found out only after routing every grid."""
-    import pyroute_rel.study
+    import pyroute_rel.gci.study
 
     a_file = tmp_path / "a_file"
     a_file.write_text("keep me", encoding="utf-8")
@@ -300,26 +394,29 @@ def test_out_that_is_a_file_fails_before_any_work(tmp_path: Path, capsys: pytest
     def no_routing(*args: object, **kwargs: object) -> None:
         raise AssertionError("routed before checking --out")
 
-    monkeypatch.setattr(pyroute_rel.study, "forward_dp", no_routing)
-    code, out, err = run(["gci", "study", scenario_file(tmp_path), "--n-nodes", "5,7,9", "--no-land", "--out",
-                          str(a_file / "sub")], capsys)
+    monkeypatch.setattr(pyroute_rel.gci.study, "forward_dp", no_routing)
+    code, out, err = run(
+        ["gci", "study", scenario_file(tmp_path), "--n-nodes", "5,7,9", "--no-land", "--out", str(a_file / "sub")],
+        capsys,
+    )
     assert_user_error(code, err, "--out", "is a file, not a folder")
     assert out == "" and a_file.read_text(encoding="utf-8") == "keep me"
 
 
-def test_a_failed_write_is_an_output_error_and_leaves_nothing(tmp_path: Path, capsys: pytest.CaptureFixture[str],
-                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_failed_write_is_an_output_error_and_leaves_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """QA 7: an OSError while writing the outputs is a one-line OutputError (exit 2), with no partial file set."""
     import errno
 
-    import pyroute_rel.gci_plot
+    import pyroute_rel.gci.plot
 
-    real_plot = pyroute_rel.gci_plot.plot_convergence
+    real_plot = pyroute_rel.gci.plot.plot_convergence
 
     def full_disk(*args: object, **kwargs: object) -> None:
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(pyroute_rel.gci_plot, "plot_convergence", full_disk)
+    monkeypatch.setattr(pyroute_rel.gci.plot, "plot_convergence", full_disk)
     args = ["gci", "--h", "1,2,4", "--phi", "700.3,701.2,704.8"]
     code, _, err = run([*args, "--out", str(tmp_path / "new")], capsys)
     assert_user_error(code, err, "--out", "No space left on device")
@@ -328,7 +425,7 @@ def test_a_failed_write_is_an_output_error_and_leaves_nothing(tmp_path: Path, ca
     code, _, err = run([*args, "--out", str(tmp_path / "old")], capsys)
     assert_user_error(code, err, "--out")
     assert list((tmp_path / "old").iterdir()) == []  # no gci.csv / gci.json without gci.png, no staging folder
-    monkeypatch.setattr(pyroute_rel.gci_plot, "plot_convergence", real_plot)
+    monkeypatch.setattr(pyroute_rel.gci.plot, "plot_convergence", real_plot)
     code, _, err = run([*args, "--out", str(tmp_path / "old")], capsys)
     assert code == 0, err
     assert sorted(p.name for p in (tmp_path / "old").iterdir()) == ["gci.csv", "gci.json", "gci.png"]

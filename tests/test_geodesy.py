@@ -104,11 +104,13 @@ def test_latitudes_off_the_globe_are_refused() -> None:
     from pyroute_rel.errors import CoordinateError
 
     # distance_km(0, 91, 1, 0) returned 10118.7 km
-    for call in (lambda: geodesy.distance_km(0.0, 91.0, 1.0, 0.0),
-                 lambda: geodesy.initial_bearing_deg(0.0, 0.0, 1.0, -90.5),
-                 lambda: geodesy.to_xyz([0.0, 1.0], [0.0, 95.0]),
-                 lambda: geodesy.destination_point(0.0, 120.0, 90.0, 10.0),
-                 lambda: geodesy.cross_track_km(0.0, 0.0, 10.0, 0.0, 5.0, 91.0)):
+    for call in (
+        lambda: geodesy.distance_km(0.0, 91.0, 1.0, 0.0),
+        lambda: geodesy.initial_bearing_deg(0.0, 0.0, 1.0, -90.5),
+        lambda: geodesy.to_xyz([0.0, 1.0], [0.0, 95.0]),
+        lambda: geodesy.destination_point(0.0, 120.0, 90.0, 10.0),
+        lambda: geodesy.cross_track_km(0.0, 0.0, 10.0, 0.0, 5.0, 91.0),
+    ):
         with pytest.raises(CoordinateError, match=r"latitude must be in \[-90, 90\] \[deg\]"):
             call()
     assert np.isnan(geodesy.distance_km(0.0, np.nan, 1.0, 0.0))  # NaN passes through, as documented

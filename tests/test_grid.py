@@ -66,8 +66,9 @@ def test_all_to_all_arc_count_and_networkx_export() -> None:
 @settings(max_examples=60, deadline=None)
 def test_banded_arcs_respect_max_deviation(n: int, dev: float, aspect: float) -> None:
     g0 = make_grid(START_PT, FINISH_PT, n_ranks=30, n_nodes=n)
-    g = make_grid(START_PT, FINISH_PT, n_ranks=30, n_nodes=n, spacing_km=g0.rank_spacing_km / aspect,
-                  max_deviation_deg=dev)
+    g = make_grid(
+        START_PT, FINISH_PT, n_ranks=30, n_nodes=n, spacing_km=g0.rank_spacing_km / aspect, max_deviation_deg=dev
+    )
     k_max = math.tan(math.radians(dev)) * g.rank_spacing_km / g.spacing_km
     j = np.arange(n)[:, None]
     di = np.abs(g.src_index - j)
@@ -115,13 +116,16 @@ def test_plan_grid_layouts() -> None:
     sq = plan_grid(START_PT, FINISH_PT, layout="square", n_ranks=40, n_nodes=41)
     assert (sq.n_ranks, sq.n_nodes, sq.band) == (40, 41, 40) and sq.aspect == pytest.approx(1.0)
     # angular: the lateral spacing is the rank spacing / aspect, n_nodes (a square-layout setting) is not used
-    ang = plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=41, aspect=4.0, half_width_km=sq.half_width_km,
-                    max_deviation_deg=45.0)
+    ang = plan_grid(
+        START_PT, FINISH_PT, n_ranks=40, n_nodes=41, aspect=4.0, half_width_km=sq.half_width_km, max_deviation_deg=45.0
+    )
     assert ang.half_width_km == pytest.approx(sq.half_width_km, rel=1e-9)
     assert ang.spacing_km == pytest.approx(sq.spacing_km / 4.0)
     assert ang.n_nodes == 4 * 40 + 1 and ang.band == 4
-    assert plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=41).n_nodes == \
-        plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=7).n_nodes
+    assert (
+        plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=41).n_nodes
+        == plan_grid(START_PT, FINISH_PT, n_ranks=40, n_nodes=7).n_nodes
+    )
     # explicit half-width: nodes cover at least it, the great circle on the middle node
     hw = plan_grid(START_PT, FINISH_PT, n_ranks=40, aspect=3.0, half_width_km=1000.0)
     assert hw.half_width_km >= 1000.0 > hw.half_width_km - hw.spacing_km and hw.n_nodes % 2 == 1

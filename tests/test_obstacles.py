@@ -1,4 +1,4 @@
-"""Tests of pyroute_rel.obstacles: land, coastal margins and exclusion zones.
+"""Tests of pyroute_rel.obstacles.land: land, coastal margins and exclusion zones.
 
 Independent references used here:
 - land/sea: the GLOBE 30-arc-second land mask of the ``global-land-mask`` package (NOAA GLOBE DEM,
@@ -20,9 +20,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pyproj import Geod
 
-from pyroute_rel import obstacles as ob
-from pyroute_rel import zones as zn
 from pyroute_rel.errors import GridError, ScenarioError
+from pyroute_rel.obstacles import land as ob
+from pyroute_rel.obstacles import zones as zn
 
 R_KM = 6371.0088
 SPHERE = Geod(a=R_KM * 1000.0, b=R_KM * 1000.0)
@@ -288,7 +288,7 @@ def test_gc_densify_matches_proj_great_circle(lon0, lat0, lon1, lat1, step):
     if length > 0.95 * np.pi * R_KM:  # near-antipodal: no unique great circle
         return
     a = [np.array([v]) for v in (lon0, lat0, lon1, lat1)]
-    lon, lat, arc = ob._gc_densify(*a, max_step_km=step)
+    lon, lat, arc = ob.gc_densify(*a, max_step_km=step)
     assert (arc == 0).all()
     assert (lon[0], lat[0], lat[-1]) == (lon0, lat0, lat1)
     assert (lon[-1] - lon1) % 360.0 == pytest.approx(0.0, abs=1e-9) or (lon[-1] - lon1) % 360.0 == pytest.approx(
@@ -311,7 +311,7 @@ def test_cap_box_holds_the_whole_arc(lon0, lat0, az, dist):
     a = [np.array([v], dtype=float) for v in (lon0, lat0, lon1, lat1)]
     (w, s, e, n), _, lon_m, lat_m, length = ob._caps(ob._xyz(a[0], a[1]), ob._xyz(a[2], a[3]))
     assert length[0] == pytest.approx(dist, rel=1e-9, abs=1e-6)
-    lon, lat, _ = ob._gc_densify(*a, max_step_km=1.0)
+    lon, lat, _ = ob.gc_densify(*a, max_step_km=1.0)
     assert (lat >= s[0]).all() and (lat <= n[0]).all()
     # the box longitudes are continuous around the midpoint; compare on that branch
     rel = (lon - lon_m[0] + 180.0) % 360.0 - 180.0 + lon_m[0]
@@ -322,7 +322,7 @@ def test_two_km_chords_stay_within_a_metre_of_the_great_circle():
     # module notes: a lon/lat chord of length s departs from the great circle by ~ s^2 tan|lat| / (8 R)
     rng = np.random.default_rng(5)
     lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (-70.0, -60.0, 10.0, 60.0), (50.0, 3000.0))
-    lon, lat, arc = ob._gc_densify(lon0, lat0, lon1, lat1, max_step_km=2.0)
+    lon, lat, arc = ob.gc_densify(lon0, lat0, lon1, lat1, max_step_km=2.0)
     same = arc[1:] == arc[:-1]
     mid_lon, mid_lat = 0.5 * (lon[1:] + lon[:-1])[same], 0.5 * (lat[1:] + lat[:-1])[same]
     # cross-track distance of each chord midpoint from its arc's great circle (pole of the circle n)
@@ -500,8 +500,10 @@ POLY = {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]}
         ({**POLY, "crs": {"type": "name", "properties": {"name": "EPSG:3857"}}}, "CRS84"),
         # drawn across the antimeridian without splitting: in planar lon/lat it is a band round the globe, which
         # blocked an Atlantic course (QA)
-        ({"type": "Polygon", "coordinates": [[[179, 36], [-179, 36], [-179, 39], [179, 39], [179, 36]]]},
-         r"edge from \[179, 36\] to \[-179, 36\] spans 358 deg of longitude.*split.*RFC 7946"),
+        (
+            {"type": "Polygon", "coordinates": [[[179, 36], [-179, 36], [-179, 39], [179, 39], [179, 36]]]},
+            r"edge from \[179, 36\] to \[-179, 36\] spans 358 deg of longitude.*split.*RFC 7946",
+        ),
     ],
 )
 def test_bad_geojson_raises_scenario_error_naming_the_file(tmp_path, content, match):
@@ -535,11 +537,18 @@ def test_example_zone_straddles_the_verification_great_circle():
     assert not zone.geometry.intersects(ob.land_geometry((-35.0, 34.0, -26.0, 41.0)))  # clear of the Azores
 
 
-@pytest.mark.parametrize("geometry", [
-    pytest.param(lambda: ob.land_geometry((-62.0, 15.8, -60.8, 16.6)), id="guadeloupe"),
-    pytest.param(lambda: shapely.Polygon([(-30, 35), (-27, 35), (-27, 38), (-30, 38)],
-                                         [[(-29, 36), (-28, 36), (-28.5, 37.3)]]), id="zone-with-hole"),
-])
+@pytest.mark.parametrize(
+    "geometry",
+    [
+        pytest.param(lambda: ob.land_geometry((-62.0, 15.8, -60.8, 16.6)), id="guadeloupe"),
+        pytest.param(
+            lambda: shapely.Polygon(
+                [(-30, 35), (-27, 35), (-27, 38), (-30, 38)], [[(-29, 36), (-28, 36), (-28.5, 37.3)]]
+            ),
+            id="zone-with-hole",
+        ),
+    ],
+)
 def test_index_rasters_against_per_cell_predicates(geometry) -> None:
     # the prefilter rasters are made without a predicate per cell; check them cell by cell with shapely:
     # every cell the geometry meets is flagged "touch", and every cell flagged "inside" is covered by it

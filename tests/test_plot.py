@@ -91,8 +91,13 @@ def test_a_course_across_the_antimeridian_maps_continuously_and_splits_its_geojs
     from pyroute_rel.plot import plot_route
     from pyroute_rel.scenario import scenario_from_mapping
 
-    sc = scenario_from_mapping({"route": {"start": [170.0, 30.0], "finish": [-170.0, 32.0]}, "grid": {"n_ranks": 20},
-                                "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0}})
+    sc = scenario_from_mapping(
+        {
+            "route": {"start": [170.0, 30.0], "finish": [-170.0, 32.0]},
+            "grid": {"n_ranks": 20},
+            "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+        }
+    )
     route = sc.route()
     fig = plot_route(route)
     try:
@@ -107,8 +112,10 @@ def test_a_course_across_the_antimeridian_maps_continuously_and_splits_its_geojs
         plt.close(fig)
     # GeoJSON: split at +-180 into a MultiLineString (RFC 7946 section 3.1.9), the parts meeting on the seam
     path = tmp_path / "am.toml"
-    path.write_text('[route]\nstart = [170.0, 30.0]\nfinish = [-170.0, 32.0]\n[grid]\nn_ranks = 20\n'
-                    '[weather]\nkind = "uniform"\ntws_kn = 15.0\ntwd_deg = 0.0\n')
+    path.write_text(
+        "[route]\nstart = [170.0, 30.0]\nfinish = [-170.0, 32.0]\n[grid]\nn_ranks = 20\n"
+        '[weather]\nkind = "uniform"\ntws_kn = 15.0\ntwd_deg = 0.0\n'
+    )
     assert main(["route", str(path), "--quiet", "--out", str(tmp_path / "o")]) == 0
     geom = json.loads((tmp_path / "o" / "route.geojson").read_text())["features"][0]["geometry"]
     assert geom["type"] == "MultiLineString" and len(geom["coordinates"]) == 2

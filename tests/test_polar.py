@@ -284,9 +284,7 @@ def test_broadcasting_matches_pointwise():
 
 
 def test_bad_mode_and_negative_tws():
-    with pytest.raises(
-        ValueError, match=re.escape("'beyond' must be one of ['clamp', 'forbid'] (got 'extrapolate')")
-    ):
+    with pytest.raises(ValueError, match=re.escape("'beyond' must be one of ['clamp', 'forbid'] (got 'extrapolate')")):
         boat_speed_kn(VANE, 90.0, 10.0, beyond="extrapolate")
     with pytest.raises(ValueError, match=re.escape("'beyond' must be one of ['clamp', 'forbid']")):
         VANE.speed(90.0, 10.0, beyond="Clamp")
@@ -380,9 +378,7 @@ def test_qtvlm_like_sample(tmp_path):
 def test_latin1_comment_is_read(tmp_path):
     path = tmp_path / "old.pol"
     path.write_bytes(
-        "# 52\xb0 close-hauled\nTWA\\TWS\t6\t10\t15.5\n0\t0\t0\t0\n52\t4.1\t5.5\t6.25\n180\t3\t4\t5\n".encode(
-            "latin-1"
-        )
+        "# 52\xb0 close-hauled\nTWA\\TWS\t6\t10\t15.5\n0\t0\t0\t0\n52\t4.1\t5.5\t6.25\n180\t3\t4\t5\n".encode("latin-1")
     )
     assert read_pol(path, name="small") == SMALL
 
@@ -548,9 +544,7 @@ def test_get_polar(tmp_path):
         match=r"unknown polar 'maribot_vain': expected one of the built-in polars \['maribot_vane'\]",
     ):
         get_polar("maribot_vain")
-    with pytest.raises(
-        PolarError, match=r"polar must be a built-in name \['maribot_vane'\] or a path .*\(got int 3\)"
-    ):
+    with pytest.raises(PolarError, match=r"polar must be a built-in name \['maribot_vane'\] or a path .*\(got int 3\)"):
         get_polar(3)  # type: ignore[arg-type]
     with pytest.raises(PolarError, match=r"polar file '.*missing.pol': cannot be read"):
         get_polar("missing.pol", base_dir=tmp_path)

@@ -24,7 +24,8 @@ from pyroute_rel import geodesy
 from pyroute_rel.errors import NoFeasibleRouteError
 from pyroute_rel.grid import Grid, make_grid
 from pyroute_rel.polar import Polar
-from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs, solve
+from pyroute_rel.route import route_on_grid
+from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
 from pyroute_rel.weather import Conditions, Patch, UniformWeather
 
 DEP = np.datetime64("2018-06-01T00:00:00")
@@ -53,10 +54,8 @@ def polars(draw: st.DrawFn, *, positive: bool = False) -> Polar:
         twa = sorted({0, *twa, 36})
         tws = sorted({0, *tws, 40})
     speed = st.floats(0.2, 12.0) if positive else st.one_of(st.just(0.0), st.floats(0.1, 12.0))
-    rows = draw(st.lists(st.lists(speed, min_size=len(tws), max_size=len(tws)), min_size=len(twa),
-                         max_size=len(twa)))
-    return Polar(name="fuzz", twa_deg=np.array(twa, float) * 5.0, tws_kn=np.array(tws, float),
-                 speed_kn=np.array(rows))
+    rows = draw(st.lists(st.lists(speed, min_size=len(tws), max_size=len(tws)), min_size=len(twa), max_size=len(twa)))
+    return Polar(name="fuzz", twa_deg=np.array(twa, float) * 5.0, tws_kn=np.array(tws, float), speed_kn=np.array(rows))
 
 
 _TWS = st.floats(0.0, 40.0)
@@ -64,8 +63,9 @@ _TWD = st.floats(0.0, 359.99)
 
 
 @st.composite
-def patches(draw: st.DrawFn, *, lon: tuple[float, float] = (-75.0, 0.0),
-            lat: tuple[float, float] = (5.0, 55.0)) -> Patch:
+def patches(
+    draw: st.DrawFn, *, lon: tuple[float, float] = (-75.0, 0.0), lat: tuple[float, float] = (5.0, 55.0)
+) -> Patch:
     lo0 = draw(st.floats(lon[0], lon[1] - 0.5))
     la0 = draw(st.floats(lat[0], lat[1] - 0.5))
     lo1 = draw(st.floats(lo0 + 0.5, lon[1]))
@@ -79,9 +79,14 @@ def patches(draw: st.DrawFn, *, lon: tuple[float, float] = (-75.0, 0.0),
 def grids(draw: st.DrawFn, *, max_ranks: int = 4, max_nodes: int = 4) -> Grid:
     start = (draw(st.floats(-30.0, -5.0)), draw(st.floats(35.0, 50.0)))
     finish = (draw(st.floats(-65.0, -40.0)), draw(st.floats(10.0, 25.0)))
-    return make_grid(start, finish, n_ranks=draw(st.integers(1, max_ranks)), n_nodes=draw(st.integers(1, max_nodes)),
-                     spacing_km=draw(st.floats(30.0, 400.0)),
-                     max_deviation_deg=draw(st.none() | st.floats(20.0, 80.0)))
+    return make_grid(
+        start,
+        finish,
+        n_ranks=draw(st.integers(1, max_ranks)),
+        n_nodes=draw(st.integers(1, max_nodes)),
+        spacing_km=draw(st.floats(30.0, 400.0)),
+        max_deviation_deg=draw(st.none() | st.floats(20.0, 80.0)),
+    )
 
 
 def draw_path(draw: st.DrawFn, grid: Grid) -> list[int] | None:
@@ -112,10 +117,12 @@ def is_graph_path(grid: Grid, nodes: list[int]) -> bool:
 @given(data=st.data())
 def test_dp_is_no_slower_than_any_path(data: st.DataObject) -> None:
     grid = data.draw(grids())
-    weather = UniformWeather(tws_kn=data.draw(_TWS), twd_deg=data.draw(_TWD),
-                             patches=tuple(data.draw(st.lists(patches(), max_size=3))))
-    problem = RoutingProblem(departure=DEP, weather=weather, polar=data.draw(polars()),
-                             samples=data.draw(st.integers(1, 3)))
+    weather = UniformWeather(
+        tws_kn=data.draw(_TWS), twd_deg=data.draw(_TWD), patches=tuple(data.draw(st.lists(patches(), max_size=3)))
+    )
+    problem = RoutingProblem(
+        departure=DEP, weather=weather, polar=data.draw(polars()), samples=data.draw(st.integers(1, 3))
+    )
     result = forward_dp(grid, problem)
     best = result.finish_h
     for _ in range(6):
@@ -156,8 +163,11 @@ def test_dp_invariant_under_patch_order_and_far_patches(data: st.DataObject) -> 
     # grid (great-circle arcs north of the equator reach their lowest latitude at an end point)
     lat_min = min(float(grid.lat_deg.min()), grid.start[1], grid.finish[1])
     assert float(grid.lon_deg.max()) < 0.0 and lat_min > 1.0  # premise of "outside"
-    far = data.draw(st.one_of(patches(lon=(10.0, 179.0), lat=(-80.0, 80.0)),
-                              patches(lon=(-180.0, 180.0), lat=(-89.0, lat_min - 0.5))))
+    far = data.draw(
+        st.one_of(
+            patches(lon=(10.0, 179.0), lat=(-80.0, 80.0)), patches(lon=(-180.0, 180.0), lat=(-89.0, lat_min - 0.5))
+        )
+    )
     where = data.draw(st.integers(0, len(order)))
     more = (*order[:where], far, *order[where:])
     assert _dp_key(grid, replace(base, patches=more), polar, samples) == ref
@@ -175,11 +185,19 @@ class VeeringWind:
     steady = False
 
     def sample(self, lon_deg: Any, lat_deg: Any, time: Any) -> Conditions:
-        lon, lat, t = np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float),
-                                          (np.asarray(time) - DEP) / np.timedelta64(1, "h"))
+        lon, lat, t = np.broadcast_arrays(
+            np.asarray(lon_deg, float), np.asarray(lat_deg, float), (np.asarray(time) - DEP) / np.timedelta64(1, "h")
+        )
         z = np.zeros(lon.shape)
-        return Conditions(tws_kn=self.tws0 + 4.0 * np.sin(t / 300.0) ** 2, twd_deg=(0.1 * t + lat) % 360.0,
-                          hs_m=z + 1.0, wave_dir_deg=z, wave_period_s=z * np.nan, current_u_ms=z, current_v_ms=z)
+        return Conditions(
+            tws_kn=self.tws0 + 4.0 * np.sin(t / 300.0) ** 2,
+            twd_deg=(0.1 * t + lat) % 360.0,
+            hs_m=z + 1.0,
+            wave_dir_deg=z,
+            wave_period_s=z * np.nan,
+            current_u_ms=z,
+            current_v_ms=z,
+        )
 
     def check_coverage(self, *args: Any) -> None:
         return None
@@ -190,14 +208,26 @@ class VeeringWind:
 def test_route_times_are_consistent(data: st.DataObject) -> None:
     grid = data.draw(grids())
     steady = data.draw(st.booleans())
-    weather = (UniformWeather(tws_kn=data.draw(st.floats(4.0, 30.0)), twd_deg=data.draw(_TWD),
-                              patches=tuple(data.draw(st.lists(patches(), max_size=2))))
-               if steady else VeeringWind(tws0=data.draw(st.floats(4.0, 20.0))))
+    weather = (
+        UniformWeather(
+            tws_kn=data.draw(st.floats(4.0, 30.0)),
+            twd_deg=data.draw(_TWD),
+            patches=tuple(data.draw(st.lists(patches(), max_size=2))),
+        )
+        if steady
+        else VeeringWind(tws0=data.draw(st.floats(4.0, 20.0)))
+    )
     step = data.draw(st.none() | st.sampled_from([0.5, 1.0, 3.0, 6.0]))
     max_wait = 0.0 if step is None else data.draw(st.sampled_from([0.0, step, 4 * step]))
-    problem = RoutingProblem(departure=DEP, weather=weather, polar=data.draw(polars(positive=True)),
-                             samples=data.draw(st.integers(1, 3)), time_step_h=step, max_wait_h=max_wait)
-    route = solve(grid, problem)
+    problem = RoutingProblem(
+        departure=DEP,
+        weather=weather,
+        polar=data.draw(polars(positive=True)),
+        samples=data.draw(st.integers(1, 3)),
+        time_step_h=step,
+        max_wait_h=max_wait,
+    )
+    route = route_on_grid(grid, problem)
     t, legs = route.elapsed_h, route.legs
     assert t[0] == 0.0 and np.all(np.diff(t) >= 0.0)
     assert route.voyage_time_h == t[-1] == pytest.approx(route.dp.finish_h, rel=1e-12)
@@ -293,15 +323,16 @@ def test_nan_band_across_the_grid_blocks_every_route(setup: Any) -> None:
     assume(centre - half > min(grid.start[1], grid.finish[1]) and centre + half < max(grid.start[1], grid.finish[1]))
     clean = RoutingProblem(departure=DEP, weather=base, polar=polar, samples=samples)
     assert np.isfinite(forward_dp(grid, clean).finish_h)  # premise: feasible without the NaN band
-    problem = replace(clean, weather=NaNBox(base, lon=(-180.0, 180.0), lat=(centre - half, centre + half),
-                                            fields=fields))
+    problem = replace(
+        clean, weather=NaNBox(base, lon=(-180.0, 180.0), lat=(centre - half, centre + half), fields=fields)
+    )
     result = forward_dp(grid, problem)
     assert not np.isfinite(result.finish_h)
     # the only arcs forbidden are forbidden for missing weather (the polar is positive everywhere)
     assert result.forbidden_by_reason["weather"] > 0
     assert all(n == 0 for name, n in result.forbidden_by_reason.items() if name != "weather")
     with pytest.raises(NoFeasibleRouteError, match="missing weather data"):
-        solve(grid, problem)
+        route_on_grid(grid, problem)
 
 
 def test_front_dying_at_the_finish_still_names_the_reason() -> None:
@@ -313,7 +344,7 @@ def test_front_dying_at_the_finish_still_names_the_reason() -> None:
     problem = RoutingProblem(departure=DEP, weather=weather, polar=polar, samples=2)
     assert forward_dp(grid, problem).forbidden_by_reason["weather"] > 0  # premise: NaN arcs were met
     with pytest.raises(NoFeasibleRouteError, match="missing weather data"):
-        solve(grid, problem)
+        route_on_grid(grid, problem)
 
 
 @prop_settings(40)
@@ -328,7 +359,7 @@ def test_nan_box_partly_across_is_avoided(setup: Any, data: st.DataObject) -> No
     problem = RoutingProblem(departure=DEP, weather=weather, polar=polar, samples=samples)
     result = forward_dp(grid, problem)
     assume(np.isfinite(result.finish_h) and result.forbidden_by_reason["weather"] > 0)  # a route, and the box bit
-    route = solve(grid, problem)
+    route = route_on_grid(grid, problem)
     lon_s, lat_s = sample_points(route.lon_deg, route.lat_deg, samples)
     shrunk = NaNBox(base, lon=(lon[0] + 1e-7, lon[1] - 1e-7), lat=(centre - half + 1e-7, centre + half - 1e-7))
     assert not np.any(shrunk.inside(lon_s, lat_s)), "the route samples weather inside the NaN box"
@@ -344,7 +375,7 @@ def test_nan_current_is_reported_as_missing_weather() -> None:
     polar = Polar("flat", twa_deg=[0.0, 180.0], tws_kn=[0.0, 40.0], speed_kn=[[1.0, 5.0], [1.0, 5.0]])
     weather = NaNBox(base, lon=(-180.0, 180.0), lat=(-90.0, 90.0), fields=("current_u_ms", "current_v_ms"))
     with pytest.raises(NoFeasibleRouteError, match="missing weather data"):
-        solve(grid, RoutingProblem(departure=DEP, weather=weather, polar=polar))
+        route_on_grid(grid, RoutingProblem(departure=DEP, weather=weather, polar=polar))
 
 
 def test_tiny_boat_speed_without_current_is_an_infinite_time() -> None:
@@ -352,8 +383,9 @@ def test_tiny_boat_speed_without_current_is_an_infinite_time() -> None:
     from pyroute_rel.cost import arc_costs
 
     polar = Polar("light", twa_deg=[0.0, 180.0], tws_kn=[1.0, 20.0], speed_kn=[[2.0, 6.0], [2.0, 6.0]])
-    c = arc_costs(-10.0, 40.0, -12.0, 38.0, 0.0, departure=DEP, polar=polar,
-                  weather=UniformWeather(tws_kn=1e-308, twd_deg=0.0))
+    c = arc_costs(
+        -10.0, 40.0, -12.0, 38.0, 0.0, departure=DEP, polar=polar, weather=UniformWeather(tws_kn=1e-308, twd_deg=0.0)
+    )
     # 1e-308 kn of wind: 2e-308 kn of boat speed (linear below the first column), so the ~150 nm take longer
     # than any float: an infinite time
     assert float(c.time_h) == np.inf

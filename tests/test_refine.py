@@ -15,10 +15,10 @@ from pyproj import Geod
 from test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weather, weights_by_rank
 
 from pyroute_rel import geodesy
-from pyroute_rel import obstacles as ob
 from pyroute_rel.cli import main
 from pyroute_rel.errors import GridError, ScenarioError
 from pyroute_rel.grid import FINISH, START, make_grid
+from pyroute_rel.obstacles import land as ob
 from pyroute_rel.polar import Polar
 from pyroute_rel.refine import CORRIDOR_NODES, corridor_grid, refine, track_offsets_km
 from pyroute_rel.scenario import load_scenario, scenario_from_mapping
@@ -55,8 +55,9 @@ def test_corridor_through_grid_columns_reproduces_the_grid_nodes() -> None:
 @pytest.mark.parametrize("seed", range(4))
 def test_dp_on_a_corridor_equals_networkx(seed: int) -> None:
     rng = np.random.default_rng(40 + seed)
-    grid = make_grid(START_PT, FINISH_PT, n_ranks=8, n_nodes=9, spacing_km=80.0,
-                     max_deviation_deg=[None, 45.0][seed % 2])
+    grid = make_grid(
+        START_PT, FINISH_PT, n_ranks=8, n_nodes=9, spacing_km=80.0, max_deviation_deg=[None, 45.0][seed % 2]
+    )
     centre = rng.uniform(-200.0, 200.0, grid.n_ranks)
     c = corridor_grid(grid, centre, half_width_km=float(rng.uniform(40, 160)), n_nodes=7)
     problem = RoutingProblem(departure=DEP, weather=random_weather(rng), polar=random_polar(rng), samples=2)
@@ -89,8 +90,9 @@ def test_refinement_finds_the_great_circle_an_even_grid_misses() -> None:
     """Constant polar, uniform wind: the optimum is the great circle (distance / speed). With an even node count
     the square grid has no node on it; one refinement level puts the track on it (to rounding)."""
     grid = make_grid(START_PT, FINISH_PT, n_ranks=20, n_nodes=20)
-    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=30.0),
-                             polar=constant_polar(5.0), samples=1)
+    problem = RoutingProblem(
+        departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=30.0), polar=constant_polar(5.0), samples=1
+    )
     res = forward_dp(grid, problem)
     exact_h = SPHERE.inv(*START_PT, *FINISH_PT)[2] / 1852.0 / 5.0  # great-circle distance [nm] / 5 kn
     assert res.finish_h > exact_h * (1 + 1e-5)  # precondition: the grid's best is longer
@@ -109,8 +111,9 @@ def test_refinement_keeps_the_grid_deviation_limit() -> None:
 
 def test_a_level_that_would_lengthen_the_voyage_ends_the_refinement() -> None:
     grid = make_grid(START_PT, FINISH_PT, n_ranks=10, n_nodes=11)
-    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=0.0),
-                             polar=constant_polar(5.0), samples=1)
+    problem = RoutingProblem(
+        departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=0.0), polar=constant_polar(5.0), samples=1
+    )
     res = forward_dp(grid, problem)
     slow = replace(problem, polar=constant_polar(4.0))  # stands in for costs that are not FIFO
     c_grid, c_problem, c_res, levels = refine(grid, problem, res, levels=3, problem_for=lambda g: slow)
@@ -126,16 +129,21 @@ def test_bad_arguments_are_refused() -> None:
         corridor_grid(grid, np.zeros(5), half_width_km=10.0, n_nodes=4)
     with pytest.raises(GridError, match="half_width_km must be a positive"):
         corridor_grid(grid, np.zeros(5), half_width_km=0.0)
-    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=0.0),
-                             polar=constant_polar(), samples=1)
+    problem = RoutingProblem(
+        departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=0.0), polar=constant_polar(), samples=1
+    )
     with pytest.raises(GridError, match="refine levels must be a whole number >= 1"):
         refine(grid, problem, forward_dp(grid, problem), levels=0)
 
 
 def test_track_offsets_follow_the_path() -> None:
     grid = make_grid(START_PT, FINISH_PT, n_ranks=6, n_nodes=7, spacing_km=50.0)
-    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=0.0),
-                             polar=random_polar(np.random.default_rng(1)), samples=1)
+    problem = RoutingProblem(
+        departure=DEP,
+        weather=UniformWeather(tws_kn=12.0, twd_deg=0.0),
+        polar=random_polar(np.random.default_rng(1)),
+        samples=1,
+    )
     res = forward_dp(grid, problem)
     np.testing.assert_array_equal(track_offsets_km(grid, res), grid.offset_km[res.path()])
 
@@ -144,12 +152,14 @@ def test_track_offsets_follow_the_path() -> None:
 
 
 def test_refined_route_round_guadeloupe_keeps_its_margin_and_is_faster() -> None:
-    sc = scenario_from_mapping({
-        "route": {"start": [-57.0, 16.25], "finish": [-64.0, 16.25]},
-        "grid": {"n_ranks": 40, "aspect": 4.0, "half_width_km": 150.0},
-        "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
-        "avoid": {"land": True, "margin_km": 10.0},
-    })
+    sc = scenario_from_mapping(
+        {
+            "route": {"start": [-57.0, 16.25], "finish": [-64.0, 16.25]},
+            "grid": {"n_ranks": 40, "aspect": 4.0, "half_width_km": 150.0},
+            "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+            "avoid": {"land": True, "margin_km": 10.0},
+        }
+    )
     plain = sc.route()
     refined = replace(sc, refine=3).route()
     assert refined.voyage_time_h < plain.voyage_time_h
@@ -161,8 +171,9 @@ def test_refined_route_round_guadeloupe_keeps_its_margin_and_is_faster() -> None
     land = ob.land_geometry((-66.0, 13.0, -55.0, 19.5))
     k = np.cos(np.radians(16.25))
     land_xy = shapely.transform(land, lambda xy: xy * (k, 1.0))
-    for a, b, c, d in zip(refined.lon_deg[:-1], refined.lat_deg[:-1], refined.lon_deg[1:], refined.lat_deg[1:],
-                          strict=True):
+    for a, b, c, d in zip(
+        refined.lon_deg[:-1], refined.lat_deg[:-1], refined.lon_deg[1:], refined.lat_deg[1:], strict=True
+    ):
         n = int(np.ceil(SPHERE.inv(a, b, c, d)[2] / 500.0))
         pts = np.array([(a, b), *SPHERE.npts(a, b, c, d, n), (c, d)])
         dist_deg = land_xy.distance(shapely.LineString(pts * (k, 1.0)))
@@ -208,10 +219,14 @@ def test_refine_weather_patch_detour_is_found(tmp_path) -> None:
     from pyroute_rel.failure import load_failure_model
 
     grid = make_grid(START_PT, FINISH_PT, n_ranks=30, n_nodes=61, spacing_km=25.0, max_deviation_deg=45.0)
-    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0, hs_m=1.0,
-                                                                   patches=(patch,)),
-                             polar=constant_polar(5.0), samples=8, failure=load_failure_model("dickson2018"),
-                             apf=0.5)
+    problem = RoutingProblem(
+        departure=DEP,
+        weather=UniformWeather(tws_kn=15.0, twd_deg=0.0, hs_m=1.0, patches=(patch,)),
+        polar=constant_polar(5.0),
+        samples=8,
+        failure=load_failure_model("dickson2018"),
+        apf=0.5,
+    )
     res = forward_dp(grid, problem)
     c_grid, c_problem, c_res, _ = refine(grid, problem, res, levels=3)
     _, costs = path_costs(c_grid, c_problem, list(c_res.path()))
@@ -220,11 +235,14 @@ def test_refine_weather_patch_detour_is_found(tmp_path) -> None:
 
 
 def test_refining_a_course_with_a_waypoint_refines_each_leg() -> None:
-    sc = scenario_from_mapping({
-        "route": {"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "waypoints": [[-35.0, 38.0]]},
-        "grid": {"n_ranks": 40}, "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
-        "avoid": {"land": False},
-    })
+    sc = scenario_from_mapping(
+        {
+            "route": {"start": [-12.0, 45.0], "finish": [-60.0, 17.5], "waypoints": [[-35.0, 38.0]]},
+            "grid": {"n_ranks": 40},
+            "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+            "avoid": {"land": False},
+        }
+    )
     plain = sc.route()
     refined = replace(sc, refine=2).route()
     info = refined.meta["refine"]
@@ -243,8 +261,9 @@ def test_refining_a_course_with_a_waypoint_refines_each_leg() -> None:
 def test_refine_refuses_results_and_settings_that_cannot_work() -> None:
     grid = make_grid(START_PT, FINISH_PT, n_ranks=6, n_nodes=7, spacing_km=50.0)
     other = make_grid(START_PT, FINISH_PT, n_ranks=5, n_nodes=7, spacing_km=50.0)
-    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=0.0),
-                             polar=constant_polar(), samples=1)
+    problem = RoutingProblem(
+        departure=DEP, weather=UniformWeather(tws_kn=12.0, twd_deg=0.0), polar=constant_polar(), samples=1
+    )
     res = forward_dp(grid, problem)
     with pytest.raises(GridError, match="odd whole number >= 3"):
         refine(grid, problem, res, levels=2, n_nodes=1)  # was ZeroDivisionError

@@ -15,7 +15,8 @@ from pyroute_rel.cost import arc_costs
 from pyroute_rel.errors import NoFeasibleRouteError
 from pyroute_rel.grid import FINISH, START, make_grid
 from pyroute_rel.polar import Polar, boat_speed_kn, get_polar
-from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs, solve
+from pyroute_rel.route import route_on_grid
+from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
 from pyroute_rel.weather import Conditions, Patch, UniformWeather
 
 DEP = np.datetime64("2018-06-01T00:00:00")
@@ -34,8 +35,11 @@ def random_polar(rng: np.random.Generator) -> Polar:
 
 def random_weather(rng: np.random.Generator) -> UniformWeather:
     patches = tuple(
-        Patch(lon=(lo, lo + rng.uniform(3, 10)), lat=(la, la + rng.uniform(3, 10)),
-              values={"tws_kn": float(rng.uniform(2, 25)), "twd_deg": float(rng.uniform(0, 360))})
+        Patch(
+            lon=(lo, lo + rng.uniform(3, 10)),
+            lat=(la, la + rng.uniform(3, 10)),
+            values={"tws_kn": float(rng.uniform(2, 25)), "twd_deg": float(rng.uniform(0, 360))},
+        )
         for lo, la in zip(rng.uniform(-55, -20, 3), rng.uniform(20, 40, 3), strict=True)
     )
     return UniformWeather(tws_kn=float(rng.uniform(5, 20)), twd_deg=float(rng.uniform(0, 360)), patches=patches)
@@ -46,8 +50,19 @@ def weights_by_rank(grid, problem) -> list[np.ndarray]:
     out = []
     for k in range(grid.n_ranks + 1):
         lon0, lat0, lon1, lat1, _, valid = grid.arcs(k)
-        c = arc_costs(lon0, lat0, lon1, lat1, 0.0, departure=DEP, weather=problem.weather, polar=problem.polar,
-                      failure=problem.failure, apf=problem.apf, samples=problem.samples)
+        c = arc_costs(
+            lon0,
+            lat0,
+            lon1,
+            lat1,
+            0.0,
+            departure=DEP,
+            weather=problem.weather,
+            polar=problem.polar,
+            failure=problem.failure,
+            apf=problem.apf,
+            samples=problem.samples,
+        )
         out.append(np.where(valid, c.time_h, np.inf))
     return out
 
@@ -56,10 +71,17 @@ def weights_by_rank(grid, problem) -> list[np.ndarray]:
 @pytest.mark.parametrize("shape,dev", [((5, 5), None), ((7, 6), None), ((9, 9), 60.0), ((12, 11), 40.0)])
 def test_dp_equals_networkx_dijkstra(seed: int, shape: tuple[int, int], dev: float | None) -> None:
     rng = np.random.default_rng(seed)
-    grid = make_grid(START_PT, FINISH_PT, n_ranks=shape[0], n_nodes=shape[1], max_deviation_deg=dev,
-                     spacing_km=float(rng.uniform(40, 200)))
-    problem = RoutingProblem(departure=DEP, weather=random_weather(rng), polar=random_polar(rng),
-                             samples=int(rng.integers(1, 4)))
+    grid = make_grid(
+        START_PT,
+        FINISH_PT,
+        n_ranks=shape[0],
+        n_nodes=shape[1],
+        max_deviation_deg=dev,
+        spacing_km=float(rng.uniform(40, 200)),
+    )
+    problem = RoutingProblem(
+        departure=DEP, weather=random_weather(rng), polar=random_polar(rng), samples=int(rng.integers(1, 4))
+    )
     result = forward_dp(grid, problem)
     g = grid.to_networkx(weights_by_rank(grid, problem))
     try:
@@ -68,7 +90,7 @@ def test_dp_equals_networkx_dijkstra(seed: int, shape: tuple[int, int], dev: flo
         ref = np.inf
     assert result.finish_h == pytest.approx(ref, rel=1e-12)
     if np.isfinite(ref):
-        route = solve(grid, problem)
+        route = route_on_grid(grid, problem)
         assert route.voyage_time_h == pytest.approx(ref, rel=1e-9)
 
 
@@ -91,11 +113,19 @@ class VeeringWind:
     steady = False
 
     def sample(self, lon_deg, lat_deg, time) -> Conditions:
-        lon, lat, t = np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float),
-                                          (np.asarray(time) - DEP) / np.timedelta64(1, "h"))
+        lon, lat, t = np.broadcast_arrays(
+            np.asarray(lon_deg, float), np.asarray(lat_deg, float), (np.asarray(time) - DEP) / np.timedelta64(1, "h")
+        )
         z = np.zeros(lon.shape)
-        return Conditions(tws_kn=12.0 + 2.0 * np.sin(t / 400.0), twd_deg=(10.0 * t / 100.0) % 360.0, hs_m=z + 1.0,
-                          wave_dir_deg=z, wave_period_s=z * np.nan, current_u_ms=z, current_v_ms=z)
+        return Conditions(
+            tws_kn=12.0 + 2.0 * np.sin(t / 400.0),
+            twd_deg=(10.0 * t / 100.0) % 360.0,
+            hs_m=z + 1.0,
+            wave_dir_deg=z,
+            wave_period_s=z * np.nan,
+            current_u_ms=z,
+            current_v_ms=z,
+        )
 
     def check_coverage(self, *args) -> None:
         return None
@@ -110,28 +140,38 @@ def test_time_dependent_dp_equals_brute_force_when_fifo() -> None:
         lon0, lat0, lon1, lat1, _, valid = grid.arcs(k)
         arrive = np.stack([tt + problem.costs(lon0, lat0, lon1, lat1, tt).time_h for tt in t])
         assert np.all(np.diff(arrive[:, valid], axis=0) > 0)
-    best = min(path_costs(grid, problem, list(p))[0][-1]
-               for p in itertools.product(range(grid.n_nodes), repeat=grid.n_ranks))
+    best = min(
+        path_costs(grid, problem, list(p))[0][-1] for p in itertools.product(range(grid.n_nodes), repeat=grid.n_ranks)
+    )
     result = forward_dp(grid, problem)
     assert result.finish_h == pytest.approx(best, rel=1e-9)
     # and the weather really changes the answer: the same wind frozen at departure routes differently
     frozen = UniformWeather(tws_kn=12.0, twd_deg=0.0, hs_m=1.0)
-    assert abs(forward_dp(grid, RoutingProblem(departure=DEP, weather=frozen, polar=problem.polar,
-                                               samples=2)).finish_h - best) > 1.0
+    assert (
+        abs(
+            forward_dp(grid, RoutingProblem(departure=DEP, weather=frozen, polar=problem.polar, samples=2)).finish_h
+            - best
+        )
+        > 1.0
+    )
 
 
 def test_route_legs_recomputed_independently_sum_to_voyage_time() -> None:
     """Each leg from its end points with pyproj (distance, midpoint, heading) and the polar's table."""
     polar = get_polar("maribot_vane")
-    w = UniformWeather(tws_kn=15.0, twd_deg=0.0, hs_m=1.0,
-                       patches=(Patch(lon=(-45.0, -35.0), lat=(28.0, 38.0), values={"tws_kn": 6.0}),))
+    w = UniformWeather(
+        tws_kn=15.0,
+        twd_deg=0.0,
+        hs_m=1.0,
+        patches=(Patch(lon=(-45.0, -35.0), lat=(28.0, 38.0), values={"tws_kn": 6.0}),),
+    )
     grid = make_grid(START_PT, FINISH_PT, n_ranks=30, n_nodes=31)
-    route = solve(grid, RoutingProblem(departure=DEP, weather=w, polar=polar))
+    route = route_on_grid(grid, RoutingProblem(departure=DEP, weather=w, polar=polar))
     total = 0.0
     for i in range(len(route.lon_deg) - 1):
         lo0, la0, lo1, la1 = route.lon_deg[i], route.lat_deg[i], route.lon_deg[i + 1], route.lat_deg[i + 1]
         _, _, d_m = SPHERE.inv(lo0, la0, lo1, la1)
-        (mlo, mla), = SPHERE.npts(lo0, la0, lo1, la1, 1)
+        ((mlo, mla),) = SPHERE.npts(lo0, la0, lo1, la1, 1)
         heading, _, _ = SPHERE.inv(mlo, mla, lo1, la1)
         inside = -45.0 <= mlo <= -35.0 and 28.0 <= mla <= 38.0
         tws = 6.0 if inside else 15.0
@@ -150,19 +190,22 @@ def test_infinite_arcs_are_never_chosen_and_infeasible_is_explained() -> None:
     # enough (8 samples) that none can hop over it
     wall = Patch(lon=(-80.0, 10.0), lat=(29.0, 33.0), values={"tws_kn": 0.0})
     grid = make_grid(START_PT, FINISH_PT, n_ranks=20, n_nodes=9)
-    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=(wall,)),
-                             polar=polar, samples=8)
+    problem = RoutingProblem(
+        departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=(wall,)), polar=polar, samples=8
+    )
     with pytest.raises(NoFeasibleRouteError, match=r"front died at rank \d+ of 20.*no boat speed in the polar"):
-        solve(grid, problem)
+        route_on_grid(grid, problem)
     # a partial wall with a gap: the route goes through the gap, never through a zero-speed arc
     left = Patch(lon=(-80.0, -36.0), lat=(29.0, 33.0), values={"tws_kn": 0.0})
-    problem = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=(left,)),
-                             polar=polar, samples=8)
-    route = solve(grid, problem)
+    problem = RoutingProblem(
+        departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=(left,)), polar=polar, samples=8
+    )
+    route = route_on_grid(grid, problem)
     assert np.all(np.isfinite(route.legs["time_h"]))
     frac = (np.arange(8) + 0.5) / 8
-    mlon, mlat = geodesy.intermediate_point(route.lon_deg[:-1, None], route.lat_deg[:-1, None],
-                                            route.lon_deg[1:, None], route.lat_deg[1:, None], frac)
+    mlon, mlat = geodesy.intermediate_point(
+        route.lon_deg[:-1, None], route.lat_deg[:-1, None], route.lon_deg[1:, None], route.lat_deg[1:, None], frac
+    )
     assert not np.any(left.contains(mlon, mlat))
 
 
@@ -175,12 +218,20 @@ class PassingStorm:
     steady = False
 
     def sample(self, lon_deg, lat_deg, time) -> Conditions:
-        lon, lat, t = np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float),
-                                          (np.asarray(time) - DEP) / np.timedelta64(1, "h"))
+        lon, lat, t = np.broadcast_arrays(
+            np.asarray(lon_deg, float), np.asarray(lat_deg, float), (np.asarray(time) - DEP) / np.timedelta64(1, "h")
+        )
         z = np.zeros(lon.shape)
         storm = (lat >= 39.0) & (lat <= 41.0) & (t < self.clears_h)
-        return Conditions(tws_kn=np.where(storm, 60.0, 15.0), twd_deg=z, hs_m=z + 1.0, wave_dir_deg=z,
-                          wave_period_s=z * np.nan, current_u_ms=z, current_v_ms=z)
+        return Conditions(
+            tws_kn=np.where(storm, 60.0, 15.0),
+            twd_deg=z,
+            hs_m=z + 1.0,
+            wave_dir_deg=z,
+            wave_period_s=z * np.nan,
+            current_u_ms=z,
+            current_v_ms=z,
+        )
 
     def check_coverage(self, *args) -> None:
         return None
@@ -192,11 +243,18 @@ def test_time_expanded_dp_waits_out_a_storm_and_matches_brute_force() -> None:
     plain = RoutingProblem(departure=DEP, weather=PassingStorm(), polar=polar, samples=4, beyond="forbid")
     # without waiting the storm band blocks every arc when the craft gets there: no route
     with pytest.raises(NoFeasibleRouteError, match="no boat speed in the polar"):
-        solve(grid, plain)
+        route_on_grid(grid, plain)
     step, max_wait = 20.0, 140.0
-    waiting = RoutingProblem(departure=DEP, weather=PassingStorm(), polar=polar, samples=4, beyond="forbid",
-                             time_step_h=step, max_wait_h=max_wait)
-    route = solve(grid, waiting)
+    waiting = RoutingProblem(
+        departure=DEP,
+        weather=PassingStorm(),
+        polar=polar,
+        samples=4,
+        beyond="forbid",
+        time_step_h=step,
+        max_wait_h=max_wait,
+    )
+    route = route_on_grid(grid, waiting)
     assert route.legs["wait_h"].sum() > 0
     # the storm is crossed after it clears: no leg sails through the band before clears_h
     assert np.all(np.isfinite(route.legs["time_h"]))
@@ -240,12 +298,23 @@ def test_pruning_finds_the_same_route_in_steady_weather(seed: int, monkeypatch) 
     monkeypatch.setattr("pyroute_rel.solve.PRUNE_MIN_WIDTH", 0)  # prune these small grids too
     rng = np.random.default_rng(100 + seed)
     square = seed % 2 == 0
-    grid = make_grid(START_PT, FINISH_PT, n_ranks=int(rng.integers(6, 14)), n_nodes=int(rng.integers(5, 13)),
-                     max_deviation_deg=None if square else 45.0, spacing_km=float(rng.uniform(40, 200)))
+    grid = make_grid(
+        START_PT,
+        FINISH_PT,
+        n_ranks=int(rng.integers(6, 14)),
+        n_nodes=int(rng.integers(5, 13)),
+        max_deviation_deg=None if square else 45.0,
+        spacing_km=float(rng.uniform(40, 200)),
+    )
     weather = random_weather(rng)
     if seed % 4 == 1:  # a current (east) the bound must include
-        weather = UniformWeather(tws_kn=weather.tws_kn, twd_deg=weather.twd_deg, patches=weather.patches,
-                                 current_u_ms=float(rng.uniform(-1.0, 1.0)), current_v_ms=float(rng.uniform(-1, 1)))
+        weather = UniformWeather(
+            tws_kn=weather.tws_kn,
+            twd_deg=weather.twd_deg,
+            patches=weather.patches,
+            current_u_ms=float(rng.uniform(-1.0, 1.0)),
+            current_v_ms=float(rng.uniform(-1, 1)),
+        )
     problem = RoutingProblem(departure=DEP, weather=weather, polar=random_polar(rng), samples=int(rng.integers(1, 4)))
     pruned, full = _same_dp(grid, problem)
     assert pruned <= full
@@ -257,32 +326,46 @@ def test_pruning_finds_the_same_route_over_time_varying_gridded_weather_and_land
     monkeypatch.setattr("pyroute_rel.solve.PRUNE_MIN_WIDTH", 0)  # prune these small grids too
     from test_cost import _varying_field
 
-    from pyroute_rel.avoid import Avoid, obstacle_mask
     from pyroute_rel.failure import load_failure_model
+    from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
 
     grid = make_grid((-31.5, 28.5), (-30.0, 30.0), n_ranks=16, n_nodes=16, max_deviation_deg=None)  # < 48 h
-    problem = RoutingProblem(departure=DEP, weather=_varying_field(), polar=get_polar("maribot_vane"),
-                             failure=load_failure_model("dickson2018"), apf=0.95, samples=2)
+    problem = RoutingProblem(
+        departure=DEP,
+        weather=_varying_field(),
+        polar=get_polar("maribot_vane"),
+        failure=load_failure_model("dickson2018"),
+        apf=0.95,
+        samples=2,
+    )
     first = forward_dp(grid, replace(problem, prune=False))
     assert np.isfinite(first.finish_h) and first.forbidden_by_reason["failure"] > 0  # premise: a route, and risk
     pruned, full = _same_dp(grid, problem)
     assert pruned < full / 2
-    caribbean = make_grid((-57.0, 16.25), (-64.0, 16.25), n_ranks=20, n_nodes=15, max_deviation_deg=None,
-                          spacing_km=10.0)
-    land = RoutingProblem(departure=DEP, weather=UniformWeather(tws_kn=15.0, twd_deg=0.0),
-                          polar=get_polar("maribot_vane"), blocked=obstacle_mask(caribbean, Avoid(land=True)))
+    caribbean = make_grid(
+        (-57.0, 16.25), (-64.0, 16.25), n_ranks=20, n_nodes=15, max_deviation_deg=None, spacing_km=10.0
+    )
+    land = RoutingProblem(
+        departure=DEP,
+        weather=UniformWeather(tws_kn=15.0, twd_deg=0.0),
+        polar=get_polar("maribot_vane"),
+        blocked=obstacle_mask(caribbean, Avoid(land=True)),
+    )
     assert forward_dp(caribbean, replace(land, prune=False)).forbidden_by_reason["obstacle"] > 0  # land in the way
     _same_dp(caribbean, land)
 
 
-@pytest.mark.parametrize(("change", "match"), [
-    ({"departure": None}, r"departure must be a UTC time .* \(got None\)"),  # routed with NaT times before
-    ({"departure": np.datetime64("NaT")}, "departure must be a UTC time"),
-    ({"departure": "garbage"}, "departure must be a UTC time"),
-    ({"polar": "maribot_vane"}, r"RoutingProblem\.polar must be a Polar .* \(got str\)"),
-    ({"weather": None}, r"RoutingProblem\.weather must be a weather source"),
-    ({"blocked": 5}, r"RoutingProblem\.blocked must be an obstacle mask callback"),
-])
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"departure": None}, r"departure must be a UTC time .* \(got None\)"),  # routed with NaT times before
+        ({"departure": np.datetime64("NaT")}, "departure must be a UTC time"),
+        ({"departure": "garbage"}, "departure must be a UTC time"),
+        ({"polar": "maribot_vane"}, r"RoutingProblem\.polar must be a Polar .* \(got str\)"),
+        ({"weather": None}, r"RoutingProblem\.weather must be a weather source"),
+        ({"blocked": 5}, r"RoutingProblem\.blocked must be an obstacle mask callback"),
+    ],
+)
 def test_routing_problem_refuses_what_it_cannot_route(change, match) -> None:
     from pyroute_rel.errors import ScenarioError
 
@@ -291,16 +374,21 @@ def test_routing_problem_refuses_what_it_cannot_route(change, match) -> None:
         RoutingProblem(**{**base, **change})
 
 
-@pytest.mark.parametrize(("make", "match"), [
-    (lambda: UniformWeather(tws_kn=-1.0, twd_deg=0.0), r"UniformWeather\.tws_kn must be in \[0, 200\]"),
-    (lambda: UniformWeather(tws_kn=float("nan"), twd_deg=0.0), r"tws_kn must be in"),
-    (lambda: UniformWeather(tws_kn="15", twd_deg=0.0), r"tws_kn must be a number"),
-    (lambda: UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=Patch((0, 1), (0, 1), {"hs_m": 4.0})),
-     r"patches must be a sequence of Patch"),
-    (lambda: Patch((1.0, 0.0), (0.0, 1.0), {"hs_m": 4.0}), r"Patch\.lon must satisfy -180 <= min < max <= 180"),
-    (lambda: Patch((0.0, 1.0), (0.0, 1.0), {"bogus": 4.0}), r"unknown field 'bogus'"),
-    (lambda: Patch((0.0, 1.0), (0.0, 1.0), {"hs_m": -4.0}), r"hs_m must be in \[0, 30\]"),
-])
+@pytest.mark.parametrize(
+    ("make", "match"),
+    [
+        (lambda: UniformWeather(tws_kn=-1.0, twd_deg=0.0), r"UniformWeather\.tws_kn must be in \[0, 200\]"),
+        (lambda: UniformWeather(tws_kn=float("nan"), twd_deg=0.0), r"tws_kn must be in"),
+        (lambda: UniformWeather(tws_kn="15", twd_deg=0.0), r"tws_kn must be a number"),
+        (
+            lambda: UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=Patch((0, 1), (0, 1), {"hs_m": 4.0})),
+            r"patches must be a sequence of Patch",
+        ),
+        (lambda: Patch((1.0, 0.0), (0.0, 1.0), {"hs_m": 4.0}), r"Patch\.lon must satisfy -180 <= min < max <= 180"),
+        (lambda: Patch((0.0, 1.0), (0.0, 1.0), {"bogus": 4.0}), r"unknown field 'bogus'"),
+        (lambda: Patch((0.0, 1.0), (0.0, 1.0), {"hs_m": -4.0}), r"hs_m must be in \[0, 30\]"),
+    ],
+)
 def test_control_weather_constructors_validate(make, match) -> None:
     from pyroute_rel.errors import ScenarioError
 

@@ -1,6 +1,6 @@
-"""Tests of pyroute_rel.strips: every arc of a rank pair against an area by shadows.
+"""Tests of pyroute_rel.obstacles.strips: every arc of a rank pair against an area by shadows.
 
-Reference: :func:`pyroute_rel.obstacles.arcs_blocked`, which tests each arc on its own (densified along its
+Reference: :func:`pyroute_rel.obstacles.land.arcs_blocked`, which tests each arc on its own (densified along its
 great circle, shapely ``intersects``). It is itself checked against PROJ great circles and a brute-force per-arc
 shapely test in test_obstacles. The two methods share no code beyond the tiles of the area.
 """
@@ -14,11 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pyroute_rel import geodesy
-from pyroute_rel import obstacles as ob
-from pyroute_rel.avoid import Avoid, obstacle_mask
 from pyroute_rel.grid import make_grid
-from pyroute_rel.strips import Group, fans_blocked
-from pyroute_rel.zones import Zone
+from pyroute_rel.obstacles import land as ob
+from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
+from pyroute_rel.obstacles.strips import Group, fans_blocked
+from pyroute_rel.obstacles.zones import Zone
 
 
 def reference(group: Group, area: shapely.Geometry) -> np.ndarray:
@@ -51,8 +51,11 @@ def random_area(rng: np.random.Generator, lon: float, lat: float, size_deg: floa
             poly = poly.difference(shapely.Point(cx, cy).buffer(float(r.min()) / 2))
         parts.append(poly)
     parts.append(shapely.box(lon - 0.005, lat - size_deg / 10, lon + 0.005, lat + size_deg / 10))  # sliver
-    parts.append(shapely.Point(lon + size_deg / 2, lat).buffer(size_deg / 12).difference(
-        shapely.Point(lon + size_deg / 2, lat).buffer(size_deg / 16)))  # a ring: arcs may start in the hole
+    parts.append(
+        shapely.Point(lon + size_deg / 2, lat)
+        .buffer(size_deg / 12)
+        .difference(shapely.Point(lon + size_deg / 2, lat).buffer(size_deg / 16))
+    )  # a ring: arcs may start in the hole
     return shapely.union_all(parts)
 
 
@@ -68,8 +71,14 @@ def rank_pair(lon, lat, course, n_src, n_dst, spacing_src, spacing_dst, gap_km, 
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), lon=st.floats(-179.0, 179.0), lat=st.floats(-70.0, 70.0),
-       course=st.floats(0.0, 359.0), banded=st.booleans(), single=st.sampled_from(["none", "source", "target"]))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    lon=st.floats(-179.0, 179.0),
+    lat=st.floats(-70.0, 70.0),
+    course=st.floats(0.0, 359.0),
+    banded=st.booleans(),
+    single=st.sampled_from(["none", "source", "target"]),
+)
 def test_shadows_equal_the_arc_by_arc_test(seed, lon, lat, course, banded, single) -> None:
     # random islands (holes, rings, slivers) between two random rank lines anywhere on the globe, the seam included
     rng = np.random.default_rng(seed)
@@ -79,8 +88,17 @@ def test_shadows_equal_the_arc_by_arc_test(seed, lon, lat, course, banded, singl
     area = random_area(rng, float(mid[0]), float(mid[1]), size_deg=float(rng.uniform(0.5, 4.0)))
     area = shapely.intersection(area, shapely.box(-180, -90, 180, 90))  # polygons past the seam come split
     if single == "none":
-        group = rank_pair(lon, lat, course, n, n, float(rng.uniform(5, 60)), float(rng.uniform(5, 60)), gap,
-                          band=int(rng.integers(0, n)) if banded else None)
+        group = rank_pair(
+            lon,
+            lat,
+            course,
+            n,
+            n,
+            float(rng.uniform(5, 60)),
+            float(rng.uniform(5, 60)),
+            gap,
+            band=int(rng.integers(0, n)) if banded else None,
+        )
     else:
         full = rank_pair(lon, lat, course, 1, n, 10.0, float(rng.uniform(5, 60)), gap)
         if single == "source":
@@ -122,8 +140,10 @@ def test_real_coast_rank_pairs_equal_the_arc_by_arc_test() -> None:
     # GSHHG land with a 10 km margin around the Lesser Antilles, a grid whose ranks cross the island arc
     land = ob.land_geometry((-66.0, 10.0, -55.0, 20.0), margin_km=10.0)
     grid = make_grid((-56.0, 15.0), (-65.0, 15.5), n_ranks=30, n_nodes=41, spacing_km=15.0)
-    groups = [Group(grid.lon_deg[k - 1], grid.lat_deg[k - 1], grid.lon_deg[k], grid.lat_deg[k])
-              for k in range(1, grid.n_ranks)]
+    groups = [
+        Group(grid.lon_deg[k - 1], grid.lat_deg[k - 1], grid.lon_deg[k], grid.lat_deg[k])
+        for k in range(1, grid.n_ranks)
+    ]
     results = fans_blocked(groups, [ob.tiles_tree(land)])[0]
     blocked = 0
     for group, got in zip(groups, results, strict=True):
@@ -150,8 +170,15 @@ def test_groups_the_shadows_cannot_take_are_left_to_the_caller() -> None:
 def test_the_grid_sweep_equals_the_arc_by_arc_test_on_every_arc() -> None:
     # the real course's shape: start line (one fan per start point), banded ranks, a finish point; land with a
     # margin and a zone with a time window (kept as a bit per arc)
-    grid = make_grid((-12.0, 48.0), (-60.0, 17.5), n_ranks=24, n_nodes=31, spacing_km=40.0, max_deviation_deg=45.0,
-                     start_line=((-16.0, 51.0), (-8.0, 45.0)))
+    grid = make_grid(
+        (-12.0, 48.0),
+        (-60.0, 17.5),
+        n_ranks=24,
+        n_nodes=31,
+        spacing_km=40.0,
+        max_deviation_deg=45.0,
+        start_line=((-16.0, 51.0), (-8.0, 45.0)),
+    )
     zone = Zone("z", shapely.box(-40.0, 30.0, -30.0, 36.0), np.datetime64("2018-06-01"), np.datetime64("2018-06-30"))
     avoid = Avoid(land=True, margin_km=10.0, zones=(zone,))
     mask = obstacle_mask(grid, avoid)

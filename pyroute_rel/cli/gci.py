@@ -21,42 +21,66 @@ EXIT_OK, EXIT_GATE = 0, 1
 _NEGATIVE_NUMBERS = re.compile(r"^-(\.?\d[\d.,eE+\-]*|inf|infinity|nan)$", re.IGNORECASE)
 
 #: Options of ``gci study`` that only apply to one --refinement.
-_ANGULAR_ONLY = (("aspect0", "--aspect0"), ("half_width_km", "--half-width-km"),
-                 ("max_deviation_deg", "--max-deviation"))
+_ANGULAR_ONLY = (
+    ("aspect0", "--aspect0"),
+    ("half_width_km", "--half-width-km"),
+    ("max_deviation_deg", "--max-deviation"),
+)
 _ANGULAR_DEFAULTS = {"aspect0": 2.0, "half_width_km": 1200.0, "max_deviation_deg": 60.0}
 
 
-def add_gci_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], None],
-                   csv_ints: Callable[[str], list[int]], csv_floats: Callable[[str], list[float]]) -> None:
+def add_gci_parser(
+    sub: Any,
+    add_common: Callable[[argparse.ArgumentParser], None],
+    csv_ints: Callable[[str], list[int]],
+    csv_floats: Callable[[str], list[float]],
+) -> None:
     """Add ``gci`` (values given) and ``gci study`` (routed) to the CLI."""
     g = sub.add_parser(
-        "gci", help="grid convergence index",
+        "gci",
+        help="grid convergence index",
         description="Grid convergence (Celik et al. 2008; least squares after Eca & Hoekstra 2014 for 4+ grids). "
-                    "'pyroute-rel gci --h ... --phi ...' evaluates given values; 'pyroute-rel gci study "
-                    "SCENARIO.toml' routes a family of grids first.")
+        "'pyroute-rel gci --h ... --phi ...' evaluates given values; 'pyroute-rel gci study "
+        "SCENARIO.toml' routes a family of grids first.",
+    )
     g.add_argument("--h", type=csv_floats, help="grid spacings, comma-separated [any unit, e.g. km]")
     g.add_argument("--phi", type=csv_floats, help="solution values paired with --h [e.g. h]")
     _gate_args(g)
     add_common(g)
     g.set_defaults(func=_cmd_gci)
     g_sub = g.add_subparsers(dest="gci_command", parser_class=type(g))
-    s = g_sub.add_parser("study", help="route a scenario on several grids and estimate the discretisation error",
-                         description="Route a scenario on a family of grids and estimate the error of the voyage "
-                                     "time.")
+    s = g_sub.add_parser(
+        "study",
+        help="route a scenario on several grids and estimate the discretisation error",
+        description="Route a scenario on a family of grids and estimate the error of the voyage time.",
+    )
     s.add_argument("scenario", help="scenario TOML file")
-    s.add_argument("--refinement", choices=("square", "angular"), default="square",
-                   help="square: the paper's n x n all-to-all grids (--n-nodes); angular: rank and lateral "
-                        "spacing both shrink, lateral faster, banded arcs (--n-ranks)")
+    s.add_argument(
+        "--refinement",
+        choices=("square", "angular"),
+        default="square",
+        help="square: the paper's n x n all-to-all grids (--n-nodes); angular: rank and lateral "
+        "spacing both shrink, lateral faster, banded arcs (--n-ranks)",
+    )
     s.add_argument("--n-nodes", type=csv_ints, help="square: nodes per rank of each grid, e.g. 41,57,81,115,161")
     s.add_argument("--n-ranks", type=csv_ints, help="ranks of each grid (square: default = --n-nodes)")
-    s.add_argument("--half-width-km", type=float,
-                   help=f"angular: domain half-width [km] (default {_ANGULAR_DEFAULTS['half_width_km']:g})")
-    s.add_argument("--max-deviation", type=float, dest="max_deviation_deg",
-                   help="angular: largest arc angle from the rank direction [deg] "
-                        f"(default {_ANGULAR_DEFAULTS['max_deviation_deg']:g})")
-    s.add_argument("--aspect0", type=float,
-                   help="angular: rank/lateral spacing of the coarsest grid "
-                        f"(default {_ANGULAR_DEFAULTS['aspect0']:g})")
+    s.add_argument(
+        "--half-width-km",
+        type=float,
+        help=f"angular: domain half-width [km] (default {_ANGULAR_DEFAULTS['half_width_km']:g})",
+    )
+    s.add_argument(
+        "--max-deviation",
+        type=float,
+        dest="max_deviation_deg",
+        help="angular: largest arc angle from the rank direction [deg] "
+        f"(default {_ANGULAR_DEFAULTS['max_deviation_deg']:g})",
+    )
+    s.add_argument(
+        "--aspect0",
+        type=float,
+        help=f"angular: rank/lateral spacing of the coarsest grid (default {_ANGULAR_DEFAULTS['aspect0']:g})",
+    )
     s.add_argument("--apf", type=float, help="acceptable probability of failure")
     s.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
     s.add_argument("--no-land", action="store_true", help="do not avoid land (overrides [avoid].land)")
@@ -78,20 +102,27 @@ def _gate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--out", help="folder for gci.csv, gci.json and gci.png")
     p.add_argument("--max-gci", type=float, help="exit 1 when GCI_fine (a fraction, e.g. 0.01) exceeds this")
-    p.add_argument("--require-asymptotic", action="store_true",
-                   help="exit 1 unless the finest triplet converges monotonically with an asymptotic ratio within "
-                        "--asymptotic-tol of 1 (a gate on its own, or in addition to --max-gci)")
-    p.add_argument("--asymptotic-tol", type=float, default=0.1,
-                   help="tolerance on |ratio - 1| of --require-asymptotic (default 0.1)")
+    p.add_argument(
+        "--require-asymptotic",
+        action="store_true",
+        help="exit 1 unless the finest triplet converges monotonically with an asymptotic ratio within "
+        "--asymptotic-tol of 1 (a gate on its own, or in addition to --max-gci)",
+    )
+    p.add_argument(
+        "--asymptotic-tol",
+        type=float,
+        default=0.1,
+        help="tolerance on |ratio - 1| of --require-asymptotic (default 0.1)",
+    )
 
 
 def _check_gate_args(args: argparse.Namespace) -> None:
     """Refuse bad gate and output options before any work (one line naming the option)."""
-    from .errors import ConvergenceError
-    from .gci import _check_safety_factor
-    from .route import check_out_dir
+    from ..errors import ConvergenceError
+    from ..files import check_out_dir
+    from ..gci.numbers import check_safety_factor
 
-    _check_safety_factor(args.safety_factor, "gci", "--safety-factor")
+    check_safety_factor(args.safety_factor, "gci", "--safety-factor")
     if args.max_gci is not None and not (math.isfinite(args.max_gci) and args.max_gci >= 0.0):
         raise ConvergenceError(f"--max-gci must be a finite fraction >= 0, e.g. 0.01 for 1 % (got {args.max_gci:g})")
     tol = args.asymptotic_tol
@@ -106,33 +137,45 @@ def _gate(fin: Any, args: argparse.Namespace) -> str | None:
     if args.max_gci is not None:
         if fin.gci_fine is None or not fin.gci_fine <= args.max_gci:
             got = "undefined" if fin.gci_fine is None else f"{fin.gci_fine:.4g}"
-            return (f"GCI_fine {got} exceeds --max-gci {args.max_gci:g} "
-                    f"(convergence: {fin.convergence}{'; ' + fin.note if fin.note else ''})")
+            return (
+                f"GCI_fine {got} exceeds --max-gci {args.max_gci:g} "
+                f"(convergence: {fin.convergence}{'; ' + fin.note if fin.note else ''})"
+            )
     if args.require_asymptotic:
         ar = fin.asymptotic_ratio
         if fin.convergence != "monotonic" or ar is None or abs(ar - 1.0) > args.asymptotic_tol:
             got = "undefined" if ar is None else f"{ar:.4g}"
-            return (f"not in the asymptotic range: convergence {fin.convergence}, asymptotic ratio {got} "
-                    f"(needs monotonic and |ratio - 1| <= {args.asymptotic_tol:g})")
+            return (
+                f"not in the asymptotic range: convergence {fin.convergence}, asymptotic ratio {got} "
+                f"(needs monotonic and |ratio - 1| <= {args.asymptotic_tol:g})"
+            )
     return None
 
 
 def _write_out(out: str, payload: dict[str, Any], csv_text: str, study: Any, title: str) -> None:
     """Write gci.png, gci.csv and gci.json into ``out``: all three, or none."""
-    from .gci_plot import plot_convergence
-    from .route import write_together
+    from ..files import write_together
+    from ..gci.plot import plot_convergence
 
-    write_together(out, {
-        "gci.png": lambda p: plot_convergence(study, path=p, title=title),
-        "gci.csv": lambda p: p.write_text(csv_text, encoding="utf-8"),
-        "gci.json": lambda p: p.write_text(json.dumps(payload, indent=1), encoding="utf-8"),
-    }, option="--out")
+    write_together(
+        out,
+        {
+            "gci.png": lambda p: plot_convergence(study, path=p, title=title),
+            "gci.csv": lambda p: p.write_text(csv_text, encoding="utf-8"),
+            "gci.json": lambda p: p.write_text(json.dumps(payload, indent=1), encoding="utf-8"),
+        },
+        option="--out",
+    )
 
 
 def _finish(payload: dict[str, Any], text: str, fin: Any, args: argparse.Namespace) -> int:
     reason = _gate(fin, args)
-    payload["gate"] = {"max_gci": args.max_gci, "require_asymptotic": args.require_asymptotic,
-                       "passed": reason is None, "reason": reason}
+    payload["gate"] = {
+        "max_gci": args.max_gci,
+        "require_asymptotic": args.require_asymptotic,
+        "passed": reason is None,
+        "reason": reason,
+    }
     print(json.dumps(payload) if args.json else text)
     if reason is not None:
         print(f"pyroute-rel: gate failed: {reason}", file=sys.stderr)
@@ -141,18 +184,23 @@ def _finish(payload: dict[str, Any], text: str, fin: Any, args: argparse.Namespa
 
 
 def _cmd_gci(args: argparse.Namespace) -> int:
-    from .errors import ConvergenceError
-    from .gci import convergence_study
+    from ..errors import ConvergenceError
+    from ..gci.numbers import convergence_study
 
     if args.h is None or args.phi is None:
         raise ConvergenceError("give --h and --phi (three or more values each), or use 'pyroute-rel gci study'")
     _check_gate_args(args)
-    study = convergence_study(args.h, args.phi, safety_factor=args.safety_factor,
-                              names=("--h", "--phi", "--safety-factor"))
+    study = convergence_study(
+        args.h, args.phi, safety_factor=args.safety_factor, names=("--h", "--phi", "--safety-factor")
+    )
     payload = study.to_dict()
     fin = study.finest
-    payload.update({k: payload["finest"][k] for k in ("p", "phi_ext", "gci_fine", "gci_coarse", "e_a",
-                                                       "asymptotic_ratio", "convergence", "method")})
+    payload.update(
+        {
+            k: payload["finest"][k]
+            for k in ("p", "phi_ext", "gci_fine", "gci_coarse", "e_a", "asymptotic_ratio", "convergence", "method")
+        }
+    )
     csv_text = "h,phi\n" + "".join(f"{h:.10g},{p:.10g}\n" for h, p in zip(study.h, study.phi, strict=True))
     if args.out is not None:
         _write_out(args.out, payload, csv_text, study, f"{len(study.h)} grids: {fin.convergence}")
@@ -161,22 +209,28 @@ def _cmd_gci(args: argparse.Namespace) -> int:
 
 def _check_study_args(args: argparse.Namespace) -> None:
     """Refuse options of ``gci study`` that are missing, out of range or do not apply to the --refinement."""
-    from .errors import ConvergenceError
+    from ..errors import ConvergenceError
 
     if args.h is not None or args.phi is not None:
-        raise ConvergenceError("--h and --phi give values to 'pyroute-rel gci'; 'gci study' routes its own grids "
-                               "(drop --h/--phi or the word 'study')")
+        raise ConvergenceError(
+            "--h and --phi give values to 'pyroute-rel gci'; 'gci study' routes its own grids "
+            "(drop --h/--phi or the word 'study')"
+        )
     if args.refinement == "square":
         if not args.n_nodes:
             raise ConvergenceError("gci study --refinement square needs --n-nodes, e.g. 41,57,81,115,161")
         given = [opt for dest, opt in _ANGULAR_ONLY if getattr(args, dest) is not None]
         if given:
-            raise ConvergenceError(f"{', '.join(given)} only apply to --refinement angular (the square grids are "
-                                   "n x n, all-to-all): drop them or add --refinement angular")
+            raise ConvergenceError(
+                f"{', '.join(given)} only apply to --refinement angular (the square grids are "
+                "n x n, all-to-all): drop them or add --refinement angular"
+            )
     else:
         if args.n_nodes is not None:
-            raise ConvergenceError("--n-nodes only applies to --refinement square (the angular grids derive their "
-                                   "nodes from --half-width-km and --aspect0): drop it or use --n-ranks")
+            raise ConvergenceError(
+                "--n-nodes only applies to --refinement square (the angular grids derive their "
+                "nodes from --half-width-km and --aspect0): drop it or use --n-ranks"
+            )
         if not args.n_ranks:
             raise ConvergenceError("gci study --refinement angular needs --n-ranks, e.g. 21,41,81")
         for dest, _ in _ANGULAR_ONLY:
@@ -186,42 +240,58 @@ def _check_study_args(args: argparse.Namespace) -> None:
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
-    from .geodesy import distance_km
-    from .scenario import load_scenario
-    from .study import angular_levels, check_study_scenario, run_study, square_levels
+    from ..gci.study import angular_levels, check_study_scenario, run_study, square_levels
+    from ..geodesy import distance_km
+    from ..scenario import load_scenario
 
     _check_study_args(args)
     if args.refinement == "square":
         square_levels(args.n_nodes, args.n_ranks)  # refuse bad counts before loading anything
-    scenario = load_scenario(args.scenario).with_options(apf=args.apf, failure_model=args.failure_model,
-                                                         land=False if args.no_land else None)
+    scenario = load_scenario(args.scenario).with_options(
+        apf=args.apf, failure_model=args.failure_model, land=False if args.no_land else None
+    )
     check_study_scenario(scenario)
     if scenario.refine and not args.quiet:
-        print(f"pyroute-rel: note: [grid].refine = {scenario.refine} is not applied: a study measures its grids' own "
-              "voyage times", file=sys.stderr)
+        print(
+            f"pyroute-rel: note: [grid].refine = {scenario.refine} is not applied: a study measures its grids' own "
+            "voyage times",
+            file=sys.stderr,
+        )
     if args.refinement == "square":
         levels = square_levels(args.n_nodes, args.n_ranks)
     else:
         length = float(distance_km(*scenario.start, *scenario.finish))
-        levels = angular_levels(length, args.n_ranks, aspect0=args.aspect0, half_width_km=args.half_width_km,
-                                max_deviation_deg=args.max_deviation_deg)
+        levels = angular_levels(
+            length,
+            args.n_ranks,
+            aspect0=args.aspect0,
+            half_width_km=args.half_width_km,
+            max_deviation_deg=args.max_deviation_deg,
+        )
 
     def report(i: int, n: int, row: dict[str, Any]) -> None:
         if not args.quiet and sys.stderr.isatty():
-            print(f"  grid {i + 1}/{n}: {row['n_ranks']}x{row['n_nodes']} -> {row['voyage_time_h']:.3f} h "
-                  f"({row['runtime_s']:.1f} s)", file=sys.stderr)
+            print(
+                f"  grid {i + 1}/{n}: {row['n_ranks']}x{row['n_nodes']} -> {row['voyage_time_h']:.3f} h "
+                f"({row['runtime_s']:.1f} s)",
+                file=sys.stderr,
+            )
 
-    result = run_study(scenario, levels, refinement=args.refinement, safety_factor=args.safety_factor,
-                       progress=report)
+    result = run_study(scenario, levels, refinement=args.refinement, safety_factor=args.safety_factor, progress=report)
     payload = result.to_dict()
-    lines = [f"refinement path: {args.refinement}",
-             f"{'ranks':>6} {'nodes':>6} {'h [km]':>10} {'lateral [km]':>12} {'arcs':>11} {'voyage [h]':>12} "
-             f"{'runtime [s]':>11}"]
+    lines = [
+        f"refinement path: {args.refinement}",
+        f"{'ranks':>6} {'nodes':>6} {'h [km]':>10} {'lateral [km]':>12} {'arcs':>11} {'voyage [h]':>12} "
+        f"{'runtime [s]':>11}",
+    ]
     for r in result.rows:
-        lines.append(f"{r['n_ranks']:>6} {r['n_nodes']:>6} {r['h_km']:>10.3f} {r['spacing_km']:>12.3f} "
-                     f"{r['arcs']:>11} {r['voyage_time_h']:>12.4f} {r['runtime_s']:>11.2f}")
+        lines.append(
+            f"{r['n_ranks']:>6} {r['n_nodes']:>6} {r['h_km']:>10.3f} {r['spacing_km']:>12.3f} "
+            f"{r['arcs']:>11} {r['voyage_time_h']:>12.4f} {r['runtime_s']:>11.2f}"
+        )
     text = "\n".join(lines) + "\n\n" + result.study.report()
     if args.out is not None:
-        _write_out(args.out, payload, result.csv(), result.study,
-                   f"{Path(args.scenario).name}: {args.refinement} refinement")
+        _write_out(
+            args.out, payload, result.csv(), result.study, f"{Path(args.scenario).name}: {args.refinement} refinement"
+        )
     return _finish(payload, text, result.study.finest, args)

@@ -1,6 +1,6 @@
 """Convergence plot of a grid-convergence study (matplotlib, imported lazily).
 
-Kept apart from :mod:`pyroute_rel.gci` so that the mathematics never imports matplotlib.
+Kept apart from :mod:`pyroute_rel.gci.numbers` so that the mathematics never imports matplotlib.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .gci import StudyResult
+from .numbers import StudyResult
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -38,7 +38,7 @@ def plot_convergence(
 
     Parameters
     ----------
-    study : Result of :func:`pyroute_rel.gci.convergence_study`.
+    study : Result of :func:`pyroute_rel.gci.numbers.convergence_study`.
     path : PNG file to write, atomically (temporary file in the same folder, then ``os.replace``). The
         figure is then drawn on a private Agg canvas that pyplot never sees, so nothing is left open (no
         ``plt.close`` needed) and no GUI backend is touched. With None the figure is made with pyplot
@@ -87,9 +87,7 @@ def plot_convergence(
             alpha=0.15,
             label=f"GCI_fine = {100.0 * finest.gci_fine:.3g} %",
         )
-        ax.errorbar(
-            [finest.h[0]], [finest.phi[0]], yerr=[[half], [half]], fmt="none", ecolor="tab:blue", capsize=4
-        )
+        ax.errorbar([finest.h[0]], [finest.phi[0]], yerr=[[half], [half]], fmt="none", ecolor="tab:blue", capsize=4)
     ax.plot(h, phi, "o", color="tab:blue", ms=6, label="grids")
     ax.set_xlim(0.0, x_max)
     ax.set_xlabel(xlabel)

@@ -1,6 +1,6 @@
 """Gridded weather in memory, and sampling it: the :class:`~pyroute_rel.weather.WeatherSource` files become.
 
-:mod:`pyroute_rel.weather_io` reads files into :class:`WeatherField` objects (numpy arrays on (time, lat, lon),
+:mod:`pyroute_rel.weather.readers` reads files into :class:`WeatherField` objects (numpy arrays on (time, lat, lon),
 longitude contiguous, latitude ascending, units normalised); :class:`GriddedWeather` keeps them and samples
 them, linear in time, latitude and longitude.
 
@@ -17,10 +17,9 @@ at both times, is one run of memory.
 
 from __future__ import annotations
 
-import datetime as _dt
 import functools
 import math
-from collections.abc import Collection, Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -28,19 +27,20 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from .errors import WeatherCoverageError, WeatherError
-from .weather import Conditions
+from ..errors import WeatherCoverageError, WeatherError
+from ..times import iso_minute, to_datetime64
+from ..units import KN_PER_MS
+from .base import Conditions
 
 if TYPE_CHECKING:
-    import xarray as xr
+    pass
 
-__all__ = ["GRID_FIELDS", "KNOTS_PER_MS", "GriddedWeather", "PreparedPoints", "WeatherField"]
+__all__ = ["GRID_FIELDS", "GriddedWeather", "PreparedPoints", "WeatherField"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 
 #: Knots per metre per second (1 kn = 1852 m / 3600 s).
-KNOTS_PER_MS = 3600.0 / 1852.0
 
 #: Fields a :class:`GriddedWeather` stores (files holding wind speed and direction are converted to u/v on load).
 GRID_FIELDS = ("wind_u_ms", "wind_v_ms", "hs_m", "wave_dir_deg", "wave_period_s", "current_u_ms", "current_v_ms")
@@ -59,7 +59,7 @@ _NEEDS: dict[str, tuple[str, ...]] = {
 
 @dataclass(frozen=True)
 class WeatherField:
-    """One field on its own (time, lat, lon) grid, in the units of :data:`~pyroute_rel.weather_io.VARIABLES`.
+    """One field on its own (time, lat, lon) grid, in the units of :data:`~pyroute_rel.weather.readers.VARIABLES`.
 
     Attributes
     ----------
@@ -86,7 +86,7 @@ class WeatherField:
 
     def describe(self) -> str:
         """The field's extent, e.g. ``"lon [-70, 0], lat [5, 55] [deg], time 2018-06-01T00:00 .. ..."``."""
-        t = "any time" if self.time is None else f"time {_iso(self.time[0])} .. {_iso(self.time[-1])}"
+        t = "any time" if self.time is None else f"time {iso_minute(self.time[0])} .. {iso_minute(self.time[-1])}"
         lon = "all longitudes" if self.periodic else f"lon [{self.lon[0]:g}, {self.lon[-1]:g}]"
         return f"{lon}, lat [{self.lat[0]:g}, {self.lat[-1]:g}] [deg], {t}"
 
@@ -144,8 +144,20 @@ class _Block:
         else:
             t = offset_s  # a steady block: any time will do
         out = np.empty((columns.size, where.base.size))
-        _interpolate_kernel(self.flat, self.n_fields, columns, where.base, where.sx, where.sy, where.wx, where.wy,
-                            where.ok, t, self.time_s, out)
+        _interpolate_kernel(
+            self.flat,
+            self.n_fields,
+            columns,
+            where.base,
+            where.sx,
+            where.sy,
+            where.wx,
+            where.wy,
+            where.ok,
+            t,
+            self.time_s,
+            out,
+        )
         return out
 
 
@@ -334,8 +346,9 @@ def _vector_kernel(east, north, sign, scale, speed_out, bearing_out):  # type: i
 class GriddedWeather:
     """Gridded, time-varying weather: a :class:`~pyroute_rel.weather.WeatherSource` over numpy arrays.
 
-    Build it with :func:`~pyroute_rel.weather_io.open_weather` (files) or :meth:`from_dataset` (an in-memory
-    :class:`xarray.Dataset`); the constructor takes ready :class:`WeatherField` objects.
+    Build it with :func:`~pyroute_rel.weather.readers.open_weather` (files) or
+    :func:`~pyroute_rel.weather.readers.weather_from_dataset` (an in-memory :class:`xarray.Dataset`); the
+    constructor takes ready :class:`WeatherField` objects.
 
     Parameters
     ----------
@@ -344,18 +357,6 @@ class GriddedWeather:
 
     Building one also loads the compiled sampling kernels: about half a second the first time in a process
     (numba's start-up), a few seconds once after installing (compiling them; the result is cached on disk).
-
-    Examples
-    --------
-    >>> import xarray as xr
-    >>> ds = xr.Dataset(
-    ...     {"u10": (("latitude", "longitude"), np.ones((2, 2)), {"units": "m s**-1"}),
-    ...      "v10": (("latitude", "longitude"), np.zeros((2, 2)), {"units": "m s**-1"})},
-    ...     coords={"latitude": [50.0, 40.0], "longitude": [340.0, 350.0]})
-    >>> w = GriddedWeather.from_dataset(ds)
-    >>> c = w.sample(-15.0, 45.0, np.datetime64("2018-06-01T00:00"))
-    >>> round(float(c.tws_kn), 4), float(c.twd_deg), sorted(w.fields)
-    (1.9438, 270.0, ['twd_deg', 'tws_kn'])
     """
 
     def __init__(self, fields: Iterable[WeatherField]):
@@ -435,10 +436,11 @@ class GriddedWeather:
         the same arc points at the departure time and again at the times the boat gets there).
 
         >>> import xarray as xr
+        >>> from pyroute_rel.weather.readers import weather_from_dataset
         >>> ds = xr.Dataset({"u10": (("latitude", "longitude"), np.ones((2, 2))),
         ...                  "v10": (("latitude", "longitude"), np.zeros((2, 2)))},
         ...                 coords={"latitude": [40.0, 50.0], "longitude": [-20.0, -10.0]})
-        >>> w = GriddedWeather.from_dataset(ds)
+        >>> w = weather_from_dataset(ds)
         >>> p = w.prepare([-15.0, -12.0], 45.0)
         >>> float(w.sample_at(p, np.datetime64("2018-06-01")).twd_deg[1])
         270.0
@@ -447,8 +449,9 @@ class GriddedWeather:
         lat = np.asarray(lat_deg, dtype=np.float64)
         shape = np.broadcast_shapes(lon.shape, lat.shape)
         lon_f, lat_f = (np.broadcast_to(a, shape).ravel() for a in (lon, lat))
-        return PreparedPoints(shape=shape, lon=lon_f, lat=lat_f, owner=id(self),
-                              where=tuple(b.locate(lon_f, lat_f) for b in self._blocks))
+        return PreparedPoints(
+            shape=shape, lon=lon_f, lat=lat_f, owner=id(self), where=tuple(b.locate(lon_f, lat_f) for b in self._blocks)
+        )
 
     def sample_at(
         self,
@@ -487,7 +490,8 @@ class GriddedWeather:
                 raise WeatherError(f"with 'offset_h', 'time' must be one origin (got shape {t.shape})")
             origin = np.datetime64(t.astype("datetime64[ns]").item(), "ns")
             offset_s = np.ascontiguousarray(
-                np.broadcast_to(np.asarray(offset_h, dtype=np.float64) * 3600.0, points.shape).ravel())
+                np.broadcast_to(np.asarray(offset_h, dtype=np.float64) * 3600.0, points.shape).ravel()
+            )
         return self._conditions(points.shape, self._interpolate_at(points.where, origin, offset_s, wanted), fields)
 
     def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
@@ -528,7 +532,7 @@ class GriddedWeather:
         out = dict.fromkeys(_NEEDS, nan)
         if "wind_u_ms" in v:
             out["tws_kn"], out["twd_deg"] = np.empty(n), np.empty(n)
-            _vector_kernel(v["wind_u_ms"], v["wind_v_ms"], -1.0, KNOTS_PER_MS, out["tws_kn"], out["twd_deg"])
+            _vector_kernel(v["wind_u_ms"], v["wind_v_ms"], -1.0, KN_PER_MS, out["tws_kn"], out["twd_deg"])
         if "_wave_sin" in v:
             out["wave_dir_deg"] = np.empty(n)
             _vector_kernel(v["_wave_sin"], v["_wave_cos"], 1.0, 1.0, _NO_TIME, out["wave_dir_deg"])
@@ -556,7 +560,7 @@ class GriddedWeather:
         lo, hi = float(lon_range[0]), float(lon_range[1])
         if hi < lo:
             hi += 360.0
-        t0, t1 = (_to_datetime64(t, "time_range") for t in time_range)
+        t0, t1 = (to_datetime64(t, "time_range") for t in time_range)
         for f in self._info.values():
             short = []
             if not f.periodic:
@@ -572,30 +576,8 @@ class GriddedWeather:
                 raise WeatherCoverageError(
                     f"weather file '{f.source}' variable '{f.variable}' covers (as loaded) {f.describe()}; requested "
                     f"lon [{lon_range[0]:g}, {lon_range[1]:g}], lat [{lat_range[0]:g}, {lat_range[1]:g}] [deg], "
-                    f"time {_iso(t0)} .. {_iso(t1)} ({' and '.join(short)} not covered)"
+                    f"time {iso_minute(t0)} .. {iso_minute(t1)} ({' and '.join(short)} not covered)"
                 )
-
-    @classmethod
-    def from_dataset(
-        cls,
-        ds: xr.Dataset,
-        *,
-        variables: Mapping[str, str] | None = None,
-        bbox: Sequence[float] | None = None,
-        time_window: Sequence[Any] | None = None,
-        member: int | None = None,
-        margin_deg: float | None = None,
-        source: str = "<dataset>",
-    ) -> GriddedWeather:
-        """Build from an in-memory :class:`xarray.Dataset` laid out like one of the supported files.
-
-        Options as for :func:`~pyroute_rel.weather_io.open_weather` (``margin_deg`` defaults to its
-        :data:`~pyroute_rel.weather_io.BBOX_MARGIN_DEG`); ``source`` names the dataset in messages.
-        """
-        from .weather_io import read_fields  # the readers build on this module
-
-        return cls(read_fields([(source, [ds])], variables=variables, bbox=bbox, time_window=time_window,
-                               member=member, margin_deg=margin_deg))
 
 
 def _check_field(f: WeatherField) -> None:
@@ -613,21 +595,6 @@ def _check_field(f: WeatherField) -> None:
 # ----------------------------------------------------------------------------------------------- helpers
 
 
-def _to_datetime64(value: Any, what: str) -> np.datetime64:
-    """A time (datetime64, datetime, ISO 8601 string with optional 'Z') -> datetime64[ns] (UTC)."""
-    try:
-        if isinstance(value, _dt.datetime) and value.tzinfo is not None:
-            value = value.astimezone(_dt.UTC).replace(tzinfo=None)
-        if isinstance(value, str):
-            value = value.strip().removesuffix("Z").removesuffix("+00:00")
-        out = np.datetime64(value, "ns")  # type: ignore[call-overload]
-    except (TypeError, ValueError):
-        raise WeatherError(f"{what}: expected a time (datetime64 or ISO 8601 string, UTC) (got {value!r})") from None
-    if np.isnat(out):
-        raise WeatherError(f"{what}: expected a time, got NaT")
-    return out
-
-
 def _points(
     lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike
 ) -> tuple[tuple[int, ...], FloatArray, FloatArray, npt.NDArray[np.datetime64]]:
@@ -635,7 +602,7 @@ def _points(
     lat = np.asarray(lat_deg, dtype=np.float64)
     t = np.asarray(time)
     if t.dtype.kind != "M":
-        t = np.asarray(np.vectorize(lambda v: _to_datetime64(v, "time"), otypes=["datetime64[ns]"])(t))
+        t = np.asarray(np.vectorize(lambda v: to_datetime64(v, "time"), otypes=["datetime64[ns]"])(t))
     t = t.astype("datetime64[ns]")
     shape = np.broadcast_shapes(lon.shape, lat.shape, t.shape)
     flat = [np.broadcast_to(a, shape).ravel() for a in (lon, lat, t)]
@@ -646,7 +613,3 @@ def _offsets(time: npt.NDArray[np.datetime64]) -> tuple[np.datetime64, FloatArra
     """Times (1-D ``datetime64[ns]``) as an origin and contiguous float seconds after it, as the kernels take them."""
     origin = time[0] if time.size else np.datetime64(0, "ns")
     return origin, np.ascontiguousarray((time - origin) / np.timedelta64(1, "s"), dtype=np.float64)
-
-
-def _iso(t: np.datetime64) -> str:
-    return str(np.datetime_as_string(t, unit="m"))

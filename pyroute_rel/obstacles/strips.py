@@ -28,9 +28,9 @@ all-to-all grid (4 M arcs) over the Atlantic coasts is tested in a fraction of a
 
 Accuracy: the area's edges are taken as great-circle chords between their vertices. A lon/lat edge of length s
 departs from its chord by about s^2 tan|lat| / (8 R): split long boundary edges first, as
-:func:`pyroute_rel.obstacles.tiles_tree` does (0.05 deg: under a metre). Edges that pieces share (cuts between
+:func:`pyroute_rel.obstacles.land.tiles_tree` does (0.05 deg: under a metre). Edges that pieces share (cuts between
 tiles) need no splitting: both pieces take the same chord, so their union is unchanged. Arcs are exact great
-circles. This is the tolerance of :func:`pyroute_rel.obstacles.arcs_blocked`, which densifies the arcs instead.
+circles. This is the tolerance of :func:`pyroute_rel.obstacles.land.arcs_blocked`, which densifies the arcs instead.
 
 Limits: groups whose points are not within 80 deg of their frame centre, whose sources are not on one great
 circle through P, or whose source and target lines (nearly) meet are reported as not handled, for the caller
@@ -47,7 +47,8 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from .geodesy import _from_xyz, to_xyz
+from ..geodesy import from_xyz, to_xyz
+from ..units import EARTH_RADIUS_KM
 
 __all__ = ["Group", "fans_blocked"]
 
@@ -62,7 +63,6 @@ _MAX_ANGLE_COS = math.cos(math.radians(80.0))  # points farther than 80 deg from
 _ON_LINE_TOL = 1e-9  # sources (targets) must lie on their great circle to this [rad]
 _CHUNK = 2_000_000  # (vertex, source) pairs per chunk of the shadow computation
 _MARK_CHUNK = 262_144  # arcs per chunk of the marking (its arrays stay in cache)
-_R_KM = 6371.0088
 
 
 @dataclass(frozen=True)
@@ -175,8 +175,9 @@ def _frames(src: _Points, dst: _Points) -> tuple[_Frames, BoolArray]:
         inner = np.ones(step.size, dtype=bool)
         inner[dst.off[1:-1] - 1] = False
         sense = np.sign(gxd[dst.off[1:] - 1] - gxd[dst.off[:-1]])
-        ok &= ~np.bincount(dst.group[1:][inner], weights=(step[inner] * sense[dst.group[1:][inner]] <= 0.0),
-                           minlength=len(ok)).astype(bool)
+        ok &= ~np.bincount(
+            dst.group[1:][inner], weights=(step[inner] * sense[dst.group[1:][inner]] <= 0.0), minlength=len(ok)
+        ).astype(bool)
         lo = np.minimum(src.reduce(np.minimum, gxs), dst.reduce(np.minimum, gxd))
         hi = np.maximum(src.reduce(np.maximum, gxs), dst.reduce(np.maximum, gxd))
         du = np.maximum(hi - lo, dt)
@@ -196,8 +197,8 @@ def _outlines(frames: _Frames, n_src: IntArray) -> tuple[npt.NDArray[np.object_]
     and the group of each.
     """
     n = len(n_src)
-    km_u = frames.du * _R_KM  # gnomonic lengths overstate true ones, so these counts are enough
-    km_t = frames.dt * _R_KM
+    km_u = frames.du * EARTH_RADIUS_KM  # gnomonic lengths overstate true ones, so these counts are enough
+    km_t = frames.dt * EARTH_RADIUS_KM
     m = np.maximum(1, np.ceil(km_u / _SLICE_KM)).astype(np.intp)  # slices per group
     owner = np.repeat(np.arange(n), m)
     k = np.arange(owner.size) - np.repeat(np.cumsum(m) - m, m)
@@ -217,7 +218,7 @@ def _outlines(frames: _Frames, n_src: IntArray) -> tuple[npt.NDArray[np.object_]
     g = owner[sl]
     gx, gy = u * frames.du[g] + frames.u0[g], t * frames.dt[g] + frames.t0[g]
     v = frames.c[g] + gx[:, None] * frames.x[g] + gy[:, None] * frames.y[g]
-    lon, lat = _from_xyz(v)
+    lon, lat = from_xyz(v)
     first = np.cumsum(per) - per
     step = np.concatenate([[0.0], (np.diff(lon) + 180.0) % 360.0 - 180.0])
     run = np.cumsum(step)
@@ -229,9 +230,7 @@ def _outlines(frames: _Frames, n_src: IntArray) -> tuple[npt.NDArray[np.object_]
     return polys, owner
 
 
-def _candidates(
-    outlines: npt.NDArray[np.object_], owner: IntArray, tree: shapely.STRtree
-) -> tuple[IntArray, IntArray]:
+def _candidates(outlines: npt.NDArray[np.object_], owner: IntArray, tree: shapely.STRtree) -> tuple[IntArray, IntArray]:
     """(group, piece) pairs whose lon/lat outline meets a piece of the tree (outlines past the seam shifted)."""
     geoms = outlines
     b = shapely.bounds(geoms)
@@ -311,8 +310,10 @@ def _shadows(
     tree: shapely.STRtree,
 ) -> list[BoolArray]:
     n_src, n_dst = src.count, dst.count
-    result = [np.zeros((int(b), int(a)) if w is None else (int(a), 2 * w + 1), dtype=bool)
-              for a, b, w in zip(n_src, n_dst, bands, strict=True)]
+    result = [
+        np.zeros((int(b), int(a)) if w is None else (int(a), 2 * w + 1), dtype=bool)
+        for a, b, w in zip(n_src, n_dst, bands, strict=True)
+    ]
     if len(tree) == 0:
         return result
     grp, piece = _candidates(*outlines, tree)

@@ -1,18 +1,7 @@
-"""Weather sources: the sampling protocol every source implements, and the paper's control scenario.
+"""Uniform weather with rectangular patches: the paper's control scenario.
 
-A weather source answers one question, vectorised: *what are the wind and waves at these points and
-times?* (:meth:`WeatherSource.sample`). The cost function and the solver only ever call that method, so a
-uniform control field, rectangular patches and gridded, time-varying reanalysis data (see
-:mod:`pyroute_rel.weather_io`) all plug into the same solver.
-
-Conventions
------------
-- Positions are longitude/latitude [deg], longitude in [-180, 180).
-- Times are ``numpy.datetime64`` (UTC).
-- Wind and wave directions are *from*, clockwise from true north [deg], in [0, 360).
-- Currents are the velocity the water moves *to*: ``current_u_ms`` east, ``current_v_ms`` north [m/s].
-- A value that is unknown at a point (land in an ocean model, outside a file) is NaN; the cost function
-  forbids arcs through NaN weather rather than treating it as calm.
+:class:`UniformWeather` is one value of each field everywhere, overridden inside :class:`Patch` boxes; it does
+not vary in time. It implements :class:`~pyroute_rel.weather.base.WeatherSource`.
 
 References
 ----------
@@ -26,87 +15,17 @@ import math
 import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from .errors import ScenarioError, brief
+from ..errors import ScenarioError, brief
+from .base import FIELDS, Conditions
 
-__all__ = [
-    "Conditions",
-    "WeatherSource",
-    "Patch",
-    "UniformWeather",
-    "FIELDS",
-]
+__all__ = ["Patch", "UniformWeather"]
 
 FloatArray = npt.NDArray[np.float64]
-
-#: Fields a control scenario (uniform value or patch) may set, with their units and valid range.
-FIELDS: dict[str, tuple[str, float, float]] = {
-    "tws_kn": ("true wind speed [kn]", 0.0, 200.0),
-    "twd_deg": ("true wind direction, from [deg]", 0.0, 360.0),
-    "hs_m": ("significant wave height [m]", 0.0, 30.0),
-    "wave_dir_deg": ("mean wave direction, from [deg]", 0.0, 360.0),
-    "wave_period_s": ("wave period [s]", 0.0, 40.0),
-    "current_u_ms": ("eastward current, to [m/s]", -10.0, 10.0),
-    "current_v_ms": ("northward current, to [m/s]", -10.0, 10.0),
-}
-
-
-@dataclass(frozen=True)
-class Conditions:
-    """Wind, waves and current at a set of points; every array has the shape of the query.
-
-    Attributes
-    ----------
-    tws_kn : True wind speed [kn].
-    twd_deg : True wind direction, from, clockwise from north [deg].
-    hs_m : Significant wave height [m].
-    wave_dir_deg : Mean wave direction, from, clockwise from north [deg].
-    wave_period_s : Wave period [s]; NaN where the source has none.
-    current_u_ms : Eastward current velocity (to) [m/s]; 0 where the source has none.
-    current_v_ms : Northward current velocity (to) [m/s]; 0 where the source has none.
-    """
-
-    tws_kn: FloatArray
-    twd_deg: FloatArray
-    hs_m: FloatArray
-    wave_dir_deg: FloatArray
-    wave_period_s: FloatArray
-    current_u_ms: FloatArray
-    current_v_ms: FloatArray
-
-    @property
-    def has_current(self) -> bool:
-        """True when any current is non-zero."""
-        return bool(np.any(self.current_u_ms) or np.any(self.current_v_ms))
-
-
-@runtime_checkable
-class WeatherSource(Protocol):
-    """What the router needs from weather: vectorised sampling in space and time.
-
-    ``sample`` must broadcast ``lon_deg``, ``lat_deg`` and ``time`` together and return
-    :class:`Conditions` with arrays of the broadcast shape. Sources that do not vary in time ignore
-    ``time``. ``check_coverage`` raises :class:`~pyroute_rel.errors.WeatherCoverageError` when the
-    box or time window is not covered (a no-op for sources that cover everything).
-    """
-
-    def sample(
-        self,
-        lon_deg: npt.ArrayLike,
-        lat_deg: npt.ArrayLike,
-        time: npt.ArrayLike,
-    ) -> Conditions: ...
-
-    def check_coverage(
-        self,
-        lon_range: tuple[float, float],
-        lat_range: tuple[float, float],
-        time_range: tuple[np.datetime64, np.datetime64],
-    ) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -127,8 +46,10 @@ class Patch:
         object.__setattr__(self, "lon", _range(self.lon, f"{where}.lon", -180.0, 180.0))
         object.__setattr__(self, "lat", _range(self.lat, f"{where}.lat", -90.0, 90.0))
         if not isinstance(self.values, Mapping) or not self.values:
-            raise ScenarioError(f"{where}.values must be a non-empty mapping of field -> value (fields: "
-                                f"{', '.join(FIELDS)}) (got {brief(self.values)})")
+            raise ScenarioError(
+                f"{where}.values must be a non-empty mapping of field -> value (fields: "
+                f"{', '.join(FIELDS)}) (got {brief(self.values)})"
+            )
         bad = [k for k in self.values if k not in FIELDS]
         if bad:
             raise ScenarioError(f"{where}.values: unknown field {bad[0]!r} (expected one of {', '.join(FIELDS)})")
@@ -138,12 +59,7 @@ class Patch:
 
     def contains(self, lon_deg: FloatArray, lat_deg: FloatArray) -> npt.NDArray[np.bool_]:
         """Boolean mask of the points inside the box."""
-        return (
-            (lon_deg >= self.lon[0])
-            & (lon_deg <= self.lon[1])
-            & (lat_deg >= self.lat[0])
-            & (lat_deg <= self.lat[1])
-        )
+        return (lon_deg >= self.lon[0]) & (lon_deg <= self.lon[1]) & (lat_deg >= self.lat[0]) & (lat_deg <= self.lat[1])
 
 
 @dataclass(frozen=True)
@@ -185,8 +101,12 @@ class UniformWeather:
                 continue  # unknown
             object.__setattr__(self, name, _checked_value(name, value, "UniformWeather"))
         patches = self.patches
-        if isinstance(patches, Patch) or not isinstance(patches, Sequence) or isinstance(patches, str) or not all(
-                isinstance(p, Patch) for p in patches):
+        if (
+            isinstance(patches, Patch)
+            or not isinstance(patches, Sequence)
+            or isinstance(patches, str)
+            or not all(isinstance(p, Patch) for p in patches)
+        ):
             raise ScenarioError(f"UniformWeather.patches must be a sequence of Patch (got {brief(patches)})")
         object.__setattr__(self, "patches", tuple(patches))
 
@@ -300,9 +220,7 @@ def _parse_patch(raw: Any, where: str) -> Patch:
             name = str(value)
             continue
         if key not in FIELDS:
-            raise ScenarioError(
-                f"{where}: unknown key {key!r} (expected lon, lat, name or one of {', '.join(FIELDS)})"
-            )
+            raise ScenarioError(f"{where}: unknown key {key!r} (expected lon, lat, name or one of {', '.join(FIELDS)})")
         values[key] = _checked_value(key, value, where)
     if "lon" not in raw or "lat" not in raw:
         raise ScenarioError(f"{where} needs both lon = [min, max] and lat = [min, max] [deg]")

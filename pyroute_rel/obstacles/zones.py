@@ -2,7 +2,7 @@
 
 A zone is a lon/lat Polygon or MultiPolygon (holes allowed) with an optional ``valid_from``/``valid_to`` window;
 an arc touching a zone that is active when the arc is sailed is forbidden. The arc test is the one land uses
-(:func:`pyroute_rel.obstacles.arcs_blocked`: great circles densified, cached index per geometry).
+(:func:`pyroute_rel.obstacles.land.arcs_blocked`: great circles densified, cached index per geometry).
 
 References
 ----------
@@ -23,8 +23,8 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from .errors import ScenarioError, show
-from .obstacles import _as_arcs, _blocked_flat, _checked_samples, _index, _polygon_parts
+from ..errors import ScenarioError, show
+from .land import area_index, as_arcs, blocked_flat, checked_samples, polygon_parts
 
 __all__ = ["Zone", "load_zones", "zones_active", "arcs_blocked_by_zones"]
 
@@ -33,7 +33,6 @@ BoolArray = npt.NDArray[np.bool_]
 PathLike = str | os.PathLike[str]
 
 _GEOJSON_POLYGONAL = ("Polygon", "MultiPolygon")
-
 
 
 @dataclass(frozen=True)
@@ -112,8 +111,8 @@ def arcs_blocked_by_zones(
     extra = [np.empty(t.shape) for t in (t0, t1) if t is not None]
     shape = np.broadcast_shapes(*(a.shape for a in arrays), *(e.shape for e in extra))
     arrays = [np.broadcast_to(a, shape) for a in arrays]
-    _, a, b, c, d = _as_arcs(*arrays)
-    step = _checked_samples(samples_km)
+    _, a, b, c, d = as_arcs(*arrays)
+    step = checked_samples(samples_km)
     blocked = np.zeros(a.shape, dtype=bool)
     for zone in zones:  # loop over zones (a handful), vectorised over arcs
         live: BoolArray = np.ones(a.shape, dtype=bool)
@@ -121,7 +120,7 @@ def arcs_blocked_by_zones(
             live = np.broadcast_to(zone.active(t0, t1), shape).ravel()
         todo = np.flatnonzero(live & ~blocked)
         if todo.size:
-            hit = _blocked_flat(a[todo], b[todo], c[todo], d[todo], _index(zone.geometry), step)
+            hit = blocked_flat(a[todo], b[todo], c[todo], d[todo], area_index(zone.geometry), step)
             blocked[todo[hit]] = True
     return blocked.reshape(shape)
 
@@ -281,7 +280,7 @@ def _parse_geometry(raw: Any, where: str) -> shapely.Geometry:
     geom = polys[0] if kind == "Polygon" else shapely.MultiPolygon(polys)
     if not geom.is_valid:
         reason = shapely.is_valid_reason(geom)
-        parts = _polygon_parts(shapely.make_valid(geom))
+        parts = polygon_parts(shapely.make_valid(geom))
         if len(parts) == 0:
             raise ScenarioError(f"{where}: invalid polygon that cannot be repaired ({reason})")
         geom = parts[0] if len(parts) == 1 else shapely.union_all(parts)

@@ -1,7 +1,7 @@
 """Routed grid-convergence studies: route one scenario on a family of grids, then estimate the error.
 
 A study is a list of :class:`GridLevel` (a *refinement path*) routed one after the other; the voyage
-times and a representative spacing ``h`` of each level feed :func:`pyroute_rel.gci.convergence_study`.
+times and a representative spacing ``h`` of each level feed :func:`pyroute_rel.gci.numbers.convergence_study`.
 
 Refinement paths (:data:`REFINEMENTS`)
 --------------------------------------
@@ -28,16 +28,23 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .errors import ConvergenceError
-from .gci import StudyResult, convergence_study
-from .grid import make_grid
-from .solve import forward_dp
+from ..errors import ConvergenceError
+from ..grid import make_grid
+from ..solve import forward_dp
+from .numbers import StudyResult, convergence_study
 
 if TYPE_CHECKING:
-    from .scenario import Scenario
+    from ..scenario import Scenario
 
-__all__ = ["GridLevel", "RoutedStudy", "square_levels", "angular_levels", "check_study_scenario", "run_study",
-           "REFINEMENTS"]
+__all__ = [
+    "GridLevel",
+    "RoutedStudy",
+    "square_levels",
+    "angular_levels",
+    "check_study_scenario",
+    "run_study",
+    "REFINEMENTS",
+]
 
 REFINEMENTS = ("square", "angular")
 
@@ -82,12 +89,24 @@ class RoutedStudy:
 
     def csv(self) -> str:
         """The table of grids as CSV."""
-        cols = ["n_ranks", "n_nodes", "h_km", "spacing_km", "rank_spacing_km", "max_deviation_deg", "arcs",
-                "voyage_time_h", "runtime_s"]
+        cols = [
+            "n_ranks",
+            "n_nodes",
+            "h_km",
+            "spacing_km",
+            "rank_spacing_km",
+            "max_deviation_deg",
+            "arcs",
+            "voyage_time_h",
+            "runtime_s",
+        ]
         lines = [",".join(cols)]
         for r in self.rows:
-            lines.append(",".join("" if r.get(c) is None else f"{r[c]:.10g}" if isinstance(r[c], float)
-                                  else str(r[c]) for c in cols))
+            lines.append(
+                ",".join(
+                    "" if r.get(c) is None else f"{r[c]:.10g}" if isinstance(r[c], float) else str(r[c]) for c in cols
+                )
+            )
         return "\n".join(lines) + "\n"
 
 
@@ -148,8 +167,9 @@ def angular_levels(
     aspect0 = _positive(aspect0, "--aspect0 (rank spacing / lateral spacing of the coarsest grid)")
     half_width_km = _positive(half_width_km, "--half-width-km", " [km]")
     route_length_km = _positive(route_length_km, "route length", " [km]")
-    if isinstance(max_deviation_deg, bool) or not (isinstance(max_deviation_deg, numbers.Real)
-                                                   and 0.0 < max_deviation_deg < 90.0):
+    if isinstance(max_deviation_deg, bool) or not (
+        isinstance(max_deviation_deg, numbers.Real) and 0.0 < max_deviation_deg < 90.0
+    ):
         raise ConvergenceError(f"--max-deviation must be in (0, 90) [deg] (got {max_deviation_deg!r})")
     levels = []
     for nr in ranks:
@@ -157,8 +177,9 @@ def angular_levels(
         aspect = aspect0 * nr / ranks[0]
         spacing = rank_spacing / aspect
         n_nodes = 2 * int(np.ceil(half_width_km / spacing)) + 1
-        levels.append(GridLevel(n_ranks=nr, n_nodes=n_nodes, spacing_km=spacing,
-                                max_deviation_deg=float(max_deviation_deg)))
+        levels.append(
+            GridLevel(n_ranks=nr, n_nodes=n_nodes, spacing_km=spacing, max_deviation_deg=float(max_deviation_deg))
+        )
     return levels
 
 
@@ -169,8 +190,8 @@ def check_study_scenario(scenario: Scenario) -> None:
     reference points) on land or inside an exclusion zone is refused with the message of
     :meth:`~pyroute_rel.scenario.Scenario.route`.
     """
-    from .avoid import check_points
-    from .errors import ScenarioError
+    from ..errors import ScenarioError
+    from ..obstacles.mask import check_points
 
     if scenario.waypoints:
         raise ScenarioError(
@@ -208,21 +229,32 @@ def run_study(
         raise ConvergenceError(f"a study needs at least three grids (got {len(levels)})")
     if refinement not in REFINEMENTS:
         raise ConvergenceError(f"refinement must be one of {list(REFINEMENTS)} (got {refinement!r})")
-    if isinstance(safety_factor, bool) or not (isinstance(safety_factor, numbers.Real) and math.isfinite(safety_factor)
-                                               and safety_factor > 0):
+    if isinstance(safety_factor, bool) or not (
+        isinstance(safety_factor, numbers.Real) and math.isfinite(safety_factor) and safety_factor > 0
+    ):
         raise ConvergenceError(f"safety_factor must be a finite number > 0 (got {safety_factor!r})")
-
 
     check_study_scenario(scenario)
     failure = scenario.load_failure()
-    grids = [make_grid(scenario.start, scenario.finish, n_ranks=lv.n_ranks, n_nodes=lv.n_nodes,
-                       spacing_km=lv.spacing_km, max_deviation_deg=lv.max_deviation_deg,
-                       start_line=scenario.start_line, finish_line=scenario.finish_line) for lv in levels]
+    grids = [
+        make_grid(
+            scenario.start,
+            scenario.finish,
+            n_ranks=lv.n_ranks,
+            n_nodes=lv.n_nodes,
+            spacing_km=lv.spacing_km,
+            max_deviation_deg=lv.max_deviation_deg,
+            start_line=scenario.start_line,
+            finish_line=scenario.finish_line,
+        )
+        for lv in levels
+    ]
     for grid in grids:  # as Scenario.route: the weather must cover the end points and the departure
         s_lon, s_lat = grid.start_points
         lons, lats = [*s_lon, grid.finish[0]], [*s_lat, grid.finish[1]]
-        scenario.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)),
-                                        (scenario.departure, scenario.departure))
+        scenario.weather.check_coverage(
+            (min(lons), max(lons)), (min(lats), max(lats)), (scenario.departure, scenario.departure)
+        )
     todo = grids[::-1]  # routed grids are dropped one by one, with what forward_dp cached on them
     del grids
     rows = []
@@ -233,19 +265,28 @@ def run_study(
         res = forward_dp(grid, problem)
         dt = time.perf_counter() - t0
         if not np.isfinite(res.finish_h):
-            from .solve import explain_infeasible
+            from ..solve import explain_infeasible
 
             raise ConvergenceError(f"grid {lv.n_ranks}x{lv.n_nodes}: {explain_infeasible(grid, problem, res)}")
         h = grid.spacing_km if refinement == "square" else grid.rank_spacing_km
         row = {
-            "n_ranks": grid.n_ranks, "n_nodes": grid.n_nodes, "h_km": float(h), "spacing_km": grid.spacing_km,
-            "rank_spacing_km": grid.rank_spacing_km, "max_deviation_deg": grid.max_deviation_deg,
-            "arcs": res.arcs_evaluated, "samples_per_arc": problem.samples, "voyage_time_h": float(res.finish_h),
+            "n_ranks": grid.n_ranks,
+            "n_nodes": grid.n_nodes,
+            "h_km": float(h),
+            "spacing_km": grid.spacing_km,
+            "rank_spacing_km": grid.rank_spacing_km,
+            "max_deviation_deg": grid.max_deviation_deg,
+            "arcs": res.arcs_evaluated,
+            "samples_per_arc": problem.samples,
+            "voyage_time_h": float(res.finish_h),
             "runtime_s": dt,
         }
         rows.append(row)
         if progress is not None:
             progress(i, len(levels), row)
-    study = convergence_study([float(r["h_km"] or 0.0) for r in rows],
-                              [float(r["voyage_time_h"] or 0.0) for r in rows], safety_factor=safety_factor)
+    study = convergence_study(
+        [float(r["h_km"] or 0.0) for r in rows],
+        [float(r["voyage_time_h"] or 0.0) for r in rows],
+        safety_factor=safety_factor,
+    )
     return RoutedStudy(refinement=refinement, rows=tuple(rows), study=study)

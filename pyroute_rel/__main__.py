@@ -1,0 +1,8 @@
+"""``python -m pyroute_rel``: the same as the ``pyroute-rel`` command."""
+
+import sys
+
+from .cli.main import main
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,8 @@
+"""``python -m pyroute_rel.cli``: the same as the ``pyroute-rel`` command."""
+
+import sys
+
+from .main import main
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,32 @@
+"""Obstacles: what a route may not cross, and the per-grid mask the solver asks.
+
+=======================  ===============================================================================
+module                   holds
+=======================  ===============================================================================
+``obstacles.land``       GSHHG land and coastal margins; the vectorised arc-versus-area test
+``obstacles.zones``      user exclusion zones (GeoJSON polygons with optional time windows)
+``obstacles.strips``     whole rank pairs tested at once against an area (rank-pair shadows)
+``obstacles.mask``       :class:`Avoid` (what to avoid) and the per-grid :class:`ObstacleMask`
+=======================  ===============================================================================
+"""
+
+from __future__ import annotations
+
+from .land import RESOLUTIONS, arcs_blocked, arcs_on_land, land_geometry, land_within, points_on_land
+from .mask import Avoid, ObstacleMask, check_points, obstacle_mask
+from .zones import Zone, load_zones
+
+__all__ = [
+    "RESOLUTIONS",
+    "arcs_blocked",
+    "arcs_on_land",
+    "land_geometry",
+    "land_within",
+    "points_on_land",
+    "Avoid",
+    "ObstacleMask",
+    "check_points",
+    "obstacle_mask",
+    "Zone",
+    "load_zones",
+]

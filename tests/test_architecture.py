@@ -1,0 +1,152 @@
+"""The package's shape, checked from the source (issue 15): imports go one way, no module reaches into another's
+private names, functions stay small, and the public API is what ``pyroute_rel.__all__`` says.
+
+The import graph is read with :mod:`ast`, so imports inside functions count as much as those at the top; imports
+under ``if TYPE_CHECKING:`` are for annotations only (never executed) and are left out.
+"""
+
+from __future__ import annotations
+
+import ast
+import importlib
+from pathlib import Path
+
+import networkx as nx
+import pytest
+
+import pyroute_rel
+
+PACKAGE = Path(pyroute_rel.__file__).parent
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(PACKAGE.parent).with_suffix("")
+        parts = list(rel.parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = path
+    return out
+
+
+MODULES = _modules()
+
+
+def _is_type_checking(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _imports(name: str) -> list[tuple[str, list[str], int]]:
+    """(target module, imported names, line) of every runtime import of module ``name``."""
+    path = MODULES[name]
+    tree = ast.parse(path.read_text(), filename=str(path))
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: list[tuple[str, list[str], int]] = []
+
+    def visit(node: ast.AST) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.If) and _is_type_checking(child):
+                for sub in child.orelse:
+                    visit(sub)
+                continue
+            if isinstance(child, ast.ImportFrom):
+                if child.level:
+                    base = package.split(".")
+                    base = base[: len(base) - (child.level - 1)]
+                    target = ".".join(base + ([child.module] if child.module else []))
+                else:
+                    target = child.module or ""
+                if target == "pyroute_rel" or target.startswith("pyroute_rel."):
+                    names = [a.name for a in child.names]
+                    sub = [f"{target}.{n}" for n in names if f"{target}.{n}" in MODULES]
+                    if sub:  # from . import geodesy: an import of the module itself
+                        found.extend((s, [], child.lineno) for s in sub)
+                        names = [n for n in names if f"{target}.{n}" not in MODULES]
+                    if names:
+                        found.append((target, names, child.lineno))
+            elif isinstance(child, ast.Import):
+                for a in child.names:
+                    if a.name.startswith("pyroute_rel"):
+                        found.append((a.name, [], child.lineno))
+            visit(child)
+
+    visit(tree)
+    return found
+
+
+def _graph() -> nx.DiGraph:
+    g = nx.DiGraph()
+    g.add_nodes_from(MODULES)
+    for name in MODULES:
+        for target, _, _ in _imports(name):
+            if target != name:
+                g.add_edge(name, target)
+    return g
+
+
+def test_import_graph_has_no_cycle():
+    """No two modules import each other, directly or round a loop, even inside functions.
+
+    A package's ``__init__`` re-exports its modules, so the edges from a module to its own package's ``__init__``
+    (and from a package to its modules) are not dependencies of the design; they are left out.
+    """
+    g = _graph()
+    for a, b in list(g.edges):
+        if b == a.rpartition(".")[0] or a == b.rpartition(".")[0]:
+            g.remove_edge(a, b)
+        elif b == "pyroute_rel":  # the top-level package only re-exports, lazily
+            g.remove_edge(a, b)
+    cycles = list(nx.simple_cycles(g))
+    assert not cycles, f"import cycles: {cycles[:5]}"
+
+
+def test_no_private_names_imported_across_modules():
+    offences = []
+    for name in MODULES:
+        for target, names, line in _imports(name):
+            if target == name:
+                continue
+            offences += [
+                f"{name}:{line} imports {target}.{n}" for n in names if n.startswith("_") and not n.startswith("__")
+            ]
+    assert not offences, "\n".join(offences)
+
+
+def test_lower_layers_never_import_higher_ones():
+    """cost and solve never draw or write files; weather, obstacles, geodesy and polar know nothing of routing."""
+    forbidden = {
+        "pyroute_rel.cost": ("plot", "outputs", "route", "scenario", "cli", "solve"),
+        "pyroute_rel.solve": ("plot", "outputs", "route", "scenario", "cli"),
+        "pyroute_rel.route": ("plot", "outputs", "scenario", "cli"),
+        "pyroute_rel.plot": ("outputs", "scenario", "cli", "solve"),
+        "pyroute_rel.geodesy": ("grid", "cost", "solve", "route"),
+        "pyroute_rel.polar": ("cost", "solve", "route", "weather"),
+    }
+    for pkg in ("weather", "obstacles"):
+        for name in MODULES:
+            if name.startswith(f"pyroute_rel.{pkg}."):
+                forbidden[name] = ("cost", "solve", "route", "scenario", "plot", "outputs", "cli", "refine")
+    offences = []
+    for name, higher in forbidden.items():
+        for target, _, line in _imports(name):
+            if target.removeprefix("pyroute_rel.").split(".")[0] in higher:
+                offences.append(f"{name}:{line} imports {target}")
+    assert not offences, "\n".join(offences)
+
+
+def test_public_api_resolves_and_is_documented():
+    for name in pyroute_rel.__all__:
+        obj = getattr(pyroute_rel, name)
+        if callable(obj):
+            assert obj.__doc__, f"pyroute_rel.{name} has no docstring"
+    assert sorted(set(pyroute_rel.__all__)) == sorted(pyroute_rel.__all__), "duplicates in __all__"
+    assert set(pyroute_rel.__all__) <= set(dir(pyroute_rel))
+
+
+@pytest.mark.parametrize("name", sorted(m for m in MODULES if not m.endswith("__main__")))
+def test_every_module_imports_alone(name):
+    importlib.import_module(name)
