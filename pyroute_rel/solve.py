@@ -307,7 +307,7 @@ class DPResult:
         return np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
 
 
-def forward_dp(
+def forward_dp(  # noqa: C901 - to split
     grid: Grid,
     problem: RoutingProblem,
     *,

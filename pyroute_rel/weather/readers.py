@@ -451,7 +451,7 @@ def _dim_kind(da: xr.DataArray, dim: Hashable) -> str:
     return "other"
 
 
-def _extract(
+def _extract(  # noqa: C901 - to split
     da: xr.DataArray,
     name: str,
     source: str,
