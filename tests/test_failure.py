@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import fnmatch
+import io
 import itertools
 import json
 import math
@@ -19,7 +20,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pyroute_rel import failure
+from pyroute_rel import diskcache, failure
 from pyroute_rel.errors import FailureModelError
 from pyroute_rel.failure import QUANTITIES, build_network, list_failure_models, load_failure_model
 
@@ -340,7 +341,7 @@ def test_without_the_shipped_tables_models_are_compiled(monkeypatch, tmp_path):
     failure._shipped_tables.cache_clear()
     try:
         assert load_failure_model("dickson2018").table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
-        assert len(list(tmp_path.glob("failure-*.npz"))) == 1  # compiled, then kept on disk
+        assert len(list((tmp_path / diskcache.ENTRIES).glob("failure-*.npz"))) == 1  # compiled, then kept on disk
     finally:
         monkeypatch.undo()
         failure._shipped_tables.cache_clear()
@@ -352,7 +353,7 @@ def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
     monkeypatch.setattr(failure, "_MEMORY", {})
     toml = _copy_model(tmp_path / "m", "wind_wave_multistate")
     first = load_failure_model(toml)
-    assert len(list(cache.glob("failure-*.npz"))) == 1
+    assert len(list((cache / diskcache.ENTRIES).glob("failure-*.npz"))) == 1
     code = (
         "import json, sys; from pyroute_rel.failure import load_failure_model; "
         f"m = load_failure_model({str(toml)!r}); "
@@ -392,7 +393,7 @@ def test_editing_the_network_recompiles(tmp_path, monkeypatch):
     bif = tmp_path / "m" / "dickson2018.bif"
     bif.write_text(bif.read_text().replace("0.1, 0.9;", "0.2, 0.8;"))
     assert load_failure_model(toml).table.tolist() == [[0.0, 0.8], [0.8, 1.0]]
-    assert len(list((tmp_path / "cache").glob("failure-*.npz"))) == 2
+    assert len(list((tmp_path / "cache" / diskcache.ENTRIES).glob("failure-*.npz"))) == 2
 
 
 def test_editing_a_shipped_model_in_place_is_not_served_the_shipped_table(tmp_path, monkeypatch):
@@ -413,17 +414,21 @@ def test_corrupt_cache_file_is_ignored(tmp_path, monkeypatch):
     monkeypatch.setattr(failure, "_MEMORY", {})
     toml = _copy_model(tmp_path / "m")
     load_failure_model(toml)
-    (entry,) = (tmp_path / "cache").glob("failure-*.npz")
+    (entry,) = (tmp_path / "cache" / diskcache.ENTRIES).glob("failure-*.npz")
     entry.write_bytes(b"not a zip file")
     monkeypatch.setattr(failure, "_MEMORY", {})
     assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
-    with np.load(entry) as data:  # rewritten atomically with a good entry
+    with np.load(io.BytesIO(diskcache.read(entry.name))) as data:  # rewritten atomically with a good entry
         assert data["table"].shape == (3, 3)
         meta = data["meta"]
-    with open(entry, "wb") as fh:  # readable, but its table does not fit the model
-        np.savez(fh, table=np.full((2, 2), 0.5), meta=meta)
-    monkeypatch.setattr(failure, "_MEMORY", {})
-    assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
+    signed = entry.read_bytes()
+    for table in (np.full((2, 2), 0.5), np.zeros((3, 3))):  # does not fit the model; fits but is wrong (all zeros)
+        buf = io.BytesIO()
+        np.savez(buf, table=table, meta=meta)
+        head = len(signed) - len(diskcache.read(entry.name))
+        entry.write_bytes(signed[:head] + buf.getvalue())  # well formed, with the genuine entry's header
+        monkeypatch.setattr(failure, "_MEMORY", {})
+        assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
 
 
 def test_unwritable_cache_folder_falls_back_silently(tmp_path, monkeypatch):

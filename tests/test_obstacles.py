@@ -606,7 +606,7 @@ def test_land_within_is_kept_on_disk_and_read_back(tmp_path: Path, monkeypatch) 
     region = shapely.box(-62.0, 15.5, -61.0, 16.6)  # Guadeloupe
     ob._land_within.cache_clear()
     made = ob.land_within(region, margin_km=3.0)
-    (entry,) = (tmp_path / "cache").glob("land-*.wkb")
+    (entry,) = diskcache.entries_dir().glob("land-*.wkb")
     ob._land_within.cache_clear()
     monkeypatch.setattr(ob, "_make_land_within", lambda *a: pytest.fail("buffered again despite the disk cache"))
     again = ob.land_within(region, margin_km=3.0)
@@ -616,7 +616,7 @@ def test_land_within_is_kept_on_disk_and_read_back(tmp_path: Path, monkeypatch) 
     entry.write_bytes(b"not wkb")
     ob._land_within.cache_clear()
     assert ob.land_within(region, margin_km=3.0).equals_exact(made, 0.0)
-    assert shapely.from_wkb(entry.read_bytes()).equals_exact(made, 0.0)  # rewritten
+    assert shapely.from_wkb(diskcache.read(entry.name)).equals_exact(made, 0.0)  # rewritten
     blocker = tmp_path / "file"
     blocker.write_text("")
     monkeypatch.setenv(diskcache.ENV, str(blocker / "cache"))  # a folder that cannot be made
