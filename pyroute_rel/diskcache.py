@@ -43,6 +43,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import BinaryIO, TypeVar
 
+from .errors import CacheWarning
+
 __all__ = ["cache_dir", "entries_dir", "key", "stamp", "read", "load", "write", "CacheWarning", "ENV", "ENTRIES"]
 
 T = TypeVar("T")
@@ -54,10 +56,6 @@ _MAGIC = b"PRRCACHE2\n"  # first bytes of every entry
 _DIGEST = 32  # bytes of HMAC-SHA256
 _KEY_FILE = ".key"
 _NAME = re.compile(r"^[a-z][a-z0-9_]*-[0-9a-f]{32}\.[a-z0-9]+$")  # kind-<key>.<ext>: the names the cache writes
-
-
-class CacheWarning(UserWarning):
-    """The disk cache is not used (a folder other users may write); the run goes on without it."""
 
 
 def cache_dir() -> Path:

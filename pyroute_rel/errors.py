@@ -21,6 +21,9 @@ __all__ = [
     "NoFeasibleRouteError",
     "OutputError",
     "CoordinateError",
+    "PyrouteWarning",
+    "PolarWarning",
+    "CacheWarning",
 ]
 
 
@@ -85,3 +88,16 @@ class OutputError(PyrouteError, OSError):
 
 class CoordinateError(PyrouteError, ValueError):
     """A position is off the globe: a latitude outside [-90, 90] deg."""
+
+
+class PyrouteWarning(UserWarning):
+    """Base class of the warnings pyroute_rel gives: the run goes on, but the user should know (the CLI prints each
+    as one line on stderr)."""
+
+
+class PolarWarning(PyrouteWarning):
+    """A polar file was read with cells filled in (empty or missing speeds)."""
+
+
+class CacheWarning(PyrouteWarning):
+    """The disk cache is not used (a folder other users may write); the run goes on without it."""

@@ -14,11 +14,18 @@ File formats
         40	0	1.2	2.4
         160	0	0.7	1.5
 
-    The first cell of the header row is ``TWA\TWS`` (also ``TWA/TWS``, any case, or empty); the rest of
-    the header are TWS [kn], strictly increasing. Each following row is a TWA [deg] in [0, 180],
-    strictly increasing down the file, then one boat speed [kn] per TWS. Cells are separated by tabs,
-    spaces, ``;`` or ``,`` (decimal point ``.``; decimal commas are not read); a trailing separator is
-    allowed; blank lines and lines starting with ``#`` are skipped. :func:`write_pol` writes tabs.
+    The first cell of the header row is ``TWA\TWS`` (also ``TWA/TWS``, ``TWA`` or ``TWS`` alone, any case, or
+    empty); the rest of the header are TWS [kn], strictly increasing. Each following row is a TWA [deg] in
+    [0, 180], strictly increasing down the file, then one boat speed [kn] per TWS. A line's cells are separated by
+    tabs if it has any, else by ``;``, else by ``,``, else by spaces (decimal point ``.``; decimal commas are not
+    read); a trailing separator is allowed; blank lines and lines starting with ``#`` are skipped; a UTF-8 byte
+    order mark and Windows line ends are fine. :func:`write_pol` writes tabs.
+
+    **Empty or missing speeds** (an empty cell between two separators, or a row shorter than the header, as some
+    of the polars shipped with OpenCPN's weather routing have) are filled, with a
+    :class:`~pyroute_rel.errors.PolarWarning` saying how many and where: within a TWS column, a gap between two
+    given speeds is interpolated linearly in TWA; a gap above the first or below the last given speed of its column
+    is 0 kn (no speed there, so a route never sails there). A TWS column with no speed at all is refused.
 ``.csv`` (:func:`read_polar_csv`, :func:`write_polar_csv`)
     The same matrix, comma-separated, with the header cell ``twa_deg\tws_kn`` (a literal backslash)::
 
@@ -62,6 +69,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,7 +80,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .errors import OutputError, PolarError, show
+from .errors import OutputError, PolarError, PolarWarning, show
 from .files import atomic_write_text
 
 __all__ = [
@@ -104,12 +112,11 @@ BEYOND_MODES = ("clamp", "forbid")
 POLAR_SUFFIXES = (".pol", ".txt", ".csv")
 
 #: First header cells accepted by :func:`read_pol` (lower case, ``/`` read as ``\``).
-_POL_LABELS = frozenset({"twa\\tws", ""})
+_POL_LABELS = frozenset({"twa\\tws", "twa", "tws", ""})
 #: First header cells accepted by :func:`read_polar_csv`.
-_CSV_LABELS = frozenset({"twa_deg\\tws_kn", "twa\\tws", ""})
+_CSV_LABELS = frozenset({"twa_deg\\tws_kn", "twa\\tws", "twa", "tws", ""})
 _CSV_HEADER = "twa_deg\\tws_kn"
 
-_POL_SPLIT = re.compile(r"\s*[;,]\s*|\s+")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 _NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
 
@@ -524,7 +531,14 @@ def _read_lines(path: Path) -> list[str]:
 
 
 def _split_pol(line: str) -> list[str]:
-    cells = _POL_SPLIT.split(line)
+    """A line's cells: split at tabs when it has any, else at ``;``, else at ``,``, else at runs of spaces. With a
+    tab, ``;`` or ``,`` an empty cell between two separators stays an empty cell (a missing speed)."""
+    for sep in ("\t", ";", ","):
+        if sep in line:
+            cells = [c.strip() for c in line.split(sep)]
+            break
+    else:
+        cells = line.split()
     if len(cells) > 1 and cells[-1] == "":
         cells.pop()  # trailing separator
     return cells
@@ -595,16 +609,17 @@ def _parse_matrix(
         tws.append(value)
 
     n_cells = len(tws) + 1
+    gaps: list[tuple[int, int]] = []  # (line, column) of the empty or missing speeds
     twa: list[float] = []
     speed: list[list[float]] = []
     for line_no, cells in rows:
-        if len(cells) != n_cells:
+        if len(cells) > n_cells:
             raw = raw_lines[line_no - 1]
             hint = " (decimal commas are not supported)" if "," in raw and (";" in raw or "\t" in raw) else ""
             raise fail(
                 line_no,
                 f"expected {n_cells} cells (a TWA [deg] and {len(tws)} speeds [kn], as the header on line "
-                f"{header_no}), found {len(cells)}{hint}",
+                f"{header_no}; a row may end early or leave cells empty), found {len(cells)}{hint}",
             )
         angle = number(line_no, 1, cells[0], "TWA [deg]")
         if not 0.0 <= angle <= 180.0:
@@ -615,17 +630,67 @@ def _parse_matrix(
                 f"column 1: expected TWA [deg] strictly increasing down the file, found {cells[0]!r} "
                 f"after {_fmt(twa[-1])}",
             )
-        row: list[float] = []
-        for c, cell in enumerate(cells[1:], start=2):
-            value = number(line_no, c, cell, "speed [kn]")
-            if value < 0.0:
-                raise fail(line_no, f"column {c}: expected a boat speed >= 0 [kn], found {cell!r}")
-            row.append(value)
+        row = [_speed_cell(cell, line_no, c, fail) for c, cell in enumerate(cells[1:], start=2)]
+        row += [math.nan] * (n_cells - len(cells))  # a row that ends early: its last speeds are missing
+        gaps += [(line_no, c + 2) for c, v in enumerate(row) if math.isnan(v)]
         twa.append(angle)
         speed.append(row)
     if len(twa) < 2:
         raise fail(header_no, f"expected at least 2 TWA rows after this header, found {len(twa)}")
-    return Polar(name=name, twa_deg=np.array(twa), tws_kn=np.array(tws), speed_kn=np.array(speed))
+    table = np.array(speed)
+    if gaps:
+        table = _fill_gaps(np.array(twa), table, gaps, fail, header_no, path)
+    return Polar(name=name, twa_deg=np.array(twa), tws_kn=np.array(tws), speed_kn=table)
+
+
+def _fill_gaps(
+    twa: FloatArray,
+    table: FloatArray,
+    gaps: list[tuple[int, int]],
+    fail: Callable[[int, str], PolarError],
+    header_no: int,
+    path: Path,
+) -> FloatArray:
+    """Fill the empty or missing speeds of a polar table (NaN) as the module notes say, warning once.
+
+    Within a TWS column, a gap between two given speeds is interpolated linearly in TWA; a gap above the first or
+    below the last given speed of its column is 0 kn (no speed: the boat is not rated there, so it never sails
+    there). A column with no speed at all is refused.
+    """
+    out = table.copy()
+    for j in range(out.shape[1]):
+        known = np.isfinite(out[:, j])
+        if not known.any():
+            raise fail(header_no, f"column {j + 2}: no boat speed in any row (every cell of this TWS is empty)")
+        missing = ~known
+        out[missing, j] = np.interp(twa[missing], twa[known], out[known, j], left=0.0, right=0.0)
+    n_zero = int(np.count_nonzero((out == 0.0) & np.isnan(table)))
+    line, col = gaps[0]
+    warnings.warn(
+        f"polar file '{show(path)}': {len(gaps)} empty or missing speed cell(s) filled (first: line {line}, column "
+        f"{col}): {len(gaps) - n_zero} interpolated in TWA between the speeds above and below, {n_zero} set to 0 kn "
+        "(no speed given further up or down that TWS column)",
+        PolarWarning,
+        stacklevel=4,
+    )
+    return out
+
+
+def _speed_cell(cell: str, line_no: int, column: int, fail: Callable[[int, str], PolarError]) -> float:
+    """A boat speed cell [kn]: its value, NaN when empty (filled later), or a one-line error."""
+    if cell == "":
+        return math.nan
+    if "," in cell and _NUMBER.fullmatch(cell.replace(",", ".")):
+        raise fail(
+            line_no,
+            f"column {column}: expected a number (speed [kn]), found {_show(cell)} (decimal commas are not supported)",
+        )
+    value = _number(cell, "speed [kn]")
+    if isinstance(value, str):
+        raise fail(line_no, f"column {column}: {value}")
+    if value < 0.0:
+        raise fail(line_no, f"column {column}: expected a boat speed >= 0 [kn], found {cell!r}")
+    return value
 
 
 def _number(cell: str, what: str) -> float | str:

@@ -410,10 +410,11 @@ MALFORMED = [
     (
         HEADER + "0\t0\t0\n90\t1\t2\t3\n",
         3,
-        r"expected 3 cells \(a TWA \[deg\] and 2 speeds \[kn\], as the header on line 1\), found 4",
+        r"expected 3 cells \(a TWA \[deg\] and 2 speeds \[kn\], as the header on line 1; a row may end early or "
+        r"leave cells empty\), found 4",
     ),
-    (HEADER + "0\t0\t0\n90\t1\n", 3, r"expected 3 cells .* found 2"),
-    (HEADER + "0\t0\t0\n90\t1,5\t2,5\n", 3, r"found 5 \(decimal commas are not supported\)"),
+    (HEADER + "0\t0\t0\n90\t1,5\t2,5\n", 3, r"column 2: .*found '1,5' \(decimal commas are not supported\)"),
+    (HEADER + "0\t\t\n90\t\t2\n", 1, r"column 2: no boat speed in any row"),
     (
         HEADER + "0\t0\t0\n90\t1\t2\n60\t1\t2\n",
         4,
@@ -463,7 +464,7 @@ def test_malformed_pol_names_file_and_line(tmp_path, text, line, message):
             r"expected 'twa_deg\\tws_kn' \(or 'TWA\\TWS' or an empty cell\) as the first header cell, "
             r"found '6'",
         ),
-        ("twa_deg\\tws_kn,6,10\n0,0,0\n90;1;2\n", 3, r"expected 3 cells"),
+        ("twa_deg\\tws_kn,6,10\n0,0,0\n90;1;2\n", 3, r"column 1: expected a number \(TWA \[deg\]\), found '90;1;2'"),
         (
             "twa_deg\\tws_kn,6,10\n0,0,0\n90,1 2,3\n",
             3,
