@@ -193,7 +193,11 @@ def _prune(folder: Path, kind: str, keep: int) -> None:
 
 def _usable_folder(*, create: bool) -> Path | None:
     """The private entries folder when it (and the folder above it) can be trusted, else None (warning once)."""
-    base = cache_dir()
+    try:
+        base = cache_dir()
+    except RuntimeError as exc:  # e.g. PYROUTE_REL_CACHE_DIR=~nosuchuser/x: no such home folder
+        _warn_once(os.environ.get(ENV, "?"), f"it cannot be resolved ({exc})")
+        return None
     folder = base / ENTRIES
     try:
         if create:

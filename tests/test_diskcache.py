@@ -163,3 +163,10 @@ def test_a_private_subfolder_opened_to_others_is_not_used(cache: Path) -> None:
     (cache / diskcache.ENTRIES).chmod(0o777)
     with pytest.warns(diskcache.CacheWarning):
         assert diskcache.read(_name("kind", 9)) is None
+
+
+def test_a_cache_folder_under_an_unknown_home_is_not_used(monkeypatch) -> None:
+    monkeypatch.setenv(diskcache.ENV, "~nosuchuser_pyroute/x")
+    with pytest.warns(diskcache.CacheWarning, match="cannot be resolved"):
+        diskcache.write(_name("kind", 10), b"data")
+    assert diskcache.read(_name("kind", 10)) is None
