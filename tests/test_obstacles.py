@@ -20,7 +20,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pyproj import Geod
 
+from pyroute_rel import geodesy
 from pyroute_rel.errors import GridError, ScenarioError
+from pyroute_rel.obstacles import areas
 from pyroute_rel.obstacles import land as ob
 from pyroute_rel.obstacles import zones as zn
 
@@ -184,7 +186,7 @@ def test_vectorised_land_test_equals_slow_reference():
     bbox = (-66.0, 8.0, 0.0, 52.0)  # arcs leaving it simply meet no land there, in both tests
     for margin in (0.0, 5.0):
         land = ob.land_geometry(bbox, margin_km=margin)
-        fast = ob.arcs_blocked(lon0, lat0, lon1, lat1, land)
+        fast = areas.arcs_blocked(lon0, lat0, lon1, lat1, land)
         slow = reference_blocked(lon0, lat0, lon1, lat1, land)
         np.testing.assert_array_equal(fast, slow)
         assert 0.1 < fast.mean() < 0.9  # both outcomes are exercised
@@ -195,7 +197,7 @@ def test_arcs_across_the_antimeridian_near_fiji_equal_slow_reference():
     lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (177.0, -20.0, 180.0, -15.0), (5.0, 400.0))
     assert (np.sign(lon0) != np.sign(lon1)).sum() > 30  # many arcs cross the seam
     land = ob.land_geometry((-180.0, -22.0, 180.0, -13.0))
-    fast = ob.arcs_blocked(lon0, lat0, lon1, lat1, land)
+    fast = areas.arcs_blocked(lon0, lat0, lon1, lat1, land)
     np.testing.assert_array_equal(fast, reference_blocked(lon0, lat0, lon1, lat1, land))
     assert 0.1 < fast.mean() < 0.9
     np.testing.assert_array_equal(ob.arcs_on_land(lon0, lat0, lon1, lat1), fast)
@@ -208,7 +210,7 @@ def test_arcs_on_land_keeps_shape_and_handles_empty_input():
     assert out.shape == (2, 2)
     assert out.tolist() == [[True, False], [False, True]]
     assert ob.arcs_on_land([], [], [], []).shape == (0,)
-    assert not ob.arcs_blocked(-61.0, 16.0, -62.0, 16.0, shapely.MultiPolygon()).item()
+    assert not areas.arcs_blocked(-61.0, 16.0, -62.0, 16.0, shapely.MultiPolygon()).item()
 
 
 def test_land_geometry_is_clipped_valid_and_cached():
@@ -264,7 +266,7 @@ def test_bad_arcs_and_points_raise_domain_errors():
     with pytest.raises(GridError, match="finite"):
         ob.arcs_on_land(np.nan, 16.0, -61.0, 16.0)
     with pytest.raises(GridError, match="antipodal"):
-        ob.arcs_blocked(0.0, 0.0, 180.0, 0.0, shapely.box(-1.0, -1.0, 1.0, 1.0))
+        areas.arcs_blocked(0.0, 0.0, 180.0, 0.0, shapely.box(-1.0, -1.0, 1.0, 1.0))
     with pytest.raises(GridError, match="latitudes"):
         ob.arcs_on_land(-61.0, 95.0, -61.0, 16.0)
     with pytest.raises(ScenarioError, match="latitudes"):
@@ -282,36 +284,13 @@ lats = st.floats(-80.0, 80.0)
 
 
 @settings(max_examples=60, deadline=None)
-@given(lon0=lons, lat0=lats, lon1=lons, lat1=lats, step=st.floats(0.5, 400.0))
-def test_gc_densify_matches_proj_great_circle(lon0, lat0, lon1, lat1, step):
-    length = SPHERE.inv(lon0, lat0, lon1, lat1)[2] / 1000.0
-    if length > 0.95 * np.pi * R_KM:  # near-antipodal: no unique great circle
-        return
-    a = [np.array([v]) for v in (lon0, lat0, lon1, lat1)]
-    lon, lat, arc = ob.gc_densify(*a, max_step_km=step)
-    assert (arc == 0).all()
-    assert (lon[0], lat[0], lat[-1]) == (lon0, lat0, lat1)
-    assert (lon[-1] - lon1) % 360.0 == pytest.approx(0.0, abs=1e-9) or (lon[-1] - lon1) % 360.0 == pytest.approx(
-        360.0, abs=1e-9
-    )
-    assert np.all(np.abs(np.diff(lon)) < 180.0)  # unwrapped: continuous longitudes
-    gaps = haversine_km(lon[:-1], lat[:-1], lon[1:], lat[1:])
-    assert gaps.max() <= step * (1 + 1e-9) + 1e-9
-    if lon.size > 2:
-        ref = np.array(SPHERE.npts(lon0, lat0, lon1, lat1, lon.size - 2))
-        np.testing.assert_allclose(lat[1:-1], ref[:, 1], atol=1e-7)
-        dlon = (lon[1:-1] - ref[:, 0] + 180.0) % 360.0 - 180.0
-        np.testing.assert_allclose(dlon * np.cos(np.radians(ref[:, 1])), 0.0, atol=1e-7)
-
-
-@settings(max_examples=60, deadline=None)
 @given(lon0=lons, lat0=lats, az=st.floats(0.0, 360.0), dist=st.floats(0.01, 4000.0))
 def test_cap_box_holds_the_whole_arc(lon0, lat0, az, dist):
     lon1, lat1, _ = SPHERE.fwd(lon0, lat0, az, dist * 1000.0)
     a = [np.array([v], dtype=float) for v in (lon0, lat0, lon1, lat1)]
-    (w, s, e, n), _, lon_m, lat_m, length = ob._caps(ob._xyz(a[0], a[1]), ob._xyz(a[2], a[3]))
+    (w, s, e, n), _, lon_m, lat_m, length = areas.arc_caps(geodesy.to_xyz(a[0], a[1]), geodesy.to_xyz(a[2], a[3]))
     assert length[0] == pytest.approx(dist, rel=1e-9, abs=1e-6)
-    lon, lat, _ = ob.gc_densify(*a, max_step_km=1.0)
+    lon, lat, _ = geodesy.gc_densify(*a, max_step_km=1.0)
     assert (lat >= s[0]).all() and (lat <= n[0]).all()
     # the box longitudes are continuous around the midpoint; compare on that branch
     rel = (lon - lon_m[0] + 180.0) % 360.0 - 180.0 + lon_m[0]
@@ -322,15 +301,15 @@ def test_two_km_chords_stay_within_a_metre_of_the_great_circle():
     # module notes: a lon/lat chord of length s departs from the great circle by ~ s^2 tan|lat| / (8 R)
     rng = np.random.default_rng(5)
     lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (-70.0, -60.0, 10.0, 60.0), (50.0, 3000.0))
-    lon, lat, arc = ob.gc_densify(lon0, lat0, lon1, lat1, max_step_km=2.0)
+    lon, lat, arc = geodesy.gc_densify(lon0, lat0, lon1, lat1, max_step_km=2.0)
     same = arc[1:] == arc[:-1]
     mid_lon, mid_lat = 0.5 * (lon[1:] + lon[:-1])[same], 0.5 * (lat[1:] + lat[:-1])[same]
     # cross-track distance of each chord midpoint from its arc's great circle (pole of the circle n)
-    p0 = np.stack(ob._xyz(lon0, lat0), -1)
-    p1 = np.stack(ob._xyz(lon1, lat1), -1)
+    p0 = geodesy.to_xyz(lon0, lat0)
+    p1 = geodesy.to_xyz(lon1, lat1)
     pole = np.cross(p0, p1)
     pole /= np.linalg.norm(pole, axis=1)[:, None]
-    q = np.stack(ob._xyz(mid_lon, mid_lat), -1)
+    q = geodesy.to_xyz(mid_lon, mid_lat)
     xtrack_m = np.abs(np.arcsin(np.einsum("ij,ij->i", q, pole[arc[1:][same]]))) * R_KM * 1000.0
     bound = 2.0**2 * np.tan(np.radians(np.abs(mid_lat) + 1.0)) / (8 * R_KM) * 1000.0 + 0.01
     assert (xtrack_m <= bound).all()
@@ -553,7 +532,7 @@ def test_index_rasters_against_per_cell_predicates(geometry) -> None:
     # the prefilter rasters are made without a predicate per cell; check them cell by cell with shapely:
     # every cell the geometry meets is flagged "touch", and every cell flagged "inside" is covered by it
     geom = geometry()
-    index = ob._build_index(geom)
+    index = areas._build_index(geom)
     ny, nx = index.inside_mask.shape
     jj, ii = np.divmod(np.arange(nx * ny), nx)
     x, y = index.x0 + ii * index.cell, index.y0 + jj * index.cell
