@@ -1,8 +1,10 @@
-"""Tests of pyroute_rel.obstacles.land: land, coastal margins and exclusion zones.
+"""Tests of pyroute_rel.obstacles.land and .areas: land, coastal margins and the arc-versus-area test.
+
+Zones are tested in test_zones.py; this file keeps the example zone's check against the land.
 
 Independent references used here:
 - land/sea: the GLOBE 30-arc-second land mask of the ``global-land-mask`` package (NOAA GLOBE DEM,
-  a different lineage from the GSHHG shoreline that obstacles.py reads);
+  a different lineage from the GSHHG shoreline that obstacles.land reads);
 - great circles: ``pyproj.Geod`` (PROJ's geodesic code) on a sphere of radius 6371.0088 km;
 - distances to the coast: brute-force haversine to every vertex of the densified shoreline;
 - arc tests: a slow per-arc shapely ``intersects`` on an unprepared copy of the geometry.
@@ -10,7 +12,6 @@ Independent references used here:
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -81,16 +82,6 @@ def random_arcs(rng, n, box, length_km):
     dist = rng.uniform(*length_km, n)
     lon1, lat1, _ = SPHERE.fwd(lon0, lat0, az, dist * 1000.0)
     return lon0, lat0, np.asarray(lon1), np.asarray(lat1)
-
-
-def write(tmp_path, name, doc):
-    path = tmp_path / name
-    path.write_text(doc if isinstance(doc, str) else json.dumps(doc))
-    return path
-
-
-def square(x0, y0, x1, y1):
-    return [[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -319,183 +310,6 @@ def test_two_km_chords_stay_within_a_metre_of_the_great_circle():
 # --------------------------------------------------------------------------------------------------
 # Zones
 # --------------------------------------------------------------------------------------------------
-
-
-def test_polygon_with_hole_blocks_the_ring_not_the_hole(tmp_path):
-    doc = {"type": "Polygon", "coordinates": [square(0, 0, 4, 4), square(1, 1, 3, 3)]}
-    (zone,) = zn.load_zones([write(tmp_path, "ring.geojson", doc)])
-    assert zone.name == "ring" and zone.valid_from is None and zone.valid_to is None
-    assert zone.geometry.area == pytest.approx(16.0 - 4.0)  # square minus hole, deg^2
-    lon0, lat0 = [1.5, 0.5, 5.0, -1.0, 1.2], [2.0, 2.0, 2.0, 2.0, 1.2]
-    lon1, lat1 = [2.5, 2.0, 6.0, 5.0, 2.8], [2.0, 2.0, 2.0, 2.0, 2.8]
-    got = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
-    assert got.tolist() == [False, True, False, True, False]  # inside the hole only -> free
-    np.testing.assert_array_equal(got, reference_blocked(lon0, lat0, lon1, lat1, zone.geometry))
-
-
-def test_multipolygon_feature_collection_and_names(tmp_path):
-    doc = {
-        "type": "FeatureCollection",
-        "features": [
-            {
-                "type": "Feature",
-                "properties": {"name": "two boxes"},
-                "geometry": {"type": "MultiPolygon", "coordinates": [[square(0, 0, 1, 1)], [square(3, 0, 4, 1)]]},
-            },
-            {
-                "type": "Feature",
-                "properties": None,
-                "geometry": {"type": "Polygon", "coordinates": [square(10, 10, 11, 11)]},
-            },
-        ],
-    }
-    zones = zn.load_zones("multi.geojson", base_dir=write(tmp_path, "multi.geojson", doc).parent)
-    assert [z.name for z in zones] == ["two boxes", "multi[1]"]
-    assert zones[0].geometry.geom_type == "MultiPolygon"
-    got = zn.arcs_blocked_by_zones(
-        [-0.5, 2.5, 1.5, 9.5], [0.5, 0.5, 0.5, 10.5], [0.5, 3.5, 2.5, 10.5], [0.5, 0.5, 0.5, 10.5], zones
-    )
-    assert got.tolist() == [True, True, False, True]
-
-
-def test_time_windows(tmp_path):
-    doc = {
-        "type": "Feature",
-        "properties": {"valid_from": "2018-06-01T02:00:00+02:00", "valid_to": "2018-06-30"},
-        "geometry": {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]},
-    }
-    (zone,) = zn.load_zones([write(tmp_path, "timed.geojson", doc)])
-    assert zone.valid_from == np.datetime64("2018-06-01T00:00:00")  # converted to UTC
-    assert zone.valid_to == np.datetime64("2018-06-30T00:00:00")  # a date alone is its midnight
-    arc = (-0.5, 0.5, 1.5, 0.5)
-    times = np.array(
-        ["2018-05-31T23:59", "2018-06-01T00:00", "2018-06-15", "2018-06-30T00:00", "2018-06-30T00:01", "NaT"],
-        dtype="datetime64[m]",
-    )
-    got = zn.arcs_blocked_by_zones(*arc, [zone], times)
-    assert got.tolist() == [False, True, True, True, False, True]  # NaT: unknown time, zone counts
-    assert zn.arcs_blocked_by_zones(*arc, [zone]).item()  # time=None: every zone active
-    # with arrival times, a window overlapping the passage blocks it
-    dep = np.array(["2018-05-30", "2018-07-01"], dtype="datetime64[s]")
-    arr = np.array(["2018-06-02", "2018-07-02"], dtype="datetime64[s]")
-    assert zn.arcs_blocked_by_zones(*arc, [zone], dep, time_end=arr).tolist() == [True, False]
-    # per-arc times broadcast against a 2-D array of arcs
-    lon0 = np.array([[-0.5, -0.5], [5.0, -0.5]])
-    t = np.array([["2018-06-10"], ["2018-07-10"]], dtype="datetime64[s]")
-    assert zn.arcs_blocked_by_zones(lon0, 0.5, lon0 + 2.0, 0.5, [zone], t).tolist() == [[True, True], [False, False]]
-    assert zn.zones_active([zone], np.datetime64("2018-05-20"), np.datetime64("2018-06-02")) == (zone,)
-    assert zn.zones_active([zone], np.datetime64("2018-07-20")) == ()
-
-
-def test_antimeridian_arcs_are_short_arcs(tmp_path):
-    # a zone split at the antimeridian (RFC 7946), and one at 0 deg that a naive 358-deg line would cross
-    doc = {
-        "type": "FeatureCollection",
-        "features": [
-            {
-                "type": "Feature",
-                "properties": {"name": "seam"},
-                "geometry": {
-                    "type": "MultiPolygon",
-                    "coordinates": [[square(179.5, -1, 180, 1)], [square(-180, -1, -179.5, 1)]],
-                },
-            },
-            {
-                "type": "Feature",
-                "properties": {"name": "greenwich"},
-                "geometry": {"type": "Polygon", "coordinates": [square(-1, 4, 1, 6)]},
-            },
-        ],
-    }
-    zones = zn.load_zones([write(tmp_path, "seam.geojson", doc)])
-    lon0 = np.array([179.0, 179.0, 179.9, -179.0, 170.0, -178.0])
-    lat0 = np.array([0.0, 5.0, 0.5, 0.0, 0.0, 0.0])
-    lon1 = np.array([-179.0, -179.0, -179.9, 179.0, 175.0, -179.7])
-    lat1 = np.array([0.0, 5.0, 0.5, 0.0, 0.0, 0.0])
-    got = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, zones)
-    assert got.tolist() == [True, False, True, True, False, True]
-    np.testing.assert_array_equal(
-        got, reference_blocked(lon0, lat0, lon1, lat1, shapely.union_all([z.geometry for z in zones]))
-    )
-
-
-def test_vectorised_zone_test_equals_slow_reference(tmp_path):
-    doc = {
-        "type": "Polygon",
-        "coordinates": [
-            [[-32, 36], [-28, 35.5], [-27, 38], [-29, 39.5], [-30, 37.5], [-32, 38.5], [-32, 36]],
-            square(-29.5, 36.5, -28.5, 37.2),
-        ],
-    }
-    (zone,) = zn.load_zones([write(tmp_path, "z.geojson", doc)])
-    rng = np.random.default_rng(3)
-    lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (-34.0, 34.0, -25.0, 41.0), (5.0, 400.0))
-    fast = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
-    np.testing.assert_array_equal(fast, reference_blocked(lon0, lat0, lon1, lat1, zone.geometry))
-    assert 0.2 < fast.mean() < 0.8
-
-
-def test_self_intersecting_polygon_is_repaired(tmp_path):
-    bowtie = {"type": "Polygon", "coordinates": [[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]]}
-    (zone,) = zn.load_zones([write(tmp_path, "bowtie.geojson", bowtie)])
-    assert zone.geometry.is_valid
-    assert zone.geometry.area == pytest.approx(2.0)  # two triangles of area 1
-    unclosed = {"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}
-    (zone,) = zn.load_zones([write(tmp_path, "unclosed.geojson", unclosed)])
-    assert zone.geometry.equals(shapely.box(0, 0, 1, 1))
-
-
-POLY = {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]}
-
-
-@pytest.mark.parametrize(
-    ("content", "match"),
-    [
-        ("{not json", "not valid JSON"),
-        ([1, 2], "GeoJSON object"),
-        ({"type": "Point", "coordinates": [0, 0]}, "FeatureCollection, Feature, Polygon or MultiPolygon"),
-        (
-            {"type": "Feature", "properties": {}, "geometry": {"type": "LineString", "coordinates": [[0, 0], [1, 1]]}},
-            "Polygon or MultiPolygon",
-        ),
-        (
-            {
-                "type": "FeatureCollection",
-                "features": [{"type": "Feature", "geometry": POLY}, {"type": "Feature", "geometry": None}],
-            },
-            "feature 1",
-        ),
-        ({"type": "FeatureCollection", "features": []}, "no features"),
-        ({"type": "Polygon", "coordinates": [square(170, 0, 200, 1)]}, r"lon in \[-180, 180\].*200"),
-        ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [2, 2], [0, 0]]]}, "cannot be repaired"),
-        ({"type": "Polygon", "coordinates": [[[0, 0], [1, "a"], [2, 2], [0, 0]]]}, "number pairs"),
-        ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}, "at least 3 distinct"),
-        ({"type": "Feature", "properties": {"valid_from": "June 2018"}, "geometry": POLY}, "ISO 8601"),
-        (
-            {"type": "Feature", "properties": {"valid_from": "2018-07-01", "valid_to": "2018-06-01"}, "geometry": POLY},
-            "before valid_from",
-        ),
-        ({"type": "Feature", "properties": {"name": 3}, "geometry": POLY}, "'name' must be a non-empty string"),
-        ({**POLY, "crs": {"type": "name", "properties": {"name": "EPSG:3857"}}}, "CRS84"),
-        # drawn across the antimeridian without splitting: in planar lon/lat it is a band round the globe, which
-        # blocked an Atlantic course (QA)
-        (
-            {"type": "Polygon", "coordinates": [[[179, 36], [-179, 36], [-179, 39], [179, 39], [179, 36]]]},
-            r"edge from \[179, 36\] to \[-179, 36\] spans 358 deg of longitude.*split.*RFC 7946",
-        ),
-    ],
-)
-def test_bad_geojson_raises_scenario_error_naming_the_file(tmp_path, content, match):
-    path = write(tmp_path, "bad_zone.geojson", content)
-    with pytest.raises(ScenarioError, match=match) as info:
-        zn.load_zones([path])
-    assert "bad_zone.geojson" in str(info.value)
-    assert "\n" not in str(info.value)
-
-
-def test_missing_zone_file(tmp_path):
-    with pytest.raises(ScenarioError, match=r"nowhere\.geojson: zone file not found"):
-        zn.load_zones(["nowhere.geojson"], base_dir=tmp_path)
 
 
 def test_example_zone_straddles_the_verification_great_circle():

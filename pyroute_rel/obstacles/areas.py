@@ -115,6 +115,14 @@ def arc_caps(p0: FloatArray, p1: FloatArray) -> tuple[Box, FloatArray, FloatArra
 
 
 def polygon_parts(geoms: Any) -> npt.NDArray[np.object_]:
+    """The non-empty Polygons of any geometries with a positive area, as an object array (lines, points and empty
+    parts dropped; MultiPolygons and collections taken apart).
+
+    >>> parts = polygon_parts([shapely.MultiPolygon([shapely.box(0, 0, 1, 1), shapely.box(2, 0, 3, 1)]),
+    ...                        shapely.LineString([(0, 0), (1, 1)]), shapely.Polygon()])
+    >>> [p.area for p in parts]
+    [1.0, 1.0]
+    """
     parts = shapely.get_parts(np.asarray(geoms, dtype=object))
     if len(parts) == 0:
         return parts
@@ -342,6 +350,14 @@ def _cut(parts: npt.NDArray[np.object_], size: float) -> npt.NDArray[np.object_]
 def as_arcs(
     lon0: npt.ArrayLike, lat0: npt.ArrayLike, lon1: npt.ArrayLike, lat1: npt.ArrayLike
 ) -> tuple[tuple[int, ...], FloatArray, FloatArray, FloatArray, FloatArray]:
+    """End points of arcs [deg] broadcast together and flattened, longitudes wrapped into [-180, 180).
+
+    Returns the broadcast shape and the four flat arrays (lon0, lat0, lon1, lat1). Points that are not finite, or
+    latitudes off [-90, 90]: :class:`~pyroute_rel.errors.GridError`.
+
+    >>> as_arcs([190.0, 0.0], 10.0, 5.0, [20.0, 30.0])[:2]
+    ((2,), array([-170.,    0.]))
+    """
     arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (lon0, lat0, lon1, lat1)))
     shape = arrays[0].shape
     flat = [a.ravel() for a in arrays]
@@ -440,6 +456,7 @@ def _exact_hits(
 
 
 def checked_samples(samples_km: float) -> float:
+    """``samples_km`` [km] as a float, checked to lie in [0.01, 1000] (else :class:`ScenarioError`)."""
     step = float(samples_km)
     if not (0.01 <= step <= 1000.0):
         raise ScenarioError(f"samples_km must be in [0.01, 1000] [km] (got {samples_km!r})")
