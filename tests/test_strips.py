@@ -1,6 +1,6 @@
 """Tests of pyroute_rel.obstacles.strips: every arc of a rank pair against an area by shadows.
 
-Reference: :func:`pyroute_rel.obstacles.land.arcs_blocked`, which tests each arc on its own (densified along its
+Reference: :func:`pyroute_rel.obstacles.areas.arcs_blocked`, which tests each arc on its own (densified along its
 great circle, shapely ``intersects``). It is itself checked against PROJ great circles and a brute-force per-arc
 shapely test in test_obstacles. The two methods share no code beyond the tiles of the area.
 """

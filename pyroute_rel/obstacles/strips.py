@@ -28,9 +28,9 @@ all-to-all grid (4 M arcs) over the Atlantic coasts is tested in a fraction of a
 
 Accuracy: the area's edges are taken as great-circle chords between their vertices. A lon/lat edge of length s
 departs from its chord by about s^2 tan|lat| / (8 R): split long boundary edges first, as
-:func:`pyroute_rel.obstacles.land.tiles_tree` does (0.05 deg: under a metre). Edges that pieces share (cuts between
+:func:`pyroute_rel.obstacles.areas.tiles_tree` does (0.05 deg: under a metre). Edges that pieces share (cuts between
 tiles) need no splitting: both pieces take the same chord, so their union is unchanged. Arcs are exact great
-circles. This is the tolerance of :func:`pyroute_rel.obstacles.land.arcs_blocked`, which densifies the arcs instead.
+circles. This is the tolerance of :func:`pyroute_rel.obstacles.areas.arcs_blocked`, which densifies the arcs instead.
 
 Limits: groups whose points are not within 80 deg of their frame centre, whose sources are not on one great
 circle through P, or whose source and target lines (nearly) meet are reported as not handled, for the caller
