@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from .errors import CoordinateError
+from .errors import CoordinateError, GridError
 from .units import EARTH_RADIUS_KM, KM_PER_NM
 
 __all__ = [
@@ -33,6 +33,9 @@ __all__ = [
     "along_track_km",
     "wrap_lon",
     "to_xyz",
+    "from_xyz",
+    "angle_between",
+    "gc_densify",
     "angle_diff_deg",
     "fold_angle_deg",
     "bearing_deg",
@@ -153,7 +156,16 @@ def initial_bearing_deg(
 
 
 def to_xyz(lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> FloatArray:
-    """Unit vectors (x towards lon 0 on the equator, z towards the north pole), shape (..., 3).
+    """Unit vectors of positions on the sphere (x towards lon 0 on the equator, z towards the north pole).
+
+    Parameters
+    ----------
+    lon_deg, lat_deg : Positions [deg]; broadcast together. Latitudes off [-90, 90]:
+        :class:`~pyroute_rel.errors.CoordinateError`.
+
+    Returns
+    -------
+    Unit vectors [-], shape (..., 3) of the broadcast inputs.
 
     >>> to_xyz(90.0, 0.0).round(12).tolist()
     [0.0, 1.0, 0.0]
@@ -164,11 +176,117 @@ def to_xyz(lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> FloatArray:
     return np.stack(np.broadcast_arrays(cphi * np.cos(lmb), cphi * np.sin(lmb), np.sin(phi)), axis=-1)
 
 
-def from_xyz(xyz: FloatArray) -> tuple[FloatArray, FloatArray]:
+def from_xyz(xyz: FloatArray, *, wrap: bool = True) -> tuple[FloatArray, FloatArray]:
+    """Positions of vectors (the inverse of :func:`to_xyz`; the vectors need not be of unit length).
+
+    Parameters
+    ----------
+    xyz : Vectors, shape (..., 3).
+    wrap : Longitudes wrapped into [-180, 180) by :func:`wrap_lon` (the default), or as ``arctan2`` gives them,
+        in [-180, 180] (no rounding from the wrap; for callers that unwrap longitudes along a path).
+
+    Returns
+    -------
+    (lon [deg], lat [deg]), each of shape (...).
+
+    >>> lon, lat = from_xyz(np.array([[0.0, 1.0, 1.0], [-1.0, -0.0, 0.0]]))
+    >>> lon.tolist(), lat.round(12).tolist()
+    ([90.0, -180.0], [45.0, 0.0])
+    >>> from_xyz(np.array([-1.0, -0.0, 0.0]), wrap=False)[0].item()
+    -180.0
+    """
     x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
     lat = np.degrees(np.arctan2(z, np.hypot(x, y)))
-    lon = wrap_lon(np.degrees(np.arctan2(y, x)))
-    return lon, lat
+    lon = np.degrees(np.arctan2(y, x))
+    return (wrap_lon(lon) if wrap else lon), lat
+
+
+def angle_between(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Angle between unit vectors [rad], in [0, pi]: atan2(|a x b|, a . b), accurate for tiny and
+    near-antipodal angles alike (unlike ``arccos`` of the dot product).
+
+    Parameters
+    ----------
+    a, b : Unit vectors, shape (..., 3) (:func:`to_xyz`); broadcast together.
+
+    Returns
+    -------
+    Central angle [rad] of the broadcast shape (...); times :data:`EARTH_RADIUS_KM`, the great-circle
+    distance [km].
+
+    >>> round(float(angle_between(to_xyz(0.0, 0.0), to_xyz(0.0, 90.0))), 12) == round(np.pi / 2, 12)
+    True
+    >>> float(angle_between(to_xyz(10.0, 20.0), to_xyz(10.0, 20.0)))
+    0.0
+    """
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    cx = a1 * b2 - a2 * b1
+    cy = a2 * b0 - a0 * b2
+    cz = a0 * b1 - a1 * b0
+    return np.arctan2(np.sqrt(cx * cx + cy * cy + cz * cz), a0 * b0 + a1 * b1 + a2 * b2)
+
+
+def gc_densify(
+    lon0_deg: npt.ArrayLike,
+    lat0_deg: npt.ArrayLike,
+    lon1_deg: npt.ArrayLike,
+    lat1_deg: npt.ArrayLike,
+    *,
+    max_step_km: float,
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.intp]]:
+    """Points along many great-circle arcs, end points included, at most ``max_step_km`` apart.
+
+    Spherical linear interpolation of the unit vectors, each arc cut into equal steps (at least one). Each
+    arc's longitudes are unwrapped to run continuously from ``lon0`` (they may leave [-180, 180]: an arc from
+    179 E to 179 W runs 179 -> 181). The end points are returned exactly as given.
+
+    Parameters
+    ----------
+    lon0_deg, lat0_deg : Starts of the arcs [deg], 1-D.
+    lon1_deg, lat1_deg : Ends of the arcs [deg], 1-D, as many.
+    max_step_km : Largest distance between consecutive points of an arc [km].
+
+    Returns
+    -------
+    lon, lat : The points of all arcs, concatenated [deg], arc by arc from start to end.
+    arc : For every point, the index of its arc.
+
+    Raises
+    ------
+    GridError
+        Antipodal end points (no unique great circle between them).
+
+    Examples
+    --------
+    >>> lon, lat, arc = gc_densify(np.array([179.0]), np.array([0.0]), np.array([-179.0]), np.array([0.0]),
+    ...                            max_step_km=100.0)
+    >>> lon.round(6).tolist(), arc.tolist()
+    ([179.0, 179.666667, 180.333333, 181.0], [0, 0, 0, 0])
+    """
+    lon0, lat0, lon1, lat1 = (np.asarray(v, dtype=float) for v in (lon0_deg, lat0_deg, lon1_deg, lat1_deg))
+    p0, p1 = to_xyz(lon0, lat0), to_xyz(lon1, lat1)
+    omega = angle_between(p0, p1)
+    if np.any(omega > np.pi - 1e-9):
+        raise GridError("arc end points are antipodal: the great circle between them is not unique")
+    n = np.maximum(2, np.ceil(omega * EARTH_RADIUS_KM / max_step_km).astype(np.intp) + 1)
+    arc = np.repeat(np.arange(len(n)), n)
+    start = np.cumsum(n) - n
+    t = (np.arange(arc.size) - start[arc]) / (n - 1)[arc]
+    small = omega < 1e-12
+    inv = 1.0 / np.where(small, 1.0, np.sin(omega))
+    om = omega[arc]
+    # weights sin((1-t) w)/sin w and sin(t w)/sin w; linear for coincident end points
+    w0 = np.where(small[arc], 1.0 - t, np.sin((1.0 - t) * om) * inv[arc])
+    w1 = np.where(small[arc], t, np.sin(t * om) * inv[arc])
+    lon, lat = from_xyz(w0[:, None] * p0[arc] + w1[:, None] * p1[arc], wrap=False)
+    end = start + n - 1
+    lon[start], lat[start], lon[end], lat[end] = lon0, lat0, lon1, lat1  # exact end points
+    # unwrap along each arc: consecutive points are close, so each step is the wrapped difference
+    step = (np.diff(lon) + 180.0) % 360.0 - 180.0
+    run = np.concatenate([[0.0], np.cumsum(step)])
+    lon = lon0[arc] + (run - run[start][arc])
+    return lon, lat, arc
 
 
 def intermediate_point(

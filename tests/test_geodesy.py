@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 from pyproj import Geod
 
 from pyroute_rel import geodesy
+from pyroute_rel.errors import GridError
 
 SPHERE = Geod(a=geodesy.EARTH_RADIUS_KM * 1000.0, b=geodesy.EARTH_RADIUS_KM * 1000.0)
 
@@ -115,3 +116,58 @@ def test_latitudes_off_the_globe_are_refused() -> None:
             call()
     assert np.isnan(geodesy.distance_km(0.0, np.nan, 1.0, 0.0))  # NaN passes through, as documented
     assert float(geodesy.distance_km(0.0, 90.0, 180.0, 90.0)) == pytest.approx(0.0, abs=1e-9)
+
+
+# gc_densify (moved here from test_obstacles with the function: pyroute_rel.obstacles.land -> geodesy)
+
+densify_lons = st.floats(-180.0, 179.999)
+
+
+@settings(max_examples=60, deadline=None)
+@given(lon0=densify_lons, lat0=lats, lon1=densify_lons, lat1=lats, step=st.floats(0.5, 400.0))
+def test_gc_densify_matches_proj_great_circle(lon0, lat0, lon1, lat1, step):
+    length = SPHERE.inv(lon0, lat0, lon1, lat1)[2] / 1000.0
+    if length > 0.95 * np.pi * geodesy.EARTH_RADIUS_KM:  # near-antipodal: no unique great circle
+        return
+    a = [np.array([v]) for v in (lon0, lat0, lon1, lat1)]
+    lon, lat, arc = geodesy.gc_densify(*a, max_step_km=step)
+    assert (arc == 0).all()
+    assert (lon[0], lat[0], lat[-1]) == (lon0, lat0, lat1)
+    assert (lon[-1] - lon1) % 360.0 == pytest.approx(0.0, abs=1e-9) or (lon[-1] - lon1) % 360.0 == pytest.approx(
+        360.0, abs=1e-9
+    )
+    assert np.all(np.abs(np.diff(lon)) < 180.0)  # unwrapped: continuous longitudes
+    gaps = SPHERE.inv(lon[:-1], lat[:-1], lon[1:], lat[1:])[2] / 1000.0
+    assert gaps.max() <= step * (1 + 1e-9) + 1e-9
+    if lon.size > 2:
+        ref = np.array(SPHERE.npts(lon0, lat0, lon1, lat1, lon.size - 2))
+        np.testing.assert_allclose(lat[1:-1], ref[:, 1], atol=1e-7)
+        dlon = (lon[1:-1] - ref[:, 0] + 180.0) % 360.0 - 180.0
+        np.testing.assert_allclose(dlon * np.cos(np.radians(ref[:, 1])), 0.0, atol=1e-7)
+
+
+def test_gc_densify_refuses_antipodal_end_points() -> None:
+    with pytest.raises(GridError, match="antipodal"):
+        geodesy.gc_densify(np.array([0.0]), np.array([0.0]), np.array([180.0]), np.array([0.0]), max_step_km=10.0)
+
+
+def test_angle_between_matches_haversine_and_is_accurate_for_tiny_angles() -> None:
+    lon1, lat1, lon2, lat2 = _points(7)
+    got = geodesy.angle_between(geodesy.to_xyz(lon1, lat1), geodesy.to_xyz(lon2, lat2)) * geodesy.EARTH_RADIUS_KM
+    np.testing.assert_allclose(got, SPHERE.inv(lon1, lat1, lon2, lat2)[2] / 1000.0, rtol=1e-9, atol=1e-6)
+    # 1 mm apart: arccos of the dot product would round to 0 or to ~0.1 km
+    tiny = geodesy.angle_between(geodesy.to_xyz(10.0, 20.0), geodesy.to_xyz(10.0, 20.0 + 1e-6 / 111.19508))
+    assert float(tiny) * geodesy.EARTH_RADIUS_KM * 1e6 == pytest.approx(1.0, rel=1e-6)
+
+
+def test_from_xyz_inverts_to_xyz_with_and_without_the_wrap() -> None:
+    lon, lat = np.array([-180.0, -45.0, 0.0, 135.0, 179.5]), np.array([-60.0, 0.0, 30.0, 89.0, -1.0])
+    xyz = geodesy.to_xyz(lon, lat)
+    got_lon, got_lat = geodesy.from_xyz(xyz)
+    np.testing.assert_allclose(got_lat, lat, atol=1e-12)
+    np.testing.assert_allclose(got_lon, lon, atol=1e-12)
+    assert ((got_lon >= -180.0) & (got_lon < 180.0)).all()
+    raw_lon, raw_lat = geodesy.from_xyz(3.0 * xyz, wrap=False)  # vectors need not be unit
+    np.testing.assert_allclose(raw_lat, got_lat, atol=1e-12)
+    assert raw_lon[0] in (-180.0, 180.0)  # arctan2's own branch, not wrapped
+    np.testing.assert_allclose(raw_lon[1:], lon[1:], atol=1e-12)

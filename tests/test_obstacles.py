@@ -1,8 +1,10 @@
-"""Tests of pyroute_rel.obstacles.land: land, coastal margins and exclusion zones.
+"""Tests of pyroute_rel.obstacles.land and .areas: land, coastal margins and the arc-versus-area test.
+
+Zones are tested in test_zones.py; this file keeps the example zone's check against the land.
 
 Independent references used here:
 - land/sea: the GLOBE 30-arc-second land mask of the ``global-land-mask`` package (NOAA GLOBE DEM,
-  a different lineage from the GSHHG shoreline that obstacles.py reads);
+  a different lineage from the GSHHG shoreline that obstacles.land reads);
 - great circles: ``pyproj.Geod`` (PROJ's geodesic code) on a sphere of radius 6371.0088 km;
 - distances to the coast: brute-force haversine to every vertex of the densified shoreline;
 - arc tests: a slow per-arc shapely ``intersects`` on an unprepared copy of the geometry.
@@ -10,7 +12,6 @@ Independent references used here:
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pyproj import Geod
 
+from pyroute_rel import geodesy
 from pyroute_rel.errors import GridError, ScenarioError
+from pyroute_rel.obstacles import areas
 from pyroute_rel.obstacles import land as ob
 from pyroute_rel.obstacles import zones as zn
 
@@ -79,16 +82,6 @@ def random_arcs(rng, n, box, length_km):
     dist = rng.uniform(*length_km, n)
     lon1, lat1, _ = SPHERE.fwd(lon0, lat0, az, dist * 1000.0)
     return lon0, lat0, np.asarray(lon1), np.asarray(lat1)
-
-
-def write(tmp_path, name, doc):
-    path = tmp_path / name
-    path.write_text(doc if isinstance(doc, str) else json.dumps(doc))
-    return path
-
-
-def square(x0, y0, x1, y1):
-    return [[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -184,7 +177,7 @@ def test_vectorised_land_test_equals_slow_reference():
     bbox = (-66.0, 8.0, 0.0, 52.0)  # arcs leaving it simply meet no land there, in both tests
     for margin in (0.0, 5.0):
         land = ob.land_geometry(bbox, margin_km=margin)
-        fast = ob.arcs_blocked(lon0, lat0, lon1, lat1, land)
+        fast = areas.arcs_blocked(lon0, lat0, lon1, lat1, land)
         slow = reference_blocked(lon0, lat0, lon1, lat1, land)
         np.testing.assert_array_equal(fast, slow)
         assert 0.1 < fast.mean() < 0.9  # both outcomes are exercised
@@ -195,7 +188,7 @@ def test_arcs_across_the_antimeridian_near_fiji_equal_slow_reference():
     lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (177.0, -20.0, 180.0, -15.0), (5.0, 400.0))
     assert (np.sign(lon0) != np.sign(lon1)).sum() > 30  # many arcs cross the seam
     land = ob.land_geometry((-180.0, -22.0, 180.0, -13.0))
-    fast = ob.arcs_blocked(lon0, lat0, lon1, lat1, land)
+    fast = areas.arcs_blocked(lon0, lat0, lon1, lat1, land)
     np.testing.assert_array_equal(fast, reference_blocked(lon0, lat0, lon1, lat1, land))
     assert 0.1 < fast.mean() < 0.9
     np.testing.assert_array_equal(ob.arcs_on_land(lon0, lat0, lon1, lat1), fast)
@@ -208,7 +201,7 @@ def test_arcs_on_land_keeps_shape_and_handles_empty_input():
     assert out.shape == (2, 2)
     assert out.tolist() == [[True, False], [False, True]]
     assert ob.arcs_on_land([], [], [], []).shape == (0,)
-    assert not ob.arcs_blocked(-61.0, 16.0, -62.0, 16.0, shapely.MultiPolygon()).item()
+    assert not areas.arcs_blocked(-61.0, 16.0, -62.0, 16.0, shapely.MultiPolygon()).item()
 
 
 def test_land_geometry_is_clipped_valid_and_cached():
@@ -264,7 +257,7 @@ def test_bad_arcs_and_points_raise_domain_errors():
     with pytest.raises(GridError, match="finite"):
         ob.arcs_on_land(np.nan, 16.0, -61.0, 16.0)
     with pytest.raises(GridError, match="antipodal"):
-        ob.arcs_blocked(0.0, 0.0, 180.0, 0.0, shapely.box(-1.0, -1.0, 1.0, 1.0))
+        areas.arcs_blocked(0.0, 0.0, 180.0, 0.0, shapely.box(-1.0, -1.0, 1.0, 1.0))
     with pytest.raises(GridError, match="latitudes"):
         ob.arcs_on_land(-61.0, 95.0, -61.0, 16.0)
     with pytest.raises(ScenarioError, match="latitudes"):
@@ -282,36 +275,13 @@ lats = st.floats(-80.0, 80.0)
 
 
 @settings(max_examples=60, deadline=None)
-@given(lon0=lons, lat0=lats, lon1=lons, lat1=lats, step=st.floats(0.5, 400.0))
-def test_gc_densify_matches_proj_great_circle(lon0, lat0, lon1, lat1, step):
-    length = SPHERE.inv(lon0, lat0, lon1, lat1)[2] / 1000.0
-    if length > 0.95 * np.pi * R_KM:  # near-antipodal: no unique great circle
-        return
-    a = [np.array([v]) for v in (lon0, lat0, lon1, lat1)]
-    lon, lat, arc = ob.gc_densify(*a, max_step_km=step)
-    assert (arc == 0).all()
-    assert (lon[0], lat[0], lat[-1]) == (lon0, lat0, lat1)
-    assert (lon[-1] - lon1) % 360.0 == pytest.approx(0.0, abs=1e-9) or (lon[-1] - lon1) % 360.0 == pytest.approx(
-        360.0, abs=1e-9
-    )
-    assert np.all(np.abs(np.diff(lon)) < 180.0)  # unwrapped: continuous longitudes
-    gaps = haversine_km(lon[:-1], lat[:-1], lon[1:], lat[1:])
-    assert gaps.max() <= step * (1 + 1e-9) + 1e-9
-    if lon.size > 2:
-        ref = np.array(SPHERE.npts(lon0, lat0, lon1, lat1, lon.size - 2))
-        np.testing.assert_allclose(lat[1:-1], ref[:, 1], atol=1e-7)
-        dlon = (lon[1:-1] - ref[:, 0] + 180.0) % 360.0 - 180.0
-        np.testing.assert_allclose(dlon * np.cos(np.radians(ref[:, 1])), 0.0, atol=1e-7)
-
-
-@settings(max_examples=60, deadline=None)
 @given(lon0=lons, lat0=lats, az=st.floats(0.0, 360.0), dist=st.floats(0.01, 4000.0))
 def test_cap_box_holds_the_whole_arc(lon0, lat0, az, dist):
     lon1, lat1, _ = SPHERE.fwd(lon0, lat0, az, dist * 1000.0)
     a = [np.array([v], dtype=float) for v in (lon0, lat0, lon1, lat1)]
-    (w, s, e, n), _, lon_m, lat_m, length = ob._caps(ob._xyz(a[0], a[1]), ob._xyz(a[2], a[3]))
+    (w, s, e, n), _, lon_m, lat_m, length = areas.arc_caps(geodesy.to_xyz(a[0], a[1]), geodesy.to_xyz(a[2], a[3]))
     assert length[0] == pytest.approx(dist, rel=1e-9, abs=1e-6)
-    lon, lat, _ = ob.gc_densify(*a, max_step_km=1.0)
+    lon, lat, _ = geodesy.gc_densify(*a, max_step_km=1.0)
     assert (lat >= s[0]).all() and (lat <= n[0]).all()
     # the box longitudes are continuous around the midpoint; compare on that branch
     rel = (lon - lon_m[0] + 180.0) % 360.0 - 180.0 + lon_m[0]
@@ -322,15 +292,15 @@ def test_two_km_chords_stay_within_a_metre_of_the_great_circle():
     # module notes: a lon/lat chord of length s departs from the great circle by ~ s^2 tan|lat| / (8 R)
     rng = np.random.default_rng(5)
     lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (-70.0, -60.0, 10.0, 60.0), (50.0, 3000.0))
-    lon, lat, arc = ob.gc_densify(lon0, lat0, lon1, lat1, max_step_km=2.0)
+    lon, lat, arc = geodesy.gc_densify(lon0, lat0, lon1, lat1, max_step_km=2.0)
     same = arc[1:] == arc[:-1]
     mid_lon, mid_lat = 0.5 * (lon[1:] + lon[:-1])[same], 0.5 * (lat[1:] + lat[:-1])[same]
     # cross-track distance of each chord midpoint from its arc's great circle (pole of the circle n)
-    p0 = np.stack(ob._xyz(lon0, lat0), -1)
-    p1 = np.stack(ob._xyz(lon1, lat1), -1)
+    p0 = geodesy.to_xyz(lon0, lat0)
+    p1 = geodesy.to_xyz(lon1, lat1)
     pole = np.cross(p0, p1)
     pole /= np.linalg.norm(pole, axis=1)[:, None]
-    q = np.stack(ob._xyz(mid_lon, mid_lat), -1)
+    q = geodesy.to_xyz(mid_lon, mid_lat)
     xtrack_m = np.abs(np.arcsin(np.einsum("ij,ij->i", q, pole[arc[1:][same]]))) * R_KM * 1000.0
     bound = 2.0**2 * np.tan(np.radians(np.abs(mid_lat) + 1.0)) / (8 * R_KM) * 1000.0 + 0.01
     assert (xtrack_m <= bound).all()
@@ -340,183 +310,6 @@ def test_two_km_chords_stay_within_a_metre_of_the_great_circle():
 # --------------------------------------------------------------------------------------------------
 # Zones
 # --------------------------------------------------------------------------------------------------
-
-
-def test_polygon_with_hole_blocks_the_ring_not_the_hole(tmp_path):
-    doc = {"type": "Polygon", "coordinates": [square(0, 0, 4, 4), square(1, 1, 3, 3)]}
-    (zone,) = zn.load_zones([write(tmp_path, "ring.geojson", doc)])
-    assert zone.name == "ring" and zone.valid_from is None and zone.valid_to is None
-    assert zone.geometry.area == pytest.approx(16.0 - 4.0)  # square minus hole, deg^2
-    lon0, lat0 = [1.5, 0.5, 5.0, -1.0, 1.2], [2.0, 2.0, 2.0, 2.0, 1.2]
-    lon1, lat1 = [2.5, 2.0, 6.0, 5.0, 2.8], [2.0, 2.0, 2.0, 2.0, 2.8]
-    got = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
-    assert got.tolist() == [False, True, False, True, False]  # inside the hole only -> free
-    np.testing.assert_array_equal(got, reference_blocked(lon0, lat0, lon1, lat1, zone.geometry))
-
-
-def test_multipolygon_feature_collection_and_names(tmp_path):
-    doc = {
-        "type": "FeatureCollection",
-        "features": [
-            {
-                "type": "Feature",
-                "properties": {"name": "two boxes"},
-                "geometry": {"type": "MultiPolygon", "coordinates": [[square(0, 0, 1, 1)], [square(3, 0, 4, 1)]]},
-            },
-            {
-                "type": "Feature",
-                "properties": None,
-                "geometry": {"type": "Polygon", "coordinates": [square(10, 10, 11, 11)]},
-            },
-        ],
-    }
-    zones = zn.load_zones("multi.geojson", base_dir=write(tmp_path, "multi.geojson", doc).parent)
-    assert [z.name for z in zones] == ["two boxes", "multi[1]"]
-    assert zones[0].geometry.geom_type == "MultiPolygon"
-    got = zn.arcs_blocked_by_zones(
-        [-0.5, 2.5, 1.5, 9.5], [0.5, 0.5, 0.5, 10.5], [0.5, 3.5, 2.5, 10.5], [0.5, 0.5, 0.5, 10.5], zones
-    )
-    assert got.tolist() == [True, True, False, True]
-
-
-def test_time_windows(tmp_path):
-    doc = {
-        "type": "Feature",
-        "properties": {"valid_from": "2018-06-01T02:00:00+02:00", "valid_to": "2018-06-30"},
-        "geometry": {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]},
-    }
-    (zone,) = zn.load_zones([write(tmp_path, "timed.geojson", doc)])
-    assert zone.valid_from == np.datetime64("2018-06-01T00:00:00")  # converted to UTC
-    assert zone.valid_to == np.datetime64("2018-06-30T00:00:00")  # a date alone is its midnight
-    arc = (-0.5, 0.5, 1.5, 0.5)
-    times = np.array(
-        ["2018-05-31T23:59", "2018-06-01T00:00", "2018-06-15", "2018-06-30T00:00", "2018-06-30T00:01", "NaT"],
-        dtype="datetime64[m]",
-    )
-    got = zn.arcs_blocked_by_zones(*arc, [zone], times)
-    assert got.tolist() == [False, True, True, True, False, True]  # NaT: unknown time, zone counts
-    assert zn.arcs_blocked_by_zones(*arc, [zone]).item()  # time=None: every zone active
-    # with arrival times, a window overlapping the passage blocks it
-    dep = np.array(["2018-05-30", "2018-07-01"], dtype="datetime64[s]")
-    arr = np.array(["2018-06-02", "2018-07-02"], dtype="datetime64[s]")
-    assert zn.arcs_blocked_by_zones(*arc, [zone], dep, time_end=arr).tolist() == [True, False]
-    # per-arc times broadcast against a 2-D array of arcs
-    lon0 = np.array([[-0.5, -0.5], [5.0, -0.5]])
-    t = np.array([["2018-06-10"], ["2018-07-10"]], dtype="datetime64[s]")
-    assert zn.arcs_blocked_by_zones(lon0, 0.5, lon0 + 2.0, 0.5, [zone], t).tolist() == [[True, True], [False, False]]
-    assert zn.zones_active([zone], np.datetime64("2018-05-20"), np.datetime64("2018-06-02")) == (zone,)
-    assert zn.zones_active([zone], np.datetime64("2018-07-20")) == ()
-
-
-def test_antimeridian_arcs_are_short_arcs(tmp_path):
-    # a zone split at the antimeridian (RFC 7946), and one at 0 deg that a naive 358-deg line would cross
-    doc = {
-        "type": "FeatureCollection",
-        "features": [
-            {
-                "type": "Feature",
-                "properties": {"name": "seam"},
-                "geometry": {
-                    "type": "MultiPolygon",
-                    "coordinates": [[square(179.5, -1, 180, 1)], [square(-180, -1, -179.5, 1)]],
-                },
-            },
-            {
-                "type": "Feature",
-                "properties": {"name": "greenwich"},
-                "geometry": {"type": "Polygon", "coordinates": [square(-1, 4, 1, 6)]},
-            },
-        ],
-    }
-    zones = zn.load_zones([write(tmp_path, "seam.geojson", doc)])
-    lon0 = np.array([179.0, 179.0, 179.9, -179.0, 170.0, -178.0])
-    lat0 = np.array([0.0, 5.0, 0.5, 0.0, 0.0, 0.0])
-    lon1 = np.array([-179.0, -179.0, -179.9, 179.0, 175.0, -179.7])
-    lat1 = np.array([0.0, 5.0, 0.5, 0.0, 0.0, 0.0])
-    got = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, zones)
-    assert got.tolist() == [True, False, True, True, False, True]
-    np.testing.assert_array_equal(
-        got, reference_blocked(lon0, lat0, lon1, lat1, shapely.union_all([z.geometry for z in zones]))
-    )
-
-
-def test_vectorised_zone_test_equals_slow_reference(tmp_path):
-    doc = {
-        "type": "Polygon",
-        "coordinates": [
-            [[-32, 36], [-28, 35.5], [-27, 38], [-29, 39.5], [-30, 37.5], [-32, 38.5], [-32, 36]],
-            square(-29.5, 36.5, -28.5, 37.2),
-        ],
-    }
-    (zone,) = zn.load_zones([write(tmp_path, "z.geojson", doc)])
-    rng = np.random.default_rng(3)
-    lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (-34.0, 34.0, -25.0, 41.0), (5.0, 400.0))
-    fast = zn.arcs_blocked_by_zones(lon0, lat0, lon1, lat1, [zone])
-    np.testing.assert_array_equal(fast, reference_blocked(lon0, lat0, lon1, lat1, zone.geometry))
-    assert 0.2 < fast.mean() < 0.8
-
-
-def test_self_intersecting_polygon_is_repaired(tmp_path):
-    bowtie = {"type": "Polygon", "coordinates": [[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]]}
-    (zone,) = zn.load_zones([write(tmp_path, "bowtie.geojson", bowtie)])
-    assert zone.geometry.is_valid
-    assert zone.geometry.area == pytest.approx(2.0)  # two triangles of area 1
-    unclosed = {"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}
-    (zone,) = zn.load_zones([write(tmp_path, "unclosed.geojson", unclosed)])
-    assert zone.geometry.equals(shapely.box(0, 0, 1, 1))
-
-
-POLY = {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]}
-
-
-@pytest.mark.parametrize(
-    ("content", "match"),
-    [
-        ("{not json", "not valid JSON"),
-        ([1, 2], "GeoJSON object"),
-        ({"type": "Point", "coordinates": [0, 0]}, "FeatureCollection, Feature, Polygon or MultiPolygon"),
-        (
-            {"type": "Feature", "properties": {}, "geometry": {"type": "LineString", "coordinates": [[0, 0], [1, 1]]}},
-            "Polygon or MultiPolygon",
-        ),
-        (
-            {
-                "type": "FeatureCollection",
-                "features": [{"type": "Feature", "geometry": POLY}, {"type": "Feature", "geometry": None}],
-            },
-            "feature 1",
-        ),
-        ({"type": "FeatureCollection", "features": []}, "no features"),
-        ({"type": "Polygon", "coordinates": [square(170, 0, 200, 1)]}, r"lon in \[-180, 180\].*200"),
-        ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [2, 2], [0, 0]]]}, "cannot be repaired"),
-        ({"type": "Polygon", "coordinates": [[[0, 0], [1, "a"], [2, 2], [0, 0]]]}, "number pairs"),
-        ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}, "at least 3 distinct"),
-        ({"type": "Feature", "properties": {"valid_from": "June 2018"}, "geometry": POLY}, "ISO 8601"),
-        (
-            {"type": "Feature", "properties": {"valid_from": "2018-07-01", "valid_to": "2018-06-01"}, "geometry": POLY},
-            "before valid_from",
-        ),
-        ({"type": "Feature", "properties": {"name": 3}, "geometry": POLY}, "'name' must be a non-empty string"),
-        ({**POLY, "crs": {"type": "name", "properties": {"name": "EPSG:3857"}}}, "CRS84"),
-        # drawn across the antimeridian without splitting: in planar lon/lat it is a band round the globe, which
-        # blocked an Atlantic course (QA)
-        (
-            {"type": "Polygon", "coordinates": [[[179, 36], [-179, 36], [-179, 39], [179, 39], [179, 36]]]},
-            r"edge from \[179, 36\] to \[-179, 36\] spans 358 deg of longitude.*split.*RFC 7946",
-        ),
-    ],
-)
-def test_bad_geojson_raises_scenario_error_naming_the_file(tmp_path, content, match):
-    path = write(tmp_path, "bad_zone.geojson", content)
-    with pytest.raises(ScenarioError, match=match) as info:
-        zn.load_zones([path])
-    assert "bad_zone.geojson" in str(info.value)
-    assert "\n" not in str(info.value)
-
-
-def test_missing_zone_file(tmp_path):
-    with pytest.raises(ScenarioError, match=r"nowhere\.geojson: zone file not found"):
-        zn.load_zones(["nowhere.geojson"], base_dir=tmp_path)
 
 
 def test_example_zone_straddles_the_verification_great_circle():
@@ -553,7 +346,7 @@ def test_index_rasters_against_per_cell_predicates(geometry) -> None:
     # the prefilter rasters are made without a predicate per cell; check them cell by cell with shapely:
     # every cell the geometry meets is flagged "touch", and every cell flagged "inside" is covered by it
     geom = geometry()
-    index = ob._build_index(geom)
+    index = areas._build_index(geom)
     ny, nx = index.inside_mask.shape
     jj, ii = np.divmod(np.arange(nx * ny), nx)
     x, y = index.x0 + ii * index.cell, index.y0 + jj * index.cell

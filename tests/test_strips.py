@@ -1,6 +1,6 @@
 """Tests of pyroute_rel.obstacles.strips: every arc of a rank pair against an area by shadows.
 
-Reference: :func:`pyroute_rel.obstacles.land.arcs_blocked`, which tests each arc on its own (densified along its
+Reference: :func:`pyroute_rel.obstacles.areas.arcs_blocked`, which tests each arc on its own (densified along its
 great circle, shapely ``intersects``). It is itself checked against PROJ great circles and a brute-force per-arc
 shapely test in test_obstacles. The two methods share no code beyond the tiles of the area.
 """
@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from pyroute_rel import geodesy
 from pyroute_rel.grid import make_grid
+from pyroute_rel.obstacles import areas
 from pyroute_rel.obstacles import land as ob
 from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
 from pyroute_rel.obstacles.strips import Group, fans_blocked
@@ -24,7 +25,7 @@ from pyroute_rel.obstacles.zones import Zone
 def reference(group: Group, area: shapely.Geometry) -> np.ndarray:
     """Arc-by-arc answer, laid out as fans_blocked lays it out."""
     j, i = np.meshgrid(np.arange(group.dst_lon.size), np.arange(group.src_lon.size), indexing="ij")
-    full = ob.arcs_blocked(group.src_lon[i], group.src_lat[i], group.dst_lon[j], group.dst_lat[j], area)
+    full = areas.arcs_blocked(group.src_lon[i], group.src_lat[i], group.dst_lon[j], group.dst_lat[j], area)
     if group.band is None:
         return full
     b = group.band
@@ -110,7 +111,7 @@ def test_shadows_equal_the_arc_by_arc_test(seed, lon, lat, course, banded, singl
     if np.ptp(east) > 180.0:  # straddles the seam: the area's pieces on both sides
         pieces.append(shapely.affinity.translate(area, xoff=360.0 if area.centroid.x < 0 else -360.0))
     area = shapely.intersection(shapely.union_all(pieces), shapely.box(-180, -90, 180, 90))
-    (got,) = fans_blocked([group], [ob.tiles_tree(area)])[0]
+    (got,) = fans_blocked([group], [areas.tiles_tree(area)])[0]
     assert got is not None
     assert_equal_but_for_tangents(got, reference(group, area), group, area)
 
@@ -144,7 +145,7 @@ def test_real_coast_rank_pairs_equal_the_arc_by_arc_test() -> None:
         Group(grid.lon_deg[k - 1], grid.lat_deg[k - 1], grid.lon_deg[k], grid.lat_deg[k])
         for k in range(1, grid.n_ranks)
     ]
-    results = fans_blocked(groups, [ob.tiles_tree(land)])[0]
+    results = fans_blocked(groups, [areas.tiles_tree(land)])[0]
     blocked = 0
     for group, got in zip(groups, results, strict=True):
         ref = reference(group, land)
@@ -154,7 +155,7 @@ def test_real_coast_rank_pairs_equal_the_arc_by_arc_test() -> None:
 
 
 def test_groups_the_shadows_cannot_take_are_left_to_the_caller() -> None:
-    area = ob.tiles_tree(shapely.box(0.4, -0.1, 0.6, 0.1))
+    area = areas.tiles_tree(shapely.box(0.4, -0.1, 0.6, 0.1))
     lat = np.array([-1.0, 0.0, 1.0])
     one = Group(np.zeros(1), np.zeros(1), np.ones(1), np.zeros(1))  # a single arc: no target line
     bent = Group(np.array([0.0, 0.3, 0.0]), lat, np.ones(3), lat)  # sources off one great circle
@@ -193,8 +194,8 @@ def test_the_grid_sweep_equals_the_arc_by_arc_test_on_every_arc() -> None:
         lon0, lat0, lon1, lat1, src, valid = grid.arcs(k)
         shape = src.shape
         args = [np.broadcast_to(a, shape) for a in (lon0, lat0, lon1, lat1)]
-        on_land = ob.arcs_blocked(*args, land)
-        in_zone = ob.arcs_blocked(*args, zone.geometry)
+        on_land = areas.arcs_blocked(*args, land)
+        in_zone = areas.arcs_blocked(*args, zone.geometry)
         np.testing.assert_array_equal(mask.hits(k, None)[valid], (on_land | in_zone)[valid])
         july = np.full(shape, np.datetime64("2018-07-10T00:00:00", "ns"))
         np.testing.assert_array_equal(mask.hits(k, july)[valid], on_land[valid])

@@ -3,7 +3,8 @@
 =======================  ===============================================================================
 module                   holds
 =======================  ===============================================================================
-``obstacles.land``       GSHHG land and coastal margins; the vectorised arc-versus-area test
+``obstacles.areas``      the vectorised arc-versus-area test (does a great-circle arc touch a geometry?)
+``obstacles.land``       GSHHG land and coastal margins
 ``obstacles.zones``      user exclusion zones (GeoJSON polygons with optional time windows)
 ``obstacles.strips``     whole rank pairs tested at once against an area (rank-pair shadows)
 ``obstacles.mask``       :class:`Avoid` (what to avoid) and the per-grid :class:`ObstacleMask`
@@ -12,7 +13,8 @@ module                   holds
 
 from __future__ import annotations
 
-from .land import RESOLUTIONS, arcs_blocked, arcs_on_land, land_geometry, land_within, points_on_land
+from .areas import arcs_blocked
+from .land import RESOLUTIONS, arcs_on_land, land_geometry, land_within, points_on_land
 from .mask import Avoid, ObstacleMask, check_points, obstacle_mask
 from .zones import Zone, load_zones
 

@@ -100,7 +100,7 @@ def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
     """
     import shapely
 
-    from .land import gc_densify
+    from ..geodesy import gc_densify
 
     def ring(lon: npt.NDArray[np.float64], lat: npt.NDArray[np.float64]) -> tuple[Any, Any]:
         x, y, _ = gc_densify(lon, lat, np.roll(lon, -1), np.roll(lat, -1), max_step_km=25.0)
@@ -171,7 +171,7 @@ class ObstacleMask:
     def __init__(self, grid: Grid, avoid: Avoid, *, parent: Grid | None = None) -> None:
         import shapely
 
-        from . import land as obstacles
+        from . import areas as obstacles
         from . import zones
 
         self.grid = grid

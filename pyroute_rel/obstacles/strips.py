@@ -28,9 +28,9 @@ all-to-all grid (4 M arcs) over the Atlantic coasts is tested in a fraction of a
 
 Accuracy: the area's edges are taken as great-circle chords between their vertices. A lon/lat edge of length s
 departs from its chord by about s^2 tan|lat| / (8 R): split long boundary edges first, as
-:func:`pyroute_rel.obstacles.land.tiles_tree` does (0.05 deg: under a metre). Edges that pieces share (cuts between
+:func:`pyroute_rel.obstacles.areas.tiles_tree` does (0.05 deg: under a metre). Edges that pieces share (cuts between
 tiles) need no splitting: both pieces take the same chord, so their union is unchanged. Arcs are exact great
-circles. This is the tolerance of :func:`pyroute_rel.obstacles.land.arcs_blocked`, which densifies the arcs instead.
+circles. This is the tolerance of :func:`pyroute_rel.obstacles.areas.arcs_blocked`, which densifies the arcs instead.
 
 Limits: groups whose points are not within 80 deg of their frame centre, whose sources are not on one great
 circle through P, or whose source and target lines (nearly) meet are reported as not handled, for the caller
@@ -309,6 +309,8 @@ def _shadows(
     outlines: tuple[npt.NDArray[np.object_], IntArray],
     tree: shapely.STRtree,
 ) -> list[BoolArray]:
+    """Per group, which arcs touch the area of ``tree`` (the steps of the module notes, laid out as
+    :func:`fans_blocked` returns them)."""
     n_src, n_dst = src.count, dst.count
     result = [
         np.zeros((int(b), int(a)) if w is None else (int(a), 2 * w + 1), dtype=bool)
@@ -316,10 +318,25 @@ def _shadows(
     ]
     if len(tree) == 0:
         return result
+    parts, part_group = _band_pieces(frames, outlines, tree)
+    if parts.size == 0:
+        return result
+    g_row, i_row, lo, hi = _shadow_intervals(frames, src, parts, part_group)
+    band = np.array([-1 if b is None else int(b) for b in bands], dtype=np.intp)
+    width = np.where(band < 0, n_dst, 2 * band + 1)
+    runs = _target_runs(frames, dst, band, width, (g_row, i_row, lo, hi))
+    _mark_runs(result, n_src, band, width, runs)
+    return result
+
+
+def _band_pieces(
+    frames: _Frames, outlines: tuple[npt.NDArray[np.object_], IntArray], tree: shapely.STRtree
+) -> tuple[npt.NDArray[np.object_], IntArray]:
+    """Step 2: the candidate pieces projected into their group's (u, t) plane and clipped to the band
+    0 <= t <= 1; the non-empty parts and the group of each."""
     grp, piece = _candidates(*outlines, tree)
     if grp.size == 0:
-        return result
-    # 1. project the candidate pieces into their group's (u, t) plane and clip them to the band 0 <= t <= 1
+        return np.empty(0, dtype=object), grp
     geoms = tree.geometries.take(piece)
     owner = np.repeat(grp, shapely.get_num_coordinates(geoms))
 
@@ -330,18 +347,24 @@ def _shadows(
     clipped = shapely.clip_by_rect(shapely.transform(geoms, project), -0.01, 0.0, 1.01, 1.0)
     parts, part_of = shapely.get_parts(clipped, return_index=True)
     keep = ~shapely.is_empty(parts)
-    parts, part_group = parts[keep], grp[part_of[keep]]
-    if parts.size == 0:
-        return result
-    # 2. convex hull vertices of each connected piece
+    return parts[keep], grp[part_of[keep]]
+
+
+def _shadow_intervals(
+    frames: _Frames, src: _Points, parts: npt.NDArray[np.object_], part_group: IntArray
+) -> tuple[IntArray, IntArray, FloatArray, FloatArray]:
+    """Step 3: for each (piece, source) the interval [lo, hi] of target-line positions u the piece hides, from the
+    vertices of the piece's convex hull. Returns the group and source index of each row, and lo, hi.
+
+    Pieces are bucketed by hull size (padded by repeating a vertex) and source count, so each bucket is one
+    broadcast."""
+    n_src = src.count
     hulls = shapely.convex_hull(parts)
     xy, vert_part = shapely.get_coordinates(hulls, return_index=True)
     nv = np.bincount(vert_part, minlength=parts.size)
     v_start = np.cumsum(nv) - nv
     nv = np.where(shapely.get_type_id(hulls) == shapely.GeometryType.POLYGON, nv - 1, nv)  # not the closing vertex
     inv_t = 1.0 / np.maximum(xy[:, 1], 1e-200)
-    # 3. shadows: for each (piece, source) the interval of target-line positions u the piece hides. Pieces are
-    # bucketed by hull size (padded by repeating a vertex) and source count, so each bucket is one broadcast.
     src_u, _ = frames.project(src.v, src.group)
     bucket = np.where(nv <= 16, nv, 2 ** np.ceil(np.log2(np.maximum(nv, 1)))).astype(np.intp)
     rows_g, rows_i, lo_all, hi_all = [], [], [], []
@@ -360,10 +383,22 @@ def _shadows(
                 hi_all.append(shadow.max(axis=2).ravel())
                 rows_g.append(np.repeat(part_group[pc], ns))
                 rows_i.append(np.tile(np.arange(ns), pc.size))
-    g_row, i_row = np.concatenate(rows_g), np.concatenate(rows_i)
-    lo, hi = np.concatenate(lo_all), np.concatenate(hi_all)
-    # 4. intervals -> runs of targets. Targets are in order along their line, u increasing or decreasing; keys
-    # arctan(u) / pi + group increase across groups, so one binary search serves all.
+    return np.concatenate(rows_g), np.concatenate(rows_i), np.concatenate(lo_all), np.concatenate(hi_all)
+
+
+def _target_runs(
+    frames: _Frames,
+    dst: _Points,
+    band: IntArray,
+    width: IntArray,
+    rows: tuple[IntArray, IntArray, FloatArray, FloatArray],
+) -> tuple[IntArray, IntArray, IntArray, IntArray]:
+    """Step 4: intervals -> runs [j0, j1) of target columns within each source's window (all targets, or
+    i - band ... i + band); the non-empty runs (group, source, j0, j1), sorted by group."""
+    g_row, i_row, lo, hi = rows
+    n_dst = dst.count
+    # targets are in order along their line, u increasing or decreasing; keys arctan(u) / pi + group increase
+    # across groups, so one binary search serves all
     dst_u, _ = frames.project(dst.v, dst.group)
     first, last = dst.off[:-1], dst.off[1:] - 1
     down = dst_u[last] < dst_u[first]
@@ -374,18 +409,26 @@ def _shadows(
     j1 = np.searchsorted(key, np.arctan(hi) / math.pi + g_row, side="right") - dst.off[g_row]
     nd = n_dst[g_row]
     j0, j1 = np.where(down[g_row], nd - j1, j0), np.where(down[g_row], nd - j0, j1)  # [j0, j1) in target order
-    # each source's window of targets: all, or i - band ... i + band
-    band = np.array([-1 if b is None else int(b) for b in bands], dtype=np.intp)
-    width = np.where(band < 0, n_dst, 2 * band + 1)
     w0 = np.where(band[g_row] < 0, 0, i_row - band[g_row])
     j0, j1 = np.maximum(j0 - w0, 0), np.minimum(j1 - w0, width[g_row])
     run = j1 > j0
     g_row, i_row, j0, j1 = g_row[run], i_row[run], j0[run], j1[run]
     by_group = np.argsort(g_row, kind="stable")
-    g_row, i_row, j0, j1 = g_row[by_group], i_row[by_group], j0[by_group], j1[by_group]
-    # runs are marked through a difference array over the arcs, a chunk of whole groups at a time (bounded memory)
+    return g_row[by_group], i_row[by_group], j0[by_group], j1[by_group]
+
+
+def _mark_runs(
+    result: list[BoolArray],
+    n_src: IntArray,
+    band: IntArray,
+    width: IntArray,
+    runs: tuple[IntArray, IntArray, IntArray, IntArray],
+) -> None:
+    """Step 4, marking: the runs into ``result`` through a difference array over the arcs, a chunk of whole
+    groups at a time (bounded memory); groups without a run stay all False."""
+    g_row, i_row, j0, j1 = runs
     size = n_src * width
-    busy = np.unique(g_row)  # groups with a run; the others stay all False
+    busy = np.unique(g_row)
     b = 0
     while b < busy.size:
         g_lo = int(busy[b])
@@ -403,4 +446,3 @@ def _shadows(
         for g in range(g_lo, g_hi):
             block = flat[arc_off[g - g_lo] : arc_off[g - g_lo + 1]].reshape(int(n_src[g]), int(width[g]))
             result[g] = np.ascontiguousarray(block.T) if band[g] < 0 else block
-    return result

@@ -2,7 +2,7 @@
 
 A zone is a lon/lat Polygon or MultiPolygon (holes allowed) with an optional ``valid_from``/``valid_to`` window;
 an arc touching a zone that is active when the arc is sailed is forbidden. The arc test is the one land uses
-(:func:`pyroute_rel.obstacles.land.arcs_blocked`: great circles densified, cached index per geometry).
+(:func:`pyroute_rel.obstacles.areas.arcs_blocked`: great circles densified, cached index per geometry).
 
 References
 ----------
@@ -24,7 +24,7 @@ import numpy.typing as npt
 import shapely
 
 from ..errors import ScenarioError, show
-from .land import area_index, as_arcs, blocked_flat, checked_samples, polygon_parts
+from .areas import area_index, as_arcs, blocked_flat, checked_samples, polygon_parts
 
 __all__ = ["Zone", "load_zones", "zones_active", "arcs_blocked_by_zones"]
 
