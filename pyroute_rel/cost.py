@@ -226,7 +226,10 @@ def geometry_from_xyz(
             lambda rows: geometry_from_xyz(a[rows], b[rows], samples=samples, workers=1), row_blocks(a.shape[0], n), n
         )
         return ArcGeometry(
-            *(np.concatenate([getattr(g, f) for g in parts]) for f in ("lon_deg", "lat_deg", "course_deg", "seg_nm"))
+            lon_deg=np.concatenate([g.lon_deg for g in parts]),
+            lat_deg=np.concatenate([g.lat_deg for g in parts]),
+            course_deg=np.concatenate([g.course_deg for g in parts]),
+            seg_nm=np.concatenate([g.seg_nm for g in parts]),
         )
     # component by component: numpy's reductions over a last axis of 3 cost more than the arithmetic
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
@@ -357,7 +360,7 @@ def geometry_costs(
     one piece.
     """
     shape = geom.shape
-    steady = bool(getattr(weather, "steady", False))
+    steady = bool(weather.steady)
     n = default_workers() if workers is None else int(workers)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
     if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
@@ -396,13 +399,12 @@ def geometry_costs(
         )
     samples = geom.samples
 
-    # a source that can locate points once (gridded data) samples the same points at two sets of times below
-    prepared = None if steady or not hasattr(weather, "prepare") else weather.prepare(geom.lon_deg, geom.lat_deg)
+    # time-varying weather samples the same points at two sets of times below: the source prepares them once
+    prepared = None if steady else weather.prepare(geom.lon_deg, geom.lat_deg)
 
     # wind only, sampled in compiled code: TWA, speed and time come from the compiled twin of the numpy arithmetic
     # (bit-identical); with currents or a wave speed loss the numpy code does it all
-    stored = getattr(weather, "field_info", {})
-    compiled = prepared is not None and wave_loss is None and not {"current_u_ms", "current_v_ms"} & set(stored)
+    compiled = prepared is not None and wave_loss is None and not {"current_u_ms", "current_v_ms"} & weather.fields
 
     def evaluate(
         time_h: FloatArray | None, timing: bool = False
@@ -411,7 +413,7 @@ def geometry_costs(
         if prepared is not None:
             wanted = _TIMING_FIELDS + (("hs_m",) if wave_loss is not None else ()) if timing else None
             offset_h = None if time_h is None else np.where(np.isfinite(time_h), time_h, 0.0)
-            cond = weather.sample_at(prepared, departure, offset_h=offset_h, fields=wanted)  # type: ignore[attr-defined]
+            cond = weather.sample_at(prepared, departure, offset_h=offset_h, fields=wanted)
             if compiled:
                 from .cost_compiled import sail_wind
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -45,6 +45,7 @@ from .cost import (
     geometry_from_xyz,
 )
 from .errors import ScenarioError
+from .failure import FailureModel
 from .grid import Grid
 from .polar import BEYOND_MODES, Polar
 from .progress import progress_bar
@@ -52,16 +53,52 @@ from .times import hours_after
 from .units import KN_PER_MS
 from .weather import WeatherSource
 
-if TYPE_CHECKING:
-    from .failure import FailureModel
-
 __all__ = ["DPResult", "forward_dp", "RoutingProblem", "explain_infeasible", "leg_costs", "path_costs", "grid_geometry"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
-#: Callback giving, for arcs into rank k (shape of ``grid.arcs(k)``), which are blocked by obstacles.
-ArcMask = Callable[[int, npt.NDArray[np.datetime64] | None], BoolArray]
+
+@runtime_checkable
+class ArcMask(Protocol):
+    """What the solver asks of an obstacle mask (:class:`pyroute_rel.obstacles.mask.ObstacleMask` implements it).
+
+    Every array is laid out as the arcs into rank ``k`` (the shape of ``grid.arcs(k)``'s ``src``); ``times`` are the
+    arcs' departure times (``datetime64``, UTC) of that shape, or None when nothing depends on time.
+
+    Attributes
+    ----------
+    grid : Grid
+        The grid the mask was built for; the solver refuses to use it on another.
+    timed : bool
+        True when the mask depends on departure times (zones with time windows).
+    """
+
+    @property
+    def grid(self) -> Grid:
+        """The grid whose arcs the mask answers for."""
+        ...
+
+    @property
+    def timed(self) -> bool:
+        """True when the answer depends on the departure times."""
+        ...
+
+    def __call__(self, k: int, times: npt.NDArray[np.datetime64] | None) -> BoolArray:
+        """Every arc into rank ``k`` that is blocked at its departure time (all tested now)."""
+        ...
+
+    def known(self, k: int) -> BoolArray:
+        """Which arcs into rank ``k`` have been tested."""
+        ...
+
+    def learn(self, k: int, select: BoolArray | None = None) -> None:
+        """Test the selected arcs into rank ``k`` (default all) not tested yet."""
+        ...
+
+    def hits(self, k: int, times: npt.NDArray[np.datetime64] | None) -> BoolArray:
+        """Arcs into rank ``k`` known to be blocked at their departure times (untested arcs count as free)."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -77,7 +114,8 @@ class RoutingProblem:
     apf : Acceptable probability of failure in [0, 1].
     samples : Sub-segments per arc for weather sampling (>= 1).
     beyond : Polar behaviour outside its table (``"clamp"`` or ``"forbid"``).
-    blocked : Optional obstacle mask callback ``(k, departure_times) -> bool array`` for arcs into rank k.
+    blocked : Optional obstacle mask for this problem's grid (an :class:`ArcMask`, e.g.
+        :func:`pyroute_rel.obstacles.mask.obstacle_mask`).
     time_step_h : None (default) for continuous time: the plain earliest-arrival DP. A step [h] switches to
         the time-expanded DP: times live on the lattice ``0, step, 2 step, ...`` (arrivals are rounded *up*
         to it, so every reported time is achievable) and the craft may wait at a node.
@@ -133,23 +171,35 @@ class RoutingProblem:
             raise ScenarioError(
                 f"departure must be a UTC time (numpy datetime64 or ISO 8601 string) (got {self.departure!r})"
             )
-        for name, ok, what in (
+        for name, value, ok, what in (
             (
                 "weather",
-                hasattr(self.weather, "sample") and hasattr(self.weather, "check_coverage"),
+                self.weather,
+                isinstance(self.weather, WeatherSource),
                 "a weather source (UniformWeather, GriddedWeather, ...)",
             ),
-            ("polar", isinstance(self.polar, Polar), "a Polar (pyroute_rel.polar.get_polar)"),
+            ("polar", self.polar, isinstance(self.polar, Polar), "a Polar (pyroute_rel.polar.get_polar)"),
             (
                 "failure",
-                self.failure is None or hasattr(self.failure, "p_fail"),
+                self.failure,
+                self.failure is None or isinstance(self.failure, FailureModel),
                 "a FailureModel (pyroute_rel.failure.load_failure_model) or None",
             ),
-            ("blocked", self.blocked is None or callable(self.blocked), "an obstacle mask callback or None"),
-            ("wave_loss", self.wave_loss is None or isinstance(self.wave_loss, WaveLoss), "a WaveLoss or None"),
+            (
+                "blocked",
+                self.blocked,
+                self.blocked is None or isinstance(self.blocked, ArcMask),
+                "an obstacle mask callback (an ArcMask: pyroute_rel.obstacles.mask.obstacle_mask) or None",
+            ),
+            (
+                "wave_loss",
+                self.wave_loss,
+                self.wave_loss is None or isinstance(self.wave_loss, WaveLoss),
+                "a WaveLoss or None",
+            ),
         ):
             if not ok:
-                raise ScenarioError(f"RoutingProblem.{name} must be {what} (got {type(getattr(self, name)).__name__})")
+                raise ScenarioError(f"RoutingProblem.{name} must be {what} (got {type(value).__name__})")
 
     @property
     def n_wait(self) -> int:
@@ -160,14 +210,11 @@ class RoutingProblem:
 
     def speed_bound_kn(self) -> float | None:
         """The fastest speed over ground possible anywhere [kn] (polar top speed plus the strongest current), or
-        None when the weather has currents and no bound on them."""
-        current = getattr(self.weather, "max_current_ms", None)
-        if current is None:
-            fields = getattr(self.weather, "fields", None)
-            if fields is None or "current_u_ms" in fields or "current_v_ms" in fields:
-                return None
-            current = 0.0
-        return float(np.max(self.polar.speed_kn)) + float(current) * KN_PER_MS
+        None when the weather's bound on currents (``max_current_ms``) is not finite."""
+        current = float(self.weather.max_current_ms)
+        if not math.isfinite(current):
+            return None
+        return float(np.max(self.polar.speed_kn)) + current * KN_PER_MS
 
     def arrive(self, t_h: Any) -> Any:
         """Arrival time on the time lattice (rounded up), or unchanged in continuous time."""
@@ -319,7 +366,7 @@ def forward_dp(  # noqa: C901 - to split
     ``cost_hook(k, costs)`` is called with the costs of the arcs into rank k (for tests and diagnostics).
     """
     n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
-    if getattr(problem.blocked, "grid", grid) is not grid:
+    if problem.blocked is not None and problem.blocked.grid is not grid:
         raise ValueError(
             "the problem's obstacle mask was built for another grid: build the problem for this grid "
             "(Scenario.problem(grid=...))"
@@ -355,7 +402,7 @@ def forward_dp(  # noqa: C901 - to split
             counted = live
             for w in range(problem.n_wait + 1):
                 t0 = t_src + w * step
-                lazy = problem.blocked is not None and hasattr(problem.blocked, "learn") and cost_hook is None
+                lazy = problem.blocked is not None and cost_hook is None
                 if prune and live.shape[1] > PRUNE_MIN_WIDTH:
                     costs, counted = _pruned_costs(problem, k, geom, t0, live, bound, lazy)  # type: ignore[arg-type]
                 else:
@@ -458,7 +505,7 @@ def forward_dp(  # noqa: C901 - to split
 
 def _crossing(grid: Grid, k: int) -> FloatArray:
     """Fraction along each arc into rank k where it crosses the finish line (NaN: no crossing); cached."""
-    cache = grid._cache.setdefault("crossing", {})
+    cache = grid.cache.crossings
     frac = cache.get(k)
     if frac is None:
         lon0, lat0, lon1, lat1, src, _ = grid.arcs(k)
@@ -481,13 +528,12 @@ def _crossing(grid: Grid, k: int) -> FloatArray:
 
 def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
     """Sampling geometry of the arcs into rank k, computed once per grid and cached on it."""
-    key = f"geometry:{samples}"
-    cache = grid._cache.setdefault(key, {})
-    geom = cache.get(k)
+    cache = grid.cache
+    geom: ArcGeometry | None = cache.geometry.get((k, samples))
     if geom is None:
-        xyz = grid._cache.get("xyz")
+        xyz = cache.node_xyz
         if xyz is None:
-            xyz = grid._cache["xyz"] = geodesy.to_xyz(grid.lon_deg, grid.lat_deg)
+            xyz = cache.node_xyz = geodesy.to_xyz(grid.lon_deg, grid.lat_deg)
         if k == 0:
             a = geodesy.to_xyz(*grid.start_points)[None, :, :]
             b = xyz[0][:, None, :]
@@ -498,7 +544,7 @@ def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
             a = xyz[k - 1][grid.src_index]
             b = xyz[k][:, None, :]
         geom = geometry_from_xyz(a, b, samples=samples, workers=None)  # threads for big blocks
-        cache[k] = geom
+        cache.geometry[k, samples] = geom
     return geom
 
 
@@ -567,7 +613,7 @@ def _costs_of(problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray, pick: 
 
 def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.datetime64] | None:
     """Departure times for obstacle masks that depend on time (None when neither weather nor zones do)."""
-    if getattr(problem.weather, "steady", False) and not getattr(problem.blocked, "timed", False):
+    if problem.weather.steady and not (problem.blocked is not None and problem.blocked.timed):
         return None
     return hours_after(problem.departure, t0)
 
@@ -700,7 +746,7 @@ def _criteria_counts(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray
     course = geodesy.initial_bearing_deg(lon_s, lat_s, a[2][:, None], a[3][:, None])
     time = (
         problem.departure
-        if getattr(problem.weather, "steady", False)
+        if problem.weather.steady
         else hours_after(problem.departure, np.broadcast_to(a[4][:, None], lon_s.shape))
     )
     cond = problem.weather.sample(lon_s, lat_s, time)
@@ -735,7 +781,7 @@ def leg_costs(
     times = np.empty(n_legs)
     p_f = np.empty(n_legs)
     reason = np.empty(n_legs, dtype=np.uint8)
-    steady = bool(getattr(problem.weather, "steady", False))
+    steady = bool(problem.weather.steady)
     if steady and problem.time_step_h is None:
         c = problem.costs(lon[:-1], lat[:-1], lon[1:], lat[1:], np.zeros(n_legs))
         times, p_f, reason = c.time_h, c.p_f, c.reason
