@@ -32,22 +32,21 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
 from .errors import ScenarioError
+from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .times import hours_after
 from .units import KN_PER_MS
 from .weather.base import Conditions, WeatherSource
-
-if TYPE_CHECKING:
-    from .failure import FailureModel
 
 __all__ = [
     "ArcCosts",
@@ -99,13 +98,18 @@ class ArcCosts:
         return np.broadcast_to(self.fired_bits, self.time_h.shape)
 
 
-def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[str, FloatArray]:
+def arc_quantities(
+    conditions: Conditions, heading_deg: npt.ArrayLike, names: Iterable[str] = tuple(QUANTITIES)
+) -> dict[str, FloatArray]:
     """Environmental quantities seen by a craft on a heading (inputs of failure criteria).
+
+    Each is a weather field, or its angle to the heading, as :data:`~pyroute_rel.failure.QUANTITY_FIELDS` says.
 
     Parameters
     ----------
     conditions : Weather at the points.
     heading_deg : The craft's heading, clockwise from north [deg].
+    names : Quantities wanted (default all of :data:`~pyroute_rel.failure.QUANTITIES`).
 
     Returns
     -------
@@ -118,13 +122,12 @@ def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[s
     >>> float(q["awd_deg"]), float(q["twa_deg"])
     (10.0, 110.0)
     """
-    return {
-        "hs_m": conditions.hs_m,
-        "awd_deg": geodesy.angle_diff_deg(conditions.wave_dir_deg, heading_deg),
-        "tws_kn": conditions.tws_kn,
-        "twa_deg": geodesy.angle_diff_deg(conditions.twd_deg, heading_deg),
-        "wave_period_s": conditions.wave_period_s,
-    }
+    out: dict[str, FloatArray] = {}
+    for name in names:
+        field, relative = QUANTITY_FIELDS[name]
+        value = getattr(conditions, field)
+        out[name] = geodesy.angle_diff_deg(value, heading_deg) if relative else value
+    return out
 
 
 @dataclass(frozen=True)
@@ -552,14 +555,10 @@ def _sample_costs(
         reason |= np.where(~missing & (v > 0) & ~(sog > 0), REASONS["current"], 0).astype(np.uint8)
     fired = None
     if failure is not None:
-        q: dict[str, Any] = {}
-        for name in failure.quantities:  # only what the model uses; TWA is already known
-            if name == "twa_deg":
-                q[name] = twa
-            elif name == "awd_deg":
-                q[name] = geodesy.angle_diff_deg(cond.wave_dir_deg, heading)
-            else:
-                q[name] = getattr(cond, name)
+        # only what the model uses; TWA is already known
+        q: dict[str, Any] = arc_quantities(cond, heading, failure.quantities - {"twa_deg"})
+        if "twa_deg" in failure.quantities:
+            q["twa_deg"] = twa
         flat, unknown = failure.evidence_index(q)
         flat = np.broadcast_to(flat, course_deg.shape)
         p = failure.p_flat.take(flat)

@@ -55,6 +55,7 @@ from .errors import FailureModelError
 
 __all__ = [
     "QUANTITIES",
+    "QUANTITY_FIELDS",
     "OPERATORS",
     "CLOSED_SIDES",
     "MISSING_RULES",
@@ -73,6 +74,17 @@ QUANTITIES: dict[str, str] = {
     "tws_kn": "true wind speed [kn]",
     "twa_deg": "true wind angle [deg] in [0, 180], 0 = wind from dead ahead",
     "wave_period_s": "wave period [s] (NaN when the weather lacks it)",
+}
+#: The weather field (of :class:`~pyroute_rel.weather.Conditions`) each quantity is computed from, and whether it is
+#: that field's angle to the craft's heading (folded to [0, 180] deg) rather than the field itself. The one map from
+#: failure quantities to weather fields: the cost function computes quantities with it
+#: (:func:`pyroute_rel.cost.arc_quantities`) and :attr:`FailureModel.fields` tells which fields a model needs.
+QUANTITY_FIELDS: dict[str, tuple[str, bool]] = {
+    "hs_m": ("hs_m", False),
+    "awd_deg": ("wave_dir_deg", True),
+    "tws_kn": ("tws_kn", False),
+    "twa_deg": ("twd_deg", True),
+    "wave_period_s": ("wave_period_s", False),
 }
 #: Physical range of each quantity (angles folded to [0, 180] as the cost module computes them).
 _QUANTITY_RANGES = {
@@ -224,6 +236,12 @@ class FailureModel:
     def quantities(self) -> frozenset[str]:
         """Names of the quantities :meth:`p_fail` needs."""
         return frozenset(c.quantity for c in self.criteria)
+
+    @property
+    def weather_fields(self) -> frozenset[str]:
+        """Names of the weather fields (of :class:`~pyroute_rel.weather.Conditions`) its quantities are computed
+        from (:data:`QUANTITY_FIELDS`): a weather source must define them (``weather.fields``)."""
+        return frozenset(QUANTITY_FIELDS[q][0] for q in self.quantities)
 
     def _check_quantities(self, quantities: Mapping[str, npt.ArrayLike]) -> None:
         missing = sorted(self.quantities - set(quantities))

@@ -47,7 +47,7 @@ from .cost import (
 from .errors import ScenarioError
 from .failure import FailureModel
 from .grid import Grid
-from .polar import BEYOND_MODES, Polar
+from .polar import Polar, check_beyond
 from .progress import progress_bar
 from .times import hours_after
 from .units import KN_PER_MS
@@ -161,8 +161,7 @@ class RoutingProblem:
             raise ScenarioError(f"apf must be a probability in [0, 1] (got {self.apf!r})")
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) or not 1 <= self.samples <= 64:
             raise ScenarioError(f"samples_per_arc must be a whole number in [1, 64] (got {self.samples!r})")
-        if self.beyond not in BEYOND_MODES:
-            raise ScenarioError(f"beyond must be one of {list(BEYOND_MODES)} (got {self.beyond!r})")
+        check_beyond(self.beyond, "RoutingProblem.beyond")
         try:
             dep: Any = np.asarray(self.departure).astype("datetime64[s]")
         except (TypeError, ValueError):
