@@ -127,7 +127,7 @@ class RoutingProblem:
         cannot be the earliest arrival and is skipped. The route is the same (exact, tested); ``arcs_evaluated``
         and the forbidden counts then cover the arcs costed only. Applied where a node has more than
         :data:`PRUNE_MIN_WIDTH` candidate arcs (all-to-all grids), and not with waiting, a finish line, or a
-        weather source with currents but no ``max_current_ms`` bound.
+        weather source whose bound on currents (``max_current_ms``) is not finite.
     """
 
     departure: np.datetime64

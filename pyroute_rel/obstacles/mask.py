@@ -1,10 +1,11 @@
 """Obstacle masks for the solver: land, coastal margins and exclusion zones, cached per grid.
 
-The solver asks ``blocked(k, departure_times)`` for the arcs into rank k (:data:`~pyroute_rel.solve.ArcMask`).
-Whether an arc touches land or a zone does not depend on time, so each arc is tested once per grid and the
-answer kept on the grid (routing the same grid again - another apf, departure or weather - reuses it). Zones with
-a ``valid_from``/``valid_to`` window are remembered per arc as a bit set, and their windows are applied to each
-arc's departure time when the solver asks.
+The solver asks ``blocked(k, departure_times)`` for the arcs into rank k (:class:`ObstacleMask` implements the
+solver's :class:`~pyroute_rel.solve.ArcMask` protocol). Whether an arc touches land or a zone does not depend on
+time, so each arc is tested once per grid and the answer kept on the grid (its
+:class:`~pyroute_rel.grid.ObstacleCache` in ``grid.cache``; routing the same grid again - another apf, departure
+or weather - reuses it). Zones with a ``valid_from``/``valid_to`` window are remembered per arc as a bit set, and
+their windows are applied to each arc's departure time when the solver asks.
 
 On first use every arc of the grid is tested at once by rank-pair shadows (:mod:`pyroute_rel.obstacles.strips`), against
 the land (grown by the margin) within the grid's own outline (:func:`pyroute_rel.obstacles.land.land_within`) and each
