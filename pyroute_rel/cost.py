@@ -32,22 +32,21 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
 from .errors import ScenarioError
+from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .times import hours_after
 from .units import KN_PER_MS
 from .weather.base import Conditions, WeatherSource
-
-if TYPE_CHECKING:
-    from .failure import FailureModel
 
 __all__ = [
     "ArcCosts",
@@ -99,13 +98,18 @@ class ArcCosts:
         return np.broadcast_to(self.fired_bits, self.time_h.shape)
 
 
-def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[str, FloatArray]:
+def arc_quantities(
+    conditions: Conditions, heading_deg: npt.ArrayLike, names: Iterable[str] = tuple(QUANTITIES)
+) -> dict[str, FloatArray]:
     """Environmental quantities seen by a craft on a heading (inputs of failure criteria).
+
+    Each is a weather field, or its angle to the heading, as :data:`~pyroute_rel.failure.QUANTITY_FIELDS` says.
 
     Parameters
     ----------
     conditions : Weather at the points.
     heading_deg : The craft's heading, clockwise from north [deg].
+    names : Quantities wanted (default all of :data:`~pyroute_rel.failure.QUANTITIES`).
 
     Returns
     -------
@@ -118,13 +122,12 @@ def arc_quantities(conditions: Conditions, heading_deg: npt.ArrayLike) -> dict[s
     >>> float(q["awd_deg"]), float(q["twa_deg"])
     (10.0, 110.0)
     """
-    return {
-        "hs_m": conditions.hs_m,
-        "awd_deg": geodesy.angle_diff_deg(conditions.wave_dir_deg, heading_deg),
-        "tws_kn": conditions.tws_kn,
-        "twa_deg": geodesy.angle_diff_deg(conditions.twd_deg, heading_deg),
-        "wave_period_s": conditions.wave_period_s,
-    }
+    out: dict[str, FloatArray] = {}
+    for name in names:
+        field, relative = QUANTITY_FIELDS[name]
+        value = getattr(conditions, field)
+        out[name] = geodesy.angle_diff_deg(value, heading_deg) if relative else value
+    return out
 
 
 @dataclass(frozen=True)
@@ -226,7 +229,10 @@ def geometry_from_xyz(
             lambda rows: geometry_from_xyz(a[rows], b[rows], samples=samples, workers=1), row_blocks(a.shape[0], n), n
         )
         return ArcGeometry(
-            *(np.concatenate([getattr(g, f) for g in parts]) for f in ("lon_deg", "lat_deg", "course_deg", "seg_nm"))
+            lon_deg=np.concatenate([g.lon_deg for g in parts]),
+            lat_deg=np.concatenate([g.lat_deg for g in parts]),
+            course_deg=np.concatenate([g.course_deg for g in parts]),
+            seg_nm=np.concatenate([g.seg_nm for g in parts]),
         )
     # component by component: numpy's reductions over a last axis of 3 cost more than the arithmetic
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
@@ -357,101 +363,128 @@ def geometry_costs(
     one piece.
     """
     shape = geom.shape
-    steady = bool(getattr(weather, "steady", False))
+    steady = bool(weather.steady)
     n = default_workers() if workers is None else int(workers)
+    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
     if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
-        t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), shape)
-        split_seg = geom.seg_nm.shape[:1] == shape[:1]
-
-        def part(rows: slice) -> ArcCosts:
-            g = ArcGeometry(
-                lon_deg=geom.lon_deg[rows],
-                lat_deg=geom.lat_deg[rows],
-                course_deg=geom.course_deg[rows],
-                seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm,
-            )
-            return geometry_costs(
-                g,
-                t0[rows],
-                departure=departure,
-                weather=weather,
-                polar=polar,
-                failure=failure,
-                apf=apf,
-                beyond=beyond,
-                wave_loss=wave_loss,
-                workers=1,
-            )
-
-        done = thread_map(part, row_blocks(shape[0], n), n)
-        bits = None
-        if any(c.fired_bits is not None for c in done):
-            bits = np.concatenate([c.bits() for c in done])
-        return ArcCosts(
-            time_h=np.concatenate([c.time_h for c in done]),
-            p_f=np.concatenate([c.p_f for c in done]),
-            reason=np.concatenate([c.reason for c in done]),
-            fired_bits=bits,
-        )
-    samples = geom.samples
-
-    # a source that can locate points once (gridded data) samples the same points at two sets of times below
-    prepared = None if steady or not hasattr(weather, "prepare") else weather.prepare(geom.lon_deg, geom.lat_deg)
-
-    # wind only, sampled in compiled code: TWA, speed and time come from the compiled twin of the numpy arithmetic
-    # (bit-identical); with currents or a wave speed loss the numpy code does it all
-    stored = getattr(weather, "field_info", {})
-    compiled = prepared is not None and wave_loss is None and not {"current_u_ms", "current_v_ms"} & set(stored)
-
-    def evaluate(
-        time_h: FloatArray | None, timing: bool = False
-    ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any]:
-        wind = None
-        if prepared is not None:
-            wanted = _TIMING_FIELDS + (("hs_m",) if wave_loss is not None else ()) if timing else None
-            offset_h = None if time_h is None else np.where(np.isfinite(time_h), time_h, 0.0)
-            cond = weather.sample_at(prepared, departure, offset_h=offset_h, fields=wanted)  # type: ignore[attr-defined]
-            if compiled:
-                from .cost_compiled import sail_wind
-
-                wind = sail_wind(cond.tws_kn, cond.twd_deg, geom.course_deg, geom.seg_nm, polar, beyond=beyond)
-                if timing:
-                    return wind[2], np.empty(0), np.empty(0, np.uint8), None
-        else:
-            time = departure if time_h is None else hours_after(departure, time_h)
-            cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
-        return _sample_costs(
-            cond,
-            geom.course_deg,
-            geom.seg_nm,
-            polar,
-            None if timing else failure,
-            apf,
-            beyond,
-            wave_loss,
-            wind=None if wind is None else wind[:2],
-        )
-
+        return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n)
     if steady:
-        dt, p_f, reason, fired = evaluate(None)
+        dt, p_f, reason, fired = _sample_and_cost(geom, options, None, None)
     else:
-        # pass 1 times the sub-segments at the departure time (speeds only: the failure model decides nothing
-        # here), pass 2 samples each at the time the craft gets there
-        t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (samples,))
-        dt = evaluate(t_samples, timing=True)[0]
+        # time-varying weather samples the same points at two sets of times: the source prepares them once; pass 1
+        # times the sub-segments at the departure time (speeds only: the failure model decides nothing here),
+        # pass 2 samples each at the time the craft gets there
+        prepared = weather.prepare(geom.lon_deg, geom.lat_deg)
+        t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (geom.samples,))
+        dt = _sample_and_cost(geom, options, prepared, t_samples, timing=True)[0]
         elapsed = 0.5 * dt
-        for s in range(1, samples):
+        for s in range(1, geom.samples):
             elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
-        dt, p_f, reason, fired = evaluate(t_samples + elapsed)
-    if samples == 1:
+        dt, p_f, reason, fired = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
+    return _arc_totals(dt, p_f, reason, fired)
+
+
+@dataclass(frozen=True)
+class _CostOptions:
+    """The arguments of :func:`geometry_costs` besides the arcs (see there)."""
+
+    departure: np.datetime64
+    weather: WeatherSource
+    polar: Polar
+    failure: FailureModel | None
+    apf: float
+    beyond: str
+    wave_loss: WaveLoss | None
+
+
+def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n: int) -> ArcCosts:
+    """:func:`geometry_costs` of a large block split along its first axis between ``n`` threads."""
+    split_seg = geom.seg_nm.shape[:1] == geom.shape[:1]
+
+    def part(rows: slice) -> ArcCosts:
+        g = ArcGeometry(
+            lon_deg=geom.lon_deg[rows],
+            lat_deg=geom.lat_deg[rows],
+            course_deg=geom.course_deg[rows],
+            seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm,
+        )
+        o = options
+        return geometry_costs(
+            g,
+            t0[rows],
+            departure=o.departure,
+            weather=o.weather,
+            polar=o.polar,
+            failure=o.failure,
+            apf=o.apf,
+            beyond=o.beyond,
+            wave_loss=o.wave_loss,
+            workers=1,
+        )
+
+    done = thread_map(part, row_blocks(geom.shape[0], n), n)
+    bits = None
+    if any(c.fired_bits is not None for c in done):
+        bits = np.concatenate([c.bits() for c in done])
+    return ArcCosts(
+        time_h=np.concatenate([c.time_h for c in done]),
+        p_f=np.concatenate([c.p_f for c in done]),
+        reason=np.concatenate([c.reason for c in done]),
+        fired_bits=bits,
+    )
+
+
+def _sample_and_cost(
+    geom: ArcGeometry, options: _CostOptions, prepared: object | None, time_h: FloatArray | None, timing: bool = False
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any]:
+    """Per-sample time [h], p_f, reasons and fired criteria (:func:`_sample_costs`) with the weather sampled at
+    ``time_h`` [h after departure] (None: at the departure); ``prepared``: the points from ``weather.prepare``
+    (None: steady weather, sampled directly). ``timing``: pass 1, only the times are wanted (no failure model).
+
+    Wind only, sampled in compiled code: TWA, speed and time come from the compiled twin of the numpy arithmetic
+    (bit-identical); with currents or a wave speed loss the numpy code does it all."""
+    o, weather = options, options.weather
+    wind = None
+    if prepared is not None:
+        wanted = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ()) if timing else None
+        offset_h = None if time_h is None else np.where(np.isfinite(time_h), time_h, 0.0)
+        cond = weather.sample_at(prepared, o.departure, offset_h=offset_h, fields=wanted)
+        if o.wave_loss is None and not {"current_u_ms", "current_v_ms"} & weather.fields:
+            from .cost_compiled import sail_wind
+
+            wind = sail_wind(cond.tws_kn, cond.twd_deg, geom.course_deg, geom.seg_nm, o.polar, beyond=o.beyond)
+            if timing:
+                return wind[2], np.empty(0), np.empty(0, np.uint8), None
+    else:
+        time = o.departure if time_h is None else hours_after(o.departure, time_h)
+        cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
+    return _sample_costs(
+        cond,
+        geom.course_deg,
+        geom.seg_nm,
+        o.polar,
+        None if timing else o.failure,
+        o.apf,
+        o.beyond,
+        o.wave_loss,
+        wind=None if wind is None else wind[:2],
+    )
+
+
+def _arc_totals(
+    dt: FloatArray, p_f: FloatArray, reason: npt.NDArray[np.uint8], fired: npt.NDArray[np.uint32] | None
+) -> ArcCosts:
+    """Per-arc costs from per-sample ones (last axis): times summed, largest p_f, flags and criteria or-ed; an arc
+    with any flag takes forever."""
+    if dt.shape[-1] == 1:
         arc_fired = None if fired is None else fired[..., 0]
         return ArcCosts(time_h=dt[..., 0], p_f=p_f[..., 0], reason=reason[..., 0], fired_bits=arc_fired)
     # reduced over the samples axis one sample at a time: numpy reduces a short last axis slowly
     time_h, arc_p, arc_reason = dt[..., 0].copy(), p_f[..., 0].copy(), reason[..., 0].copy()
     arc_fired = None if fired is None else fired[..., 0].copy()
-    for s in range(1, samples):
+    for s in range(1, dt.shape[-1]):
         time_h += dt[..., s]
         np.maximum(arc_p, p_f[..., s], out=arc_p)
         arc_reason |= reason[..., s]
@@ -522,14 +555,10 @@ def _sample_costs(
         reason |= np.where(~missing & (v > 0) & ~(sog > 0), REASONS["current"], 0).astype(np.uint8)
     fired = None
     if failure is not None:
-        q: dict[str, Any] = {}
-        for name in failure.quantities:  # only what the model uses; TWA is already known
-            if name == "twa_deg":
-                q[name] = twa
-            elif name == "awd_deg":
-                q[name] = geodesy.angle_diff_deg(cond.wave_dir_deg, heading)
-            else:
-                q[name] = getattr(cond, name)
+        # only what the model uses; TWA is already known
+        q: dict[str, Any] = arc_quantities(cond, heading, failure.quantities - {"twa_deg"})
+        if "twa_deg" in failure.quantities:
+            q["twa_deg"] = twa
         flat, unknown = failure.evidence_index(q)
         flat = np.broadcast_to(flat, course_deg.shape)
         p = failure.p_flat.take(flat)

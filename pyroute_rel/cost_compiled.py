@@ -18,7 +18,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from .polar import BEYOND_MODES, MIN_SPEED_KN, Polar
+from .polar import MIN_SPEED_KN, Polar, check_beyond
 
 __all__ = ["sail_wind"]
 
@@ -51,8 +51,7 @@ def sail_wind(
     wind is missing or the speed is below :data:`~pyroute_rel.polar.MIN_SPEED_KN`: the numpy kernel's time
     without a failure model).
     """
-    if beyond not in BEYOND_MODES:
-        raise ValueError(f"'beyond' must be one of {list(BEYOND_MODES)} (got {beyond!r})")
+    check_beyond(beyond)
     shape = np.broadcast_shapes(tws_kn.shape, twd_deg.shape, course_deg.shape, seg_nm.shape)
     # contiguous, writable float64 everywhere: one compiled signature (a read-only array would be another)
     flat = [

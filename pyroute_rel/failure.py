@@ -55,6 +55,7 @@ from .errors import FailureModelError
 
 __all__ = [
     "QUANTITIES",
+    "QUANTITY_FIELDS",
     "OPERATORS",
     "CLOSED_SIDES",
     "MISSING_RULES",
@@ -73,6 +74,17 @@ QUANTITIES: dict[str, str] = {
     "tws_kn": "true wind speed [kn]",
     "twa_deg": "true wind angle [deg] in [0, 180], 0 = wind from dead ahead",
     "wave_period_s": "wave period [s] (NaN when the weather lacks it)",
+}
+#: The weather field (of :class:`~pyroute_rel.weather.Conditions`) each quantity is computed from, and whether it is
+#: that field's angle to the craft's heading (folded to [0, 180] deg) rather than the field itself. The one map from
+#: failure quantities to weather fields: the cost function computes quantities with it
+#: (:func:`pyroute_rel.cost.arc_quantities`) and :attr:`FailureModel.fields` tells which fields a model needs.
+QUANTITY_FIELDS: dict[str, tuple[str, bool]] = {
+    "hs_m": ("hs_m", False),
+    "awd_deg": ("wave_dir_deg", True),
+    "tws_kn": ("tws_kn", False),
+    "twa_deg": ("twd_deg", True),
+    "wave_period_s": ("wave_period_s", False),
 }
 #: Physical range of each quantity (angles folded to [0, 180] as the cost module computes them).
 _QUANTITY_RANGES = {
@@ -224,6 +236,12 @@ class FailureModel:
     def quantities(self) -> frozenset[str]:
         """Names of the quantities :meth:`p_fail` needs."""
         return frozenset(c.quantity for c in self.criteria)
+
+    @property
+    def weather_fields(self) -> frozenset[str]:
+        """Names of the weather fields (of :class:`~pyroute_rel.weather.Conditions`) its quantities are computed
+        from (:data:`QUANTITY_FIELDS`): a weather source must define them (``weather.fields``)."""
+        return frozenset(QUANTITY_FIELDS[q][0] for q in self.quantities)
 
     def _check_quantities(self, quantities: Mapping[str, npt.ArrayLike]) -> None:
         missing = sorted(self.quantities - set(quantities))
@@ -640,7 +658,8 @@ def _number(value: Any, where: str) -> float:
     return float(value)
 
 
-def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:  # noqa: C901 - to split
+def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:
+    """One ``[[criteria]]`` table checked on its own and normalised (a threshold or a binned criterion)."""
     node = raw.get("node")
     if isinstance(node, str):
         where = f"{where} ({node})"
@@ -661,48 +680,55 @@ def _parse_criterion(raw: dict[str, Any], where: str) -> dict[str, Any]:  # noqa
             f"{where}: give either 'operator' and 'threshold' (two-state node) or 'bins' "
             "(edges of the node's states), not both or neither"
         )
-    if threshold_form:
-        for key in ("operator", "threshold", "fired"):
-            if key not in raw:
-                extra = " (the node state when the rule holds)" if key == "fired" else ""
-                raise FailureModelError(f"{where}: missing key {key!r}{extra}")
-        for key in ("bins", "states", "closed", "nominal"):
-            if key in raw:
-                raise FailureModelError(f"{where}: key {key!r} belongs to binned criteria, not with 'operator'")
-        if raw["operator"] not in OPERATORS:
-            raise FailureModelError(f"{where}: 'operator' {_choices(raw['operator'], OPERATORS)}")
-        c.update(
-            operator=raw["operator"],
-            threshold=_number(raw["threshold"], f"{where}: 'threshold'"),
-            fired=_text(raw["fired"], f"{where}: 'fired'"),
-        )
-    else:
-        if "fired" in raw:
-            raise FailureModelError(f"{where}: key 'fired' belongs to threshold criteria; use 'nominal' with 'bins'")
-        bins = raw["bins"]
-        if not isinstance(bins, list) or not bins:
-            raise FailureModelError(f"{where}: 'bins' must be a non-empty list of increasing numbers (got {bins!r})")
-        edges = [_number(b, f"{where}: 'bins'") for b in bins]
-        if any(b <= a for a, b in itertools.pairwise(edges)):
-            raise FailureModelError(f"{where}: 'bins' must be strictly increasing (got {bins!r})")
-        closed = raw.get("closed", "left")
-        if closed not in CLOSED_SIDES:
-            raise FailureModelError(f"{where}: 'closed' {_choices(closed, CLOSED_SIDES)}")
-        states = raw.get("states")
-        if states is not None and (not isinstance(states, list) or not all(isinstance(s, str) for s in states)):
-            raise FailureModelError(f"{where}: 'states' must be a list of node state names (got {states!r})")
-        nominal = raw.get("nominal")
-        if isinstance(nominal, str):
-            nominal = [nominal]
-        if nominal is not None and (
-            not isinstance(nominal, list) or not nominal or not all(isinstance(s, str) for s in nominal)
-        ):
-            raise FailureModelError(f"{where}: 'nominal' must be a state name or a list of them (got {nominal!r})")
-        c.update(edges=edges, closed=closed, states=states, nominal=nominal)
+    c.update(_parse_threshold(raw, where) if threshold_form else _parse_bins(raw, where))
     if_missing = raw.get("if_missing", "nan")
     c["if_missing"] = _text(if_missing, f"{where}: 'if_missing'")
     c["where"] = where
     return c
+
+
+def _parse_threshold(raw: dict[str, Any], where: str) -> dict[str, Any]:
+    """The ``operator``, ``threshold`` and ``fired`` state of a threshold criterion (a two-state node)."""
+    for key in ("operator", "threshold", "fired"):
+        if key not in raw:
+            extra = " (the node state when the rule holds)" if key == "fired" else ""
+            raise FailureModelError(f"{where}: missing key {key!r}{extra}")
+    for key in ("bins", "states", "closed", "nominal"):
+        if key in raw:
+            raise FailureModelError(f"{where}: key {key!r} belongs to binned criteria, not with 'operator'")
+    if raw["operator"] not in OPERATORS:
+        raise FailureModelError(f"{where}: 'operator' {_choices(raw['operator'], OPERATORS)}")
+    return {
+        "operator": raw["operator"],
+        "threshold": _number(raw["threshold"], f"{where}: 'threshold'"),
+        "fired": _text(raw["fired"], f"{where}: 'fired'"),
+    }
+
+
+def _parse_bins(raw: dict[str, Any], where: str) -> dict[str, Any]:
+    """The bin ``edges``, ``closed`` side, ``states`` and ``nominal`` states of a binned criterion."""
+    if "fired" in raw:
+        raise FailureModelError(f"{where}: key 'fired' belongs to threshold criteria; use 'nominal' with 'bins'")
+    bins = raw["bins"]
+    if not isinstance(bins, list) or not bins:
+        raise FailureModelError(f"{where}: 'bins' must be a non-empty list of increasing numbers (got {bins!r})")
+    edges = [_number(b, f"{where}: 'bins'") for b in bins]
+    if any(b <= a for a, b in itertools.pairwise(edges)):
+        raise FailureModelError(f"{where}: 'bins' must be strictly increasing (got {bins!r})")
+    closed = raw.get("closed", "left")
+    if closed not in CLOSED_SIDES:
+        raise FailureModelError(f"{where}: 'closed' {_choices(closed, CLOSED_SIDES)}")
+    states = raw.get("states")
+    if states is not None and (not isinstance(states, list) or not all(isinstance(s, str) for s in states)):
+        raise FailureModelError(f"{where}: 'states' must be a list of node state names (got {states!r})")
+    nominal = raw.get("nominal")
+    if isinstance(nominal, str):
+        nominal = [nominal]
+    if nominal is not None and (
+        not isinstance(nominal, list) or not nominal or not all(isinstance(s, str) for s in nominal)
+    ):
+        raise FailureModelError(f"{where}: 'nominal' must be a state name or a list of them (got {nominal!r})")
+    return {"edges": edges, "closed": closed, "states": states, "nominal": nominal}
 
 
 def _check_structure(
@@ -727,65 +753,7 @@ def _check_structure(
             raise FailureModelError(f"{where}: node {node!r} is set by two criteria")
         seen.add(node)
         ns = tuple(states[node])
-        bin_states: tuple[str, ...]
-
-        def state(s: str, what: str, ns: tuple[str, ...] = ns, where: str = where, node: str = node) -> str:
-            if s not in ns:
-                raise FailureModelError(f"{where}: {what} {s!r} is not a state of {node} {list(ns)}")
-            return s
-
-        if "operator" in c:
-            if len(ns) != 2:
-                raise FailureModelError(
-                    f"{where}: wrong cardinality: a threshold criterion needs a two-state "
-                    f"node but {node} has {len(ns)} states {list(ns)}; use 'bins'"
-                )
-            fired = state(c["fired"], "'fired'")
-            other = ns[1 - ns.index(fired)]
-            op = c["operator"]
-            closed = "left" if op in (">=", "<") else "right"
-            bin_states = (other, fired) if op in (">=", ">") else (fired, other)
-            crit = Criterion(
-                node,
-                c["quantity"],
-                ns,
-                (c["threshold"],),
-                bin_states,
-                (other,),
-                closed,
-                op,
-                c["threshold"],
-                c["if_missing"],
-            )
-        else:
-            n_bins = len(c["edges"]) + 1
-            if c["states"] is None:
-                if n_bins != len(ns):
-                    raise FailureModelError(
-                        f"{where}: wrong cardinality: {len(c['edges'])} bin edges make {n_bins} "
-                        f"bins but node {node} has {len(ns)} states {list(ns)}"
-                    )
-                bin_states = ns
-            else:
-                if len(c["states"]) != n_bins:
-                    raise FailureModelError(
-                        f"{where}: wrong cardinality: {len(c['edges'])} bin edges make {n_bins} "
-                        f"bins but 'states' names {len(c['states'])}"
-                    )
-                bin_states = tuple(state(s, "'states' entry") for s in c["states"])
-            nominal = tuple(state(s, "'nominal' state") for s in (c["nominal"] or [bin_states[0]]))
-            crit = Criterion(
-                node,
-                c["quantity"],
-                ns,
-                tuple(c["edges"]),
-                tuple(bin_states),
-                nominal,
-                c["closed"],
-                None,
-                None,
-                c["if_missing"],
-            )
+        crit = _threshold_criterion(c, ns) if "operator" in c else _binned_criterion(c, ns)
         if crit.if_missing not in MISSING_RULES and crit.if_missing not in ns:
             raise FailureModelError(
                 f"{where}: 'if_missing' must be one of {list(MISSING_RULES)} or a state of "
@@ -793,6 +761,56 @@ def _check_structure(
             )
         out.append(crit)
     return tuple(out)
+
+
+def _node_state(c: dict[str, Any], ns: tuple[str, ...], s: str, what: str) -> str:
+    """``s``, checked to be one of the node's states ``ns``."""
+    if s not in ns:
+        raise FailureModelError(f"{c['where']}: {what} {s!r} is not a state of {c['node']} {list(ns)}")
+    return s
+
+
+def _threshold_criterion(c: dict[str, Any], ns: tuple[str, ...]) -> Criterion:
+    """A parsed threshold criterion on a node with states ``ns`` (two of them)."""
+    where, node = c["where"], c["node"]
+    if len(ns) != 2:
+        raise FailureModelError(
+            f"{where}: wrong cardinality: a threshold criterion needs a two-state "
+            f"node but {node} has {len(ns)} states {list(ns)}; use 'bins'"
+        )
+    fired = _node_state(c, ns, c["fired"], "'fired'")
+    other = ns[1 - ns.index(fired)]
+    op = c["operator"]
+    closed = "left" if op in (">=", "<") else "right"
+    bin_states = (other, fired) if op in (">=", ">") else (fired, other)
+    return Criterion(
+        node, c["quantity"], ns, (c["threshold"],), bin_states, (other,), closed, op, c["threshold"], c["if_missing"]
+    )
+
+
+def _binned_criterion(c: dict[str, Any], ns: tuple[str, ...]) -> Criterion:
+    """A parsed binned criterion on a node with states ``ns`` (one per bin unless ``states`` names them)."""
+    where, node = c["where"], c["node"]
+    n_bins = len(c["edges"]) + 1
+    bin_states: tuple[str, ...]
+    if c["states"] is None:
+        if n_bins != len(ns):
+            raise FailureModelError(
+                f"{where}: wrong cardinality: {len(c['edges'])} bin edges make {n_bins} "
+                f"bins but node {node} has {len(ns)} states {list(ns)}"
+            )
+        bin_states = ns
+    else:
+        if len(c["states"]) != n_bins:
+            raise FailureModelError(
+                f"{where}: wrong cardinality: {len(c['edges'])} bin edges make {n_bins} "
+                f"bins but 'states' names {len(c['states'])}"
+            )
+        bin_states = tuple(_node_state(c, ns, s, "'states' entry") for s in c["states"])
+    nominal = tuple(_node_state(c, ns, s, "'nominal' state") for s in (c["nominal"] or [bin_states[0]]))
+    return Criterion(
+        node, c["quantity"], ns, tuple(c["edges"]), tuple(bin_states), nominal, c["closed"], None, None, c["if_missing"]
+    )
 
 
 # --------------------------------------------------------------------------------------------- compiling

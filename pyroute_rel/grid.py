@@ -44,7 +44,18 @@ from .errors import GridError
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["Grid", "make_grid", "plan_grid", "rank_points", "auto_samples", "LAYOUTS", "START", "FINISH"]
+__all__ = [
+    "Grid",
+    "GridCache",
+    "ObstacleCache",
+    "make_grid",
+    "plan_grid",
+    "rank_points",
+    "auto_samples",
+    "LAYOUTS",
+    "START",
+    "FINISH",
+]
 
 #: Most candidate arcs a grid may have (n_ranks x n_nodes x arcs per node): routing costs about 150-300 bytes per
 #: arc at its peak, so 40 M arcs take 6-12 GB (the paper's square 320 x 320, 32.8 M arcs, routes in 1.1 GB without
@@ -58,6 +69,51 @@ FINISH = "finish"
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 BoolArray = npt.NDArray[np.bool_]
+
+
+@dataclass
+class ObstacleCache:
+    """What obstacle masks (:mod:`pyroute_rel.obstacles.mask`) learnt about one grid's arcs for one set of
+    obstacles: nothing here depends on time (zones' windows are applied afterwards).
+
+    Attributes
+    ----------
+    land : ``(region, land)``: the polygon [deg] holding every arc of the grid (None across the antimeridian) and
+        the (grown) land that can touch the arcs; None until first read.
+    ranks : Per rank ``k``: ``(known, hit, zone_bits)`` of the arcs into rank ``k`` (shape of ``grid.arcs(k)``'s
+        ``src``): which arcs were tested, which touch land or a zone without a window, and a bit per zone with a
+        window they touch.
+    swept : True once every arc was tested at once by rank-pair shadows (see :mod:`pyroute_rel.obstacles.strips`).
+    """
+
+    land: tuple[Any, Any] | None = None
+    ranks: dict[int, tuple[BoolArray, BoolArray, npt.NDArray[np.uint64]]] = field(default_factory=dict)
+    swept: bool = False
+
+
+@dataclass
+class GridCache:
+    """Data derived from a grid, computed on first use and kept with it (what an arc touches never depends on
+    time, so routing the same grid again reuses them).
+
+    Attributes
+    ----------
+    node_xyz : Unit vectors of the nodes, shape (n_ranks, n_nodes, 3), or None until first used.
+    geometry : Per (rank ``k``, samples per arc): the :class:`~pyroute_rel.cost.ArcGeometry` of the arcs into
+        rank ``k`` (:func:`pyroute_rel.solve.grid_geometry`).
+    crossings : Per rank ``k``: the fraction along each arc into rank ``k`` where it crosses the finish line
+        (NaN: no crossing).
+    obstacles : Per obstacle set (:meth:`pyroute_rel.obstacles.mask.Avoid.key`): an :class:`ObstacleCache`.
+    """
+
+    node_xyz: FloatArray | None = None
+    geometry: dict[tuple[int, int], Any] = field(default_factory=dict)
+    crossings: dict[int, FloatArray] = field(default_factory=dict)
+    obstacles: dict[str, ObstacleCache] = field(default_factory=dict)
+
+    def obstacles_for(self, key: str) -> ObstacleCache:
+        """The :class:`ObstacleCache` of an obstacle set, made empty on first use."""
+        return self.obstacles.setdefault(key, ObstacleCache())
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,6 +144,7 @@ class Grid:
     rank_valid : Optional per-rank arc pattern, shape (n_ranks - 1, n_nodes, width): which arcs into rank k exist is
         ``rank_valid[k - 1]`` instead of ``arc_valid`` (corridor grids, whose ranks are shifted differently, keep
         the arcs within ``max_deviation_deg`` this way).
+    cache : Data derived from the grid on first use (:class:`GridCache`); not an argument, not compared.
     """
 
     start: tuple[float, float]
@@ -109,7 +166,7 @@ class Grid:
     finish_line: tuple[tuple[float, float], tuple[float, float]] | None = None
     centre_km: FloatArray | None = None
     rank_valid: BoolArray | None = None
-    _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    cache: GridCache = field(default_factory=GridCache, init=False, repr=False, compare=False)
 
     @property
     def n_ranks(self) -> int:

@@ -87,6 +87,7 @@ __all__ = [
     "Polar",
     "MIN_SPEED_KN",
     "BEYOND_MODES",
+    "check_beyond",
     "POLAR_SUFFIXES",
     "BUILTIN_POLARS",
     "boat_speed_kn",
@@ -107,6 +108,28 @@ FloatArray = npt.NDArray[np.float64]
 
 #: How :func:`boat_speed_kn` treats TWA above the last row and TWS above the last column.
 BEYOND_MODES = ("clamp", "forbid")
+
+
+def check_beyond(beyond: object, where: str = "'beyond'") -> str:
+    """``beyond`` checked to be one of :data:`BEYOND_MODES` (the one check of the option, wherever it is given).
+
+    Parameters
+    ----------
+    beyond : The value given.
+    where : How messages name the option, e.g. ``"[boat].beyond"``.
+
+    Raises
+    ------
+    PolarError
+        When it is not one of :data:`BEYOND_MODES`.
+
+    >>> check_beyond("forbid")
+    'forbid'
+    """
+    if not isinstance(beyond, str) or beyond not in BEYOND_MODES:
+        raise PolarError(f"{where} must be one of {list(BEYOND_MODES)} (got {beyond!r})")
+    return beyond
+
 
 #: File suffixes :func:`read_polar` understands (``.csv``: the CSV form, the others: ``.pol``).
 POLAR_SUFFIXES = (".pol", ".txt", ".csv")
@@ -293,8 +316,7 @@ def boat_speed_kn(
     >>> boat_speed_kn(vane, [170.0, 100.0], 25.0, beyond="forbid").tolist()
     [0.0, 0.0]
     """
-    if beyond not in BEYOND_MODES:
-        raise PolarError(f"'beyond' must be one of {list(BEYOND_MODES)} (got {beyond!r})")
+    check_beyond(beyond)
     a, w = np.broadcast_arrays(fold_twa_deg(twa_deg), np.asarray(tws_kn, dtype=np.float64))
     shape = a.shape
     a = a.reshape(-1)  # 1-D (a copy when broadcast) so that every step below works in place

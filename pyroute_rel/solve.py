@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -45,23 +45,60 @@ from .cost import (
     geometry_from_xyz,
 )
 from .errors import ScenarioError
+from .failure import FailureModel
 from .grid import Grid
-from .polar import BEYOND_MODES, Polar
+from .polar import Polar, check_beyond
 from .progress import progress_bar
 from .times import hours_after
 from .units import KN_PER_MS
 from .weather import WeatherSource
-
-if TYPE_CHECKING:
-    from .failure import FailureModel
 
 __all__ = ["DPResult", "forward_dp", "RoutingProblem", "explain_infeasible", "leg_costs", "path_costs", "grid_geometry"]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 
-#: Callback giving, for arcs into rank k (shape of ``grid.arcs(k)``), which are blocked by obstacles.
-ArcMask = Callable[[int, npt.NDArray[np.datetime64] | None], BoolArray]
+
+@runtime_checkable
+class ArcMask(Protocol):
+    """What the solver asks of an obstacle mask (:class:`pyroute_rel.obstacles.mask.ObstacleMask` implements it).
+
+    Every array is laid out as the arcs into rank ``k`` (the shape of ``grid.arcs(k)``'s ``src``); ``times`` are the
+    arcs' departure times (``datetime64``, UTC) of that shape, or None when nothing depends on time.
+
+    Attributes
+    ----------
+    grid : Grid
+        The grid the mask was built for; the solver refuses to use it on another.
+    timed : bool
+        True when the mask depends on departure times (zones with time windows).
+    """
+
+    @property
+    def grid(self) -> Grid:
+        """The grid whose arcs the mask answers for."""
+        ...
+
+    @property
+    def timed(self) -> bool:
+        """True when the answer depends on the departure times."""
+        ...
+
+    def __call__(self, k: int, times: npt.NDArray[np.datetime64] | None) -> BoolArray:
+        """Every arc into rank ``k`` that is blocked at its departure time (all tested now)."""
+        ...
+
+    def known(self, k: int) -> BoolArray:
+        """Which arcs into rank ``k`` have been tested."""
+        ...
+
+    def learn(self, k: int, select: BoolArray | None = None) -> None:
+        """Test the selected arcs into rank ``k`` (default all) not tested yet."""
+        ...
+
+    def hits(self, k: int, times: npt.NDArray[np.datetime64] | None) -> BoolArray:
+        """Arcs into rank ``k`` known to be blocked at their departure times (untested arcs count as free)."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -77,7 +114,8 @@ class RoutingProblem:
     apf : Acceptable probability of failure in [0, 1].
     samples : Sub-segments per arc for weather sampling (>= 1).
     beyond : Polar behaviour outside its table (``"clamp"`` or ``"forbid"``).
-    blocked : Optional obstacle mask callback ``(k, departure_times) -> bool array`` for arcs into rank k.
+    blocked : Optional obstacle mask for this problem's grid (an :class:`ArcMask`, e.g.
+        :func:`pyroute_rel.obstacles.mask.obstacle_mask`).
     time_step_h : None (default) for continuous time: the plain earliest-arrival DP. A step [h] switches to
         the time-expanded DP: times live on the lattice ``0, step, 2 step, ...`` (arrivals are rounded *up*
         to it, so every reported time is achievable) and the craft may wait at a node.
@@ -89,7 +127,7 @@ class RoutingProblem:
         cannot be the earliest arrival and is skipped. The route is the same (exact, tested); ``arcs_evaluated``
         and the forbidden counts then cover the arcs costed only. Applied where a node has more than
         :data:`PRUNE_MIN_WIDTH` candidate arcs (all-to-all grids), and not with waiting, a finish line, or a
-        weather source with currents but no ``max_current_ms`` bound.
+        weather source whose bound on currents (``max_current_ms``) is not finite.
     """
 
     departure: np.datetime64
@@ -123,8 +161,7 @@ class RoutingProblem:
             raise ScenarioError(f"apf must be a probability in [0, 1] (got {self.apf!r})")
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) or not 1 <= self.samples <= 64:
             raise ScenarioError(f"samples_per_arc must be a whole number in [1, 64] (got {self.samples!r})")
-        if self.beyond not in BEYOND_MODES:
-            raise ScenarioError(f"beyond must be one of {list(BEYOND_MODES)} (got {self.beyond!r})")
+        check_beyond(self.beyond, "RoutingProblem.beyond")
         try:
             dep: Any = np.asarray(self.departure).astype("datetime64[s]")
         except (TypeError, ValueError):
@@ -133,23 +170,35 @@ class RoutingProblem:
             raise ScenarioError(
                 f"departure must be a UTC time (numpy datetime64 or ISO 8601 string) (got {self.departure!r})"
             )
-        for name, ok, what in (
+        for name, value, ok, what in (
             (
                 "weather",
-                hasattr(self.weather, "sample") and hasattr(self.weather, "check_coverage"),
+                self.weather,
+                isinstance(self.weather, WeatherSource),
                 "a weather source (UniformWeather, GriddedWeather, ...)",
             ),
-            ("polar", isinstance(self.polar, Polar), "a Polar (pyroute_rel.polar.get_polar)"),
+            ("polar", self.polar, isinstance(self.polar, Polar), "a Polar (pyroute_rel.polar.get_polar)"),
             (
                 "failure",
-                self.failure is None or hasattr(self.failure, "p_fail"),
+                self.failure,
+                self.failure is None or isinstance(self.failure, FailureModel),
                 "a FailureModel (pyroute_rel.failure.load_failure_model) or None",
             ),
-            ("blocked", self.blocked is None or callable(self.blocked), "an obstacle mask callback or None"),
-            ("wave_loss", self.wave_loss is None or isinstance(self.wave_loss, WaveLoss), "a WaveLoss or None"),
+            (
+                "blocked",
+                self.blocked,
+                self.blocked is None or isinstance(self.blocked, ArcMask),
+                "an obstacle mask callback (an ArcMask: pyroute_rel.obstacles.mask.obstacle_mask) or None",
+            ),
+            (
+                "wave_loss",
+                self.wave_loss,
+                self.wave_loss is None or isinstance(self.wave_loss, WaveLoss),
+                "a WaveLoss or None",
+            ),
         ):
             if not ok:
-                raise ScenarioError(f"RoutingProblem.{name} must be {what} (got {type(getattr(self, name)).__name__})")
+                raise ScenarioError(f"RoutingProblem.{name} must be {what} (got {type(value).__name__})")
 
     @property
     def n_wait(self) -> int:
@@ -160,14 +209,11 @@ class RoutingProblem:
 
     def speed_bound_kn(self) -> float | None:
         """The fastest speed over ground possible anywhere [kn] (polar top speed plus the strongest current), or
-        None when the weather has currents and no bound on them."""
-        current = getattr(self.weather, "max_current_ms", None)
-        if current is None:
-            fields = getattr(self.weather, "fields", None)
-            if fields is None or "current_u_ms" in fields or "current_v_ms" in fields:
-                return None
-            current = 0.0
-        return float(np.max(self.polar.speed_kn)) + float(current) * KN_PER_MS
+        None when the weather's bound on currents (``max_current_ms``) is not finite."""
+        current = float(self.weather.max_current_ms)
+        if not math.isfinite(current):
+            return None
+        return float(np.max(self.polar.speed_kn)) + current * KN_PER_MS
 
     def arrive(self, t_h: Any) -> Any:
         """Arrival time on the time lattice (rounded up), or unchanged in continuous time."""
@@ -307,7 +353,7 @@ class DPResult:
         return np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
 
 
-def forward_dp(  # noqa: C901 - to split
+def forward_dp(
     grid: Grid,
     problem: RoutingProblem,
     *,
@@ -316,10 +362,15 @@ def forward_dp(  # noqa: C901 - to split
 ) -> DPResult:
     """Run the forward DP (earliest arrival per node) without building a Route.
 
+    Each rank is one step (:func:`_rank_step`): the arcs into it are costed (:class:`_Pricing`: pruning, obstacle
+    masks eager or lazy), at each departure a wait allows (:func:`_best_over_waits`), the finish line watched
+    (:class:`_FinishLine`) and the forbidden arcs counted (:class:`_Tally`); the earliest arrival at each node
+    and its source are kept.
+
     ``cost_hook(k, costs)`` is called with the costs of the arcs into rank k (for tests and diagnostics).
     """
     n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
-    if getattr(problem.blocked, "grid", grid) is not grid:
+    if problem.blocked is not None and problem.blocked.grid is not grid:
         raise ValueError(
             "the problem's obstacle mask was built for another grid: build the problem for this grid "
             "(Scenario.problem(grid=...))"
@@ -327,88 +378,18 @@ def forward_dp(  # noqa: C901 - to split
     arrival = np.full((n_ranks, n_nodes), np.inf)
     back = np.full((n_ranks, n_nodes), -1, dtype=np.intp)
     finish_h, finish_back = np.inf, -1
-    evaluated = 0
-    pruned = 0
-    forbidden = 0
-    by_reason = dict.fromkeys(REASONS, 0)
-    by_criterion: dict[str, int] = {}
     dead: int | None = None
     t_prev = np.zeros(grid.start_points[0].size)
     wait_into = np.zeros((n_ranks + 1, n_nodes)) if problem.n_wait else None
-    line = grid.finish_line is not None
-    cross_best = np.inf
-    cross_at: tuple[int, int, int, float, float] | None = None
-    bound = problem.speed_bound_kn() if problem.prune else None
-    prune = bound is not None and bound > 0.0 and problem.n_wait == 0 and not line and cost_hook is None
+    line = _FinishLine(grid) if grid.finish_line is not None else None
+    pricing = _Pricing.of(problem, cost_hook, finish_line=line is not None)
+    tally = _Tally()
     bar = progress_bar(n_ranks + 1, enabled=progress)
     try:
         for k in range(n_ranks + 1):
-            src, valid = grid.pattern(k)
-            t_src = t_prev[src]
-            live = valid & np.isfinite(t_src)
-            t_src = np.where(live, t_src, 0.0)
-            geom = grid_geometry(grid, k, problem.samples)
-            step = problem.time_step_h or 0.0
-            total = np.full(live.shape, np.inf)
-            wait = np.zeros(live.shape)
-            reason = np.zeros(live.shape, dtype=np.uint8)
-            counted = live
-            for w in range(problem.n_wait + 1):
-                t0 = t_src + w * step
-                lazy = problem.blocked is not None and hasattr(problem.blocked, "learn") and cost_hook is None
-                if prune and live.shape[1] > PRUNE_MIN_WIDTH:
-                    costs, counted = _pruned_costs(problem, k, geom, t0, live, bound, lazy)  # type: ignore[arg-type]
-                else:
-                    costs = problem.geometry_costs(geom, t0)
-                if w == 0:
-                    fired0 = costs.fired_bits
-                r_w = np.where(live, costs.reason, 0).astype(np.uint8)
-                time_h = costs.time_h
-                if problem.blocked is not None and not lazy:
-                    hit = problem.blocked(k, _block_times(problem, t0)) & live
-                    r_w = r_w | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
-                    time_h = np.where(hit, np.inf, time_h)
-                if cost_hook is not None and w == 0:
-                    cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costs.p_f, reason=r_w))
-                tot_w = np.where(live, problem.arrive(t0 + time_h), np.inf)
-                if lazy:
-                    hit = _lazy_obstacles(problem.blocked, k, tot_w, _block_times(problem, t0))
-                    r_w = r_w | np.where(hit & live, REASONS["obstacle"], 0).astype(np.uint8)
-                    tot_w = np.where(hit, np.inf, tot_w)
-                    time_h = np.where(hit, np.inf, time_h)
-                if line and k < n_ranks:
-                    frac = _crossing(grid, k)
-                    cand = np.where(np.isfinite(frac) & np.isfinite(tot_w), t0 + frac * time_h, np.inf)
-                    if cand.size and np.min(cand) < cross_best:
-                        jj, cc = np.unravel_index(np.argmin(cand), cand.shape)
-                        cross_best = float(cand[jj, cc])
-                        cross_at = (k, int(jj), int(src[jj, cc]), float(frac[jj, cc]), w * step)
-                better = tot_w < total
-                total = np.where(better, tot_w, total)
-                wait = np.where(better, w * step, wait)
-                # an arc counts as forbidden when it is forbidden at every departure time tried
-                reason = r_w if w == 0 else np.where(np.isfinite(total), 0, reason | r_w).astype(np.uint8)
-            evaluated += int(counted.sum())
-            pruned += int(live.sum()) - int(counted.sum())
-            bad = live & (reason != 0)
-            forbidden += int(bad.sum())
-            if bad.any():
-                values = np.bincount(reason[bad], minlength=256)  # one pass: arcs per combination of flags
-                flags = np.arange(256)
-                for name, bit in REASONS.items():
-                    by_reason[name] += int(values[(flags & bit) != 0].sum())
-                any_failed = values[(flags & REASONS["failure"]) != 0].any()
-                if problem.failure is not None and fired0 is not None and any_failed:
-                    failed = bad & (reason & REASONS["failure"] != 0)
-                    bits = np.broadcast_to(fired0, failed.shape)[failed]
-                    for i, c in enumerate(problem.failure.criteria):
-                        n = int(np.count_nonzero(bits & np.uint32(1 << i)))
-                        by_criterion[c.describe()] = by_criterion.get(c.describe(), 0) + n
-            best = np.argmin(total, axis=1)
-            t_new = np.take_along_axis(total, best[:, None], axis=1)[:, 0]
-            src_best = np.take_along_axis(src, best[:, None], axis=1)[:, 0]
+            t_new, src_best, wait_best = _rank_step(grid, problem, k, t_prev, pricing, line, tally)
             if wait_into is not None:
-                wait_into[k, : len(best)] = np.take_along_axis(wait, best[:, None], axis=1)[:, 0]
+                wait_into[k, : len(t_new)] = wait_best
             if k < n_ranks:
                 arrival[k] = t_new
                 back[k] = np.where(np.isfinite(t_new), src_best, -1)
@@ -420,45 +401,236 @@ def forward_dp(  # noqa: C901 - to split
             if not np.isfinite(t_new).any():
                 dead = k
                 break
-            if line and k < n_ranks and np.all(t_new >= cross_best):
+            if line is not None and k < n_ranks and np.all(t_new >= line.best_h):
                 break  # every node of this rank is reached after the line was crossed: nothing can beat it
     finally:
         bar.close()
     end: dict[str, Any] = {}
-    if line:
-        end = {
-            "end_rank": n_ranks,
-            "end_node": 0,
-            "end_src": finish_back,
-            "end_fraction": 1.0,
-            "end_wait_h": 0.0 if wait_into is None else float(wait_into[n_ranks, 0]),
-        }
-        if cross_at is not None and cross_best < finish_h:
-            finish_h = cross_best
-            k_c, j_c, i_c, f_c, w_c = cross_at
-            end = {"end_rank": k_c, "end_node": j_c, "end_src": i_c, "end_fraction": f_c, "end_wait_h": w_c}
-            dead = None
-        elif not np.isfinite(finish_h):
-            end = {}
+    if line is not None:
+        finish_h, end, crossed = line.end(finish_h, finish_back, wait_into)
+        dead = None if crossed else dead
     return DPResult(
         arrival_h=arrival,
         back=back,
         finish_h=finish_h,
         finish_back=finish_back,
-        arcs_evaluated=evaluated,
-        arcs_forbidden=forbidden,
-        arcs_pruned=pruned,
-        forbidden_by_reason=by_reason,
-        forbidden_by_criterion=by_criterion,
+        arcs_evaluated=tally.evaluated,
+        arcs_forbidden=tally.forbidden,
+        arcs_pruned=tally.pruned,
+        forbidden_by_reason=tally.by_reason,
+        forbidden_by_criterion=tally.by_criterion,
         dead_rank=dead,
         wait_h=wait_into,
         **end,
     )
 
 
+@dataclass(frozen=True)
+class _RankArcs:
+    """The arcs into rank ``k``: source nodes, which leave a reached node, their departure times [h] (0 where not
+    live) and their sampling geometry."""
+
+    k: int
+    src: npt.NDArray[np.intp]
+    live: BoolArray
+    t_src: FloatArray
+    geom: ArcGeometry
+
+
+@dataclass(frozen=True)
+class _Priced:
+    """Arcs into a rank costed at one set of departure times.
+
+    ``time_h`` sailing time [h] and ``total_h`` arrival [h] (inf where forbidden or not live), ``reason`` flags
+    (0 where not live), ``counted`` which arcs were costed (pruning skips some), ``fired`` the failure criteria
+    fired along each arc (or None)."""
+
+    time_h: FloatArray
+    total_h: FloatArray
+    reason: npt.NDArray[np.uint8]
+    counted: BoolArray
+    fired: npt.NDArray[np.uint32] | None
+
+
+@dataclass(frozen=True)
+class _Pricing:
+    """How the arcs into a rank are costed: pruning (``bound_kn``, None: cost every arc), the obstacle mask tested
+    lazily (only the arcs the DP would pick) or eagerly (every arc, when a hook sees the costs), and the hook."""
+
+    problem: RoutingProblem
+    bound_kn: float | None
+    lazy: bool
+    cost_hook: Callable[[int, ArcCosts], None] | None
+
+    @classmethod
+    def of(
+        cls, problem: RoutingProblem, cost_hook: Callable[[int, ArcCosts], None] | None, *, finish_line: bool
+    ) -> _Pricing:
+        """The strategies that apply: pruning needs a positive speed bound, and no waiting, finish line or hook."""
+        bound = problem.speed_bound_kn() if problem.prune else None
+        prune = bound is not None and bound > 0.0 and problem.n_wait == 0 and not finish_line and cost_hook is None
+        lazy = problem.blocked is not None and cost_hook is None
+        return cls(problem=problem, bound_kn=bound if prune else None, lazy=lazy, cost_hook=cost_hook)
+
+    def price(self, arcs: _RankArcs, t0: FloatArray, *, first: bool) -> _Priced:
+        """Cost the arcs leaving at ``t0`` [h]; ``first``: the first departure tried (the hook sees only that)."""
+        problem, k, live = self.problem, arcs.k, arcs.live
+        counted = live
+        if self.bound_kn is not None and live.shape[1] > PRUNE_MIN_WIDTH:
+            costs, counted = _pruned_costs(problem, k, arcs.geom, t0, live, self.bound_kn, self.lazy)
+        else:
+            costs = problem.geometry_costs(arcs.geom, t0)
+        reason = np.where(live, costs.reason, 0).astype(np.uint8)
+        time_h = costs.time_h
+        if problem.blocked is not None and not self.lazy:
+            hit = problem.blocked(k, _block_times(problem, t0)) & live
+            reason = reason | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
+            time_h = np.where(hit, np.inf, time_h)
+        if self.cost_hook is not None and first:
+            self.cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costs.p_f, reason=reason))
+        total = np.where(live, problem.arrive(t0 + time_h), np.inf)
+        if self.lazy:
+            hit = _lazy_obstacles(problem.blocked, k, total, _block_times(problem, t0))
+            reason = reason | np.where(hit & live, REASONS["obstacle"], 0).astype(np.uint8)
+            total = np.where(hit, np.inf, total)
+            time_h = np.where(hit, np.inf, time_h)
+        return _Priced(time_h=time_h, total_h=total, reason=reason, counted=counted, fired=costs.fired_bits)
+
+
+class _FinishLine:
+    """Where a route first crosses the finish line: the earliest crossing seen so far, on which arc and after
+    which wait."""
+
+    def __init__(self, grid: Grid) -> None:
+        self.grid = grid
+        self.best_h = np.inf
+        self.at: tuple[int, int, int, float, float] | None = None  # rank, node, source node, fraction, wait [h]
+
+    def observe(self, arcs: _RankArcs, t0: FloatArray, priced: _Priced, wait_h: float) -> None:
+        """Keep the earliest crossing among the arcs into a rank (not the finish) leaving at ``t0`` [h]."""
+        frac = _crossing(self.grid, arcs.k)
+        cand = np.where(np.isfinite(frac) & np.isfinite(priced.total_h), t0 + frac * priced.time_h, np.inf)
+        if cand.size and np.min(cand) < self.best_h:
+            jj, cc = np.unravel_index(np.argmin(cand), cand.shape)
+            self.best_h = float(cand[jj, cc])
+            self.at = (arcs.k, int(jj), int(arcs.src[jj, cc]), float(frac[jj, cc]), wait_h)
+
+    def end(
+        self, finish_h: float, finish_back: int, wait_into: FloatArray | None
+    ) -> tuple[float, dict[str, Any], bool]:
+        """(voyage time [h], the :class:`DPResult` fields of the voyage's end, whether it ends on the line)."""
+        n_ranks = self.grid.n_ranks
+        end: dict[str, Any] = {
+            "end_rank": n_ranks,
+            "end_node": 0,
+            "end_src": finish_back,
+            "end_fraction": 1.0,
+            "end_wait_h": 0.0 if wait_into is None else float(wait_into[n_ranks, 0]),
+        }
+        if self.at is not None and self.best_h < finish_h:
+            k_c, j_c, i_c, f_c, w_c = self.at
+            end = {"end_rank": k_c, "end_node": j_c, "end_src": i_c, "end_fraction": f_c, "end_wait_h": w_c}
+            return self.best_h, end, True
+        return finish_h, (end if np.isfinite(finish_h) else {}), False
+
+
+@dataclass
+class _Tally:
+    """Arcs costed, skipped by pruning and forbidden (per reason and per failure criterion) over the ranks."""
+
+    evaluated: int = 0
+    pruned: int = 0
+    forbidden: int = 0
+    by_reason: dict[str, int] = field(default_factory=lambda: dict.fromkeys(REASONS, 0))
+    by_criterion: dict[str, int] = field(default_factory=dict)
+
+    def add(
+        self,
+        live: BoolArray,
+        counted: BoolArray,
+        reason: npt.NDArray[np.uint8],
+        fired: npt.NDArray[np.uint32] | None,
+        failure: FailureModel | None,
+    ) -> None:
+        """Count one rank's arcs: ``reason`` the flags of arcs forbidden at every departure tried, ``fired`` the
+        criteria fired along each arc at the first."""
+        self.evaluated += int(counted.sum())
+        self.pruned += int(live.sum()) - int(counted.sum())
+        bad = live & (reason != 0)
+        self.forbidden += int(bad.sum())
+        if not bad.any():
+            return
+        values = np.bincount(reason[bad], minlength=256)  # one pass: arcs per combination of flags
+        flags = np.arange(256)
+        for name, bit in REASONS.items():
+            self.by_reason[name] += int(values[(flags & bit) != 0].sum())
+        any_failed = values[(flags & REASONS["failure"]) != 0].any()
+        if failure is not None and fired is not None and any_failed:
+            failed = bad & (reason & REASONS["failure"] != 0)
+            bits = np.broadcast_to(fired, failed.shape)[failed]
+            for i, c in enumerate(failure.criteria):
+                n = int(np.count_nonzero(bits & np.uint32(1 << i)))
+                self.by_criterion[c.describe()] = self.by_criterion.get(c.describe(), 0) + n
+
+
+def _rank_step(
+    grid: Grid,
+    problem: RoutingProblem,
+    k: int,
+    t_prev: FloatArray,
+    pricing: _Pricing,
+    line: _FinishLine | None,
+    tally: _Tally,
+) -> tuple[FloatArray, npt.NDArray[np.intp], FloatArray | None]:
+    """One step of the DP: from the arrival times ``t_prev`` [h] at rank k - 1 (the start points for k = 0), the
+    earliest arrival at each node of rank k [h], the source node it comes from, and the wait before it [h] (None
+    without waiting)."""
+    src, valid = grid.pattern(k)
+    t_src = t_prev[src]
+    live = valid & np.isfinite(t_src)
+    arcs = _RankArcs(
+        k=k, src=src, live=live, t_src=np.where(live, t_src, 0.0), geom=grid_geometry(grid, k, problem.samples)
+    )
+    total, wait, reason, counted, fired = _best_over_waits(arcs, pricing, line if k < grid.n_ranks else None)
+    tally.add(live, counted, reason, fired, problem.failure)
+    best = np.argmin(total, axis=1)[:, None]
+    t_new = np.take_along_axis(total, best, axis=1)[:, 0]
+    src_best = np.take_along_axis(src, best, axis=1)[:, 0]
+    wait_best = np.take_along_axis(wait, best, axis=1)[:, 0] if problem.n_wait else None
+    return t_new, src_best, wait_best
+
+
+def _best_over_waits(
+    arcs: _RankArcs, pricing: _Pricing, line: _FinishLine | None
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], BoolArray, npt.NDArray[np.uint32] | None]:
+    """Waiting: each arc left after 0, 1, ... ``n_wait`` time steps; per arc the earliest arrival [h], the wait it
+    takes [h], the reason flags where every departure is forbidden, which arcs were costed and the criteria fired
+    at the first departure."""
+    problem = pricing.problem
+    step = problem.time_step_h or 0.0
+    total = np.full(arcs.live.shape, np.inf)
+    wait = np.zeros(arcs.live.shape)
+    reason = np.zeros(arcs.live.shape, dtype=np.uint8)
+    counted, fired = arcs.live, None
+    for w in range(problem.n_wait + 1):
+        t0 = arcs.t_src + w * step
+        priced = pricing.price(arcs, t0, first=w == 0)
+        if w == 0:
+            fired = priced.fired
+        if line is not None:
+            line.observe(arcs, t0, priced, w * step)
+        better = priced.total_h < total
+        total = np.where(better, priced.total_h, total)
+        wait = np.where(better, w * step, wait)
+        # an arc counts as forbidden when it is forbidden at every departure time tried
+        reason = priced.reason if w == 0 else np.where(np.isfinite(total), 0, reason | priced.reason).astype(np.uint8)
+        counted = priced.counted
+    return total, wait, reason, counted, fired
+
+
 def _crossing(grid: Grid, k: int) -> FloatArray:
     """Fraction along each arc into rank k where it crosses the finish line (NaN: no crossing); cached."""
-    cache = grid._cache.setdefault("crossing", {})
+    cache = grid.cache.crossings
     frac = cache.get(k)
     if frac is None:
         lon0, lat0, lon1, lat1, src, _ = grid.arcs(k)
@@ -481,13 +653,12 @@ def _crossing(grid: Grid, k: int) -> FloatArray:
 
 def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
     """Sampling geometry of the arcs into rank k, computed once per grid and cached on it."""
-    key = f"geometry:{samples}"
-    cache = grid._cache.setdefault(key, {})
-    geom = cache.get(k)
+    cache = grid.cache
+    geom: ArcGeometry | None = cache.geometry.get((k, samples))
     if geom is None:
-        xyz = grid._cache.get("xyz")
+        xyz = cache.node_xyz
         if xyz is None:
-            xyz = grid._cache["xyz"] = geodesy.to_xyz(grid.lon_deg, grid.lat_deg)
+            xyz = cache.node_xyz = geodesy.to_xyz(grid.lon_deg, grid.lat_deg)
         if k == 0:
             a = geodesy.to_xyz(*grid.start_points)[None, :, :]
             b = xyz[0][:, None, :]
@@ -498,7 +669,7 @@ def grid_geometry(grid: Grid, k: int, samples: int) -> ArcGeometry:
             a = xyz[k - 1][grid.src_index]
             b = xyz[k][:, None, :]
         geom = geometry_from_xyz(a, b, samples=samples, workers=None)  # threads for big blocks
-        cache[k] = geom
+        cache.geometry[k, samples] = geom
     return geom
 
 
@@ -567,7 +738,7 @@ def _costs_of(problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray, pick: 
 
 def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.datetime64] | None:
     """Departure times for obstacle masks that depend on time (None when neither weather nor zones do)."""
-    if getattr(problem.weather, "steady", False) and not getattr(problem.blocked, "timed", False):
+    if problem.weather.steady and not (problem.blocked is not None and problem.blocked.timed):
         return None
     return hours_after(problem.departure, t0)
 
@@ -700,7 +871,7 @@ def _criteria_counts(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray
     course = geodesy.initial_bearing_deg(lon_s, lat_s, a[2][:, None], a[3][:, None])
     time = (
         problem.departure
-        if getattr(problem.weather, "steady", False)
+        if problem.weather.steady
         else hours_after(problem.departure, np.broadcast_to(a[4][:, None], lon_s.shape))
     )
     cond = problem.weather.sample(lon_s, lat_s, time)
@@ -735,7 +906,7 @@ def leg_costs(
     times = np.empty(n_legs)
     p_f = np.empty(n_legs)
     reason = np.empty(n_legs, dtype=np.uint8)
-    steady = bool(getattr(problem.weather, "steady", False))
+    steady = bool(problem.weather.steady)
     if steady and problem.time_step_h is None:
         c = problem.costs(lon[:-1], lat[:-1], lon[1:], lat[1:], np.zeros(n_legs))
         times, p_f, reason = c.time_h, c.p_f, c.reason

@@ -199,14 +199,10 @@ def _code_lines(path: Path) -> dict[str, int]:
 
 #: Functions allowed to stay longer, each with the reason.
 LONG_FUNCTIONS: dict[str, str] = {
-    "pyroute_rel.cost.geometry_costs": "to split",
-    "pyroute_rel.failure._check_structure": "to split",
     "pyroute_rel.gci.numbers.grid_convergence": "to split",
     "pyroute_rel.gci.numbers.least_squares_convergence": "to split",
     "pyroute_rel.plot.plot_routes": "to split",
     "pyroute_rel.scenario._parse": "to split",
-    "pyroute_rel.solve.forward_dp": "to split",
-    "pyroute_rel.weather.readers._extract": "to split",
 }
 
 

@@ -355,13 +355,13 @@ def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window, monkey
     sc = scenario_from_mapping(table, base_dir=CONTROL.parent, source=str(CONTROL))
     swept_grid = sc.make_grid()
     swept = forward_dp(swept_grid, sc.problem(grid=swept_grid))
-    states = swept_grid._cache[sc.avoid.key()]
+    states = swept_grid.cache.obstacles[sc.avoid.key()].ranks
     assert len(states) == swept_grid.n_ranks + 1 and all(v[0].all() for v in states.values())  # all swept
     with monkeypatch.context() as m:
         m.setattr(ObstacleMask, "_sweep", lambda self: None)
         grid = sc.make_grid()
         lazy = forward_dp(grid, sc.problem(grid=grid))
-    learnt = sum(int(v[0].sum()) for v in grid._cache[sc.avoid.key()].values())
+    learnt = sum(int(v[0].sum()) for v in grid.cache.obstacles[sc.avoid.key()].ranks.values())
     eager_grid = sc.make_grid()
     eager = forward_dp(eager_grid, sc.problem(grid=eager_grid), cost_hook=lambda k, c: None)
     assert learnt < eager.arcs_evaluated  # the lazy run really skipped arcs
@@ -370,7 +370,7 @@ def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window, monkey
         np.testing.assert_array_equal(res.arrival_h, eager.arrival_h)
         np.testing.assert_array_equal(res.back, eager.back)
     # the sweep's masks agree with the arc-by-arc test on every arc it tested
-    for k, (known, hit, bits) in grid._cache[sc.avoid.key()].items():
+    for k, (known, hit, bits) in grid.cache.obstacles[sc.avoid.key()].ranks.items():
         s_known, s_hit, s_bits = states[k]
         np.testing.assert_array_equal(hit[known], s_hit[known])
         np.testing.assert_array_equal(bits[known], s_bits[known])

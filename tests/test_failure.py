@@ -672,3 +672,20 @@ def test_p_fail_refuses_quantities_out_of_their_range() -> None:
         m.p_fail({"hs_m": 1.0, "awd_deg": 400.0})
     with pytest.raises(FailureModelError, match=r"hs_m must be in \[0, inf\]"):
         m.p_fail({"hs_m": -1.0, "awd_deg": 90.0})
+
+
+def test_one_map_from_quantities_to_weather_fields():
+    from pyroute_rel.cost import arc_quantities
+    from pyroute_rel.failure import QUANTITIES, QUANTITY_FIELDS
+    from pyroute_rel.geodesy import angle_diff_deg
+    from pyroute_rel.weather import FIELDS, UniformWeather
+
+    assert set(QUANTITY_FIELDS) == set(QUANTITIES)
+    assert all(field in FIELDS for field, _ in QUANTITY_FIELDS.values())
+    c = UniformWeather(tws_kn=11.0, twd_deg=30.0, hs_m=2.5, wave_dir_deg=300.0, wave_period_s=7.0).sample(0, 0, 0)
+    q = arc_quantities(c, 80.0)
+    assert (float(q["twa_deg"]), float(q["awd_deg"])) == (angle_diff_deg(30.0, 80.0), angle_diff_deg(300.0, 80.0))
+    assert (float(q["tws_kn"]), float(q["hs_m"]), float(q["wave_period_s"])) == (11.0, 2.5, 7.0)
+    assert list(arc_quantities(c, 80.0, ["hs_m"])) == ["hs_m"]
+    model = load_failure_model("dickson2018")
+    assert model.weather_fields == {QUANTITY_FIELDS[q][0] for q in model.quantities} == {"hs_m", "wave_dir_deg"}

@@ -144,3 +144,17 @@ def test_square_plan_refuses_bad_counts_and_numpy_scalars_are_numbers() -> None:
     a = make_grid(s, f, n_ranks=5, n_nodes=5, spacing_km=np.float32(50.0), max_deviation_deg=np.float64(45.0))
     b = make_grid(s, f, n_ranks=5, n_nodes=5, spacing_km=50.0, max_deviation_deg=45.0)
     np.testing.assert_array_equal(a.lon_deg, b.lon_deg)
+
+
+def test_derived_data_live_in_a_typed_cache_outside_equality_and_repr() -> None:
+    from pyroute_rel.grid import GridCache
+    from pyroute_rel.solve import grid_geometry
+
+    a = make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=4, n_nodes=5)
+    b = make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=4, n_nodes=5)
+    assert isinstance(a.cache, GridCache) and a.cache is not b.cache
+    geom = grid_geometry(a, 2, 3)
+    assert a.cache.geometry[2, 3] is geom and grid_geometry(a, 2, 3) is geom  # computed once
+    assert a.cache.node_xyz is not None and a.cache.node_xyz.shape == (4, 5, 3)
+    assert "cache" not in repr(a) and a.n_ranks == b.n_ranks
+    assert b.cache.geometry == {}  # nothing leaked to the other grid

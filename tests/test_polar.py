@@ -567,3 +567,30 @@ def test_polar_errors_are_domain_errors(tmp_path) -> None:
         boat_speed_kn(vane, 90.0, -1.0)
     with pytest.raises(OutputError, match=r"cannot write polar file .*missing_dir"):
         write_pol(vane, tmp_path / "missing_dir" / "v.pol")
+
+
+def test_beyond_is_checked_in_one_place_with_one_error():
+    from pyroute_rel.cost_compiled import sail_wind
+    from pyroute_rel.errors import PolarError
+    from pyroute_rel.polar import check_beyond
+    from pyroute_rel.solve import RoutingProblem
+    from pyroute_rel.weather import UniformWeather
+
+    assert [check_beyond(b) for b in ("clamp", "forbid")] == ["clamp", "forbid"]
+    one = np.ones((1, 1))
+    for call, name in (
+        (lambda: check_beyond(["clamp"]), "'beyond'"),
+        (lambda: boat_speed_kn(VANE, 90.0, 10.0, beyond="wrap"), "'beyond'"),
+        (lambda: sail_wind(one, one, one, one, VANE, beyond="wrap"), "'beyond'"),
+        (
+            lambda: RoutingProblem(
+                departure=np.datetime64("2018-06-01"),
+                weather=UniformWeather(tws_kn=10.0, twd_deg=0.0),
+                polar=VANE,
+                beyond="wrap",
+            ),
+            "RoutingProblem.beyond",
+        ),
+    ):
+        with pytest.raises(PolarError, match=re.escape(f"{name} must be one of ['clamp', 'forbid']")):
+            call()

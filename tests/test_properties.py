@@ -26,7 +26,8 @@ from pyroute_rel.grid import Grid, make_grid
 from pyroute_rel.polar import Polar
 from pyroute_rel.route import route_on_grid
 from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
-from pyroute_rel.weather import Conditions, Patch, UniformWeather
+from pyroute_rel.times import hours_after
+from pyroute_rel.weather import FIELDS, Conditions, Patch, UniformWeather
 
 DEP = np.datetime64("2018-06-01T00:00:00")
 SPHERE = Geod(a=geodesy.EARTH_RADIUS_KM * 1000.0, b=geodesy.EARTH_RADIUS_KM * 1000.0)
@@ -177,8 +178,27 @@ def test_dp_invariant_under_patch_order_and_far_patches(data: st.DataObject) -> 
 # 3. Route times are consistent
 
 
+class SamplesOnly:
+    """The rest of the WeatherSource protocol for a test source that only knows how to ``sample``: not steady,
+    every field defined, no current; ``prepare``/``sample_at`` sample the same points at the asked times."""
+
+    steady = False
+    fields = frozenset(FIELDS)
+    max_current_ms = 0.0
+
+    def prepare(self, lon_deg: Any, lat_deg: Any) -> Any:
+        return np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float))
+
+    def sample_at(self, prepared: Any, departure: Any, *, offset_h: Any = None, fields: Any = None) -> Conditions:
+        time = departure if offset_h is None else hours_after(departure, offset_h)
+        return self.sample(prepared[0], prepared[1], time)  # type: ignore[attr-defined]
+
+    def check_coverage(self, *args: Any) -> None:
+        return None
+
+
 @dataclass(frozen=True)
-class VeeringWind:
+class VeeringWind(SamplesOnly):
     """A time-varying source (not steady): wind veering and strengthening slowly with time."""
 
     tws0: float
@@ -252,14 +272,18 @@ def test_route_times_are_consistent(data: st.DataObject) -> None:
 
 
 @dataclass(frozen=True)
-class NaNBox:
-    """A steady uniform field with ``fields`` NaN inside a lon/lat box (closed) [deg]."""
+class NaNBox(SamplesOnly):
+    """A steady uniform field with ``nan_fields`` NaN inside a lon/lat box (closed) [deg]."""
 
     base: UniformWeather
     lon: tuple[float, float]
     lat: tuple[float, float]
-    fields: tuple[str, ...] = ("tws_kn",)
+    nan_fields: tuple[str, ...] = ("tws_kn",)
     steady = True
+
+    @property
+    def max_current_ms(self) -> float:  # type: ignore[override]
+        return self.base.max_current_ms
 
     def inside(self, lon: Any, lat: Any) -> Any:
         return (lon >= self.lon[0]) & (lon <= self.lon[1]) & (lat >= self.lat[0]) & (lat <= self.lat[1])
@@ -269,7 +293,7 @@ class NaNBox:
         lon, lat = np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float))
         mask = np.broadcast_to(self.inside(lon, lat), c.tws_kn.shape)
         values = {name: getattr(c, name) for name in Conditions.__dataclass_fields__}
-        for name in self.fields:
+        for name in self.nan_fields:
             values[name] = np.where(mask, np.nan, values[name])
         return Conditions(**values)
 
@@ -324,7 +348,7 @@ def test_nan_band_across_the_grid_blocks_every_route(setup: Any) -> None:
     clean = RoutingProblem(departure=DEP, weather=base, polar=polar, samples=samples)
     assert np.isfinite(forward_dp(grid, clean).finish_h)  # premise: feasible without the NaN band
     problem = replace(
-        clean, weather=NaNBox(base, lon=(-180.0, 180.0), lat=(centre - half, centre + half), fields=fields)
+        clean, weather=NaNBox(base, lon=(-180.0, 180.0), lat=(centre - half, centre + half), nan_fields=fields)
     )
     result = forward_dp(grid, problem)
     assert not np.isfinite(result.finish_h)
@@ -355,7 +379,7 @@ def test_nan_box_partly_across_is_avoided(setup: Any, data: st.DataObject) -> No
     # the box covers the band's latitudes on one side of a random longitude only
     cut = data.draw(st.floats(float(grid.lon_deg.min()), float(grid.lon_deg.max())))
     lon = (-180.0, cut) if data.draw(st.booleans()) else (cut, 180.0)
-    weather = NaNBox(base, lon=lon, lat=(centre - half, centre + half), fields=fields)
+    weather = NaNBox(base, lon=lon, lat=(centre - half, centre + half), nan_fields=fields)
     problem = RoutingProblem(departure=DEP, weather=weather, polar=polar, samples=samples)
     result = forward_dp(grid, problem)
     assume(np.isfinite(result.finish_h) and result.forbidden_by_reason["weather"] > 0)  # a route, and the box bit
@@ -373,7 +397,7 @@ def test_nan_current_is_reported_as_missing_weather() -> None:
     grid = make_grid((-12.0, 45.0), (-40.0, 20.0), n_ranks=3, n_nodes=3)
     base = UniformWeather(tws_kn=15.0, twd_deg=0.0)
     polar = Polar("flat", twa_deg=[0.0, 180.0], tws_kn=[0.0, 40.0], speed_kn=[[1.0, 5.0], [1.0, 5.0]])
-    weather = NaNBox(base, lon=(-180.0, 180.0), lat=(-90.0, 90.0), fields=("current_u_ms", "current_v_ms"))
+    weather = NaNBox(base, lon=(-180.0, 180.0), lat=(-90.0, 90.0), nan_fields=("current_u_ms", "current_v_ms"))
     with pytest.raises(NoFeasibleRouteError, match="missing weather data"):
         route_on_grid(grid, RoutingProblem(departure=DEP, weather=weather, polar=polar))
 

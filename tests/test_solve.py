@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, replace
+from typing import Any
 
 import networkx as nx
 import numpy as np
@@ -17,7 +18,8 @@ from pyroute_rel.grid import FINISH, START, make_grid
 from pyroute_rel.polar import Polar, boat_speed_kn, get_polar
 from pyroute_rel.route import route_on_grid
 from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
-from pyroute_rel.weather import Conditions, Patch, UniformWeather
+from pyroute_rel.times import hours_after
+from pyroute_rel.weather import FIELDS, Conditions, Patch, UniformWeather
 
 DEP = np.datetime64("2018-06-01T00:00:00")
 START_PT, FINISH_PT = (-12.0, 45.0), (-60.0, 17.5)
@@ -106,8 +108,27 @@ def test_dp_equals_brute_force_on_tiny_grids(seed: int) -> None:
     assert forward_dp(grid, problem).finish_h == pytest.approx(best, rel=1e-12)
 
 
+class SamplesOnly:
+    """The rest of the WeatherSource protocol for a test source that only knows how to ``sample``: not steady,
+    every field defined, no current; ``prepare``/``sample_at`` sample the same points at the asked times."""
+
+    steady = False
+    fields = frozenset(FIELDS)
+    max_current_ms = 0.0
+
+    def prepare(self, lon_deg: Any, lat_deg: Any) -> Any:
+        return np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float))
+
+    def sample_at(self, prepared: Any, departure: Any, *, offset_h: Any = None, fields: Any = None) -> Conditions:
+        time = departure if offset_h is None else hours_after(departure, offset_h)
+        return self.sample(prepared[0], prepared[1], time)  # type: ignore[attr-defined]
+
+    def check_coverage(self, *args: Any) -> None:
+        return None
+
+
 @dataclass(frozen=True)
-class VeeringWind:
+class VeeringWind(SamplesOnly):
     """Wind that veers slowly with time (a time-varying source; FIFO holds for slow change)."""
 
     steady = False
@@ -210,7 +231,7 @@ def test_infinite_arcs_are_never_chosen_and_infeasible_is_explained() -> None:
 
 
 @dataclass(frozen=True)
-class PassingStorm:
+class PassingStorm(SamplesOnly):
     """A band of no-go weather (wind too strong: above the polar with beyond='forbid') across the whole course
     between 39 and 41 N until ``clears_h`` after departure; 15 kn from the north elsewhere and later."""
 
@@ -395,3 +416,71 @@ def test_control_weather_constructors_validate(make, match) -> None:
     with pytest.raises(ScenarioError, match=match):
         make()
     assert UniformWeather(tws_kn=15.0, twd_deg=360.0).twd_deg == 0.0  # the documented [0, 360)
+
+
+class Breeze:
+    """A third party's weather source written against the protocol alone: a steady breeze from the north-east,
+    reported as time-varying so that the router takes its prepared-sampling path."""
+
+    steady = False
+    fields = frozenset({"tws_kn", "twd_deg"})
+    max_current_ms = 0.0
+
+    def sample(self, lon_deg: Any, lat_deg: Any, time: Any) -> Conditions:
+        lon, lat, _ = np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float), np.asarray(time))
+        nan = np.full(lon.shape, np.nan)
+        zero = np.zeros(lon.shape)
+        return Conditions(
+            tws_kn=zero + 14.0,
+            twd_deg=zero + 45.0,
+            hs_m=nan,
+            wave_dir_deg=nan,
+            wave_period_s=nan,
+            current_u_ms=zero,
+            current_v_ms=zero,
+        )
+
+    def check_coverage(self, lon_range: Any, lat_range: Any, time_range: Any) -> None:
+        return None
+
+    def prepare(self, lon_deg: Any, lat_deg: Any) -> tuple[Any, Any]:
+        return (np.asarray(lon_deg, float), np.asarray(lat_deg, float))
+
+    def sample_at(self, prepared: Any, departure: Any, *, offset_h: Any = None, fields: Any = None) -> Conditions:
+        time = departure if offset_h is None else hours_after(departure, offset_h)
+        return self.sample(prepared[0], prepared[1], time)
+
+
+def test_a_source_implementing_only_the_protocol_routes_like_the_built_in_one() -> None:
+    from pyroute_rel.obstacles.mask import Avoid, ObstacleMask
+    from pyroute_rel.solve import ArcMask
+    from pyroute_rel.weather import WeatherSource
+
+    assert isinstance(Breeze(), WeatherSource)
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=5, n_nodes=5, spacing_km=150.0)
+    polar = get_polar("maribot_vane")
+    mine = route_on_grid(grid, RoutingProblem(departure=DEP, weather=Breeze(), polar=polar, samples=3))
+    same = UniformWeather(tws_kn=14.0, twd_deg=45.0)
+    ref = route_on_grid(grid, RoutingProblem(departure=DEP, weather=same, polar=polar, samples=3))
+    np.testing.assert_array_equal(mine.dp.path(), ref.dp.path())
+    assert mine.voyage_time_h == pytest.approx(ref.voyage_time_h, rel=1e-12)
+    # the built-in sources and the obstacle mask satisfy the protocols the solver states
+    assert isinstance(same, WeatherSource) and isinstance(_varying_weather(), WeatherSource)
+    assert isinstance(ObstacleMask(grid, Avoid(land=False, zones=())), ArcMask)
+
+
+def _varying_weather() -> Any:
+    from test_cost import _varying_field
+
+    return _varying_field()
+
+
+def test_uniform_prepared_sampling_gives_what_sample_gives() -> None:
+    w = UniformWeather(
+        tws_kn=12.0, twd_deg=30.0, hs_m=2.0, patches=(Patch((-20.0, -10.0), (40.0, 50.0), {"hs_m": 5.0}),)
+    )
+    lon, lat = np.array([[-15.0, -5.0], [-12.0, -30.0]]), np.array([45.0, 44.0])
+    direct = w.sample(lon, lat, DEP)
+    for at in (w.sample_at(w.prepare(lon, lat), DEP), w.sample_at(w.prepare(lon, lat), DEP, offset_h=np.ones((2, 2)))):
+        for name in FIELDS:
+            np.testing.assert_array_equal(getattr(at, name), getattr(direct, name))

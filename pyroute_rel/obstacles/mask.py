@@ -1,10 +1,11 @@
 """Obstacle masks for the solver: land, coastal margins and exclusion zones, cached per grid.
 
-The solver asks ``blocked(k, departure_times)`` for the arcs into rank k (:data:`~pyroute_rel.solve.ArcMask`).
-Whether an arc touches land or a zone does not depend on time, so each arc is tested once per grid and the
-answer kept on the grid (routing the same grid again - another apf, departure or weather - reuses it). Zones with
-a ``valid_from``/``valid_to`` window are remembered per arc as a bit set, and their windows are applied to each
-arc's departure time when the solver asks.
+The solver asks ``blocked(k, departure_times)`` for the arcs into rank k (:class:`ObstacleMask` implements the
+solver's :class:`~pyroute_rel.solve.ArcMask` protocol). Whether an arc touches land or a zone does not depend on
+time, so each arc is tested once per grid and the answer kept on the grid (its
+:class:`~pyroute_rel.grid.ObstacleCache` in ``grid.cache``; routing the same grid again - another apf, departure
+or weather - reuses it). Zones with a ``valid_from``/``valid_to`` window are remembered per arc as a bit set, and
+their windows are applied to each arc's departure time when the solver asks.
 
 On first use every arc of the grid is tested at once by rank-pair shadows (:mod:`pyroute_rel.obstacles.strips`), against
 the land (grown by the margin) within the grid's own outline (:func:`pyroute_rel.obstacles.land.land_within`) and each
@@ -137,14 +138,13 @@ def _land(grid: Grid, avoid: Avoid, parent: Grid | None) -> Any:
     (a corridor of :mod:`pyroute_rel.refine`) takes the parent's land instead of reading and growing it again."""
     from . import land as obstacles
 
-    key = avoid.key() + ":land"
-    known = grid._cache.get(key)
-    if known is not None:
-        return known[1]
+    mine = grid.cache.obstacles_for(avoid.key())
+    if mine.land is not None:
+        return mine.land[1]
     region = _region(grid)
     land = None
     if parent is not None and region is not None:
-        outer = parent._cache.get(key)
+        outer = parent.cache.obstacles_for(avoid.key()).land
         if outer is not None and outer[0] is not None and outer[0].contains(region):
             land = outer[1]
     if land is None:
@@ -153,7 +153,7 @@ def _land(grid: Grid, avoid: Avoid, parent: Grid | None) -> Any:
             if region is None
             else obstacles.land_within(region, margin_km=avoid.margin_km, resolution=avoid.resolution)
         )
-    grid._cache[key] = (region, land)
+    mine.land = (region, land)
     return land
 
 
@@ -192,10 +192,8 @@ class ObstacleMask:
                 shapely.intersects_xy(self.land, s_lon, s_lat),
                 shapely.intersects_xy(self.land, grid.lon_deg, grid.lat_deg),
             )
-        self._cache: dict[int, tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.uint64]]] = (
-            grid._cache.setdefault(avoid.key(), {})
-        )
-        self._swept: list[bool] = grid._cache.setdefault(avoid.key() + ":swept", [False])
+        self._learnt = grid.cache.obstacles_for(avoid.key())  # shared by every mask of these obstacles on the grid
+        self._ranks = self._learnt.ranks
 
     def _groups(self) -> tuple[list[Any], list[tuple[int, int]]]:
         """The grid's arcs as :class:`~pyroute_rel.obstacles.strips.Group` s, with the (rank, first group) of each
@@ -259,7 +257,7 @@ class ObstacleMask:
                     bits[b & ~hit] |= np.uint64(1 << bit)
             if done:
                 bits[hit] = 0
-                self._cache[k] = (np.ones(src.shape, dtype=bool), hit, bits)
+                self._ranks[k] = (np.ones(src.shape, dtype=bool), hit, bits)
 
     @property
     def timed(self) -> bool:
@@ -270,16 +268,16 @@ class ObstacleMask:
         self, k: int, shape: tuple[int, ...]
     ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.uint64]]:
         """(learnt, static hit, timed-zone bits) of the arcs into rank k."""
-        st = self._cache.get(k)
-        if st is None and not self._swept[0]:
-            self._swept[0] = True
+        st = self._ranks.get(k)
+        if st is None and not self._learnt.swept:
+            self._learnt.swept = True
             self._sweep()
-            st = self._cache.get(k)
+            st = self._ranks.get(k)
         if st is None:
             # an arc with an end on (buffered) land is blocked outright: known from the start, at no cost (on a
             # grid over continents whole rows end on land, which the lazy DP would otherwise learn arc by arc)
             ends = self._ends(k)
-            st = self._cache[k] = (ends.copy(), ends.copy(), np.zeros(shape, dtype=np.uint64))
+            st = self._ranks[k] = (ends.copy(), ends.copy(), np.zeros(shape, dtype=np.uint64))
         return st
 
     def _ends(self, k: int) -> npt.NDArray[np.bool_]:
@@ -296,7 +294,7 @@ class ObstacleMask:
         return np.ascontiguousarray(np.broadcast_to(ends, src.shape))
 
     def _shape(self, k: int) -> tuple[int, ...]:
-        st = self._cache.get(k)
+        st = self._ranks.get(k)
         return st[0].shape if st is not None else self.grid.pattern(k)[0].shape
 
     def known(self, k: int) -> npt.NDArray[np.bool_]:

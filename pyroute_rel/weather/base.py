@@ -18,8 +18,9 @@ Conventions
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -71,24 +72,119 @@ class Conditions:
 
 @runtime_checkable
 class WeatherSource(Protocol):
-    """What the router needs from weather: vectorised sampling in space and time.
+    """What the router asks of weather: every member the cost function, the solver and the route builder use.
 
-    ``sample`` must broadcast ``lon_deg``, ``lat_deg`` and ``time`` together and return
-    :class:`Conditions` with arrays of the broadcast shape. Sources that do not vary in time ignore
-    ``time``. ``check_coverage`` raises :class:`~pyroute_rel.errors.WeatherCoverageError` when the
-    box or time window is not covered (a no-op for sources that cover everything).
+    A new source (another file format, a model coupled at run time, a test double) implements these members and
+    nothing else; :class:`~pyroute_rel.weather.uniform.UniformWeather` and
+    :class:`~pyroute_rel.weather.gridded.GriddedWeather` are the two shipped implementations. The protocol is
+    ``runtime_checkable``: ``isinstance(x, WeatherSource)`` checks that the members exist (not their types).
+
+    Attributes
+    ----------
+    steady : bool
+        True when the conditions do not change with time: the router then samples every arc once, at the
+        departure time, and skips the timing pass (see :mod:`pyroute_rel.cost`). False makes the router sample
+        each point at the time the craft gets there; it is always correct, only slower.
+    fields : frozenset of str
+        Names of the :class:`Conditions` fields the source defines (keys of :data:`FIELDS`); ``tws_kn`` and
+        ``twd_deg`` always. A field not listed comes back NaN (waves) or 0 (currents) from :meth:`sample`. The
+        router refuses a failure model needing a field not listed, and takes the fast wind-only cost path when
+        neither ``current_u_ms`` nor ``current_v_ms`` is listed.
+    max_current_ms : float
+        An upper bound on the current's speed anywhere, at any time [m/s] (0 without currents). The solver's
+        pruning bound is the polar's top speed plus this; a bound too small would make pruning inexact.
+
+    Conventions of the methods: positions are longitude/latitude [deg] (any longitude convention), times
+    ``numpy.datetime64`` (UTC), and every array argument is broadcast with the others.
     """
+
+    @property
+    def steady(self) -> bool:
+        """True when the conditions do not depend on time [-]."""
+        ...
+
+    @property
+    def fields(self) -> frozenset[str]:
+        """:class:`Conditions` fields the source defines (the others are NaN, or 0 [m/s] for currents)."""
+        ...
+
+    @property
+    def max_current_ms(self) -> float:
+        """Upper bound on the current's speed anywhere, at any time [m/s]; 0 without currents."""
+        ...
 
     def sample(
         self,
         lon_deg: npt.ArrayLike,
         lat_deg: npt.ArrayLike,
         time: npt.ArrayLike,
-    ) -> Conditions: ...
+    ) -> Conditions:
+        """Wind, waves and current at points and times.
+
+        Parameters
+        ----------
+        lon_deg : Longitudes [deg].
+        lat_deg : Latitudes [deg].
+        time : Times (``datetime64``, UTC); ignored by a steady source.
+
+        Returns
+        -------
+        Conditions
+            Arrays of the broadcast shape of the three inputs; NaN where the source knows nothing.
+        """
+        ...
 
     def check_coverage(
         self,
         lon_range: tuple[float, float],
         lat_range: tuple[float, float],
         time_range: tuple[np.datetime64, np.datetime64],
-    ) -> None: ...
+    ) -> None:
+        """Raise :class:`~pyroute_rel.errors.WeatherCoverageError` unless the source covers the request.
+
+        Parameters
+        ----------
+        lon_range : (west, east) [deg]; east < west means the box crosses 180 deg.
+        lat_range : (south, north) [deg].
+        time_range : (first, last) time needed (``datetime64``, UTC).
+        """
+        ...
+
+    def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> object:
+        """Points made ready for :meth:`sample_at` at several times (e.g. located on the source's grids once).
+
+        Parameters
+        ----------
+        lon_deg : Longitudes [deg].
+        lat_deg : Latitudes [deg], broadcast with ``lon_deg``.
+
+        Returns
+        -------
+        object
+            An opaque handle that only this source's :meth:`sample_at` reads.
+        """
+        ...
+
+    def sample_at(
+        self,
+        prepared: Any,
+        departure: npt.ArrayLike,
+        *,
+        offset_h: npt.ArrayLike | None = None,
+        fields: Collection[str] | None = None,
+    ) -> Conditions:
+        """:meth:`sample` at points made ready by :meth:`prepare`, giving the same numbers.
+
+        Parameters
+        ----------
+        prepared : The handle :meth:`prepare` returned.
+        departure : Times (``datetime64``, UTC) broadcast to the points' shape; with ``offset_h``, one origin.
+        offset_h : Hours after ``departure`` [h], broadcast to the points' shape (NaN gives NaN conditions).
+        fields : :class:`Conditions` fields wanted (default all); a source may leave the others NaN.
+
+        Returns
+        -------
+        Conditions
+            Arrays of the prepared points' shape.
+        """
+        ...

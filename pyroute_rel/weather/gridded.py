@@ -374,6 +374,11 @@ class GriddedWeather:
                 f"no 10 m wind (u and v components) found in {', '.join(map(repr, srcs))}; wind is required "
                 f"(name the variables with variables={{'wind_u_ms': ..., 'wind_v_ms': ...}})"
             )
+        if ("current_u_ms" in names) != ("current_v_ms" in names):
+            raise WeatherError(
+                "currents need both components, current_u_ms and current_v_ms "
+                f"(got only {'current_u_ms' if 'current_u_ms' in names else 'current_v_ms'})"
+            )
         self._info: dict[str, WeatherField] = {f.name: replace(f, values=None) for f in fields}
         groups: dict[tuple[bytes, bytes, bytes | None], list[WeatherField]] = {}
         for f in fields:
@@ -381,6 +386,12 @@ class GriddedWeather:
             groups.setdefault(key, []).append(f)
         self._blocks = [_Block(group) for group in groups.values()]
         _load_kernels()  # numba's first call in a process costs half a second: pay it with the file, not the route
+
+    @property
+    def steady(self) -> bool:
+        """False: every point is sampled at its own time (even where a field has no time axis and the result
+        would not change)."""
+        return False
 
     @property
     def fields(self) -> frozenset[str]:
@@ -455,8 +466,8 @@ class GriddedWeather:
 
     def sample_at(
         self,
-        points: PreparedPoints,
-        time: npt.ArrayLike,
+        prepared: PreparedPoints,
+        departure: npt.ArrayLike,
         *,
         offset_h: npt.ArrayLike | None = None,
         fields: Collection[str] | None = None,
@@ -465,18 +476,18 @@ class GriddedWeather:
 
         Parameters
         ----------
-        points : From :meth:`prepare`.
-        time : Times (``datetime64``, UTC), broadcast to the points' shape; or, with ``offset_h``, one origin.
-        offset_h : Hours after ``time`` [h], broadcast to the points' shape (NaN gives NaN conditions); the
+        prepared : From :meth:`prepare`.
+        departure : Times (``datetime64``, UTC), broadcast to the points' shape; or, with ``offset_h``, one origin.
+        offset_h : Hours after ``departure`` [h], broadcast to the points' shape (NaN gives NaN conditions); the
             cost kernel's departure times, passed without building an array of datetimes.
         fields : :class:`~pyroute_rel.weather.Conditions` fields wanted (default all); the others are not
             interpolated and come back NaN (the cost kernel's timing pass needs only wind and current).
         """
-        if points.owner != id(self):
+        if prepared.owner != id(self):
             raise WeatherError("these points were prepared for another weather source: use its prepare()")
-        t = np.asarray(time)
+        t = np.asarray(departure)
         if t.dtype.kind != "M":
-            raise WeatherError(f"'time' must be datetime64 (got dtype {t.dtype})")
+            raise WeatherError(f"'departure' must be datetime64 (got dtype {t.dtype})")
         wanted = None
         if fields is not None:
             unknown = sorted(set(fields) - set(_NEEDS))
@@ -484,15 +495,15 @@ class GriddedWeather:
                 raise WeatherError(f"'fields' must be Conditions fields {sorted(_NEEDS)} (got {unknown})")
             wanted = {col for name in fields for col in _NEEDS[name]}
         if offset_h is None:
-            origin, offset_s = _offsets(np.broadcast_to(t.astype("datetime64[ns]"), points.shape).ravel())
+            origin, offset_s = _offsets(np.broadcast_to(t.astype("datetime64[ns]"), prepared.shape).ravel())
         else:
             if t.ndim:
-                raise WeatherError(f"with 'offset_h', 'time' must be one origin (got shape {t.shape})")
+                raise WeatherError(f"with 'offset_h', 'departure' must be one origin (got shape {t.shape})")
             origin = np.datetime64(t.astype("datetime64[ns]").item(), "ns")
             offset_s = np.ascontiguousarray(
-                np.broadcast_to(np.asarray(offset_h, dtype=np.float64) * 3600.0, points.shape).ravel()
+                np.broadcast_to(np.asarray(offset_h, dtype=np.float64) * 3600.0, prepared.shape).ravel()
             )
-        return self._conditions(points.shape, self._interpolate_at(points.where, origin, offset_s, wanted), fields)
+        return self._conditions(prepared.shape, self._interpolate_at(prepared.where, origin, offset_s, wanted), fields)
 
     def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
         """One stored field (e.g. ``"wind_u_ms"`` [m/s]) at broadcast points; NaN where unknown."""

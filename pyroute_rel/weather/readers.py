@@ -451,7 +451,7 @@ def _dim_kind(da: xr.DataArray, dim: Hashable) -> str:
     return "other"
 
 
-def _extract(  # noqa: C901 - to split
+def _extract(
     da: xr.DataArray,
     name: str,
     source: str,
@@ -464,6 +464,45 @@ def _extract(  # noqa: C901 - to split
     """Cut one variable to the box and window, load it, convert units -> (field or None, had members)."""
     where = f"weather file '{source}' variable '{var}'"
     kinds = {d: _dim_kind(da, d) for d in da.dims}
+    da, had_members = _drop_extra_dims(da, kinds, member, where)
+    lon_dim, lat_dim, time_dims = ([d for d in da.dims if kinds[d] == kind] for kind in ("lon", "lat", "time"))
+    if len(lon_dim) != 1 or len(lat_dim) != 1 or lon_dim[0] not in da.coords or lat_dim[0] not in da.coords:
+        raise WeatherError(
+            f"{where} is not on a regular longitude/latitude grid (dimensions {list(da.dims)}; expected 1-D "
+            f"'longitude'/'lon' and 'latitude'/'lat' coordinates)"
+        )
+    lon_dim_, lat_dim_ = lon_dim[0], lat_dim[0]
+    da, tdim, times = _time_axis(da, time_dims, where)
+    # index plans
+    lon_plan = _lon_plan(np.asarray(da[lon_dim_].values, dtype=float), box, margin)
+    lat_plan = _sorted_plan(np.asarray(da[lat_dim_].values, dtype=float), box and (box[1], box[3]), margin)
+    if lon_plan is None or lat_plan is None:
+        x, y = np.asarray(da[lon_dim_].values), np.asarray(da[lat_dim_].values)
+        raise WeatherCoverageError(
+            f"{where} covers lon [{x.min():g}, {x.max():g}], lat [{y.min():g}, {y.max():g}] [deg], outside the "
+            f"requested box lon [{box[0]:g}, {box[2]:g}], lat [{box[1]:g}, {box[3]:g}]"  # type: ignore[index]
+        )
+    if lat_plan[1].size < 2 or lon_plan[1].size < 2:
+        raise WeatherError(f"{where} needs at least two latitudes and two longitudes")
+    t_index = np.arange(da.sizes[tdim])
+    if times is not None:
+        t_plan = _time_plan(times, window, where)
+        if t_plan is None:
+            return None, had_members
+        t_index, times = t_plan
+    values = _load(da, (tdim, lat_dim_, lon_dim_), (t_index, lat_plan[0], lon_plan[0]), where)
+    values = _convert_units(values, da.attrs, name, where)
+    if not np.isfinite(values).any():
+        raise WeatherError(f"{where} is all NaN{' inside the requested box and time window' if box or window else ''}")
+    field = WeatherField(name, values, lon_plan[1], lat_plan[1], times, source, var, lon_plan[2])
+    return field, had_members
+
+
+def _drop_extra_dims(
+    da: xr.DataArray, kinds: Mapping[Hashable, str], member: int | None, where: str
+) -> tuple[xr.DataArray, bool]:
+    """Pick the ensemble member, the shallowest depth and ERA5's merged ``expver``; refuse other dimensions of more
+    than one value -> (the variable on lon, lat and time only, whether it had members)."""
     had_members = False
     for dim, kind in kinds.items():
         n = da.sizes[dim]
@@ -492,16 +531,14 @@ def _extract(  # noqa: C901 - to split
                     f"(expected time, latitude, longitude and optionally number and depth)"
                 )
             da = da.isel({dim: 0})
-    lon_dim = [d for d in da.dims if kinds[d] == "lon"]
-    lat_dim = [d for d in da.dims if kinds[d] == "lat"]
-    time_dims = [d for d in da.dims if kinds[d] == "time"]
-    if len(lon_dim) != 1 or len(lat_dim) != 1 or lon_dim[0] not in da.coords or lat_dim[0] not in da.coords:
-        raise WeatherError(
-            f"{where} is not on a regular longitude/latitude grid (dimensions {list(da.dims)}; expected 1-D "
-            f"'longitude'/'lon' and 'latitude'/'lat' coordinates)"
-        )
-    lon_dim_, lat_dim_ = lon_dim[0], lat_dim[0]
-    # time axis
+    return da, had_members
+
+
+def _time_axis(
+    da: xr.DataArray, time_dims: list[Hashable], where: str
+) -> tuple[xr.DataArray, Hashable, npt.NDArray[np.datetime64] | None]:
+    """The variable with one time dimension (a length-1 ``_time`` added when it has none), its name, and the valid
+    times (``datetime64[ns]``; None for a field without time)."""
     if len(time_dims) > 1:
         raise WeatherError(f"{where} has several time dimensions {time_dims}; give one valid time per field")
     valid = None
@@ -514,40 +551,26 @@ def _extract(  # noqa: C901 - to split
         tdim = time_dims[0]
         if valid is None or valid.ndim != 1:
             raise WeatherError(f"{where}: time dimension '{tdim}' has no decodable date coordinate")
-        times: npt.NDArray[np.datetime64] | None = np.asarray(valid.values).astype("datetime64[ns]")
-    else:
-        tdim = "_time"
-        da = da.expand_dims(tdim)
-        times = None if valid is None else np.asarray([valid.values]).astype("datetime64[ns]")
-    # index plans
-    lon_plan = _lon_plan(np.asarray(da[lon_dim_].values, dtype=float), box, margin)
-    lat_plan = _sorted_plan(np.asarray(da[lat_dim_].values, dtype=float), box and (box[1], box[3]), margin)
-    if lon_plan is None or lat_plan is None:
-        x, y = np.asarray(da[lon_dim_].values), np.asarray(da[lat_dim_].values)
-        raise WeatherCoverageError(
-            f"{where} covers lon [{x.min():g}, {x.max():g}], lat [{y.min():g}, {y.max():g}] [deg], outside the "
-            f"requested box lon [{box[0]:g}, {box[2]:g}], lat [{box[1]:g}, {box[3]:g}]"  # type: ignore[index]
-        )
-    if lat_plan[1].size < 2 or lon_plan[1].size < 2:
-        raise WeatherError(f"{where} needs at least two latitudes and two longitudes")
-    t_index = np.arange(da.sizes[tdim])
-    if times is not None:
-        if np.isnat(times).any():
-            raise WeatherError(f"{where} has missing (NaT) times")
-        t_plan = _sorted_plan(
-            times.astype(np.int64), window and (int(window[0].astype(np.int64)), int(window[1].astype(np.int64))), 0
-        )
-        if t_plan is None:
-            return None, had_members
-        if np.any(np.diff(np.sort(times.astype(np.int64))) == 0):
-            raise WeatherError(f"{where} has repeated times")
-        t_index, times = t_plan[0], t_plan[1].astype("datetime64[ns]")
-    values = _load(da, (tdim, lat_dim_, lon_dim_), (t_index, lat_plan[0], lon_plan[0]), where)
-    values = _convert_units(values, da.attrs, name, where)
-    if not np.isfinite(values).any():
-        raise WeatherError(f"{where} is all NaN{' inside the requested box and time window' if box or window else ''}")
-    field = WeatherField(name, values, lon_plan[1], lat_plan[1], times, source, var, lon_plan[2])
-    return field, had_members
+        return da, tdim, np.asarray(valid.values).astype("datetime64[ns]")
+    tdim = "_time"
+    da = da.expand_dims(tdim)
+    return da, tdim, None if valid is None else np.asarray([valid.values]).astype("datetime64[ns]")
+
+
+def _time_plan(
+    times: npt.NDArray[np.datetime64], window: tuple[np.datetime64, np.datetime64] | None, where: str
+) -> tuple[IntArray, npt.NDArray[np.datetime64]] | None:
+    """The time indices to read (in order) and their times, or None when no time falls in the window."""
+    if np.isnat(times).any():
+        raise WeatherError(f"{where} has missing (NaT) times")
+    t_plan = _sorted_plan(
+        times.astype(np.int64), window and (int(window[0].astype(np.int64)), int(window[1].astype(np.int64))), 0
+    )
+    if t_plan is None:
+        return None
+    if np.any(np.diff(np.sort(times.astype(np.int64))) == 0):
+        raise WeatherError(f"{where} has repeated times")
+    return t_plan[0], t_plan[1].astype("datetime64[ns]")
 
 
 def _load(

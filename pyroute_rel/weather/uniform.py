@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -23,7 +23,7 @@ import numpy.typing as npt
 from ..errors import ScenarioError, brief
 from .base import FIELDS, Conditions
 
-__all__ = ["Patch", "UniformWeather"]
+__all__ = ["Patch", "PreparedUniform", "UniformWeather"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -60,6 +60,14 @@ class Patch:
     def contains(self, lon_deg: FloatArray, lat_deg: FloatArray) -> npt.NDArray[np.bool_]:
         """Boolean mask of the points inside the box."""
         return (lon_deg >= self.lon[0]) & (lon_deg <= self.lon[1]) & (lat_deg >= self.lat[0]) & (lat_deg <= self.lat[1])
+
+
+@dataclass(frozen=True)
+class PreparedUniform:
+    """Points made ready by :meth:`UniformWeather.prepare`: longitudes and latitudes [deg] of one shape."""
+
+    lon_deg: FloatArray
+    lat_deg: FloatArray
 
 
 @dataclass(frozen=True)
@@ -112,12 +120,12 @@ class UniformWeather:
 
     @property
     def steady(self) -> bool:
-        """A control field does not change with time."""
+        """True: a control field does not change with time."""
         return True
 
     @property
     def fields(self) -> frozenset[str]:
-        """Every field of :class:`Conditions` is defined everywhere."""
+        """Every field of :class:`~pyroute_rel.weather.base.Conditions` (all are defined everywhere)."""
         return frozenset(FIELDS)
 
     @property
@@ -128,7 +136,14 @@ class UniformWeather:
         return float(math.hypot(max(cu), max(cv)))
 
     def sample(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> Conditions:
-        """Sample the control field at points; ``time`` is accepted for the protocol and ignored."""
+        """Sample the control field at points; ``time`` is accepted for the protocol and ignored.
+
+        Parameters
+        ----------
+        lon_deg : Longitudes [deg] in [-180, 180] (the patches' convention).
+        lat_deg : Latitudes [deg].
+        time : Times (``datetime64``, UTC); only their shape counts (broadcast with the points).
+        """
         lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
         shape = np.broadcast_shapes(lon.shape, np.shape(time))
         lon = np.broadcast_to(lon, shape)
@@ -141,6 +156,37 @@ class UniformWeather:
             for name, value in patch.values.items():
                 out[name][inside] = value
         return Conditions(**out)
+
+    def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> PreparedUniform:
+        """The points as float arrays of their broadcast shape, for :meth:`sample_at` (nothing to locate).
+
+        Parameters
+        ----------
+        lon_deg : Longitudes [deg].
+        lat_deg : Latitudes [deg], broadcast with ``lon_deg``.
+        """
+        lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
+        return PreparedUniform(lon_deg=lon, lat_deg=lat)
+
+    def sample_at(
+        self,
+        prepared: PreparedUniform,
+        departure: npt.ArrayLike,
+        *,
+        offset_h: npt.ArrayLike | None = None,
+        fields: Collection[str] | None = None,
+    ) -> Conditions:
+        """:meth:`sample` at points from :meth:`prepare` (the same numbers: the field is steady).
+
+        Parameters
+        ----------
+        prepared : From :meth:`prepare`.
+        departure : Times (``datetime64``, UTC), or with ``offset_h`` one origin; ignored but for its shape.
+        offset_h : Hours after ``departure`` [h]; ignored (steady), except that it is broadcast to the points.
+        fields : Fields wanted; all are given (they cost nothing).
+        """
+        time = departure if offset_h is None else np.broadcast_to(np.asarray(departure), np.shape(offset_h))
+        return self.sample(prepared.lon_deg, prepared.lat_deg, time)
 
     def check_coverage(
         self,
