@@ -9,7 +9,7 @@ their windows are applied to each arc's departure time when the solver asks.
 
 On first use every arc of the grid is tested at once by rank-pair shadows (:mod:`pyroute_rel.obstacles.strips`), against
 the land (grown by the margin) within the grid's own outline (:func:`pyroute_rel.obstacles.land.land_within`) and each
-zone. Ranks the shadows cannot take are tested arc by arc (:func:`pyroute_rel.obstacles.land.arcs_blocked`), only for
+zone. Ranks the shadows cannot take are tested arc by arc (:func:`pyroute_rel.obstacles.areas.arcs_blocked`), only for
 the arcs the solver would pick.
 """
 
