@@ -40,12 +40,12 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
+from .crab import hold_course
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .times import hours_after
-from .units import KN_PER_MS
 from .weather.base import Conditions, WeatherSource
 
 __all__ = [
@@ -518,32 +518,29 @@ def _sample_costs(
     reason = np.zeros(course_deg.shape, dtype=np.uint8)
     heading = course_deg
     current = cond.has_current
-    if current:
-        cu = cond.current_u_ms * KN_PER_MS
-        cv = cond.current_v_ms * KN_PER_MS
-        crs = np.radians(course_deg)
-        c_along = cu * np.sin(crs) + cv * np.cos(crs)
-        c_cross = cu * np.cos(crs) - cv * np.sin(crs)  # to starboard of the course
-        v0 = boat_speed_kn(polar, geodesy.angle_diff_deg(cond.twd_deg, heading), cond.tws_kn, beyond=beyond)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            drift = np.degrees(np.arcsin(np.clip(-c_cross / v0, -1.0, 1.0)))
-        heading = (course_deg + np.where(np.isfinite(drift), drift, 0.0)) % 360.0
-    if wind is not None and not current:
-        twa, v = wind
-    else:
-        twa = geodesy.angle_diff_deg(cond.twd_deg, heading)
-        v = boat_speed_kn(polar, twa, cond.tws_kn, beyond=beyond)
-    if wave_loss is not None:
-        v = v * wave_loss.factor(cond.hs_m)
-    if current:
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            ratio = -c_cross / v
-            cannot = ~(np.abs(ratio) <= 1.0)
-            sog = v * np.sqrt(np.clip(1.0 - ratio**2, 0.0, 1.0)) + c_along
-        cannot &= np.isfinite(v) & (v > 0)
-        cannot |= np.isfinite(sog) & (sog <= 0) & (v > 0)
+    factor = None if wave_loss is None else wave_loss.factor(cond.hs_m)
+    if current:  # the heading that holds the course in the current (exact crab angle, pyroute_rel.crab)
+        crab = hold_course(
+            course_deg,
+            cond.twd_deg,
+            cond.tws_kn,
+            cond.current_u_ms,
+            cond.current_v_ms,
+            polar,
+            beyond=beyond,
+            speed_factor=1.0 if factor is None else factor,
+        )
+        heading, twa, v, sog = crab.heading_deg, crab.twa_deg, crab.boat_speed_kn, crab.sog_kn
+        cannot = ~crab.ok & np.isfinite(v) & (v > 0)  # the boat sails, but no heading holds the course
         reason |= np.where(cannot, REASONS["current"], 0).astype(np.uint8)
     else:
+        if wind is not None:
+            twa, v = wind
+        else:
+            twa = geodesy.angle_diff_deg(cond.twd_deg, heading)
+            v = boat_speed_kn(polar, twa, cond.tws_kn, beyond=beyond)
+        if factor is not None:
+            v = v * factor
         sog = v
     sog = np.where(sog >= MIN_SPEED_KN, sog, np.where(np.isnan(sog), np.nan, 0.0))
     v = np.where(v >= MIN_SPEED_KN, v, np.where(np.isnan(v), np.nan, 0.0))
