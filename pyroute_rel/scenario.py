@@ -32,7 +32,7 @@ from .geodesy import along_track_km, crossing_fraction, distance_km, intermediat
 from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, LAYOUTS, Grid, auto_samples, plan_grid
 from .obstacles.mask import Avoid, check_points, obstacle_mask
 from .polar import BEYOND_MODES, Polar, get_polar
-from .route import Route, build_route, join_routes, route_on_grid
+from .route import GridTrack, Route, build_route, join_routes, route_on_grid
 from .solve import RoutingProblem
 from .weather import UniformWeather, WeatherSource
 
@@ -306,10 +306,9 @@ class Scenario:
             routes.append(leg)
             departure = routes[-1].arrival
         route = routes[0] if len(routes) == 1 else join_routes(routes)
-        route.meta["scenario"] = self.source
-        route.meta["zones_object"] = self.avoid.zones
-        route.meta["land"] = self.avoid.land
-        return route
+        return replace(
+            route, meta={**route.meta, "scenario": self.source, "land": self.avoid.land}, zones=self.avoid.zones
+        )
 
     def _refined(self, route: Route, problem: RoutingProblem) -> Route:
         """The route with its track refined in corridors (:mod:`pyroute_rel.refine`); the grid, its DP result and
@@ -327,16 +326,12 @@ class Scenario:
         better = c_grid is not grid
         out = (
             replace(
-                build_route(c_grid, c_problem, c_result),
-                grid=grid,
-                nodes=route.nodes,
-                dp=route.dp,
-                meta=dict(route.meta),
+                build_route(c_grid, c_problem, c_result), grid=grid, nodes=route.nodes, dp=route.dp, problem=problem
             )
             if better
             else route
         )
-        out.meta["refine"] = {
+        refined = {
             "levels": [
                 {
                     "half_width_km": lv.half_width_km,
@@ -348,8 +343,11 @@ class Scenario:
             ],
             "grid_voyage_time_h": route.voyage_time_h,
         }
-        out.meta["grid_track_object"] = (route.lon_deg, route.lat_deg, route.voyage_time_h)  # for the map
-        return out
+        return replace(
+            out,
+            meta={**route.meta, "refine": refined},
+            grid_track=GridTrack(route.lon_deg, route.lat_deg, route.voyage_time_h),  # for the map
+        )
 
 
 def load_scenario(path: str | Path) -> Scenario:

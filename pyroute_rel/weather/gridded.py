@@ -383,6 +383,12 @@ class GriddedWeather:
         _load_kernels()  # numba's first call in a process costs half a second: pay it with the file, not the route
 
     @property
+    def steady(self) -> bool:
+        """False: every point is sampled at its own time (even where a field has no time axis and the result
+        would not change)."""
+        return False
+
+    @property
     def fields(self) -> frozenset[str]:
         """Names of :class:`~pyroute_rel.weather.Conditions` fields the data actually provide."""
         out = {"tws_kn", "twd_deg"}
