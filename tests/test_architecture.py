@@ -204,7 +204,6 @@ LONG_FUNCTIONS: dict[str, str] = {
     "pyroute_rel.gci.numbers.grid_convergence": "to split",
     "pyroute_rel.gci.numbers.least_squares_convergence": "to split",
     "pyroute_rel.obstacles.strips._shadows": "to split",
-    "pyroute_rel.scenario._parse": "to split",
     "pyroute_rel.solve.forward_dp": "to split",
     "pyroute_rel.weather.readers._extract": "to split",
 }
