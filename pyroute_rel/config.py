@@ -200,10 +200,6 @@ def _zone_files(v: Any, where: str) -> list[str]:
     return paths
 
 
-def _departure(v: Any, where: str) -> np.datetime64:
-    return parse_departure(v, where)
-
-
 def _wave_loss(raw: Any, where: str) -> WaveLoss:
     try:
         if not isinstance(raw, list) or not all(isinstance(r, list) and len(r) == 2 for r in raw):

@@ -119,6 +119,9 @@ class Legs(Mapping[str, FloatArray]):
     def __len__(self) -> int:
         return len(_LEG_ORDER)
 
+    __eq__ = object.__eq__  # identity, as for Route (a mapping's == would compare arrays)
+    __hash__ = object.__hash__
+
     @property
     def n_legs(self) -> int:
         """Number of legs."""
@@ -289,10 +292,16 @@ class Route:
 
         Examples
         --------
-        >>> from pyroute_rel import load_scenario  # doctest: +SKIP
-        >>> arcs = load_scenario("examples/microtransat_control.toml").route().forbidden_arcs()  # doctest: +SKIP
-        >>> arcs.reason[:1], arcs.criteria[:1]  # doctest: +SKIP
-        (array(['failure'], dtype='<U7'), array(['WH: hs_m >= 4 m'], dtype='<U15'))
+        >>> from pyroute_rel import scenario_from_mapping
+        >>> sc = scenario_from_mapping({
+        ...     "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0]}, "grid": {"n_ranks": 20},
+        ...     "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0, "hs_m": 1.0,
+        ...                 "patch": [{"lon": [-17.0, -15.0], "lat": [41.0, 44.0], "hs_m": 4.5}]},
+        ...     "avoid": {"land": False}, "failure": {"model": "dickson2018", "apf": 0.5}})
+        >>> route = sc.route()
+        >>> arcs = route.forbidden_arcs()
+        >>> len(arcs), int(arcs.rank[0]), str(arcs.reason[0]), str(arcs.criteria[0]), str(arcs.departure[0])
+        (775, 6, 'failure', 'WH: hs_m >= 4 m', '2018-06-02T07:44:06')
         """
         parts = self.course_legs or (self,)
         offsets = [float((r.departure - self.departure) / np.timedelta64(1, "s")) / 3600.0 for r in parts]
@@ -401,7 +410,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         i = np.flatnonzero(hole)
         slon, slat = geodesy.intermediate_point(lon[i], lat[i], lon[i + 1], lat[i + 1], frac)
         at = _sample(problem, slon, slat, (elapsed[:-1] + waits)[i] + frac * costs.time_h[i])
-        cond = replace(cond, **{f.name: _put(getattr(cond, f.name), i, getattr(at, f.name)) for f in fields(cond)})
+        cond = replace(cond, **{f.name: _put(vars(cond)[f.name], i, vars(at)[f.name]) for f in fields(cond)})
         course = course.copy()
         course[i] = geodesy.initial_bearing_deg(slon, slat, lon[i + 1], lat[i + 1])
     q = arc_quantities(cond, course)

@@ -168,3 +168,14 @@ def test_no_forbidden_arcs_without_a_failure_model() -> None:
     route = scenario_from_mapping({**CONTROL, "failure": {"model": "none"}}).route()
     arcs = route.forbidden_arcs()
     assert len(arcs) == 0 and arcs.reason.shape == (0,) and arcs.departure.dtype == np.dtype("datetime64[s]")
+
+
+def test_a_refined_route_reports_the_forbidden_arcs_of_the_grid_routed_on(routed: Route) -> None:
+    refined = scenario_from_mapping({**CONTROL, "grid": {**CONTROL["grid"], "refine": 2}}).route()
+    assert refined.grid_track is not None and refined.voyage_time_h <= refined.grid_track.voyage_time_h
+    np.testing.assert_array_equal(refined.grid_track.lon_deg, routed.lon_deg)
+    assert refined.grid is not routed.grid and refined.grid.n_nodes == routed.grid.n_nodes
+    a, b = refined.forbidden_arcs(), routed.forbidden_arcs()
+    for f in fields(ForbiddenArcs):
+        np.testing.assert_array_equal(vars(a)[f.name], vars(b)[f.name])
+    assert refined.summary()["refine"]["grid_voyage_time_h"] == routed.voyage_time_h
