@@ -14,8 +14,8 @@ A scenario has these tables (unknown tables or keys are refused with the file an
     [avoid]    land = true  margin_km = 0  resolution = "intermediate"  zones = ["zones.geojson"]
 
 Paths are relative to the scenario file's folder. Times without a zone are read as UTC, with a note
-(:attr:`Settings.notes`). :func:`parse_tables` gives the settings :class:`~pyroute_rel.scenario.Scenario` is built
-from; this module knows nothing of routing.
+(:attr:`~pyroute_rel.scenario.Scenario.notes`). :func:`parse_tables` gives the settings
+:class:`~pyroute_rel.scenario.Scenario` is built from; this module knows nothing of routing.
 """
 
 from __future__ import annotations
@@ -390,7 +390,7 @@ def _midpoint(segment: Line) -> tuple[float, float]:
     return float(lon), float(lat)
 
 
-def nearest_on_line(segment: Line, p: tuple[float, float]) -> tuple[float, float]:
+def _nearest_on_line(segment: Line, p: tuple[float, float]) -> tuple[float, float]:
     """The point of a great-circle segment nearest to p [deg] (the grid aims there by default)."""
     (c_lon, c_lat), (d_lon, d_lat) = segment
     length = float(distance_km(c_lon, c_lat, d_lon, d_lat))
@@ -401,7 +401,7 @@ def nearest_on_line(segment: Line, p: tuple[float, float]) -> tuple[float, float
 
 def _off_line_km(segment: Line, p: tuple[float, float]) -> float:
     """Distance [km] from a point to a great-circle segment: to the segment's point nearest it."""
-    return float(distance_km(*p, *nearest_on_line(segment, p)))
+    return float(distance_km(*p, *_nearest_on_line(segment, p)))
 
 
 def _marks(raw: Mapping[str, Any], start_line: Line | None, finish_line: Line | None) -> dict[str, Any]:
@@ -411,7 +411,7 @@ def _marks(raw: Mapping[str, Any], start_line: Line | None, finish_line: Line | 
     if "finish" not in raw and finish_line is not None:
         if "start" not in raw:
             raise ScenarioError("[route].start is missing ([lon, lat] [deg], or a start_line)")
-        raw = {**raw, "finish": list(nearest_on_line(finish_line, point(raw["start"], "[route].start")))}
+        raw = {**raw, "finish": list(_nearest_on_line(finish_line, point(raw["start"], "[route].start")))}
     for key in ("start", "finish"):
         if key not in raw:
             raise ScenarioError(f"[route].{key} is missing ({SCHEMA['route'][key].help})")
@@ -588,7 +588,7 @@ def parse_weather(
     return builder(raw, base_dir=base_dir, bbox=bbox, departure=departure)
 
 
-def course_bbox(marks: Mapping[str, Any], grid: Mapping[str, Any]) -> tuple[float, float, float, float]:
+def _course_bbox(marks: Mapping[str, Any], grid: Mapping[str, Any]) -> tuple[float, float, float, float]:
     """A lon/lat box [deg] sure to hold the grid: the course's points widened by the grid's half-width.
 
     ``marks``: start, finish, waypoints, start_line, finish_line; ``grid``: half_width_km, n_ranks, n_nodes (None
@@ -637,7 +637,7 @@ def parse_tables(table: Mapping[str, Any], base_dir: Path) -> dict[str, Any]:
     grid = parse_grid(table.get("grid", {}))
     boat = parse_boat(table.get("boat", {}), base_dir)
     avoid = parse_avoid(table.get("avoid", {}), base_dir)
-    bbox = course_bbox(route, grid)
+    bbox = _course_bbox(route, grid)
     weather = parse_weather(table.get("weather"), base_dir, bbox=bbox, departure=route["departure"])
     failure = parse_failure(table.get("failure", {}))
     return {
@@ -661,6 +661,14 @@ def _failure_option(value: Any, where: str) -> str | None:
     return None if str(value).lower() == "none" else str(value)
 
 
+def _departure_option(value: Any, where: str) -> np.datetime64:
+    return parse_departure(value, "--departures")
+
+
+def _layout_option(value: Any, where: str) -> str:
+    return one_of(LAYOUTS)(value, "--layout")  # type: ignore[no-any-return]
+
+
 def _bool_option(value: Any, where: str) -> bool:
     if not isinstance(value, bool | np.bool_):
         raise ScenarioError(f"{where} must be True or False (got {value!r})")
@@ -676,8 +684,8 @@ OPTIONS: dict[str, Callable[[Any, str], Any] | None] = {
     "sample_km": sample_spacing_km,
     "apf": probability,
     "failure_model": _failure_option,
-    "departure": lambda v, where: parse_departure(v, "--departures"),
-    "layout": lambda v, where: one_of(LAYOUTS)(v, "--layout"),
+    "departure": _departure_option,
+    "layout": _layout_option,
     "land": _bool_option,
     "prune": _bool_option,
     "spacing_km": None,
