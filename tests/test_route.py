@@ -119,8 +119,9 @@ def _check_forbidden(route: Route, arcs: ForbiddenArcs) -> None:
                 assert arcs.reason[i] == "+".join(n for n, b in REASONS.items() if int(cost.reason) & b)
                 assert arcs.departure_h[i] == t0
                 assert [arcs.from_lon_deg[i], arcs.from_lat_deg[i], arcs.to_lon_deg[i], arcs.to_lat_deg[i]] == pts
-                if "failure" in arcs.reason[i]:
-                    assert float(cost.p_f) > problem.apf and arcs.p_f[i] == pytest.approx(float(cost.p_f))
+                assert arcs.p_f[i] == pytest.approx(float(cost.p_f), nan_ok=True)
+                if arcs.reason[i] == "failure":  # (with missing weather p_f is NaN)
+                    assert float(cost.p_f) > problem.apf
     assert n_checked == len(arcs)
 
 
@@ -179,3 +180,72 @@ def test_a_refined_route_reports_the_forbidden_arcs_of_the_grid_routed_on(routed
     for f in fields(ForbiddenArcs):
         np.testing.assert_array_equal(vars(a)[f.name], vars(b)[f.name])
     assert refined.summary()["refine"]["grid_voyage_time_h"] == routed.voyage_time_h
+
+
+@pytest.mark.parametrize(
+    "course",
+    [
+        {"time_step_h": 2.0, "max_wait_h": 6.0},  # waiting: forbidden at every departure tried
+        {"finish_line": [[-60.0, 10.0], [-60.0, 25.0]]},  # the DP stops once nothing can beat the crossing
+        {"start": None, "start_line": [[-16.0, 51.0], [-8.0, 45.0]]},  # arcs from every start point
+    ],
+)
+def test_forbidden_arcs_agree_with_the_dp_on_every_course(course: dict[str, object]) -> None:
+    route_table = {k: v for k, v in {**CONTROL["route"], **course}.items() if v is not None}
+    route = scenario_from_mapping({**CONTROL, "route": route_table}).route()
+    arcs = route.forbidden_arcs()
+    assert len(arcs) == route.dp.arcs_forbidden > 0
+    for name, n in route.dp.forbidden_by_criterion.items():
+        assert sum(name in c.split("; ") for c in arcs.criteria) == n
+    _check_forbidden(route, arcs)  # steady weather: forbidden after a wait as well as at the first departure
+
+
+def test_forbidden_arcs_over_time_varying_weather_and_land() -> None:
+    """Each arc is costed at its own departure time (a veering gridded wind with a NaN island, the paper's model);
+    land forbids arcs under the obstacle reason."""
+    from dataclasses import replace
+
+    from test_cost import _varying_field
+
+    from pyroute_rel.failure import load_failure_model
+    from pyroute_rel.grid import make_grid
+    from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
+    from pyroute_rel.polar import get_polar
+    from pyroute_rel.route import route_on_grid
+    from pyroute_rel.solve import RoutingProblem
+    from pyroute_rel.weather import UniformWeather
+
+    dep = np.datetime64("2018-06-01T00:00")
+    grid = make_grid((-31.5, 28.5), (-30.0, 30.0), n_ranks=16, n_nodes=16, max_deviation_deg=None)
+    problem = RoutingProblem(
+        departure=dep,
+        weather=_varying_field(),
+        polar=get_polar("maribot_vane"),
+        failure=load_failure_model("dickson2018"),
+        apf=0.95,
+        samples=2,
+        prune=False,
+    )
+    route = route_on_grid(grid, problem)
+    assert not route.weather.steady
+    arcs = route.forbidden_arcs()
+    assert len(arcs) == route.dp.arcs_forbidden and {"failure", "weather"} <= set(arcs.reason)
+    assert np.ptp(arcs.departure_h) > 1.0  # departures spread over the voyage
+    _check_forbidden(route, arcs)
+    caribbean = make_grid(
+        (-57.0, 16.25), (-64.0, 16.25), n_ranks=20, n_nodes=15, max_deviation_deg=None, spacing_km=10.0
+    )
+    land = RoutingProblem(
+        departure=dep,
+        weather=UniformWeather(tws_kn=15.0, twd_deg=0.0),
+        polar=get_polar("maribot_vane"),
+        blocked=obstacle_mask(caribbean, Avoid(land=True)),
+    )
+    for prune in (False, True):  # the mask learns lazily in the DP; the table checks every arc
+        on_land = route_on_grid(caribbean, replace(land, prune=prune))
+        arcs = on_land.forbidden_arcs()
+        assert set(arcs.reason) == {"obstacle"} and set(arcs.criteria) == {""}
+        if prune:  # lazily, the DP tests only the arcs that could win: the table has at least those
+            assert len(arcs) >= on_land.dp.forbidden_by_reason["obstacle"] > 0
+        else:
+            assert len(arcs) == on_land.dp.forbidden_by_reason["obstacle"] > 0
