@@ -59,7 +59,7 @@ def main() -> None:
         routes,
         labels=[f"apf {r['apf']:g}" for r in rows],
         weather=base.weather,
-        failure=routes[0].meta.get("failure_object"),
+        failure=routes[0].failure,
         coast=False,
         title=f"Dickson et al. (2018) section 3.2, {g.n_ranks} ranks x {g.n_nodes} nodes ({args.layout})",
         path=out / f"paper_routes_{args.layout}.png",

@@ -30,6 +30,9 @@ _EXPORTS: dict[str, str] = {
     "scenario_from_mapping": "scenario",
     "Scenario": "scenario",
     "Route": "route",
+    "Legs": "route",
+    "ForbiddenArcs": "route",
+    "register_weather_kind": "config",
     # building blocks a user assembles or inspects
     "Polar": "polar",
     "get_polar": "polar",
@@ -90,6 +93,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use
+    from .config import register_weather_kind
     from .errors import (
         ConvergenceError,
         CoordinateError,
@@ -111,7 +115,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .outputs import write_outputs
     from .polar import Polar, boat_speed_kn, get_polar, read_polar
     from .refine import refine
-    from .route import Route, route_on_grid
+    from .route import ForbiddenArcs, Legs, Route, route_on_grid
     from .scenario import Scenario, load_scenario, scenario_from_mapping
     from .solve import RoutingProblem, forward_dp
     from .weather.base import Conditions, WeatherSource

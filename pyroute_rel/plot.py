@@ -15,7 +15,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import geodesy
-from .cost import arc_quantities
+from .obstacles.zones import Zone
+from .risk import continuous_lon_deg, failure_field
+from .weather import UniformWeather
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -41,35 +43,11 @@ def _pyplot() -> Any:
     return plt
 
 
-def failure_field(
-    grid: Grid, weather: WeatherSource, failure: FailureModel, *, time: Any = None, n: int = 200
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Failure probability and fired-criteria count on a lon/lat mesh covering the grid.
-
-    Returns ``(lon [deg], lat [deg], p_f, n_fired)`` 2-D arrays; the heading at each point is the
-    great-circle course towards the finish.
-    """
-    view = _unwrap(grid.start[0])
-    lon = np.linspace(view(grid.lon_deg).min(), view(grid.lon_deg).max(), n)
-    lat = np.linspace(grid.lat_deg.min(), grid.lat_deg.max(), n)
-    glon, glat = np.meshgrid(lon, lat)  # longitudes may run past +-180 (a course across the antimeridian)
-    heading = geodesy.initial_bearing_deg(glon, glat, grid.finish[0], grid.finish[1])
-    t = np.datetime64("2000-01-01") if time is None else time
-    cond = weather.sample((glon + 180.0) % 360.0 - 180.0, glat, t)
-    q = arc_quantities(cond, heading)
-    need = {k: q[k] for k in failure.quantities}
-    p = np.asarray(failure.p_fail(need), dtype=float)
-    fired = np.asarray(failure.fired(need)).sum(axis=0)
-    return glon, glat, p, fired
-
-
 def _unwrap(ref_deg: float) -> Any:
-    """Longitudes [deg] -> within 180 deg of ``ref_deg``, so a map of a course across the antimeridian is continuous
-    (it may run past +-180)."""
+    """Longitudes [deg] -> continuous around ``ref_deg`` (:func:`~pyroute_rel.risk.continuous_lon_deg`)."""
 
     def view(lon: Any) -> Any:
-        x = np.asarray(lon, dtype=float)
-        return x + 360.0 * np.round((ref_deg - x) / 360.0)  # whole turns only: longitudes in view stay exact
+        return continuous_lon_deg(lon, ref_deg)
 
     return view
 
@@ -83,10 +61,15 @@ def _draw_grid_outline(ax: Axes, grid: Grid) -> None:
     ax.plot(view(gc_lon), gc_lat, color="0.4", lw=0.8, ls=":", label="great circle")
 
 
-def _draw_patches(ax: Axes, weather: Any, view: Any) -> None:
+def _patches(weather: WeatherSource | None) -> tuple[Any, ...]:
+    """The weather's patches (boxes of a uniform weather; none for other sources)."""
+    return weather.patches if isinstance(weather, UniformWeather) else ()
+
+
+def _draw_patches(ax: Axes, weather: WeatherSource | None, view: Any) -> None:
     from matplotlib.patches import Rectangle
 
-    for i, patch in enumerate(getattr(weather, "patches", ())):
+    for i, patch in enumerate(_patches(weather)):
         label = patch.name or f"patch {i + 1}"
         if len(label) > 40:
             label = label[:37] + "..."
@@ -147,7 +130,7 @@ def _fill_polygons(ax: Axes, geometry: Any, **style: Any) -> None:
     paths = []
     # exterior counter-clockwise, holes clockwise: holes stay empty under the nonzero fill rule
     for poly in shapely.get_parts(shapely.orient_polygons(geometry)):
-        if poly.is_empty or not hasattr(poly, "exterior"):
+        if poly.is_empty or not isinstance(poly, shapely.Polygon):
             continue
         rings = [poly.exterior, *poly.interiors]
         paths.append(MplPath.make_compound_path(*[MplPath(shapely.get_coordinates(r), closed=True) for r in rings]))
@@ -155,55 +138,39 @@ def _fill_polygons(ax: Axes, geometry: Any, **style: Any) -> None:
         ax.add_collection(PathCollection(paths, **style), autolim=False)
 
 
-def plot_routes(
-    routes: Sequence[Route],
-    *,
-    labels: Sequence[str] | None = None,
-    weather: WeatherSource | None = None,
-    failure: FailureModel | None = None,
-    zones: Sequence[Any] = (),
-    title: str | None = None,
-    path: str | os.PathLike[str] | None = None,
-    coast: bool = True,
-) -> Figure:
-    """Draw one or more routes over the grid extent, the weather patches and the failure-criteria shading.
+def _draw_failure(ax: Axes, fig: Figure, grid: Grid, weather: WeatherSource, failure: FailureModel) -> None:
+    """Shade where the failure model's criteria fire (count of fired criteria, course heading)."""
+    glon, glat, _, fired = failure_field(grid, weather, failure)
+    levels = np.arange(0.5, max(int(np.nanmax(fired)), 1) + 1.5)
+    if np.nanmax(fired) > 0:
+        cs = ax.contourf(glon, glat, fired, levels=levels, cmap="Reds", alpha=0.45)
+        cb = fig.colorbar(cs, ax=ax, shrink=0.7, ticks=np.arange(1, levels.size))
+        cb.set_label(f"criteria of '{failure.name}' fired (course heading)")
 
-    With ``path`` the PNG is written atomically and the figure closed.
-    """
-    plt = _pyplot()
-    grid = routes[0].grid
-    view = _unwrap(grid.start[0])  # continuous longitudes across the antimeridian
+
+def _draw_zones(ax: Axes, zones: Sequence[Any], view: Any) -> None:
     import shapely
 
-    fig, ax = plt.subplots(figsize=(9, 6.5), dpi=110)
-    if failure is not None and weather is not None:
-        glon, glat, p, fired = failure_field(grid, weather, failure)
-        levels = np.arange(0.5, max(int(np.nanmax(fired)), 1) + 1.5)
-        if np.nanmax(fired) > 0:
-            cs = ax.contourf(glon, glat, fired, levels=levels, cmap="Reds", alpha=0.45)
-            cb = fig.colorbar(cs, ax=ax, shrink=0.7, ticks=np.arange(1, levels.size))
-            cb.set_label(f"criteria of '{failure.name}' fired (course heading)")
-    if coast:
-        _draw_coast(ax, grid)
     for zone in zones:
         shape = shapely.transform(
-            getattr(zone, "geometry", zone), lambda xy: np.column_stack([view(xy[:, 0]), xy[:, 1]])
+            zone.geometry if isinstance(zone, Zone) else zone,
+            lambda xy: np.column_stack([view(xy[:, 0]), xy[:, 1]]),
         )
         _fill_polygons(ax, shape, facecolor="tab:purple", alpha=0.25, linewidth=0.8, edgecolor="tab:purple")
-    _draw_grid_outline(ax, grid)
-    if weather is not None:
-        _draw_patches(ax, weather, view)
-    labels = list(labels) if labels is not None else [f"route {i + 1}" for i in range(len(routes))]
+
+
+def _draw_tracks(ax: Axes, routes: Sequence[Route], labels: Sequence[str], view: Any) -> None:
+    """Each route's track, and for a refined route the grid's own track before refinement (thin, dotted)."""
     for i, (route, label) in enumerate(zip(routes, labels, strict=True)):
-        before = route.meta.get("grid_track_object")
+        before = route.grid_track
         if before is not None:  # a refined route: the grid's own track, thin, for comparison
             ax.plot(
-                view(before[0]),
-                before[1],
+                view(before.lon_deg),
+                before.lat_deg,
                 color=_COLOURS[i % len(_COLOURS)],
                 lw=0.8,
                 ls=":",
-                label=f"{label} on the grid, before refinement: {before[2]:.1f} h",
+                label=f"{label} on the grid, before refinement: {before.voyage_time_h:.1f} h",
             )
         ax.plot(
             view(route.lon_deg),
@@ -212,6 +179,10 @@ def plot_routes(
             lw=1.6,
             label=f"{label}{' (refined)' if before is not None else ''}: {route.voyage_time_h:.1f} h",
         )
+
+
+def _draw_marks(ax: Axes, routes: Sequence[Route], grid: Grid, view: Any) -> None:
+    """Start and finish lines and points."""
     if grid.start_lon is not None and grid.start_lat is not None:
         ax.plot(view(grid.start_lon), grid.start_lat, "k-", lw=2.5, label="start line")
     if grid.finish_line is not None:
@@ -220,15 +191,19 @@ def plot_routes(
         ax.plot(view(f_lon), f_lat, "k-", lw=2.5, label="finish line")
     ax.plot(view(routes[0].lon_deg[0]), routes[0].lat_deg[0], "k^", ms=7, label="start")
     ax.plot(view(routes[0].lon_deg[-1]), routes[0].lat_deg[-1], "ks", ms=7, label="finish")
+
+
+def _frame(ax: Axes, routes: Sequence[Route], grid: Grid, weather: WeatherSource | None, view: Any) -> None:
+    """Axes labels, and limits framing the routes, patches and lines (the grid outline may extend beyond: it is
+    clipped)."""
     ax.set_xlabel("longitude [deg]")
     from matplotlib.ticker import FuncFormatter
 
     ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{(x + 180.0) % 360.0 - 180.0:g}"))  # -175, not 185
     ax.set_ylabel("latitude [deg]")
-    # frame the routes, patches and zones (the grid outline may extend beyond: it is clipped)
     xs = [view(r.lon_deg) for r in routes]
     ys = [np.asarray(r.lat_deg) for r in routes]
-    for patch in getattr(weather, "patches", ()) if weather is not None else ():
+    for patch in _patches(weather):
         xs.append(view(np.asarray(patch.lon)))
         ys.append(np.asarray(patch.lat))
     if grid.finish_line is not None:
@@ -244,6 +219,48 @@ def plot_routes(
     ax.set_ylim(float(y_all.min()) - pad_y, float(y_all.max()) + pad_y)
     mid_lat = 0.5 * (grid.lat_deg.min() + grid.lat_deg.max())
     ax.set_aspect(1.0 / np.cos(np.radians(mid_lat)))
+
+
+def plot_routes(
+    routes: Sequence[Route],
+    *,
+    labels: Sequence[str] | None = None,
+    weather: WeatherSource | None = None,
+    failure: FailureModel | None = None,
+    zones: Sequence[Any] = (),
+    title: str | None = None,
+    path: str | os.PathLike[str] | None = None,
+    coast: bool = True,
+) -> Figure:
+    """Draw one or more routes over the grid extent, the weather patches and the failure-criteria shading.
+
+    Parameters
+    ----------
+    routes : The routes; the first one's grid gives the extent, start and finish.
+    labels : Legend label of each route (default ``route 1``, ``route 2``, ...).
+    weather, failure : With both, the failure criteria fired are shaded (:func:`~pyroute_rel.risk.failure_field`);
+        a uniform weather's patches are drawn.
+    zones : Exclusion zones (:class:`~pyroute_rel.obstacles.zones.Zone` or shapely geometries [deg]).
+    title : Figure title (default: the grid's size).
+    path : With a path the PNG is written atomically and the figure closed.
+    coast : Draw the coastline (GSHHG; skipped when unavailable).
+    """
+    plt = _pyplot()
+    grid = routes[0].grid
+    view = _unwrap(grid.start[0])  # continuous longitudes across the antimeridian
+    fig, ax = plt.subplots(figsize=(9, 6.5), dpi=110)
+    if failure is not None and weather is not None:
+        _draw_failure(ax, fig, grid, weather, failure)
+    if coast:
+        _draw_coast(ax, grid)
+    _draw_zones(ax, zones, view)
+    _draw_grid_outline(ax, grid)
+    if weather is not None:
+        _draw_patches(ax, weather, view)
+    labels = list(labels) if labels is not None else [f"route {i + 1}" for i in range(len(routes))]
+    _draw_tracks(ax, routes, labels, view)
+    _draw_marks(ax, routes, grid, view)
+    _frame(ax, routes, grid, weather, view)
     ax.grid(True, lw=0.3)
     ax.legend(fontsize=7, loc="best")
     ax.set_title(title or f"{grid.n_ranks} ranks x {grid.n_nodes} nodes")
@@ -258,18 +275,16 @@ def plot_routes(
 
 
 def plot_route(route: Route, *, path: str | os.PathLike[str] | None = None, title: str | None = None) -> Figure:
-    """Map of one route with the scenario's patches and failure shading (when the route knows them)."""
-    extra = route.meta.get("weather_object")
-    failure = route.meta.get("failure_object")
+    """Map of one route with its weather's patches, the failure shading and the zones it avoided."""
     t = title or (
         f"{route.voyage_time_h:.1f} h, apf {route.meta.get('apf', 1.0):g}, max p_f {route.max_failure_probability:.2f}"
     )
     return plot_routes(
         [route],
         labels=["route"],
-        weather=extra,
-        failure=failure,
+        weather=route.weather,
+        failure=route.failure,
         title=t,
         path=path,
-        zones=route.meta.get("zones_object", ()),
+        zones=route.zones,
     )

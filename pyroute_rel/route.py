@@ -12,6 +12,7 @@ indicator for comparing routes on the same grid, not as a calibrated probability
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, Any
 
@@ -19,16 +20,28 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .cost import arc_quantities
+from .cost import REASONS, arc_quantities
 from .errors import NoFeasibleRouteError
-from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, leg_costs
+from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, grid_geometry, leg_costs
 from .times import hours_after, iso_utc
 
 if TYPE_CHECKING:
+    from .failure import FailureModel
     from .grid import Grid
-    from .weather import Conditions
+    from .obstacles.zones import Zone
+    from .weather import Conditions, WeatherSource
 
-__all__ = ["Route", "build_route", "join_routes", "route_on_grid", "LEG_FIELDS"]
+__all__ = [
+    "Route",
+    "Legs",
+    "GridTrack",
+    "ForbiddenArcs",
+    "build_route",
+    "join_routes",
+    "route_on_grid",
+    "forbidden_on_grid",
+    "LEG_FIELDS",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -49,33 +62,181 @@ LEG_FIELDS = (
 
 
 @dataclass(frozen=True, eq=False)
+class Legs(Mapping[str, FloatArray]):
+    """Per-leg conditions of a route: one value per leg, a leg joining two consecutive track points.
+
+    Each attribute is a float array with one fewer value than the track has points. The conditions are those at
+    the leg's midpoint and mid-time (where the data have a hole at the midpoint that the leg's cost samples
+    straddle, at the sample nearest it). A ``Legs`` is also a read-only mapping, ``legs["time_h"]``, in the order
+    below.
+
+    Attributes
+    ----------
+    distance_nm : Great-circle length of the leg [nm].
+    time_h : Sailing time [h] (waits excluded).
+    sog_kn : Mean speed over ground while sailing [kn].
+    course_deg : Course over ground, clockwise from true north [deg].
+    tws_kn : True wind speed [kn].
+    twd_deg : True wind direction, where it blows from [deg].
+    twa_deg : True wind angle, in [0, 180] [deg].
+    hs_m : Significant wave height [m].
+    wave_dir_deg : Mean wave direction, where the waves come from [deg].
+    awd_deg : Apparent wave direction (0 = head seas) [deg].
+    p_f : The leg's largest failure probability (0 without a failure model).
+    wait_h : Wait at the leg's start before sailing it [h].
+    """
+
+    distance_nm: FloatArray
+    time_h: FloatArray
+    sog_kn: FloatArray
+    course_deg: FloatArray
+    tws_kn: FloatArray
+    twd_deg: FloatArray
+    twa_deg: FloatArray
+    hs_m: FloatArray
+    wave_dir_deg: FloatArray
+    awd_deg: FloatArray
+    p_f: FloatArray
+    wait_h: FloatArray
+
+    def __post_init__(self) -> None:
+        n = None
+        for name in self:
+            values = np.asarray(vars(self)[name], dtype=float)
+            if values.ndim != 1 or (n is not None and values.size != n):
+                raise ValueError(f"Legs.{name} must be a 1-D array of {n} values, one per leg (got {values.shape})")
+            n = values.size
+            object.__setattr__(self, name, values)
+
+    def __getitem__(self, key: str) -> FloatArray:
+        if key not in LEG_FIELDS:
+            raise KeyError(key)
+        return vars(self)[key]  # type: ignore[no-any-return]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(_LEG_ORDER)
+
+    def __len__(self) -> int:
+        return len(_LEG_ORDER)
+
+    __eq__ = object.__eq__  # identity, as for Route (a mapping's == would compare arrays)
+    __hash__ = object.__hash__
+
+    @property
+    def n_legs(self) -> int:
+        """Number of legs."""
+        return int(self.time_h.size)
+
+
+#: The order of :class:`Legs`' fields (``LEG_FIELDS`` is the CSV's, with the wait first).
+_LEG_ORDER = tuple(f.name for f in fields(Legs))
+
+
+@dataclass(frozen=True)
+class GridTrack:
+    """The track on the grid routed on, before refinement (:mod:`pyroute_rel.refine`): points [deg] and voyage
+    time [h]."""
+
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    voyage_time_h: float
+
+
+@dataclass(frozen=True)
+class ForbiddenArcs:
+    """Arcs of a route's grid that the failure model, the weather, the polar, currents or obstacles forbade.
+
+    Every attribute is an array with one value per arc (see :meth:`Route.forbidden_arcs`).
+
+    Attributes
+    ----------
+    leg : Which leg of a course through waypoints the arc belongs to (0 without waypoints).
+    rank : Rank the arc goes into (0 = from the start, ``grid.n_ranks`` = into the finish).
+    src, dst : Node index the arc leaves on the previous rank (a start point at rank 0) and reaches on ``rank``
+        (0 for the finish).
+    from_lon_deg, from_lat_deg, to_lon_deg, to_lat_deg : The arc's end points [deg].
+    departure_h : When the arc is sailed [h after the route's departure]: the DP's arrival time at its source.
+    departure : The same time (UTC), to the second.
+    p_f : The arc's largest failure probability at that time (NaN where the weather is missing).
+    reason : Why it is forbidden: names of :data:`~pyroute_rel.cost.REASONS` joined by ``+`` (e.g.
+        ``"failure"``, ``"failure+obstacle"``).
+    criteria : For arcs the failure model forbids, the criteria that fired along them (their descriptions joined
+        by ``"; "``, e.g. ``"WH: hs_m >= 4 m"``); ``""`` otherwise.
+    """
+
+    leg: npt.NDArray[np.intp]
+    rank: npt.NDArray[np.intp]
+    src: npt.NDArray[np.intp]
+    dst: npt.NDArray[np.intp]
+    from_lon_deg: FloatArray
+    from_lat_deg: FloatArray
+    to_lon_deg: FloatArray
+    to_lat_deg: FloatArray
+    departure_h: FloatArray
+    departure: npt.NDArray[np.datetime64]
+    p_f: FloatArray
+    reason: npt.NDArray[np.str_]
+    criteria: npt.NDArray[np.str_]
+
+    def __len__(self) -> int:
+        return int(self.rank.size)
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """The columns by name (e.g. for ``pandas.DataFrame(route.forbidden_arcs().as_dict())``)."""
+        return {f.name: vars(self)[f.name] for f in fields(self)}
+
+
+@dataclass(frozen=True, eq=False)
 class Route:
-    """A routed voyage.
+    """A routed voyage: what :meth:`pyroute_rel.scenario.Scenario.route` returns.
 
     Attributes
     ----------
     lon_deg, lat_deg : Track points [deg]: start, one node per rank, finish.
     elapsed_h : Time at each track point since departure [h].
     departure : Departure time (UTC).
-    legs : Per-leg arrays (one fewer than points): ``distance_nm`` [nm], ``time_h`` [h], ``sog_kn`` mean speed
-        over ground [kn], ``course_deg`` [deg], and at the leg's midpoint and mid-time ``tws_kn``, ``twd_deg``,
-        ``twa_deg``, ``hs_m``, ``wave_dir_deg``, ``awd_deg`` (where the data have a hole at the midpoint that the
-        leg's cost samples straddle, at the sample nearest it); ``p_f`` the leg's largest failure probability.
+    legs : Per-leg conditions (one fewer than points), :class:`Legs`: typed arrays with units, also readable as
+        ``legs["time_h"]``.
     nodes : Node index on each rank.
-    grid : The grid routed on.
-    dp : The raw DP result.
-    meta : Scenario details for reports (polar, failure model, apf, ...).
+    grid : The grid routed on (the first leg's for a course through waypoints: see :attr:`grids`).
+    dp : The raw DP result on :attr:`grid`.
+    problem : The routing problem solved on :attr:`grid` (weather, polar, failure model, apf, obstacles).
+    meta : Scenario details for the JSON summary (polar, failure model name, apf, refinement levels, ...): plain
+        JSON values only; the objects a route knows are attributes.
+    zones : The exclusion zones avoided (for maps).
+    course_legs : For a course through waypoints, the route of each leg between consecutive marks (empty
+        otherwise).
+    grid_track : For a refined route, the track on the grid routed on before refinement (None otherwise).
     """
 
     lon_deg: FloatArray
     lat_deg: FloatArray
     elapsed_h: FloatArray
     departure: np.datetime64
-    legs: dict[str, FloatArray]
+    legs: Legs
     nodes: npt.NDArray[np.intp]
     grid: Grid
     dp: DPResult
+    problem: RoutingProblem
     meta: dict[str, Any] = field(default_factory=dict)
+    zones: tuple[Zone, ...] = ()
+    course_legs: tuple[Route, ...] = ()
+    grid_track: GridTrack | None = None
+
+    @property
+    def weather(self) -> WeatherSource:
+        """The weather routed in."""
+        return self.problem.weather
+
+    @property
+    def failure(self) -> FailureModel | None:
+        """The failure model (None without one)."""
+        return self.problem.failure
+
+    @property
+    def grids(self) -> tuple[Grid, ...]:
+        """The grid of each leg of the course (one grid without waypoints)."""
+        return tuple(r.grid for r in self.course_legs) if self.course_legs else (self.grid,)
 
     @property
     def voyage_time_h(self) -> float:
@@ -85,7 +246,7 @@ class Route:
     @property
     def distance_nm(self) -> float:
         """Sailed great-circle distance along the track [nm]."""
-        return float(self.legs["distance_nm"].sum())
+        return float(self.legs.distance_nm.sum())
 
     @property
     def time(self) -> npt.NDArray[np.datetime64]:
@@ -101,12 +262,12 @@ class Route:
     @property
     def max_failure_probability(self) -> float:
         """Largest leg failure probability."""
-        return float(np.max(self.legs["p_f"]))
+        return float(np.max(self.legs.p_f))
 
     @property
     def voyage_failure_probability(self) -> float:
         """``1 - prod(1 - p_f)`` over legs (legs assumed independent; see the module notes)."""
-        return float(1.0 - np.prod(1.0 - self.legs["p_f"]))
+        return float(1.0 - np.prod(1.0 - self.legs.p_f))
 
     @property
     def touches_edge(self) -> bool:
@@ -114,18 +275,55 @@ class Route:
         n = self.grid.n_nodes
         return n > 2 and bool(np.any((self.nodes == 0) | (self.nodes == n - 1)))
 
+    def forbidden_arcs(self) -> ForbiddenArcs:
+        """The arcs the DP found forbidden, each at the time the DP sails it: from every node it reached.
+
+        Each arc of the grid leaving a node the DP reached is costed again at the DP's arrival time there (and
+        after each wait the problem allows: an arc is listed when it is forbidden at every departure time tried),
+        with the problem's weather, polar, failure model, apf and obstacles. Arcs the DP skipped by pruning are
+        costed too, so the table may hold more arcs than ``dp.arcs_forbidden`` counts (``prune = false`` makes
+        them agree). With a finish line, ranks whose every node is reached after the voyage ends are left out. A
+        course through waypoints lists every leg's grid (column ``leg``); a refined route, the grid routed on.
+
+        Returns
+        -------
+        ForbiddenArcs
+            One row per forbidden arc, in the order leg, rank, destination node, source node.
+
+        Examples
+        --------
+        >>> from pyroute_rel import scenario_from_mapping
+        >>> sc = scenario_from_mapping({
+        ...     "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0]}, "grid": {"n_ranks": 20},
+        ...     "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0, "hs_m": 1.0,
+        ...                 "patch": [{"lon": [-17.0, -15.0], "lat": [41.0, 44.0], "hs_m": 4.5}]},
+        ...     "avoid": {"land": False}, "failure": {"model": "dickson2018", "apf": 0.5}})
+        >>> route = sc.route()
+        >>> arcs = route.forbidden_arcs()
+        >>> len(arcs), int(arcs.rank[0]), str(arcs.reason[0]), str(arcs.criteria[0]), str(arcs.departure[0])
+        (775, 6, 'failure', 'WH: hs_m >= 4 m', '2018-06-02T07:44:06')
+        """
+        parts = self.course_legs or (self,)
+        offsets = [float((r.departure - self.departure) / np.timedelta64(1, "s")) / 3600.0 for r in parts]
+        tables = [
+            forbidden_on_grid(r.grid, r.problem, r.dp, leg=i, offset_h=o)
+            for i, (r, o) in enumerate(zip(parts, offsets, strict=True))
+        ]
+        return ForbiddenArcs(
+            **{f.name: np.concatenate([vars(t)[f.name] for t in tables]) for f in fields(ForbiddenArcs)}
+        )
+
     def _legs_grids(self) -> dict[str, Any]:
         """For a course through waypoints: the ranks of all legs and each leg's grid (the other keys are the first
         leg's)."""
-        grids = self.meta.get("grids_object")
-        if not grids:
+        if not self.course_legs:
             return {}
-        return {"n_ranks": sum(g.n_ranks for g in grids), "legs": [g.describe() for g in grids]}
+        return {"n_ranks": sum(g.n_ranks for g in self.grids), "legs": [g.describe() for g in self.grids]}
 
     def summary(self) -> dict[str, Any]:
         """The JSON contract of ``pyroute-rel route --json`` (see the README)."""
         times = self.time
-        p_point = np.concatenate([[0.0], self.legs["p_f"]])
+        p_point = np.concatenate([[0.0], self.legs.p_f])
         return {
             "voyage_time_h": self.voyage_time_h,
             "distance_nm": self.distance_nm,
@@ -152,7 +350,7 @@ class Route:
             },
             "max_failure_probability": self.max_failure_probability,
             "voyage_failure_probability": self.voyage_failure_probability,
-            **{k: v for k, v in self.meta.items() if not k.endswith("_object")},
+            **self.meta,
             "track": [
                 {"lon": float(lo), "lat": float(la), "time": iso_utc(t), "p_f": float(p)}
                 for lo, la, t, p in zip(self.lon_deg, self.lat_deg, times, p_point, strict=True)
@@ -162,7 +360,7 @@ class Route:
 
 def _sample(problem: RoutingProblem, lon: FloatArray, lat: FloatArray, t_h: FloatArray) -> Conditions:
     """The problem's weather at points and times [h after departure] (at the departure when it is steady)."""
-    if getattr(problem.weather, "steady", False):
+    if problem.weather.steady:
         return problem.weather.sample(lon, lat, problem.departure)
     return problem.weather.sample(lon, lat, hours_after(problem.departure, np.asarray(t_h, dtype=float)))
 
@@ -212,31 +410,29 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         i = np.flatnonzero(hole)
         slon, slat = geodesy.intermediate_point(lon[i], lat[i], lon[i + 1], lat[i + 1], frac)
         at = _sample(problem, slon, slat, (elapsed[:-1] + waits)[i] + frac * costs.time_h[i])
-        cond = replace(cond, **{f.name: _put(getattr(cond, f.name), i, getattr(at, f.name)) for f in fields(cond)})
+        cond = replace(cond, **{f.name: _put(vars(cond)[f.name], i, vars(at)[f.name]) for f in fields(cond)})
         course = course.copy()
         course[i] = geodesy.initial_bearing_deg(slon, slat, lon[i + 1], lat[i + 1])
     q = arc_quantities(cond, course)
-    legs = {
-        "distance_nm": dist,
-        "time_h": costs.time_h,
-        "sog_kn": dist / costs.time_h,  # while sailing (waits excluded)
-        "course_deg": course,
-        "tws_kn": np.asarray(cond.tws_kn, dtype=float),
-        "twd_deg": np.asarray(cond.twd_deg, dtype=float),
-        "twa_deg": q["twa_deg"],
-        "hs_m": np.asarray(cond.hs_m, dtype=float),
-        "wave_dir_deg": np.asarray(cond.wave_dir_deg, dtype=float),
-        "awd_deg": q["awd_deg"],
-        "p_f": np.asarray(costs.p_f, dtype=float),
-        "wait_h": waits,
-    }
+    legs = Legs(
+        distance_nm=dist,
+        time_h=costs.time_h,
+        sog_kn=dist / costs.time_h,  # while sailing (waits excluded)
+        course_deg=course,
+        tws_kn=np.asarray(cond.tws_kn, dtype=float),
+        twd_deg=np.asarray(cond.twd_deg, dtype=float),
+        twa_deg=q["twa_deg"],
+        hs_m=np.asarray(cond.hs_m, dtype=float),
+        wave_dir_deg=np.asarray(cond.wave_dir_deg, dtype=float),
+        awd_deg=q["awd_deg"],
+        p_f=np.asarray(costs.p_f, dtype=float),
+        wait_h=waits,
+    )
     meta: dict[str, Any] = {
         "apf": float(problem.apf),
         "failure_model": None if problem.failure is None else problem.failure.name,
         "polar": problem.polar.name,
         "samples_per_arc": problem.samples,
-        "weather_object": problem.weather,
-        "failure_object": problem.failure,
     }
     return Route(
         lon_deg=lon,
@@ -247,14 +443,16 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         nodes=nodes,
         grid=grid,
         dp=result,
+        problem=problem,
         meta=meta,
     )
 
 
 def join_routes(routes: list[Route]) -> Route:
-    """One Route from legs sailed one after the other (each starting where and when the previous ended)."""
-    from dataclasses import replace as _replace
+    """One Route from legs sailed one after the other (each starting where and when the previous ended).
 
+    The legs' routes are kept in :attr:`Route.course_legs`; the grid, problem and obstacles are the first leg's.
+    """
     first = routes[0]
     lon = _chain([r.lon_deg for r in routes])
     lat = _chain([r.lat_deg for r in routes])
@@ -264,8 +462,8 @@ def join_routes(routes: list[Route]) -> Route:
     elapsed = np.concatenate(
         [first.elapsed_h, *(o + r.elapsed_h[1:] for o, r in zip(offsets[1:], routes[1:], strict=True))]
     )
-    legs = {k: np.concatenate([r.legs[k] for r in routes]) for k in first.legs}
-    dp = _replace(
+    legs = Legs(**{k: np.concatenate([r.legs[k] for r in routes]) for k in first.legs})
+    dp = replace(
         first.dp,
         arcs_evaluated=sum(r.dp.arcs_evaluated for r in routes),
         arcs_pruned=sum(r.dp.arcs_pruned for r in routes),
@@ -278,9 +476,9 @@ def join_routes(routes: list[Route]) -> Route:
         },
     )
     meta = dict(first.meta)
-    meta.update(_joined_refinement(routes))
+    refined, grid_track = _joined_refinement(routes)
+    meta.update(refined)
     meta["legs_of_course"] = len(routes)
-    meta["grids_object"] = [r.grid for r in routes]
     return Route(
         lon_deg=lon,
         lat_deg=lat,
@@ -290,7 +488,11 @@ def join_routes(routes: list[Route]) -> Route:
         nodes=np.concatenate([r.nodes for r in routes]),
         grid=first.grid,
         dp=dp,
+        problem=first.problem,
         meta=meta,
+        zones=first.zones,
+        course_legs=tuple(routes),
+        grid_track=grid_track,
     )
 
 
@@ -299,13 +501,13 @@ def _chain(tracks: list[FloatArray]) -> FloatArray:
     return np.concatenate([tracks[0], *(t[1:] for t in tracks[1:])])
 
 
-def _joined_refinement(routes: list[Route]) -> dict[str, Any]:
+def _joined_refinement(routes: list[Route]) -> tuple[dict[str, Any], GridTrack | None]:
     """``meta["refine"]`` and the grid track of a course whose legs were refined (:mod:`pyroute_rel.refine`): level
     i's voyage time sums every leg's time after its level i (a leg that stopped earlier counts its best), its arcs
     the arcs the legs costed at that level, its half-width and spacing are the widest legs'."""
     infos = [r.meta.get("refine") for r in routes]
     if not any(infos):
-        return {}
+        return {}, None
     n = max(len(i["levels"]) for i in infos if i)
     levels = []
     for k in range(n):
@@ -320,8 +522,90 @@ def _joined_refinement(routes: list[Route]) -> dict[str, Any]:
                 "arcs_evaluated": sum(i["levels"][k]["arcs_evaluated"] for i in infos if i and k < len(i["levels"])),
             }
         )
-    tracks = [r.meta.get("grid_track_object") or (r.lon_deg, r.lat_deg, r.voyage_time_h) for r in routes]
-    lon = _chain([t[0] for t in tracks])
-    lat = _chain([t[1] for t in tracks])
+    tracks = [r.grid_track or GridTrack(r.lon_deg, r.lat_deg, r.voyage_time_h) for r in routes]
+    lon = _chain([t.lon_deg for t in tracks])
+    lat = _chain([t.lat_deg for t in tracks])
     grid_h = sum(i["grid_voyage_time_h"] if i else r.voyage_time_h for i, r in zip(infos, routes, strict=True))
-    return {"refine": {"levels": levels, "grid_voyage_time_h": grid_h}, "grid_track_object": (lon, lat, grid_h)}
+    return {"refine": {"levels": levels, "grid_voyage_time_h": grid_h}}, GridTrack(lon, lat, grid_h)
+
+
+def forbidden_on_grid(
+    grid: Grid, problem: RoutingProblem, result: DPResult, *, leg: int = 0, offset_h: float = 0.0
+) -> ForbiddenArcs:
+    """The forbidden arcs of one grid's DP (see :meth:`Route.forbidden_arcs`).
+
+    Parameters
+    ----------
+    grid, problem, result : The grid, the routing problem solved on it and its DP result.
+    leg : Value of the ``leg`` column [-].
+    offset_h : Added to ``departure_h``: the problem's departure after the voyage's [h].
+    """
+    blocks = []
+    for k in range(grid.n_ranks + 1):
+        t_prev = np.zeros(grid.start_points[0].size) if k == 0 else result.arrival_h[k - 1]
+        if not np.isfinite(t_prev).any():
+            break  # the front died
+        if grid.finish_line is not None and k > 0 and np.all(t_prev >= result.finish_h):
+            break  # every node reached after the voyage ended: the DP stopped
+        blocks.append(_forbidden_into(grid, problem, k, t_prev))
+    keys = ("rank", "src", "dst", "from_lon_deg", "from_lat_deg", "to_lon_deg", "to_lat_deg", "departure_h", "p_f")
+    cols = {key: np.concatenate([np.zeros(0), *(b[key] for b in blocks)]) for key in (*keys, "reason", "fired")}
+    names = [] if problem.failure is None else [c.describe() for c in problem.failure.criteria]
+    reasons = cols["reason"].astype(np.int64)
+    fired = cols["fired"].astype(np.int64)
+    return ForbiddenArcs(
+        leg=np.full(reasons.size, leg, dtype=np.intp),
+        **{key: cols[key].astype(np.intp) for key in keys[:3]},
+        **{key: cols[key] for key in keys[3:7]},
+        departure_h=offset_h + cols["departure_h"],
+        departure=np.datetime64(problem.departure, "s")
+        + np.round(cols["departure_h"] * 3600.0).astype("timedelta64[s]"),
+        p_f=cols["p_f"],
+        reason=np.array(["+".join(n for n, bit in REASONS.items() if r & bit) for r in reasons], dtype=str),
+        criteria=np.array(
+            [
+                "; ".join(c for i, c in enumerate(names) if (f >> i) & 1) if r & REASONS["failure"] else ""
+                for f, r in zip(fired, reasons, strict=True)
+            ],
+            dtype=str,
+        ),
+    )
+
+
+def _forbidden_into(grid: Grid, problem: RoutingProblem, k: int, t_prev: FloatArray) -> dict[str, np.ndarray]:
+    """The forbidden arcs into rank k as columns (``reason`` and ``fired`` as bit codes), costed like the DP."""
+    src, valid = grid.pattern(k)
+    t_src = t_prev[src]
+    live = valid & np.isfinite(t_src)
+    t_src = np.where(live, t_src, 0.0)
+    geom = grid_geometry(grid, k, problem.samples)
+    step = problem.time_step_h or 0.0
+    reason = np.zeros(live.shape, dtype=np.uint8)
+    allowed = np.zeros(live.shape, dtype=bool)
+    for w in range(problem.n_wait + 1):
+        t0 = t_src + w * step
+        costs = problem.geometry_costs(geom, t0)
+        r_w = np.where(live, costs.reason, 0).astype(np.uint8)
+        if problem.blocked is not None:
+            hit = problem.blocked(k, hours_after(problem.departure, t0)) & live
+            r_w = r_w | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
+        if w == 0:
+            p_f, fired = np.broadcast_to(costs.p_f, live.shape), costs.bits()
+        reason = reason | r_w  # forbidden when forbidden at every departure time tried
+        allowed |= live & (r_w == 0)
+    bad = live & ~allowed
+    dst, col = np.nonzero(bad)
+    lon0, lat0, lon1, lat1, _, _ = grid.arcs(k)
+    return {
+        "rank": np.full(dst.size, k),
+        "src": src[dst, col],
+        "dst": dst,
+        "from_lon_deg": np.broadcast_to(lon0, live.shape)[bad],
+        "from_lat_deg": np.broadcast_to(lat0, live.shape)[bad],
+        "to_lon_deg": np.broadcast_to(lon1, live.shape)[bad],
+        "to_lat_deg": np.broadcast_to(lat1, live.shape)[bad],
+        "departure_h": t_src[bad],
+        "p_f": p_f[bad],
+        "reason": reason[bad],
+        "fired": fired[bad],
+    }

@@ -79,7 +79,7 @@ def test_a_refined_route_map_draws_the_grid_track_too() -> None:
         before = [k for k in lines if "before refinement" in k]
         assert len(before) == 1 and f"{route.meta['refine']['grid_voyage_time_h']:.1f} h" in before[0]
         assert "route (refined): " + f"{route.voyage_time_h:.1f} h" in lines
-        np.testing.assert_array_equal(lines[before[0]].get_xdata(), route.meta["grid_track_object"][0])
+        np.testing.assert_array_equal(lines[before[0]].get_xdata(), route.grid_track.lon_deg)
     finally:
         plt.close(fig)
 

@@ -253,9 +253,9 @@ def test_refining_a_course_with_a_waypoint_refines_each_leg() -> None:
     # the track still passes the mark
     mark = np.flatnonzero((np.abs(refined.lon_deg + 35.0) < 1e-9) & (np.abs(refined.lat_deg - 38.0) < 1e-9))
     assert mark.size == 1
-    lon, lat, grid_h = refined.meta["grid_track_object"]
-    np.testing.assert_array_equal(lon, plain.lon_deg)
-    assert grid_h == info["grid_voyage_time_h"]
+    track = refined.grid_track
+    np.testing.assert_array_equal(track.lon_deg, plain.lon_deg)
+    assert track.voyage_time_h == info["grid_voyage_time_h"]
 
 
 def test_refine_refuses_results_and_settings_that_cannot_work() -> None:

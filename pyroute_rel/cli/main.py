@@ -196,6 +196,8 @@ def _cmd_route(args: argparse.Namespace) -> int:
             "larger spacing_km) to check that a wider detour is not faster",
             file=sys.stderr,
         )
+    for note in scenario.notes:  # how the file was read (a time without a zone): with the result, even if --quiet
+        print(f"pyroute-rel: note: {note}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
     else:
