@@ -201,8 +201,6 @@ def _code_lines(path: Path) -> dict[str, int]:
 LONG_FUNCTIONS: dict[str, str] = {
     "pyroute_rel.cost.geometry_costs": "to split",
     "pyroute_rel.failure._check_structure": "to split",
-    "pyroute_rel.gci.numbers.grid_convergence": "to split",
-    "pyroute_rel.gci.numbers.least_squares_convergence": "to split",
     "pyroute_rel.obstacles.strips._shadows": "to split",
     "pyroute_rel.plot.plot_routes": "to split",
     "pyroute_rel.scenario._parse": "to split",
