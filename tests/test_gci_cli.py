@@ -85,6 +85,7 @@ def test_routed_square_study_equals_routing_each_grid(capsys: pytest.CaptureFixt
         assert g["voyage_time_h"] == pytest.approx(forward_dp(grid, sc.problem(grid=grid)).finish_h, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_angular_refinement_converges_where_the_square_grid_does_not(capsys: pytest.CaptureFixture[str]) -> None:
     """Issue acceptance: on the example at apf 0.5 the angular path is monotonic with GCI_fine < 1 %, while the
     paper's square grids stay > 5 % above its extrapolated value (they cannot turn by less than 45 deg)."""

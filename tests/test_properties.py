@@ -113,6 +113,7 @@ def is_graph_path(grid: Grid, nodes: list[int]) -> bool:
 # 1. The DP is optimal: no path of the grid is faster
 
 
+@pytest.mark.slow
 @prop_settings(60)
 @given(data=st.data())
 def test_dp_is_no_slower_than_any_path(data: st.DataObject) -> None:
@@ -146,6 +147,7 @@ def _dp_key(grid: Grid, weather: UniformWeather, polar: Polar, samples: int) -> 
     return res.finish_h, res.arrival_h.tobytes()
 
 
+@pytest.mark.slow
 @prop_settings(40)
 @given(data=st.data())
 def test_dp_invariant_under_patch_order_and_far_patches(data: st.DataObject) -> None:
@@ -203,6 +205,7 @@ class VeeringWind:
         return None
 
 
+@pytest.mark.slow
 @prop_settings(40)
 @given(data=st.data())
 def test_route_times_are_consistent(data: st.DataObject) -> None:
@@ -347,6 +350,7 @@ def test_front_dying_at_the_finish_still_names_the_reason() -> None:
         route_on_grid(grid, problem)
 
 
+@pytest.mark.slow
 @prop_settings(40)
 @given(setup=nan_setups(), data=st.data())
 def test_nan_box_partly_across_is_avoided(setup: Any, data: st.DataObject) -> None:
