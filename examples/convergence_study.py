@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -185,7 +186,8 @@ def plot(results: dict, path: Path) -> None:
 def output_folder(ap: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
     """The folder to write into: --out, examples/figures/ with --figures, else examples/output/ (never both)."""
     if args.figures and args.out is not None:
-        ap.error("give --out or --figures, not both")
+        print(f"{ap.prog}: error: give --out or --figures, not both", file=sys.stderr)
+        raise SystemExit(2)
     out = HERE / "figures" if args.figures else Path(args.out) if args.out is not None else HERE / "output"
     out.mkdir(parents=True, exist_ok=True)
     return out

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from pyroute_rel.plot import plot_routes
@@ -106,7 +107,8 @@ def _areas_crossed(route, weather) -> list[str]:
 def output_folder(ap: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
     """The folder to write into: --out, examples/figures/ with --figures, else examples/output/ (never both)."""
     if args.figures and args.out is not None:
-        ap.error("give --out or --figures, not both")
+        print(f"{ap.prog}: error: give --out or --figures, not both", file=sys.stderr)
+        raise SystemExit(2)
     out = HERE / "figures" if args.figures else Path(args.out) if args.out is not None else HERE / "output"
     out.mkdir(parents=True, exist_ok=True)
     return out

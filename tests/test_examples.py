@@ -24,7 +24,7 @@ def _load(name: str):
 
 
 @pytest.mark.parametrize("name", SCRIPTS)
-def test_examples_write_to_their_output_folder(name: str, tmp_path: Path) -> None:
+def test_examples_write_to_their_output_folder(name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     module = _load(name)
     ap = argparse.ArgumentParser()
     assert module.output_folder(ap, argparse.Namespace(out=None, figures=False)) == EXAMPLES / "output"
@@ -34,6 +34,8 @@ def test_examples_write_to_their_output_folder(name: str, tmp_path: Path) -> Non
     with pytest.raises(SystemExit) as exc:
         module.output_folder(ap, argparse.Namespace(out=str(tmp_path / "p"), figures=True))
     assert exc.value.code == 2 and not (tmp_path / "p").exists()
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "give --out or --figures, not both" in err
     assert "/examples/output/" in (EXAMPLES.parent / ".gitignore").read_text().splitlines()
 
 
