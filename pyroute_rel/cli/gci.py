@@ -58,7 +58,8 @@ def add_gci_parser(
         "grid's aspect and doubles with every doubling of ranks (2, 4, 8 on 41,81,161 ranks: the finest grid is "
         "finer than the route's 6; from 6 it would be 24, with about 4x the arcs). The band is wider so that the "
         "coarse, low-aspect grids can still turn (at aspect 2 a 45 deg band holds only 2 arcs each side, 60 deg "
-        "holds 3), and the half-width, fixed along the path, keeps a margin over the route's.",
+        "holds 3), and the half-width, fixed along the path, keeps a margin over the route's. Each grid's runtime "
+        "(runtime_s) is its routing alone; loading the scenario and weather, done once, is not in it.",
     )
     s.add_argument("scenario", help="scenario TOML file")
     s.add_argument(

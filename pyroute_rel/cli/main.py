@@ -140,7 +140,11 @@ def _add_route_parser(sub: Any) -> None:
         "--no-prune costs every arc, e.g. to count all forbidden arcs ([route].prune)",
     )
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
-    r.add_argument("--out", help="folder for route.geojson, route.gpx, route.csv, summary.json, route.png")
+    r.add_argument(
+        "--out",
+        help="folder for route.geojson, route.gpx (the track with times and speeds, and a route of its turning "
+        "points for chart plotters such as OpenCPN), route.csv, summary.json, route.png",
+    )
     r.add_argument(
         "--json",
         action="store_true",
