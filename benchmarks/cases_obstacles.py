@@ -68,7 +68,7 @@ def first():
     p = replace(p, blocked=obstacle_mask(g, avoid))
     t0 = time.perf_counter(); r = forward_dp(g, p); return time.perf_counter() - t0, r
 
-dp_first_s = min(first()[0] for _ in range(3))
+dp_first_s = min(first()[0] for _ in range(repeats(3)))
 masked = replace(plain, blocked=mask)
 dp_again_s, res_m = best_of(lambda: forward_dp(grid, masked))
 shutil.rmtree(disk, ignore_errors=True)

@@ -1,5 +1,9 @@
 """Benchmarks of pyroute_rel's hot paths. Run: ``python benchmarks/run.py [--quick] [--only NAME ...]``.
 
+``--quick`` runs only :data:`QUICK_CASES` (four cases of a few seconds each, 10-20 s in all) and times
+each workload once instead of the best of 3 (7 interleaved pairs: 3): a smoke run and a rough figure, noisier than
+a full run.
+
 Each case runs in a fresh subprocess so that its peak memory (max RSS) is its own. Targets come from the
 issues; a case prints PASS/FAIL against its target, and the script exits non-zero if any target is missed
 (timings are machine-dependent: this is a benchmark, not a unit test, and CI does not run it). The first line
@@ -29,6 +33,10 @@ def case(name: str, target_s: float | None, what: str):
     return deco
 
 
+#: The cases ``--quick`` runs: each a few seconds, together the DP, a default route and the obstacle checks.
+QUICK_CASES = ("dp_all_to_all_80", "dp_all_to_all_160", "default_route_apf1", "obstacles_angular_160_land")
+
+#: Runs before every case (``QUICK`` is set in front of it: True with ``--quick``).
 PRELUDE = """
 import json, resource, time, sys
 import numpy as np
@@ -36,7 +44,10 @@ from pyroute_rel.scenario import load_scenario
 from pyroute_rel.solve import forward_dp
 def rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+def repeats(n):
+    return 1 if QUICK else n
 def best_of(fn, n=3):
+    n = repeats(n)
     ts = []
     for _ in range(n):
         t0 = time.perf_counter(); out = fn(); ts.append(time.perf_counter() - t0)
@@ -68,7 +79,7 @@ sc1 = load_scenario({str(EXAMPLE)!r}).with_options(layout="square", apf=0.5, lan
 g = sc0.make_grid(); p0 = sc0.problem(); p1 = sc1.problem()
 forward_dp(g, p0); forward_dp(g, p1)  # warm: arc geometry and the compiled table are cached
 a, b = [], []
-for _ in range(7):  # interleaved, so that a slow spell of the machine hits both sides alike
+for _ in range(3 if QUICK else 7):  # interleaved, so that a slow spell of the machine hits both sides alike
     t_ = time.perf_counter(); r0 = forward_dp(g, p0); a.append(time.perf_counter() - t_)
     t_ = time.perf_counter(); r1 = forward_dp(g, p1); b.append(time.perf_counter() - t_)
 t0, t1 = min(a), min(b)
@@ -165,9 +176,11 @@ def _load_case_files() -> None:
             CASES[name] = (textwrap.dedent(code), target, what)
 
 
-def run_case(name: str) -> dict:
+def run_case(name: str, *, quick: bool = False) -> dict:
+    """Run one case in a fresh interpreter (``quick``: each workload timed once); its JSON result with ``pass``."""
     code, target, what = CASES[name]
-    proc = subprocess.run([sys.executable, "-c", PRELUDE + code], capture_output=True, text=True, cwd=ROOT)
+    program = f"QUICK = {quick}\n" + PRELUDE + code
+    proc = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, cwd=ROOT)
     if proc.returncode != 0:
         return {"name": name, "error": proc.stderr.strip().splitlines()[-1] if proc.stderr else "failed"}
     out = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -183,6 +196,7 @@ _CALIBRATION = """
 import json, os, time
 import numpy as np, shapely
 def best(fn, n=5):
+    n = 2 if QUICK else n
     ts = []
     for _ in range(n):
         t0 = time.perf_counter(); fn(); ts.append(time.perf_counter() - t0)
@@ -198,10 +212,12 @@ print(json.dumps({"cores": os.cpu_count(),
 """
 
 
-def calibrate() -> dict:
+def calibrate(*, quick: bool = False) -> dict:
     """Time fixed workloads (numpy sort of 2 M floats, a 1 M-step Python loop, a GEOS buffer of a wiggly 40,000-vertex
-    ring), so figures from different days of this machine, whose speed drifts, can be compared."""
-    proc = subprocess.run([sys.executable, "-c", _CALIBRATION], capture_output=True, text=True, cwd=ROOT)
+    ring), so figures from different days of this machine, whose speed drifts, can be compared (best of 5; 2 with
+    ``quick``)."""
+    program = f"QUICK = {quick}\n" + _CALIBRATION
+    proc = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True, cwd=ROOT)
     if proc.returncode != 0:
         return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr else "failed"}
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -209,21 +225,27 @@ def calibrate() -> dict:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--only", nargs="*", help="case names (default: all)")
+    ap.add_argument("--only", nargs="*", help="case names (default: all; with --quick: the quick cases)")
+    ap.add_argument(
+        "--quick",
+        action="store_true",
+        help=f"a smoke run: only {', '.join(QUICK_CASES)} (unless --only), each workload timed once",
+    )
     ap.add_argument("--json", action="store_true", help="print one JSON list")
     args = ap.parse_args()
     _load_case_files()
-    names = args.only or list(CASES)
-    machine = calibrate()
+    names = args.only or (list(QUICK_CASES) if args.quick else list(CASES))
+    unknown = [n for n in names if n not in CASES]
+    if unknown:
+        print(f"benchmarks/run.py: unknown case {unknown[0]!r}; known: {', '.join(CASES)}", file=sys.stderr)
+        return 2
+    machine = calibrate(quick=args.quick)
     if not args.json:
         shown = (f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in machine.items())
         print("machine  " + ", ".join(shown))
     results = []
     for name in names:
-        if name not in CASES:
-            print(f"unknown case {name!r}; known: {', '.join(CASES)}", file=sys.stderr)
-            return 2
-        r = run_case(name)
+        r = run_case(name, quick=args.quick)
         results.append(r)
         if not args.json:
             if "error" in r:

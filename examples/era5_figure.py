@@ -1,7 +1,8 @@
 """Route the time-varying ERA5-layout example and draw it over the wind field.
 
 Run: ``python examples/era5_figure.py`` (generates ``examples/data/era5_synthetic.nc`` first when it is missing).
-Writes ``examples/figures/era5_route.png``: true wind speed (colour) and direction (arrows, blowing *to*) at
+Writes ``era5_route.png`` into ``examples/output/`` (or ``--out FOLDER``; ``--figures`` refreshes the README's figure
+in ``examples/figures/``): true wind speed (colour) and direction (arrows, blowing *to*) at
 mid-voyage, the routes at apf 1.0 and 0.5, and the date every five days along the apf 1.0 route.
 """
 
@@ -21,8 +22,14 @@ HERE = Path(__file__).resolve().parent
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", default=str(HERE / "figures" / "era5_route.png"))
+    ap.add_argument("--out", help="output folder (default: examples/output/, which git ignores)")
+    ap.add_argument(
+        "--figures",
+        action="store_true",
+        help="write into examples/figures/ instead: refreshes the committed figures the README shows",
+    )
     args = ap.parse_args()
+    out = output_folder(ap, args)
     data = HERE / "data" / "era5_synthetic.nc"
     if not data.exists():
         subprocess.run([sys.executable, str(HERE / "make_era5_example.py")], check=True)
@@ -71,9 +78,18 @@ def main() -> None:
     ax.set_title("Synthetic ERA5-layout weather (time-varying): routes and the wind at mid-voyage")
     ax.legend(loc="lower left", fontsize=8)
     fig.tight_layout()
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out)
-    print(f"wrote {args.out}")
+    fig.savefig(out / "era5_route.png")
+    print(f"wrote {out / 'era5_route.png'}")
+
+
+def output_folder(ap: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
+    """The folder to write into: --out, examples/figures/ with --figures, else examples/output/ (never both)."""
+    if args.figures and args.out is not None:
+        print(f"{ap.prog}: error: give --out or --figures, not both", file=sys.stderr)
+        raise SystemExit(2)
+    out = HERE / "figures" if args.figures else Path(args.out) if args.out is not None else HERE / "output"
+    out.mkdir(parents=True, exist_ok=True)
+    return out
 
 
 if __name__ == "__main__":

@@ -3,8 +3,9 @@
 apf = 1.0 accepts any risk (the route may cross both areas); 0.95 forbids arcs where both criteria fire
 (p_f = 1.0, inside Area 1); 0.5 also forbids a single criterion (p_f = 0.9, all of Area 2).
 
-Run: ``python examples/paper_reproduction.py [--out examples/figures] [--layout angular|square]``.
-Writes ``paper_routes_<layout>.png`` and prints a Markdown table (voyage times and increments vs the paper's
+Run: ``python examples/paper_reproduction.py [--out FOLDER | --figures] [--layout angular|square]``.
+Writes ``paper_routes_<layout>.png`` and ``.json`` into ``examples/output/`` (or ``--out``; ``--figures`` refreshes
+the README's figure in ``examples/figures/``) and prints a Markdown table (voyage times and increments vs the paper's
 29 d 7 h, +25 h, +25 h).
 """
 
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from pyroute_rel.plot import plot_routes
@@ -23,11 +25,15 @@ PAPER = {1.0: 703.25, 0.95: 703.25 + 25.0, 0.5: 703.25 + 50.0}  # 29 d 7 h, +25 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", default=str(HERE / "figures"))
+    ap.add_argument("--out", help="output folder (default: examples/output/, which git ignores)")
+    ap.add_argument(
+        "--figures",
+        action="store_true",
+        help="write into examples/figures/ instead: refreshes the committed figures the README shows",
+    )
     ap.add_argument("--layout", choices=("angular", "square"), default="angular")
     args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(ap, args)
     base = load_scenario(HERE / "microtransat_control.toml").with_options(layout=args.layout)
     routes, rows = [], []
     for apf in (1.0, 0.95, 0.5):
@@ -95,6 +101,16 @@ def _areas_crossed(route, weather) -> list[str]:
                 ]
             ).max()
             out.append(f"{p.name} ({depth_km:.0f} km deep)")
+    return out
+
+
+def output_folder(ap: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
+    """The folder to write into: --out, examples/figures/ with --figures, else examples/output/ (never both)."""
+    if args.figures and args.out is not None:
+        print(f"{ap.prog}: error: give --out or --figures, not both", file=sys.stderr)
+        raise SystemExit(2)
+    out = HERE / "figures" if args.figures else Path(args.out) if args.out is not None else HERE / "output"
+    out.mkdir(parents=True, exist_ok=True)
     return out
 
 

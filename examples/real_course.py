@@ -7,14 +7,16 @@ routes the paper's verification course (45N 12W -> 17.5N 60W, whose great circle
 land, margin and zone at apf 1, where the zone makes the route go round it. Draws both over the coast with the
 zone, the start and finish lines and the weather patches.
 
-Run: ``python examples/real_course.py [--out examples/figures]``; writes ``real_course.png`` and prints the
-voyage times.
+Run: ``python examples/real_course.py [--out FOLDER | --figures]``; writes ``real_course.png`` into
+``examples/output/`` (or ``--out``; ``--figures`` refreshes the README's figure in ``examples/figures/``) and prints
+the voyage times.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import time
 from pathlib import Path
 
@@ -26,10 +28,14 @@ HERE = Path(__file__).resolve().parent
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", default=str(HERE / "figures"))
+    ap.add_argument("--out", help="output folder (default: examples/output/, which git ignores)")
+    ap.add_argument(
+        "--figures",
+        action="store_true",
+        help="write into examples/figures/ instead: refreshes the committed figures the README shows",
+    )
     args = ap.parse_args()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(ap, args)
 
     race = load_scenario(HERE / "microtransat_real_course.toml")
     paper = dataclasses.replace(
@@ -74,6 +80,16 @@ def main() -> None:
     fig.tight_layout()
     fig.savefig(out / "real_course.png")
     print(f"wrote {out / 'real_course.png'}")
+
+
+def output_folder(ap: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
+    """The folder to write into: --out, examples/figures/ with --figures, else examples/output/ (never both)."""
+    if args.figures and args.out is not None:
+        print(f"{ap.prog}: error: give --out or --figures, not both", file=sys.stderr)
+        raise SystemExit(2)
+    out = HERE / "figures" if args.figures else Path(args.out) if args.out is not None else HERE / "output"
+    out.mkdir(parents=True, exist_ok=True)
+    return out
 
 
 if __name__ == "__main__":

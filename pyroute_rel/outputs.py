@@ -7,13 +7,17 @@ through :func:`pyroute_rel.files.write_together`.
 from __future__ import annotations
 
 import csv
+import datetime as _dt
 import io
 import json
 import os
+import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import gpxpy
+import gpxpy.gpx
 import numpy as np
 import numpy.typing as npt
 
@@ -21,16 +25,23 @@ from . import geodesy
 from .files import write_together
 from .route import LEG_FIELDS
 from .times import iso_utc
+from .units import KN_PER_MS
 
 if TYPE_CHECKING:
     from .route import Route
 
-__all__ = ["OUTPUT_FILES", "to_geojson", "to_gpx", "to_csv", "write_outputs"]
+__all__ = ["OUTPUT_FILES", "TURN_THRESHOLD_DEG", "to_geojson", "to_gpx", "to_csv", "turning_points", "write_outputs"]
 
 FloatArray = npt.NDArray[np.float64]
 
 #: Files written by :func:`write_outputs`.
 OUTPUT_FILES = ("route.geojson", "route.gpx", "route.csv", "summary.json", "route.png")
+
+#: Smallest course change [deg] that makes a track point a turning point of the GPX ``<rte>`` (:func:`turning_points`).
+TURN_THRESHOLD_DEG = 1.0
+
+_OPENCPN_NS = "http://www.opencpn.org"  # OpenCPN's GPX extensions (read by OpenCPN's route loader)
+_GPXTPX_NS = "http://www.garmin.com/xmlschemas/TrackPointExtension/v2"  # Garmin's track point extension v2
 
 
 def to_geojson(route: Route) -> dict[str, Any]:
@@ -70,17 +81,112 @@ def to_geojson(route: Route) -> dict[str, Any]:
     return {"type": "FeatureCollection", "features": [line, *points]}
 
 
-def to_gpx(route: Route) -> str:
-    """A GPX 1.1 document with the route as a track (opens in OpenCPN and most chart plotters)."""
-    times = route.time
-    out = io.StringIO()
-    out.write('<?xml version="1.0" encoding="UTF-8"?>\n')
-    out.write('<gpx version="1.1" creator="pyroute_rel" xmlns="http://www.topografix.com/GPX/1/1">\n')
-    out.write("  <trk>\n    <name>pyroute_rel route</name>\n    <trkseg>\n")
-    for lo, la, t in zip(route.lon_deg, route.lat_deg, times, strict=True):
-        out.write(f'      <trkpt lat="{la:.6f}" lon="{lo:.6f}"><time>{iso_utc(t)}</time></trkpt>\n')
-    out.write("    </trkseg>\n  </trk>\n</gpx>\n")
-    return out.getvalue()
+def turning_points(route: Route, *, threshold_deg: float = TURN_THRESHOLD_DEG) -> npt.NDArray[np.intp]:
+    """Indices of a route's turning points: the start, every track point where the course changes by more than
+    ``threshold_deg``, every point where the route waits, and the finish.
+
+    The course change at point ``i`` is measured from the last turning point ``k`` kept before it: the angle between
+    the great-circle course arriving at ``i`` straight from ``k`` and the track's course leaving ``i``. Against the
+    previous point alone, a track that bends by less than the threshold at every point would never turn; measured
+    from ``k``, the bends add up until they pass it, so the straight legs between turning points stay close to the
+    track. On a straight great circle no point turns.
+
+    Parameters
+    ----------
+    route : The route.
+    threshold_deg : Smallest course change kept [deg] (default :data:`TURN_THRESHOLD_DEG`, 1 deg).
+
+    Returns
+    -------
+    Track point indices, increasing, first 0 and last ``len(route.lon_deg) - 1``.
+    """
+    lon, lat = route.lon_deg, route.lat_deg
+    waits = route.legs.get("wait_h")
+    keep = [0]
+    for i in range(1, len(lon) - 1):
+        k = keep[-1]
+        if waits is not None and waits[i] > 0.0:
+            keep.append(i)
+            continue
+        if (lon[i] == lon[k] and lat[i] == lat[k]) or (lon[i] == lon[i + 1] and lat[i] == lat[i + 1]):
+            continue  # a repeated point has no course
+        arriving = (geodesy.initial_bearing_deg(lon[i], lat[i], lon[k], lat[k]) + 180.0) % 360.0
+        leaving = geodesy.initial_bearing_deg(lon[i], lat[i], lon[i + 1], lat[i + 1])
+        if geodesy.angle_diff_deg(arriving, leaving) > threshold_deg:
+            keep.append(i)
+    keep.append(len(lon) - 1)
+    return np.asarray(keep, dtype=np.intp)
+
+
+def to_gpx(route: Route, *, threshold_deg: float = TURN_THRESHOLD_DEG) -> str:
+    """A GPX 1.1 document (written with :mod:`gpxpy`): the route's track and a route of its turning points.
+
+    - ``<trk>``: every track point with its UTC ``<time>`` (arrival) and, for every point but the finish, the speed
+      over ground of the leg sailed from it [m/s] as ``<gpxtpx:speed>`` in a Garmin TrackPointExtension v2
+      (GPX 1.1 has no speed in ``<trkpt>``; OpenCPN ignores it, Garmin BaseCamp, GPXSee and gpxpy read it).
+    - ``<rte>``: the :func:`turning_points` (``threshold_deg``, default 1 deg) with their arrival ``<time>``, as
+      OpenCPN reads a voyage plan: each point after the start carries the mean speed over ground of the route leg
+      that ends at it [kn] (along the track, waits excluded), and each point before the finish its departure time
+      (after any wait), in ``<opencpn:rte_properties planned_speed="..." etd="..."/>``; the route itself carries
+      ``<opencpn:planned_departure>`` and the voyage's mean speed as ``<opencpn:planned_speed>`` [kn].
+
+    Opens in OpenCPN and most chart plotters.
+    """
+    gpx = gpxpy.gpx.GPX()
+    gpx.creator = "pyroute_rel"
+    gpx.nsmap.update({"opencpn": _OPENCPN_NS, "gpxtpx": _GPXTPX_NS})
+    times = [_utc(t) for t in route.time]
+    sog_ms = np.asarray(route.legs["sog_kn"], dtype=float) / KN_PER_MS
+    segment = gpxpy.gpx.GPXTrackSegment()
+    for i, (lo, la) in enumerate(zip(route.lon_deg, route.lat_deg, strict=True)):
+        point = gpxpy.gpx.GPXTrackPoint(round(float(la), 6), round(float(lo), 6), time=times[i])
+        if i < len(sog_ms) and np.isfinite(sog_ms[i]):
+            ext = ET.Element(f"{{{_GPXTPX_NS}}}TrackPointExtension")
+            ET.SubElement(ext, f"{{{_GPXTPX_NS}}}speed").text = f"{sog_ms[i]:.4f}"
+            point.extensions.append(ext)
+        segment.points.append(point)
+    track = gpxpy.gpx.GPXTrack(name="pyroute_rel route")
+    track.segments.append(segment)
+    gpx.tracks.append(track)
+    gpx.routes.append(_gpx_route(route, turning_points(route, threshold_deg=threshold_deg), times))
+    return str(gpx.to_xml(version="1.1"))
+
+
+def _gpx_route(route: Route, turns: npt.NDArray[np.intp], times: list[_dt.datetime]) -> gpxpy.gpx.GPXRoute:
+    """The ``<rte>`` of :func:`to_gpx`: turning points with OpenCPN's planned speed [kn] and departure time."""
+    dist = np.asarray(route.legs["distance_nm"], dtype=float)
+    sail_h = np.asarray(route.legs["time_h"], dtype=float)
+    waits = np.asarray(route.legs.get("wait_h", np.zeros_like(dist)), dtype=float)
+    rte = gpxpy.gpx.GPXRoute(name="pyroute_rel route")
+    rte.extensions.append(_text_element(f"{{{_OPENCPN_NS}}}planned_departure", iso_utc(route.time[0])))
+    rte.extensions.append(_text_element(f"{{{_OPENCPN_NS}}}planned_speed", f"{dist.sum() / sail_h.sum():.4f}"))
+    last = len(route.lon_deg) - 1
+    for j, i in enumerate(turns):
+        name = "start" if i == 0 else "finish" if i == last else f"T{i}"
+        point = gpxpy.gpx.GPXRoutePoint(
+            round(float(route.lat_deg[i]), 6), round(float(route.lon_deg[i]), 6), time=times[i], name=name
+        )
+        props: dict[str, str] = {}
+        if j > 0:
+            k = turns[j - 1]
+            props["planned_speed"] = f"{dist[k:i].sum() / sail_h[k:i].sum():.4f}"
+        if i < last:
+            leave = route.departure + np.round((route.elapsed_h[i] + waits[i]) * 3600.0).astype("timedelta64[s]")
+            props["etd"] = iso_utc(leave)
+        point.extensions.append(ET.Element(f"{{{_OPENCPN_NS}}}rte_properties", props))
+        rte.points.append(point)
+    return rte
+
+
+def _text_element(tag: str, text: str) -> ET.Element:
+    element = ET.Element(tag)
+    element.text = text
+    return element
+
+
+def _utc(t: np.datetime64) -> _dt.datetime:
+    """A UTC instant as an aware :class:`datetime.datetime` to the second (gpxpy writes it with a ``Z``)."""
+    return _dt.datetime.fromisoformat(iso_utc(t).removesuffix("Z")).replace(tzinfo=_dt.UTC)
 
 
 def to_csv(route: Route) -> str:

@@ -198,10 +198,7 @@ def _code_lines(path: Path) -> dict[str, int]:
 
 
 #: Functions allowed to stay longer, each with the reason.
-LONG_FUNCTIONS: dict[str, str] = {
-    "pyroute_rel.gci.numbers.grid_convergence": "to split",
-    "pyroute_rel.gci.numbers.least_squares_convergence": "to split",
-}
+LONG_FUNCTIONS: dict[str, str] = {}
 
 
 def test_functions_are_short():

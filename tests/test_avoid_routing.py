@@ -102,6 +102,7 @@ def coast_distance_km(legs: list[np.ndarray], land) -> tuple[np.ndarray, np.ndar
 # --------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_course_across_guadeloupe_goes_around_the_island(globe, routes) -> None:
     land = ob.land_geometry(CARIBBEAN_BOX)
     # precondition: without land avoidance the route is the great circle, which crosses the island in the
@@ -130,6 +131,7 @@ def test_course_across_guadeloupe_goes_around_the_island(globe, routes) -> None:
     assert sailed_km > SPHERE.inv(-57.0, 16.25, -64.0, 16.25)[2] / 1000.0
 
 
+@pytest.mark.slow
 def test_coastal_margin_keeps_the_route_ten_km_off(globe, routes) -> None:
     land = ob.land_geometry(CARIBBEAN_BOX)
     near, _ = coast_distance_km(dense_legs(routes[0.0].lon_deg, routes[0.0].lat_deg), land)

@@ -330,3 +330,30 @@ def test_sample_km_sets_the_spacing_and_is_never_capped(tmp_path, capsys) -> Non
     path = write(tmp_path, GOOD.replace("[grid]", "[grid]\nsample_km = 10\nsamples_per_arc = 3", 1))
     assert main(["route", str(path), "--quiet"]) == 2
     assert "samples_per_arc (a count) or sample_km (a spacing), not both" in capsys.readouterr().err
+
+
+def test_runtime_covers_loading_the_scenario_and_weather(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch
+) -> None:
+    """Issue 15: the printed and JSON runtime left out loading the scenario and opening its weather."""
+    import time
+
+    import pyroute_rel.scenario as scenario_module
+
+    load = scenario_module.load_scenario
+
+    def slow_load(*args, **kwargs):
+        time.sleep(0.3)
+        return load(*args, **kwargs)
+
+    monkeypatch.setattr(scenario_module, "load_scenario", slow_load)
+    code, out, err = run(["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land"], capsys)
+    assert code == 0, err
+    assert json.loads(out)["runtime_s"] >= 0.3
+    code, out, err = run(["route", str(EXAMPLE), *SMALL, "--quiet", "--no-land", "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    line = next(x for x in out.splitlines() if x.startswith("runtime"))
+    printed = float(line.split()[1])
+    assert printed >= 0.3 and "loading the scenario and its weather" in line
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["runtime_s"] == pytest.approx(printed, abs=0.006)  # the same figure, printed to 0.01 s

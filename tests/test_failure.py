@@ -86,6 +86,7 @@ def test_package_data_globs_cover_shipped_files():
         assert any(fnmatch.fnmatch(name, g) for g in globs), name
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", MODELS)
 def test_table_equals_pgmpy_query_on_every_evidence_state(name, engines):
     m = load_failure_model(name)
@@ -111,6 +112,7 @@ def test_dickson2018_reproduces_paper_table_1():
     assert [c.describe() for c in m.criteria] == ["WH: hs_m >= 4 m", "WD: awd_deg < 60 deg"]
 
 
+@pytest.mark.slow
 def test_multistate_model_has_hidden_nodes_and_wind_criteria():
     m = load_failure_model("wind_wave_multistate")
     observed = {c.node for c in m.criteria}
@@ -205,6 +207,7 @@ def _quantity(name: str) -> st.SearchStrategy[float]:
 _order = ("tws_kn", "hs_m", "awd_deg", "twa_deg", "wave_period_s")
 
 
+@pytest.mark.slow
 @given(st.lists(st.tuples(*[_quantity(q) for q in _order]), min_size=1, max_size=10), st.data())
 @settings(max_examples=60, deadline=None)
 def test_multistate_gather_equals_pgmpy(multistate_reference, rows, data):
@@ -229,6 +232,7 @@ def _with_named_missing_state(tmp: Path) -> Path:
     return folder / "m.toml"
 
 
+@pytest.mark.slow
 @given(
     st.lists(st.tuples(*[st.one_of(_quantity(q), st.just(math.nan)) for q in _order]), min_size=1, max_size=12),
     st.sampled_from(["dickson2018", "wind_wave_multistate", "named"]),
@@ -304,6 +308,7 @@ def _copy_model(folder: Path, name: str = "dickson2018", network_text: str | Non
     return toml
 
 
+@pytest.mark.slow
 def test_shipped_tables_equal_a_fresh_pgmpy_compile():
     """The tables shipped in failure_models/compiled_tables.json are what pgmpy compiles from today's files."""
     failure._shipped_tables.cache_clear()
@@ -319,6 +324,7 @@ def test_shipped_tables_equal_a_fresh_pgmpy_compile():
         assert entry.states == {k: list(v) for k, v in fresh.node_states.items()}
 
 
+@pytest.mark.slow
 def test_first_run_of_a_shipped_model_needs_neither_pgmpy_nor_the_disk_cache(tmp_path):
     code = (
         "import json, sys; from pyroute_rel.failure import load_failure_model; "
@@ -334,6 +340,7 @@ def test_first_run_of_a_shipped_model_needs_neither_pgmpy_nor_the_disk_cache(tmp
         assert np.array_equal(np.array(table), load_failure_model(name, cache=False).table)
 
 
+@pytest.mark.slow
 def test_without_the_shipped_tables_models_are_compiled(monkeypatch, tmp_path):
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(failure, "_MEMORY", {})
@@ -347,6 +354,7 @@ def test_without_the_shipped_tables_models_are_compiled(monkeypatch, tmp_path):
         failure._shipped_tables.cache_clear()
 
 
+@pytest.mark.slow
 def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(cache))
@@ -385,6 +393,7 @@ def test_disk_cache_is_used_instead_of_compiling(tmp_path, monkeypatch):
     assert load_failure_model("dickson2018").table.tolist() == [[0.0, 0.9], [0.9, 1.0]]  # the shipped table
 
 
+@pytest.mark.slow
 def test_editing_the_network_recompiles(tmp_path, monkeypatch):
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
     monkeypatch.setattr(failure, "_MEMORY", {})
@@ -396,6 +405,7 @@ def test_editing_the_network_recompiles(tmp_path, monkeypatch):
     assert len(list((tmp_path / "cache" / diskcache.ENTRIES).glob("failure-*.npz"))) == 2
 
 
+@pytest.mark.slow
 def test_editing_a_shipped_model_in_place_is_not_served_the_shipped_table(tmp_path, monkeypatch):
     """The shipped tables are keyed by the files' bytes: an edited copy (here: another CPT) is compiled."""
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
@@ -450,6 +460,7 @@ def test_cache_false_writes_nothing(tmp_path, monkeypatch):
 # ------------------------------------------------------------------------------------------- other formats
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("ext", "writer", "method"),
     [
@@ -625,6 +636,7 @@ _BAD = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("toml_text", "net_text", "named", "pattern"), [b[1:] for b in _BAD], ids=[b[0] for b in _BAD])
 def test_bad_model_files_give_one_line_errors(tmp_path, toml_text, net_text, named, pattern):
     toml = tmp_path / "model.toml"
@@ -652,6 +664,7 @@ def test_missing_files_are_named(tmp_path):
         load_failure_model("dikson2018")
 
 
+@pytest.mark.slow
 def test_zero_probability_evidence_is_rejected(tmp_path):
     toml = _copy_model(tmp_path, network_text=_DICKSON_BIF.replace("table 0.8, 0.2;", "table 1.0, 0.0;"))
     with pytest.raises(FailureModelError, match=r"evidence \(WH=true, WD=false\) has probability 0"):

@@ -262,6 +262,7 @@ def test_example_scenario_parses() -> None:
     assert sc.start == (-12.0, 45.0) and sc.apf == 1.0 and len(sc.weather.patches) == 2
 
 
+@pytest.mark.slow
 @fuzz_settings(250)
 @given(mutated_scenarios())
 def test_mutated_mapping_only_domain_errors(table: dict[str, Any]) -> None:
@@ -272,6 +273,7 @@ def test_mutated_mapping_only_domain_errors(table: dict[str, Any]) -> None:
         _check_scenario(sc)
 
 
+@pytest.mark.slow
 @fuzz_settings(60)
 @given(
     st.dictionaries(_KEYS, JSON_LIKE, max_size=4)
@@ -430,6 +432,7 @@ def corrupted_bytes(draw: st.DrawFn, original: bytes) -> bytes:
     return bytes(b)
 
 
+@pytest.mark.slow
 @fuzz_settings(120)
 @given(data=corrupted_bytes(EXAMPLE_TEXT.encode()))
 def test_corrupted_scenario_file(workdir: Path, data: bytes) -> None:
@@ -540,6 +543,7 @@ def test_polar_random_text(workdir: Path, text: str) -> None:
     _check_polar_file(_write(workdir, "random.csv", text), read_polar_csv)
 
 
+@pytest.mark.slow
 @fuzz_settings(150)
 @given(text=corrupted_polar("\t"))
 def test_polar_pol_cell_corruption(workdir: Path, text: str) -> None:
@@ -553,6 +557,7 @@ def test_polar_csv_cell_corruption(workdir: Path, text: str) -> None:
     _check_polar_file(path, read_polar_csv)
 
 
+@pytest.mark.slow
 @fuzz_settings(100)
 @given(data=corrupted_bytes(POL_TEXT.encode()), csv_data=corrupted_bytes(CSV_TEXT.encode()))
 def test_polar_byte_corruption(workdir: Path, data: bytes, csv_data: bytes) -> None:
@@ -604,6 +609,7 @@ def formatted_polars(draw: st.DrawFn, *, csv: bool) -> tuple[str, np.ndarray, np
     return bom + eol.join(rows) + draw(st.sampled_from(["", eol])), twa, tws, speed
 
 
+@pytest.mark.slow
 @fuzz_settings(80)
 @given(pol=formatted_polars(csv=False), csv=formatted_polars(csv=True))
 def test_valid_polar_dialects_read_exactly(workdir: Path, pol: Any, csv: Any) -> None:
@@ -704,6 +710,7 @@ def _check_cli(capsys: pytest.CaptureFixture[str], text: str) -> None:
 _TOML_VALUES = json_like(null=False)
 
 
+@pytest.mark.slow
 @fuzz_settings(8, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(table=mutated_scenarios(min_mutations=0, max_mutations=2, values=_TOML_VALUES))
 def test_cli_on_fuzzed_scenarios(capsys: pytest.CaptureFixture[str], table: dict[str, Any]) -> None:
@@ -769,6 +776,7 @@ def plausible_scenarios(draw: st.DrawFn) -> dict[str, Any]:
     }
 
 
+@pytest.mark.slow
 @fuzz_settings(12, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(table=plausible_scenarios())
 def test_cli_on_plausible_scenarios(capsys: pytest.CaptureFixture[str], table: dict[str, Any]) -> None:
@@ -922,6 +930,7 @@ def test_wait_steps_per_node_are_bounded() -> None:
     assert problem.n_wait <= 100_000, problem.n_wait  # ~0.3 ms per wait step and rank
 
 
+@pytest.mark.slow
 def test_long_patch_name_plots_without_warnings(capsys: pytest.CaptureFixture[str]) -> None:
     """Was a UserWarning from tight_layout() (exit 3 where warnings are errors); fixed in 94fba32."""
     text = EXAMPLE_TEXT.replace('name = "Area 1"', 'name = "' + "Area 1 " * 60 + '"')

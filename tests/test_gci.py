@@ -125,6 +125,7 @@ def test_manufactured_non_uniform_ratio(h: tuple[float, ...], p_true: float) -> 
     assert res.phi_ext == pytest.approx(4.0, rel=1e-10)
 
 
+@pytest.mark.slow
 @given(
     p=st.floats(0.2, 4.0),
     r21=st.floats(1.1, 3.0),
@@ -387,6 +388,7 @@ def _assert_same(a: ThreeGridResult, b: ThreeGridResult, names: tuple[str, ...])
             assert va == pytest.approx(vb, rel=1e-9, abs=1e-12), name
 
 
+@pytest.mark.slow
 @given(t=_triplet_strategy(), c=st.floats(1e-3, 1e3))
 @settings(max_examples=120, deadline=None)
 def test_scaling_phi_keeps_order_and_relative_errors(t: tuple[float, ...], c: float) -> None:
@@ -400,6 +402,7 @@ def test_scaling_phi_keeps_order_and_relative_errors(t: tuple[float, ...], c: fl
         assert b.phi_ext == pytest.approx(c * a.phi_ext, rel=1e-9)
 
 
+@pytest.mark.slow
 @given(t=_triplet_strategy(), c=st.floats(1e-3, 1e3))
 @settings(max_examples=120, deadline=None)
 def test_scaling_h_keeps_everything(t: tuple[float, ...], c: float) -> None:
@@ -408,6 +411,7 @@ def test_scaling_h_keeps_everything(t: tuple[float, ...], c: float) -> None:
     _assert_same(a, b, (*_INVARIANT, "phi_ext"))
 
 
+@pytest.mark.slow
 @given(t=_triplet_strategy(), perm=st.permutations([0, 1, 2]))
 @settings(max_examples=60, deadline=None)
 def test_permuting_input_changes_nothing(t: tuple[float, ...], perm: list[int]) -> None:
@@ -415,6 +419,7 @@ def test_permuting_input_changes_nothing(t: tuple[float, ...], perm: list[int]) 
     assert grid_convergence(h[perm], phi[perm]) == grid_convergence(h, phi)
 
 
+@pytest.mark.slow
 @given(
     data=st.lists(
         st.tuples(st.floats(0.1, 100.0), st.floats(50.0, 60.0)),
@@ -435,6 +440,7 @@ def test_study_permutation_invariant(data: list[tuple[float, float]], seed) -> N
     assert a.to_dict() == b.to_dict()
 
 
+@pytest.mark.slow
 @given(
     h=st.lists(st.floats(1e-3, 1e3), min_size=3, max_size=3, unique=True),
     phi=st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3),
@@ -510,6 +516,7 @@ def test_equal_values_are_labelled_not_raised() -> None:
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"  # PNG specification (ISO/IEC 15948), section 5.2
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("h", "phi"),
     [

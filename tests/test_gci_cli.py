@@ -85,6 +85,7 @@ def test_routed_square_study_equals_routing_each_grid(capsys: pytest.CaptureFixt
         assert g["voyage_time_h"] == pytest.approx(forward_dp(grid, sc.problem(grid=grid)).finish_h, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_angular_refinement_converges_where_the_square_grid_does_not(capsys: pytest.CaptureFixture[str]) -> None:
     """Issue acceptance: on the example at apf 0.5 the angular path is monotonic with GCI_fine < 1 %, while the
     paper's square grids stay > 5 % above its extrapolated value (they cannot turn by less than 45 deg)."""
@@ -313,9 +314,15 @@ def test_negative_spacings_reach_the_validation(h_option: list[str], capsys: pyt
 @pytest.mark.parametrize(
     ("option", "needle"),
     [
-        (["--max-gci", "-1"], "--max-gci must be a finite fraction >= 0"),
-        (["--max-gci", "-1e-3"], "--max-gci must be a finite fraction >= 0"),
-        (["--max-gci", "inf"], "--max-gci must be a finite fraction >= 0"),
+        (["--max-gci", "-1"], "--max-gci must be a fraction in (0, 1]"),
+        (["--max-gci", "-1e-3"], "--max-gci must be a fraction in (0, 1]"),
+        (["--max-gci", "inf"], "--max-gci must be a fraction in (0, 1]"),
+        (["--max-gci", "0"], "--max-gci must be a fraction in (0, 1]"),
+        (["--max-gci", "-1%"], "--max-gci must be a fraction in (0, 1]"),
+        (["--max-gci", "150%"], "or a percent in (0, 100]"),
+        (["--max-gci", "1%%"], "--max-gci must be a fraction such as 0.015 or a percent such as 1.5%"),
+        (["--max-gci", "1.5"], "--max-gci 1.5 is above 1 (a bare number is a fraction): write 0.015 or 1.5%"),
+        (["--max-gci", "2"], "--max-gci 2 is above 1 (a bare number is a fraction): write 0.02 or 2%"),
         (["--asymptotic-tol", "-1"], "--asymptotic-tol must be a finite number >= 0"),
         (["--safety-factor", "0"], "--safety-factor must be a finite number > 0"),
     ],
@@ -337,7 +344,13 @@ def test_require_asymptotic_is_a_gate_on_its_own(capsys: pytest.CaptureFixture[s
     mono = [700.0 + 0.3 * x**2 for x in h]  # monotonic, asymptotic ratio phi1/phi2 = 0.9987
     code, out, err = run(["gci", "--h", csv(h), "--phi", csv(mono), "--require-asymptotic", "--json"], capsys)
     assert code == 0, err
-    assert json.loads(out)["gate"] == {"max_gci": None, "require_asymptotic": True, "passed": True, "reason": None}
+    assert json.loads(out)["gate"] == {
+        "max_gci": None,
+        "require_asymptotic": True,
+        "asymptotic_tol": 0.1,
+        "passed": True,
+        "reason": None,
+    }
     osc = [700.0, 701.0, 699.5]
     code, out, err = run(["gci", "--h", csv(h), "--phi", csv(osc), "--require-asymptotic", "--json"], capsys)
     assert code == 1 and err.count("\n") == 1 and "not in the asymptotic range" in err
@@ -439,3 +452,48 @@ def test_study_says_it_does_not_refine(tmp_path, capsys) -> None:
     path.write_text(src.read_text().replace("[grid]", "[grid]\nrefine = 2", 1))
     assert main(["gci", "study", str(path), "--n-nodes", "11,15,21", "--no-land", "--json"]) == 0
     assert "[grid].refine = 2 is not applied" in capsys.readouterr().err
+
+
+def test_max_gci_takes_a_fraction_or_a_percent(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 15: '--max-gci 1.5' was read as 150 % and passed silently; '1.5%' and '0.015' are the same gate."""
+    h = [1.0, 2.0, 4.0]
+    phi = [700.0 + 0.3 * x**2 for x in h]
+    gci = 1.25 * (0.9 / 700.3) / 3.0  # 5.4e-4
+    for fraction, percent in [(gci * 0.5, gci * 50.0), (gci * 2.0, gci * 200.0)]:
+        results = []
+        for value in (f"{fraction:.6g}", f"{percent:.6g}%"):
+            code, out, _ = run(["gci", "--h", csv(h), "--phi", csv(phi), "--max-gci", value, "--json"], capsys)
+            results.append((code, json.loads(out)["gate"]["max_gci"]))
+        assert results[0][0] == results[1][0] == (1 if fraction < gci else 0)
+        assert results[1][1] == pytest.approx(results[0][1], rel=1e-12)
+    code, _, err = run(["gci", "--h", csv(h), "--phi", csv(phi), "--max-gci", f"{gci * 50:.3g}%"], capsys)
+    assert code == 1 and f"exceeds --max-gci {gci * 0.5:.3g} ({gci * 50:.3g} %)" in err
+
+
+@pytest.mark.parametrize("study", [False, True])
+def test_gci_json_in_out_holds_the_gate_as_printed(
+    study: bool, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 15: 'gci --out' wrote gci.json without the 'gate' object that --json prints; now the two agree."""
+    if study:
+        args = ["gci", "study", scenario_file(tmp_path), "--n-nodes", "5,7,9", "--no-land"]
+    else:
+        args = ["gci", "--h", "1,2,4", "--phi", "700.3,701.2,704.8"]
+    out = tmp_path / "g"
+    gate = ["--max-gci", "1e-9", "--require-asymptotic", "--asymptotic-tol", "0.2"]
+    code, printed, err = run([*args, *gate, "--json", "--out", str(out)], capsys)
+    assert code == 1 and "gate failed" in err
+    written = json.loads((out / "gci.json").read_text())
+    assert written == json.loads(printed)
+    assert written["gate"]["max_gci"] == 1e-9 and written["gate"]["asymptotic_tol"] == 0.2
+    assert written["gate"]["require_asymptotic"] is True and written["gate"]["passed"] is False
+    assert "exceeds --max-gci 1e-09" in written["gate"]["reason"]
+
+
+def test_bad_max_gci_leaves_nothing_in_out(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "g"
+    code, _, err = run(
+        ["gci", "--h", "1,2,4", "--phi", "700.3,701.2,704.8", "--max-gci", "1.5", "--out", str(out)], capsys
+    )
+    assert_user_error(code, err, "write 0.015 or 1.5%")
+    assert not out.exists()

@@ -62,6 +62,7 @@ def test_all_to_all_arc_count_and_networkx_export() -> None:
     assert set(nxg.predecessors(FINISH)) == {(n_ranks - 1, i) for i in range(n)}
 
 
+@pytest.mark.slow
 @given(st.integers(2, 25), st.floats(5.0, 85.0), st.floats(0.5, 4.0))
 @settings(max_examples=60, deadline=None)
 def test_banded_arcs_respect_max_deviation(n: int, dev: float, aspect: float) -> None:

@@ -151,6 +151,7 @@ def test_point_five_km_off_barbados_and_margins(globe):
     assert ob.arcs_on_land(*arc, margin_km=10.0).item()
 
 
+@pytest.mark.slow
 @settings(max_examples=12, deadline=None)
 @given(margin=st.floats(2.0, 50.0), seed=st.integers(0, 2**32 - 1), site=st.sampled_from(["antilles", "brittany"]))
 def test_margin_matches_brute_force_distance(margin, seed, site):
@@ -166,6 +167,7 @@ def test_margin_matches_brute_force_distance(margin, seed, site):
     np.testing.assert_array_equal(ours[clear], d[clear] <= margin)
 
 
+@pytest.mark.slow
 def test_vectorised_land_test_equals_slow_reference():
     rng = np.random.default_rng(11)
     arcs = [
@@ -366,6 +368,7 @@ def test_index_rasters_against_per_cell_predicates(geometry) -> None:
     assert not (deep.ravel() & ~inside).any()
 
 
+@pytest.mark.slow
 def test_points_on_land_per_tile_equals_one_box_over_all_points() -> None:
     # points_on_land reads land per 5 deg tile; one geometry over a box holding every point is the reference
     rng = np.random.default_rng(7)

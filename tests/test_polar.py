@@ -143,6 +143,7 @@ def test_lookup_reproduces_every_node_exactly():
         assert_array_equal(boat_speed_kn(VANE, twa, tws, beyond=mode), np.array(PUB_SPEED_BY_TWS).T)
 
 
+@pytest.mark.slow
 @given(polars())
 @settings(max_examples=60, deadline=None)
 def test_lookup_reproduces_nodes_of_random_polars(p):

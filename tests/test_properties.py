@@ -114,6 +114,7 @@ def is_graph_path(grid: Grid, nodes: list[int]) -> bool:
 # 1. The DP is optimal: no path of the grid is faster
 
 
+@pytest.mark.slow
 @prop_settings(60)
 @given(data=st.data())
 def test_dp_is_no_slower_than_any_path(data: st.DataObject) -> None:
@@ -147,6 +148,7 @@ def _dp_key(grid: Grid, weather: UniformWeather, polar: Polar, samples: int) -> 
     return res.finish_h, res.arrival_h.tobytes()
 
 
+@pytest.mark.slow
 @prop_settings(40)
 @given(data=st.data())
 def test_dp_invariant_under_patch_order_and_far_patches(data: st.DataObject) -> None:
@@ -223,6 +225,7 @@ class VeeringWind(SamplesOnly):
         return None
 
 
+@pytest.mark.slow
 @prop_settings(40)
 @given(data=st.data())
 def test_route_times_are_consistent(data: st.DataObject) -> None:
@@ -371,6 +374,7 @@ def test_front_dying_at_the_finish_still_names_the_reason() -> None:
         route_on_grid(grid, problem)
 
 
+@pytest.mark.slow
 @prop_settings(40)
 @given(setup=nan_setups(), data=st.data())
 def test_nan_box_partly_across_is_avoided(setup: Any, data: st.DataObject) -> None:

@@ -152,6 +152,7 @@ class VeeringWind(SamplesOnly):
         return None
 
 
+@pytest.mark.slow
 def test_time_dependent_dp_equals_brute_force_when_fifo() -> None:
     grid = make_grid(START_PT, FINISH_PT, n_ranks=4, n_nodes=4, spacing_km=150.0)
     problem = RoutingProblem(departure=DEP, weather=VeeringWind(), polar=get_polar("maribot_vane"), samples=2)
@@ -258,6 +259,7 @@ class PassingStorm(SamplesOnly):
         return None
 
 
+@pytest.mark.slow
 def test_time_expanded_dp_waits_out_a_storm_and_matches_brute_force() -> None:
     grid = make_grid(START_PT, (-30.0, 30.0), n_ranks=2, n_nodes=3, spacing_km=60.0)
     polar = get_polar("maribot_vane")

@@ -18,7 +18,7 @@ EXIT_OK, EXIT_GATE = 0, 1
 #: Arguments that are (lists of) numbers even when they start with '-' ("--h -1,2,4", "--max-gci -1e-3"), so that
 #: argparse hands them to the option's type and the validation can say what is wrong, instead of reading them as
 #: an unknown option. argparse's own pattern covers only single plain numbers such as "-1" or "-.5".
-_NEGATIVE_NUMBERS = re.compile(r"^-(\.?\d[\d.,eE+\-]*|inf|infinity|nan)$", re.IGNORECASE)
+_NEGATIVE_NUMBERS = re.compile(r"^-(\.?\d[\d.,eE+\-]*%?|inf|infinity|nan)$", re.IGNORECASE)
 
 #: Options of ``gci study`` that only apply to one --refinement.
 _ANGULAR_ONLY = (
@@ -52,7 +52,14 @@ def add_gci_parser(
     s = g_sub.add_parser(
         "study",
         help="route a scenario on several grids and estimate the discretisation error",
-        description="Route a scenario on a family of grids and estimate the error of the voyage time.",
+        description="Route a scenario on a family of grids and estimate the error of the voyage time. The angular "
+        "defaults (--aspect0 2, --half-width-km 1200, --max-deviation 60) differ from the route's (aspect 6, "
+        "1000 km, 45 deg) on purpose: they describe a refinement path, not one grid. --aspect0 is the coarsest "
+        "grid's aspect and doubles with every doubling of ranks (2, 4, 8 on 41,81,161 ranks: the finest grid is "
+        "finer than the route's 6; from 6 it would be 24, with about 4x the arcs). The band is wider so that the "
+        "coarse, low-aspect grids can still turn (at aspect 2 a 45 deg band holds only 2 arcs each side, 60 deg "
+        "holds 3), and the half-width, fixed along the path, keeps a margin over the route's. Each grid's runtime "
+        "(runtime_s) is its routing alone; loading the scenario and weather, done once, is not in it.",
     )
     s.add_argument("scenario", help="scenario TOML file")
     s.add_argument(
@@ -67,19 +74,21 @@ def add_gci_parser(
     s.add_argument(
         "--half-width-km",
         type=float,
-        help=f"angular: domain half-width [km] (default {_ANGULAR_DEFAULTS['half_width_km']:g})",
+        help=f"angular: domain half-width [km] (default {_ANGULAR_DEFAULTS['half_width_km']:g}; the route's is 1000, "
+        "see above)",
     )
     s.add_argument(
         "--max-deviation",
         type=float,
         dest="max_deviation_deg",
         help="angular: largest arc angle from the rank direction [deg] "
-        f"(default {_ANGULAR_DEFAULTS['max_deviation_deg']:g})",
+        f"(default {_ANGULAR_DEFAULTS['max_deviation_deg']:g}; the route's is 45, see above)",
     )
     s.add_argument(
         "--aspect0",
         type=float,
-        help=f"angular: rank/lateral spacing of the coarsest grid (default {_ANGULAR_DEFAULTS['aspect0']:g})",
+        help=f"angular: rank/lateral spacing of the coarsest grid, doubled with every doubling of ranks "
+        f"(default {_ANGULAR_DEFAULTS['aspect0']:g}; the route's fixed aspect is 6, see above)",
     )
     s.add_argument("--apf", type=float, help="acceptable probability of failure")
     s.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
@@ -97,11 +106,49 @@ def add_gci_parser(
         parser._negative_number_matcher = _NEGATIVE_NUMBERS
 
 
+def _parse_max_gci(text: str) -> float:
+    """``--max-gci``: a fraction in (0, 1] (``0.015``) or a percent in (0, 100] (``1.5%``) -> the fraction.
+
+    A bare number above 1 is refused rather than read as a percent: ``--max-gci 1.5`` would otherwise pass any
+    study with a GCI below 150 %.
+
+    >>> _parse_max_gci("0.015"), _parse_max_gci("1.5%")
+    (0.015, 0.015)
+    """
+    from ..errors import ConvergenceError
+
+    percent = text.strip().endswith("%")
+    try:
+        value = float(text.strip().removesuffix("%"))
+    except ValueError:
+        raise ConvergenceError(
+            f"--max-gci must be a fraction such as 0.015 or a percent such as 1.5% (got {text!r})"
+        ) from None
+    if not percent and math.isfinite(value) and value > 1.0:
+        raise ConvergenceError(
+            f"--max-gci {text} is above 1 (a bare number is a fraction): write {value / 100.0:g} or {value:g}% "
+            f"for {value:g} %"
+        )
+    fraction = value / 100.0 if percent else value
+    if not (math.isfinite(fraction) and 0.0 < fraction <= 1.0):
+        raise ConvergenceError(
+            f"--max-gci must be a fraction in (0, 1] such as 0.015, or a percent in (0, 100] such as 1.5% (got {text})"
+        )
+    return fraction
+
+
 def _gate_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--safety-factor", type=float, default=1.25, help="Fs of the three-grid GCI (default 1.25)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--out", help="folder for gci.csv, gci.json and gci.png")
-    p.add_argument("--max-gci", type=float, help="exit 1 when GCI_fine (a fraction, e.g. 0.01) exceeds this")
+    p.add_argument("--json", action="store_true", help="print one JSON object (with the gate's settings and verdict)")
+    p.add_argument(
+        "--out",
+        help="folder for gci.csv, gci.json (the --json object, gate included) and gci.png",
+    )
+    p.add_argument(
+        "--max-gci",
+        type=str,
+        help="exit 1 when GCI_fine exceeds this: a fraction in (0, 1] (0.015) or a percent (1.5%%)",
+    )
     p.add_argument(
         "--require-asymptotic",
         action="store_true",
@@ -123,8 +170,8 @@ def _check_gate_args(args: argparse.Namespace) -> None:
     from ..gci.numbers import check_safety_factor
 
     check_safety_factor(args.safety_factor, "gci", "--safety-factor")
-    if args.max_gci is not None and not (math.isfinite(args.max_gci) and args.max_gci >= 0.0):
-        raise ConvergenceError(f"--max-gci must be a finite fraction >= 0, e.g. 0.01 for 1 % (got {args.max_gci:g})")
+    if args.max_gci is not None:
+        args.max_gci = _parse_max_gci(str(args.max_gci))
     tol = args.asymptotic_tol
     if not (math.isfinite(tol) and tol >= 0.0):
         raise ConvergenceError(f"--asymptotic-tol must be a finite number >= 0, e.g. 0.1 (got {tol:g})")
@@ -136,9 +183,9 @@ def _gate(fin: Any, args: argparse.Namespace) -> str | None:
     """Reason the gate fails, or None."""
     if args.max_gci is not None:
         if fin.gci_fine is None or not fin.gci_fine <= args.max_gci:
-            got = "undefined" if fin.gci_fine is None else f"{fin.gci_fine:.4g}"
+            got = "undefined" if fin.gci_fine is None else f"{fin.gci_fine:.4g} ({100.0 * fin.gci_fine:.4g} %)"
             return (
-                f"GCI_fine {got} exceeds --max-gci {args.max_gci:g} "
+                f"GCI_fine {got} exceeds --max-gci {args.max_gci:g} ({100.0 * args.max_gci:g} %) "
                 f"(convergence: {fin.convergence}{'; ' + fin.note if fin.note else ''})"
             )
     if args.require_asymptotic:
@@ -168,14 +215,20 @@ def _write_out(out: str, payload: dict[str, Any], csv_text: str, study: Any, tit
     )
 
 
-def _finish(payload: dict[str, Any], text: str, fin: Any, args: argparse.Namespace) -> int:
+def _add_gate(payload: dict[str, Any], fin: Any, args: argparse.Namespace) -> str | None:
+    """Put the gate's settings and verdict into ``payload["gate"]``; the reason it fails, or None."""
     reason = _gate(fin, args)
     payload["gate"] = {
         "max_gci": args.max_gci,
         "require_asymptotic": args.require_asymptotic,
+        "asymptotic_tol": args.asymptotic_tol,
         "passed": reason is None,
         "reason": reason,
     }
+    return reason
+
+
+def _finish(payload: dict[str, Any], text: str, reason: str | None, args: argparse.Namespace) -> int:
     print(json.dumps(payload) if args.json else text)
     if reason is not None:
         print(f"pyroute-rel: gate failed: {reason}", file=sys.stderr)
@@ -202,9 +255,10 @@ def _cmd_gci(args: argparse.Namespace) -> int:
         }
     )
     csv_text = "h,phi\n" + "".join(f"{h:.10g},{p:.10g}\n" for h, p in zip(study.h, study.phi, strict=True))
+    reason = _add_gate(payload, fin, args)
     if args.out is not None:
         _write_out(args.out, payload, csv_text, study, f"{len(study.h)} grids: {fin.convergence}")
-    return _finish(payload, study.report(), fin, args)
+    return _finish(payload, study.report(), reason, args)
 
 
 def _check_study_args(args: argparse.Namespace) -> None:
@@ -290,8 +344,9 @@ def _cmd_study(args: argparse.Namespace) -> int:
             f"{r['arcs']:>11} {r['voyage_time_h']:>12.4f} {r['runtime_s']:>11.2f}"
         )
     text = "\n".join(lines) + "\n\n" + result.study.report()
+    reason = _add_gate(payload, result.study.finest, args)
     if args.out is not None:
         _write_out(
             args.out, payload, result.csv(), result.study, f"{Path(args.scenario).name}: {args.refinement} refinement"
         )
-    return _finish(payload, text, result.study.finest, args)
+    return _finish(payload, text, reason, args)

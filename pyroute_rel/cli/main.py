@@ -17,6 +17,7 @@ from typing import Any
 
 from .. import __version__
 from ..errors import PyrouteError, ScenarioError
+from .gci import add_gci_parser
 
 __all__ = ["main", "build_parser"]
 
@@ -59,9 +60,31 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``pyroute-rel``."""
     parser = _Parser(prog="pyroute-rel", description="Reliability-informed routing for autonomous sailing craft.")
     parser.add_argument("--version", action="version", version=f"pyroute-rel {__version__}")
+    parser.set_defaults(debug=False)  # every command has --debug; main() reads args.debug whatever ran
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    _add_route_parser(sub)
+    f = sub.add_parser(
+        "failure",
+        help="show a failure model and its compiled table",
+        description="Show a failure model (criteria, network, compiled P(fail | evidence)).",
+    )
+    f.add_argument("model", nargs="?", help="shipped model name or model file (omit to list shipped models)")
+    f.add_argument("--json", action="store_true", help="print the model as one JSON object")
+    _add_common(f)
+    f.set_defaults(func=_cmd_failure)
 
-    r = sub.add_parser("route", help="route a scenario", description="Route a scenario TOML file.")
+    add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
+    return parser
+
+
+def _add_route_parser(sub: Any) -> None:
+    """Add ``route``."""
+    r = sub.add_parser(
+        "route",
+        help="route a scenario",
+        description="Route a scenario TOML file. The runtime it reports (runtime_s in --json and summary.json) "
+        "covers loading the scenario, polar, weather and failure model and routing, not writing --out files.",
+    )
     r.add_argument("scenario", help="scenario TOML file")
     r.add_argument(
         "--layout",
@@ -117,31 +140,24 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-prune costs every arc, e.g. to count all forbidden arcs ([route].prune)",
     )
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
-    r.add_argument("--out", help="folder for route.geojson, route.gpx, route.csv, summary.json, route.png")
-    r.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    r.add_argument(
+        "--out",
+        help="folder for route.geojson, route.gpx (the track with times and speeds, and a route of its turning "
+        "points for chart plotters such as OpenCPN), route.csv, summary.json, route.png",
+    )
+    r.add_argument(
+        "--json",
+        action="store_true",
+        help="print the summary as one JSON object; its runtime_s, as the printed runtime, is the wall time from "
+        "after argument parsing to the routed voyage: loading the scenario, polar, weather and failure model, "
+        "and routing (writing --out files not included)",
+    )
     _add_common(r)
     r.set_defaults(func=_cmd_route)
 
-    f = sub.add_parser(
-        "failure",
-        help="show a failure model and its compiled table",
-        description="Show a failure model (criteria, network, compiled P(fail | evidence)).",
-    )
-    f.add_argument("model", nargs="?", help="shipped model name or model file (omit to list shipped models)")
-    f.add_argument("--json", action="store_true", help="print the model as one JSON object")
-    _add_common(f)
-    f.set_defaults(func=_cmd_failure)
-
-    try:
-        from .gci import add_gci_parser
-    except ImportError:  # pragma: no cover - gci module not installed
-        pass
-    else:
-        add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
-    return parser
-
 
 def _cmd_route(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()  # runtime: loading the scenario, polar, weather and failure model, then routing
     from ..scenario import load_scenario
 
     scenario = load_scenario(args.scenario).with_options(
@@ -173,7 +189,6 @@ def _cmd_route(args: argparse.Namespace) -> int:
                 "route each departure on its own"
             )
         return _departure_sweep(scenario, args)
-    t0 = time.perf_counter()
     route = scenario.route(progress=not args.quiet)
     elapsed = time.perf_counter() - t0
     summary = route.summary()
@@ -271,7 +286,7 @@ def _route_text(route: Any, elapsed: float, out: str | None) -> str:
         *_refine_lines(s.get("refine")),
         f"failure model    {s.get('failure_model') or 'none'} (apf {s.get('apf', 1.0):g}): max leg p_f "
         f"{route.max_failure_probability:.3f}, voyage p_f {route.voyage_failure_probability:.3f}",
-        f"runtime          {elapsed:.2f} s",
+        f"runtime          {elapsed:.2f} s (loading the scenario and its weather, routing)",
     ]
     if out:
         lines.append(f"outputs          {Path(out)}/ (route.geojson, route.gpx, route.csv, summary.json, route.png)")
@@ -333,7 +348,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return func(args)
     except PyrouteError as exc:
-        if getattr(args, "debug", False):
+        if args.debug:
             raise
         msg = " ".join(str(exc).split())
         print(f"pyroute-rel: error: {msg}", file=sys.stderr)
@@ -347,7 +362,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("pyroute-rel: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # an unexpected failure: say how to report it
-        if getattr(args, "debug", False):
+        if args.debug:
             raise
         print(
             f"pyroute-rel: internal error: {exc.__class__.__name__}: {exc}. This is a bug: please report it with the "

@@ -384,8 +384,49 @@ def grid_convergence(
     if not (math.isfinite(eps21) and math.isfinite(eps32)):
         raise ConvergenceError(f"{func}: 'phi' differences overflow the float range (got {[phi1, phi2, phi3]})")
     e_a = _rel(eps21, phi1)
-    e_a32 = _rel(eps32, phi2)
-    notes: list[str] = []
+    notes = _triplet_notes(phi1, phi2, r21, r32)
+    label, ratio_r, lead = _classify_triplet(eps21, eps32, r21, r32)
+
+    def build(note: list[str], **kw: Any) -> ThreeGridResult:
+        return ThreeGridResult(
+            h=(h1, h2, h3),
+            phi=(phi1, phi2, phi3),
+            r21=r21,
+            r32=r32,
+            e_a=e_a,
+            safety_factor=fs,
+            method="celik2008",
+            note="; ".join(note),
+            convergence=label,
+            convergence_ratio=ratio_r,
+            **kw,
+        )
+
+    if label == "converged":
+        return build(
+            [lead, *notes], p=None, phi_ext=phi1, e_ext=0.0, gci_fine=0.0, gci_coarse=0.0, asymptotic_ratio=None
+        )
+    if label in ("indeterminate", "divergent"):
+        return build([lead, *notes], **_UNDEFINED)
+    if label == "oscillatory":
+        notes.append(f"oscillatory convergence (R = {ratio_r:.4g}): treat the GCI with caution")
+    p, why = _apparent_order(r21, r32, eps21, eps32)
+    if p is None or p <= 0.0:
+        if p is not None:
+            why = f"apparent order p = 0 ({why or '|eps32| == |eps21|'}): Richardson extrapolation undefined"
+        return build([why, *notes], **(_UNDEFINED | {"p": p}))
+    return build(notes, **_richardson(p, r21, r32, phi1, phi2, e_a, _rel(eps32, phi2), fs))
+
+
+#: The estimates of a triplet whose apparent order is undefined.
+_UNDEFINED: dict[str, Any] = dict(
+    p=None, phi_ext=None, e_ext=None, gci_fine=None, gci_coarse=None, asymptotic_ratio=None
+)
+
+
+def _triplet_notes(phi1: float, phi2: float, r21: float, r32: float) -> list[str]:
+    """Cautions about a triplet's data: a zero fine-grid value, a refinement ratio below the recommended one."""
+    notes = []
     if phi1 == 0.0 or phi2 == 0.0:
         notes.append(
             "phi is 0 on a fine grid: relative errors and GCI against it are infinite; judge the absolute "
@@ -395,38 +436,18 @@ def grid_convergence(
         notes.append(
             f"refinement ratio {min(r21, r32):.4g} is below the {_R_RECOMMENDED} recommended by Celik et al. (2008)"
         )
+    return notes
 
-    def build(**kw: Any) -> ThreeGridResult:
-        return ThreeGridResult(
-            h=(h1, h2, h3),
-            phi=(phi1, phi2, phi3),
-            r21=r21,
-            r32=r32,
-            e_a=e_a,
-            safety_factor=fs,
-            method="celik2008",
-            note="; ".join(notes),
-            **kw,
-        )
 
-    undefined: dict[str, Any] = dict(
-        p=None, phi_ext=None, e_ext=None, gci_fine=None, gci_coarse=None, asymptotic_ratio=None
-    )
+def _classify_triplet(eps21: float, eps32: float, r21: float, r32: float) -> tuple[str, float | None, str]:
+    """(label, convergence ratio R, leading note) of a triplet from its differences and refinement ratios.
+
+    The note is "" for monotonic and oscillatory triplets, and says why the order is undefined otherwise.
+    """
     if eps21 == 0.0 and eps32 == 0.0:
-        notes.insert(0, "converged: phi1 == phi2 == phi3, no discretisation change; apparent order undefined")
-        return build(
-            p=None,
-            phi_ext=phi1,
-            e_ext=0.0,
-            gci_fine=0.0,
-            gci_coarse=0.0,
-            asymptotic_ratio=None,
-            convergence="converged",
-            convergence_ratio=None,
-        )
+        return "converged", None, "converged: phi1 == phi2 == phi3, no discretisation change; apparent order undefined"
     if eps21 == 0.0:
-        notes.insert(0, "indeterminate: phi1 == phi2 but phi3 differs; apparent order unbounded, no GCI")
-        return build(convergence="indeterminate", convergence_ratio=0.0, **undefined)
+        return "indeterminate", 0.0, "indeterminate: phi1 == phi2 but phi3 differs; apparent order unbounded, no GCI"
     ratio_r = eps21 / eps32 if eps32 != 0.0 else math.inf
     same_sign = eps32 != 0.0 and (eps21 > 0.0) == (eps32 > 0.0)
     # monotonic/divergent boundary: the apparent order reaches 0 where R ln(r32) / ln(r21) = 1 (R = 1 when
@@ -436,36 +457,32 @@ def grid_convergence(
         same_sign and math.log(abs(eps21)) - math.log(abs(eps32)) + math.log(math.log(r32) / math.log(r21)) >= 0.0
     ):
         scaled_r = ratio_r * math.log(r32) / math.log(r21)
-        notes.insert(
-            0,
+        return (
+            "divergent",
+            ratio_r,
             f"divergent: R ln(r32)/ln(r21) = {scaled_r:.4g} >= 1 (R = {ratio_r:.4g}), the change does not "
             "shrink with refinement; apparent order undefined",
         )
-        return build(convergence="divergent", convergence_ratio=ratio_r, **undefined)
-    label = "monotonic" if same_sign else "oscillatory"
-    if label == "oscillatory":
-        notes.append(f"oscillatory convergence (R = {ratio_r:.4g}): treat the GCI with caution")
-    p, why = _apparent_order(r21, r32, eps21, eps32)
-    if p is None or p <= 0.0:
-        if p is not None:
-            why = f"apparent order p = 0 ({why or '|eps32| == |eps21|'}): Richardson extrapolation undefined"
-        notes.insert(0, why)
-        return build(convergence=label, convergence_ratio=ratio_r, **(undefined | {"p": p}))
+    return ("monotonic" if same_sign else "oscillatory"), ratio_r, ""
+
+
+def _richardson(
+    p: float, r21: float, r32: float, phi1: float, phi2: float, e_a: float, e_a32: float, fs: float
+) -> dict[str, float | None]:
+    """Celik's eqs. 6-8 and Roache's asymptotic ratio for an apparent order p > 0, free of r^p overflow."""
     x21, x32 = p * math.log(r21), p * math.log(r32)
     d21, d32 = _expm1(x21), _expm1(x32)  # r21^p - 1, r32^p - 1
     phi_ext = phi1 + (phi1 - phi2) / d21  # == (r21^p phi1 - phi2) / (r21^p - 1), no r^p overflow
     # gci_coarse / (r21^p gci_fine) = (e_a32 / e_a) (1 - r21^-p) / (r32^p - 1), free of overflow
     asymptotic = (e_a32 / e_a) * (-math.expm1(-x21)) / d32 if 0.0 < e_a < math.inf else None
     # inf/inf or 0*inf (zero reference values with extreme orders) must not leak out as NaN
-    return build(
+    return dict(
         p=p,
         phi_ext=_no_nan(phi_ext),
         e_ext=_no_nan(_rel(phi_ext - phi1, phi_ext)),
         gci_fine=_no_nan(fs * e_a / d21),
         gci_coarse=_no_nan(fs * e_a32 / d32),
         asymptotic_ratio=_no_nan(asymptotic),
-        convergence=label,
-        convergence_ratio=ratio_r,
     )
 
 
@@ -673,14 +690,7 @@ def least_squares_convergence(
     ('power', 1.5, 5.0, 1.25)
     """
     func = "least_squares_convergence"
-    if weighting not in LS_WEIGHTINGS:
-        raise ConvergenceError(f"{func}: 'weighting' must be one of {list(LS_WEIGHTINGS)} (got {weighting!r})")
-    try:
-        p_lo, p_hi = (float(v) for v in p_bounds)
-    except (TypeError, ValueError):
-        raise ConvergenceError(f"{func}: 'p_bounds' must be two numbers (got {p_bounds!r})") from None
-    if not (math.isfinite(p_lo) and math.isfinite(p_hi) and 0.0 < p_lo < p_hi):
-        raise ConvergenceError(f"{func}: 'p_bounds' must satisfy 0 < lower < upper (got {p_bounds!r})")
+    p_lo, p_hi = _check_ls_options(weighting, p_bounds, func)
     h_s, phi_s = _validate(h, phi, func=func, n_min=4)
     n = h_s.size
     phi1 = float(phi_s[0])
@@ -694,7 +704,6 @@ def least_squares_convergence(
     if not math.isfinite(delta_m):
         raise ConvergenceError(f"{func}: 'phi' differences overflow the float range (got {phi_s.tolist()})")
     delta_phi = delta_m / (n - 1)
-    diffs = np.diff(phi_s)
     common: dict[str, Any] = dict(
         h=tuple(float(v) for v in h_s),
         phi=tuple(float(v) for v in phi_s),
@@ -703,7 +712,53 @@ def least_squares_convergence(
         max_difference=delta_m,
         method="eca-hoekstra2014",
     )
+    without_fit = _without_fit(phi1, delta_m, np.diff(phi_s), common)
+    if without_fit is not None:
+        return without_fit
+    fit, p, chosen, note = _best_fit(x, h_s, phi_s, weighting, p_lo, p_hi)
+    phi0 = fit.coefficients[0]
+    eps = abs(phi1 - phi0)
+    sigma = fit.sigma
+    good = 0.5 <= p < 2.1 and sigma < delta_phi
+    fs = 1.25 if good else 3.0
+    misfit = abs(phi1 - float(fit.fitted[0]))
+    if sigma < delta_phi:
+        u_abs = fs * eps + sigma + misfit
+    else:
+        u_abs = 3.0 * sigma / delta_phi * (eps + sigma + misfit)
+        note += "; sigma >= Delta_phi: U = 3 sigma / Delta_phi (eps + sigma + |phi1 - fit1|)"
+    return LeastSquaresResult(
+        p=p,
+        phi_ext=phi0,
+        fit=fit.form,
+        weighting=chosen,
+        coefficients=fit.coefficients,
+        sigma=sigma,
+        error_estimate=eps,
+        safety_factor=fs,
+        uncertainty_abs=u_abs,
+        uncertainty=_rel(u_abs, phi1),
+        convergence="monotonic",
+        note=note,
+        **common,
+    )
 
+
+def _check_ls_options(weighting: str, p_bounds: tuple[float, float], func: str) -> tuple[float, float]:
+    """Refuse an unknown weighting or bad bounds of the observed order; (lower, upper) as floats."""
+    if weighting not in LS_WEIGHTINGS:
+        raise ConvergenceError(f"{func}: 'weighting' must be one of {list(LS_WEIGHTINGS)} (got {weighting!r})")
+    try:
+        p_lo, p_hi = (float(v) for v in p_bounds)
+    except (TypeError, ValueError):
+        raise ConvergenceError(f"{func}: 'p_bounds' must be two numbers (got {p_bounds!r})") from None
+    if not (math.isfinite(p_lo) and math.isfinite(p_hi) and 0.0 < p_lo < p_hi):
+        raise ConvergenceError(f"{func}: 'p_bounds' must satisfy 0 < lower < upper (got {p_bounds!r})")
+    return p_lo, p_hi
+
+
+def _without_fit(phi1: float, delta_m: float, diffs: FloatArray, common: dict[str, Any]) -> LeastSquaresResult | None:
+    """The results made without a fit (step 6): all values equal, or oscillatory/anomalous data; else None."""
     if delta_m == 0.0:
         return LeastSquaresResult(
             p=None,
@@ -737,7 +792,16 @@ def least_squares_convergence(
             note="oscillatory/anomalous data (consecutive differences change sign or vanish): U = 3 Delta_M",
             **common,
         )
+    return None
 
+
+def _best_fit(
+    x: FloatArray, h_s: FloatArray, phi_s: FloatArray, weighting: str, p_lo: float, p_hi: float
+) -> tuple[_Fit, float, str, str]:
+    """Steps 1-3: the chosen fit in the unit of phi, the power fit's observed order, the weighting chosen, a note."""
+    n = h_s.size
+    phi1 = float(phi_s[0])
+    delta_m = float(np.max(phi_s) - np.min(phi_s))
     weight_sets = {"unweighted": np.full(n, 1.0 / n), "weighted": (1.0 / h_s) / np.sum(1.0 / h_s)}
     names = ("unweighted", "weighted") if weighting == "auto" else (weighting,)
     # fit z = (phi - phi1) / Delta_M in [-1, 1]: scale-free and safe from overflow; mapped back below
@@ -751,32 +815,7 @@ def least_squares_convergence(
     fit = _Fit(zfit.form, tuple(float(c) for c in coef), phi1 + delta_m * zfit.fitted, delta_m * zfit.sigma)
     if p <= p_lo * (1 + 1e-9) or p >= p_hi * (1 - 1e-9):
         note += f"; the power fit stopped at a bound of p_bounds ({p_lo:g}, {p_hi:g})"
-    phi0 = fit.coefficients[0]
-    eps = abs(phi1 - phi0)
-    sigma = fit.sigma
-    good = 0.5 <= p < 2.1 and sigma < delta_phi
-    fs = 1.25 if good else 3.0
-    misfit = abs(phi1 - float(fit.fitted[0]))
-    if sigma < delta_phi:
-        u_abs = fs * eps + sigma + misfit
-    else:
-        u_abs = 3.0 * sigma / delta_phi * (eps + sigma + misfit)
-        note += "; sigma >= Delta_phi: U = 3 sigma / Delta_phi (eps + sigma + |phi1 - fit1|)"
-    return LeastSquaresResult(
-        p=p,
-        phi_ext=phi0,
-        fit=fit.form,
-        weighting=chosen,
-        coefficients=fit.coefficients,
-        sigma=sigma,
-        error_estimate=eps,
-        safety_factor=fs,
-        uncertainty_abs=u_abs,
-        uncertainty=_rel(u_abs, phi1),
-        convergence="monotonic",
-        note=note,
-        **common,
-    )
+    return fit, p, chosen, note
 
 
 # --------------------------------------------------------------------------------------------------
