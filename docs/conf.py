@@ -5,6 +5,7 @@ Build: ``python -m sphinx -W --keep-going -b html docs docs/_build/html -q`` (wh
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -41,8 +42,11 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "description"
 autodoc_typehints_format = "short"
 autosummary_generate = False
-# type fields of numpydoc attributes are free text here ("True wind speed [kn]"): their words are not targets
-suppress_warnings = ["ref.python"]
+# Leniency for docstrings written for the terminal: type fields of numpydoc attributes are free text here ("True
+# wind speed [kn]"), so their words are not cross-reference targets, and |x| is an absolute value, not a reST
+# substitution. PYROUTE_REL_DOCS_STRICT=1 turns both off, to list the docstrings that need the leniency.
+STRICT = os.environ.get("PYROUTE_REL_DOCS_STRICT") == "1"
+suppress_warnings = [] if STRICT else ["ref.python"]
 
 try:  # a maintained theme when installed (the docs extra installs it), else Sphinx's own
     import furo  # noqa: F401
@@ -88,4 +92,5 @@ def _fill_public_api(app, docname, source):  # noqa: ANN001 - Sphinx's event sig
 
 def setup(app):  # noqa: ANN001, ANN201 - Sphinx's hook
     app.connect("source-read", _fill_public_api)
-    app.connect("autodoc-process-docstring", _escape_bars)
+    if not STRICT:
+        app.connect("autodoc-process-docstring", _escape_bars)

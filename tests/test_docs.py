@@ -4,9 +4,10 @@ Fenced blocks are collected from README.md and docs/**/*.md:
 
 - ``sh`` / ``console``: each ``pyroute-rel ...`` command runs (as ``python -m pyroute_rel.cli``, from the repository
   root, with ``--out`` sent to a temporary folder) and must exit 0, or the code a trailing ``# exits N`` comment
-  names. Installing (``pip``, ``python -m venv``), building the docs and running the test suite are what CI does
-  around this test; scripts (``python examples/...``) are checked to exist and run only where a command needs
-  their output.
+  names. A ``text output`` block after a shell block is an excerpt of what its last command prints: each of its
+  lines must be printed (whitespace aside; ``runtime`` lines vary and are skipped). Installing (``pip``,
+  ``python -m venv``), building the docs and running the test suite are what CI does around this test; scripts
+  (``python examples/...``) are checked to exist and run only where a command needs their output.
 - ``toml``: a whole scenario loads with :func:`pyroute_rel.scenario_from_mapping`; a fragment loads merged into the
   control example (its tables replace the example's); a failure model (or a fragment of its criteria) loads with
   :func:`pyroute_rel.load_failure_model`. Every group of commented-out lines (``# key = value``) loads too, once
@@ -14,7 +15,7 @@ Fenced blocks are collected from README.md and docs/**/*.md:
 - ``python``: run, as a doctest when it holds ``>>>`` lines.
 - ``json``: parsed; a GeoJSON FeatureCollection loads as exclusion zones.
 
-Other fences (``text``) are output excerpts and synopses, and ``{directive}`` fences are MyST's; no other language
+Other ``text`` fences are synopses and file excerpts, and ``{directive}`` fences are MyST's; no other language
 may be used.
 """
 
@@ -30,7 +31,7 @@ import shutil
 import subprocess
 import sys
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import pytest
@@ -41,11 +42,15 @@ ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
 EXAMPLES = ROOT / "examples"
 LANGUAGES = {"sh", "console", "toml", "python", "json", "text"}
-FENCE = re.compile(r"^(?P<indent>[ ]*)```(?P<lang>[^\s`]*)[^\n]*\n(?P<body>.*?)^(?P=indent)```[ ]*$", re.M | re.S)
+FENCE = re.compile(
+    r"^(?P<indent>[ ]*)```(?P<lang>[^\s`]*)(?P<info>[^\n]*)\n(?P<body>.*?)^(?P=indent)```[ ]*$", re.M | re.S
+)
 COMMENTED_TOML = re.compile(r"^\s*#\s?(?=\[|[A-Za-z_][\w.-]*\s*=)")
 EXIT = re.compile(r"#\s*exits?\s+(\d)\b")
 # commands that take more than a few seconds
 SLOW = ("microtransat_era5", "era5_synthetic", "gci study", "--refine 5")
+# output lines that vary from run to run
+VARIABLE_OUTPUT = ("runtime",)
 ERA5_DATA = EXAMPLES / "data" / "era5_synthetic.nc"
 
 
@@ -55,6 +60,7 @@ class Block:
     line: int
     lang: str
     body: str
+    info: str = ""
 
     @property
     def where(self) -> str:
@@ -72,7 +78,7 @@ def blocks() -> list[Block]:
         text = path.read_text(encoding="utf-8")
         for m in FENCE.finditer(text):
             body = "\n".join(line[len(m["indent"]) :] for line in m["body"].splitlines())
-            found.append(Block(path, text.count("\n", 0, m.start()) + 1, m["lang"], body))
+            found.append(Block(path, text.count("\n", 0, m.start()) + 1, m["lang"], body, m["info"].strip()))
     return found
 
 
@@ -99,6 +105,7 @@ class Command:
     where: str
     argv: tuple[str, ...]
     exit_code: int
+    expected: str = ""  # an output excerpt: lines the command prints (```text output after its block)
 
 
 def shell_lines(block: Block) -> list[str]:
@@ -153,26 +160,44 @@ def classify(block: Block, argv: list[str], code: int) -> Command | str:
     raise AssertionError(f"{where}: no rule for the command {shlex.join(argv)!r}: teach tests/test_docs.py")
 
 
-def all_commands() -> list[pytest.param]:
-    params = []
+def all_commands() -> list[Command | str]:
+    """Every command of every page, with the output excerpt (a ```text output block) that follows its block."""
+    found: list[Command | str] = []
+    last: dict[Path, int] = {}  # per page: index in found of the last command of the last shell block
     for block in blocks():
+        if block.lang == "text" and "output" in block.info.split():
+            i = last.pop(block.path, None)
+            if i is None or not isinstance(found[i], Command):
+                found.append(f"{block.where}: an output block must follow a block whose last command prints it")
+            else:
+                found[i] = replace(found[i], expected=block.body)
         if block.lang not in ("sh", "console"):
             continue
         try:
-            found = commands(block)
+            cmds = commands(block)
         except (AssertionError, ValueError) as exc:  # reported by the test, not at collection
-            params.append(pytest.param(f"{block.where}: {exc}", id=block.where))
+            found.append(f"{block.where}: {exc}")
             continue
-        for cmd in found:
-            if isinstance(cmd, Command):
-                marks = [pytest.mark.slow] if any(s in " ".join(cmd.argv) for s in SLOW) else []
-                params.append(pytest.param(cmd, id=f"{cmd.where} {' '.join(cmd.argv[:2])}", marks=marks))
+        found += [c for c in cmds if isinstance(c, Command)]
+        last[block.path] = len(found) - 1
+    return found
+
+
+def command_params() -> list[pytest.param]:
+    params = []
+    for cmd in all_commands():
+        if isinstance(cmd, str):
+            params.append(pytest.param(cmd, id=cmd.split(":")[0]))
+        else:
+            marks = [pytest.mark.slow] if any(s in " ".join(cmd.argv) for s in SLOW) else []
+            params.append(pytest.param(cmd, id=f"{cmd.where} {' '.join(cmd.argv[:2])}", marks=marks))
     return params
 
 
-def test_shell_blocks_hold_only_known_commands():
-    notes = [c for b in blocks() if b.lang in ("sh", "console") for c in commands(b)]
-    assert any(isinstance(c, Command) for c in notes)
+def test_commands_are_found_with_their_outputs():
+    found = [c for c in all_commands() if isinstance(c, Command)]
+    assert len(found) > 10
+    assert sum(bool(c.expected) for c in found) >= 5
 
 
 def redirect_out(argv: tuple[str, ...], tmp: Path) -> list[str]:
@@ -190,7 +215,7 @@ def make_era5_data() -> None:
         subprocess.run([sys.executable, str(EXAMPLES / "make_era5_example.py")], cwd=ROOT, check=True, timeout=300)
 
 
-@pytest.mark.parametrize("cmd", all_commands())
+@pytest.mark.parametrize("cmd", command_params())
 def test_command(cmd: Command | str, tmp_path: Path):
     if isinstance(cmd, str):
         pytest.fail(cmd)
@@ -206,6 +231,13 @@ def test_command(cmd: Command | str, tmp_path: Path):
     assert "Traceback" not in done.stderr
     if "--json" in cmd.argv and cmd.exit_code == 0:
         json.loads(done.stdout)
+    printed = (done.stdout + done.stderr).replace(str(tmp_path / "out_"), "out/")
+    printed_lines = {" ".join(line.split()) for line in printed.splitlines()}
+    for line in cmd.expected.splitlines():
+        if line.strip() and not line.startswith(VARIABLE_OUTPUT):
+            assert " ".join(line.split()) in printed_lines, (
+                f"{cmd.where}: the docs show a line it does not print:\n{line}\n\nit printed:\n{printed}"
+            )
 
 
 # ----------------------------------------------------------------------------------------------------- TOML
