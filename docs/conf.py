@@ -6,6 +6,7 @@ Build: ``python -m sphinx -W --keep-going -b html docs docs/_build/html -q`` (wh
 from __future__ import annotations
 
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -42,11 +43,9 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "description"
 autodoc_typehints_format = "short"
 autosummary_generate = False
-# Leniency for docstrings written for the terminal: type fields of numpydoc attributes are free text here ("True
-# wind speed [kn]"), so their words are not cross-reference targets, and |x| is an absolute value, not a reST
-# substitution. PYROUTE_REL_DOCS_STRICT=1 turns both off, to list the docstrings that need the leniency.
+# Leniency for docstrings written for the terminal: |x| is an absolute value there, not a reST substitution.
+# PYROUTE_REL_DOCS_STRICT=1 turns it off, to list the docstrings that need it.
 STRICT = os.environ.get("PYROUTE_REL_DOCS_STRICT") == "1"
-suppress_warnings = [] if STRICT else ["ref.python"]
 
 try:  # a maintained theme when installed (the docs extra installs it), else Sphinx's own
     import furo  # noqa: F401
@@ -58,6 +57,39 @@ html_title = f"pyroute_rel {release}"
 html_static_path: list[str] = []
 
 PUBLIC_API_MARK = ".. public-api-table::"
+
+
+SECTIONS = ("Parameters", "Other Parameters", "Attributes", "Returns", "Yields", "Receives")
+_ENTRY = re.compile(
+    r"^(?P<indent>\s*)(?P<names>\*{0,2}[A-Za-z_][\w]*(?:\s*,\s*\*{0,2}[A-Za-z_][\w]*)*)\s+:\s+(?P<rest>.+)$"
+)
+
+
+def _looks_like_type(text: str) -> bool:
+    """``float``, ``dict[str, float]``, ``int or None``: a short phrase without sentence punctuation."""
+    return not text.endswith(".") and len(text.split()) <= 3 and text[0].islower() and "[" not in text.split()[-1][:1]
+
+
+def _descriptions_not_types(app, what, name, obj, options, lines):  # noqa: ANN001 - Sphinx's event signature
+    """Read ``name : Description [unit].`` entries (this project's habit: types live in the signature) as a name
+    and its description, not as a name and a type, so the description is not rendered as a type."""
+    section_indent = None
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        nxt = lines[i + 1] if i + 1 < len(lines) else ""
+        if line.strip() in SECTIONS and nxt.strip() and set(nxt.strip()) == {"-"}:
+            section_indent = len(line) - len(line.lstrip())
+            i += 2
+            continue
+        if section_indent is not None and line.strip() and len(line) - len(line.lstrip()) < section_indent:
+            section_indent = None
+        m = _ENTRY.match(line) if section_indent is not None else None
+        if m and len(m["indent"]) == section_indent and not _looks_like_type(m["rest"]):
+            lines[i] = m["indent"] + m["names"]
+            lines.insert(i + 1, m["indent"] + "    " + m["rest"])
+            i += 1
+        i += 1
 
 
 def _escape_bars(app, what, name, obj, options, lines):  # noqa: ANN001 - Sphinx's event signature
@@ -94,3 +126,4 @@ def setup(app):  # noqa: ANN001, ANN201 - Sphinx's hook
     app.connect("source-read", _fill_public_api)
     if not STRICT:
         app.connect("autodoc-process-docstring", _escape_bars)
+    app.connect("autodoc-process-docstring", _descriptions_not_types, priority=100)  # before napoleon
