@@ -331,6 +331,19 @@ def test_toml_snippet(block: Block, tmp_path: Path):
         )
 
 
+@pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*.toml")), ids=lambda p: p.name)
+def test_example_comments_are_valid_toml(path: Path):
+    """The examples' commented-out settings parse once uncommented (what they mean is the example's to say:
+    ``member = 0`` needs an ensemble file)."""
+    text = path.read_text(encoding="utf-8")
+    tomllib.loads(text)
+    for first, group in commented_groups(text):
+        try:
+            tomllib.loads(uncomment(text, group))
+        except tomllib.TOMLDecodeError as exc:
+            raise AssertionError(f"{path.name}:{first}: not valid TOML once uncommented ({exc})") from None
+
+
 def test_commented_lines_are_found():
     text = "[grid]\n# aspect = 6.0\n# refine = 5\n\n# a comment\n# [[weather.patch]]\n"
     assert commented_groups(text) == [(2, [1, 2]), (6, [5])]
