@@ -44,6 +44,8 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+#: An array of text (numpy's fixed-width unicode strings).
+StrArray = npt.NDArray[np.str_]
 
 LEG_FIELDS = (
     "wait_h",
@@ -175,8 +177,8 @@ class ForbiddenArcs:
     departure_h: FloatArray
     departure: npt.NDArray[np.datetime64]
     p_f: FloatArray
-    reason: npt.NDArray[np.str_]
-    criteria: npt.NDArray[np.str_]
+    reason: StrArray
+    criteria: StrArray
 
     def __len__(self) -> int:
         return int(self.rank.size)

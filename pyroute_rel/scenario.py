@@ -30,15 +30,6 @@ if TYPE_CHECKING:
 
 __all__ = ["Scenario", "load_scenario", "scenario_from_mapping", "parse_departure"]
 
-#: The weather fields each failure-model quantity is computed from.
-_QUANTITY_FIELDS = {
-    "hs_m": {"hs_m"},
-    "awd_deg": {"wave_dir_deg"},
-    "tws_kn": {"tws_kn"},
-    "twa_deg": {"twd_deg"},
-    "wave_period_s": {"wave_period_s"},
-}
-
 
 @dataclass(frozen=True)
 class Scenario:
@@ -162,7 +153,7 @@ class Scenario:
         except FailureModelError as exc:
             raise FailureModelError(f"{self.source}: [failure].model {self.failure_model!r}: {exc}") from None
         have = self.weather.fields
-        missing = sorted({f for q in model.quantities for f in _QUANTITY_FIELDS.get(q, set())} - set(have))
+        missing = sorted(model.weather_fields - have)
         if missing:
             raise ScenarioError(
                 f"failure model {model.name!r} needs {', '.join(missing)} but the weather provides only "

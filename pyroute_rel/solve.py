@@ -65,23 +65,16 @@ class ArcMask(Protocol):
 
     Every array is laid out as the arcs into rank ``k`` (the shape of ``grid.arcs(k)``'s ``src``); ``times`` are the
     arcs' departure times (``datetime64``, UTC) of that shape, or None when nothing depends on time.
-
-    Attributes
-    ----------
-    grid : Grid
-        The grid the mask was built for; the solver refuses to use it on another.
-    timed : bool
-        True when the mask depends on departure times (zones with time windows).
     """
 
     @property
     def grid(self) -> Grid:
-        """The grid whose arcs the mask answers for."""
+        """The grid whose arcs the mask answers for; the solver refuses to use the mask on another."""
         ...
 
     @property
     def timed(self) -> bool:
-        """True when the answer depends on the departure times."""
+        """True when the answer depends on the departure times (zones with time windows)."""
         ...
 
     def __call__(self, k: int, times: npt.NDArray[np.datetime64] | None) -> BoolArray:

@@ -97,3 +97,21 @@ def test_what_is_truly_unreadable_is_still_refused(tmp_path, text, message) -> N
     path.write_text(text)
     with pytest.raises(PolarError, match=message):
         read_pol(path)
+
+
+def test_the_cli_says_so_in_one_line(tmp_path, capsys) -> None:
+    """pyroute-rel prints a filled polar's warning as one line on stderr, and routes."""
+    from pathlib import Path
+
+    from pyroute_rel.cli import main
+
+    (tmp_path / "b.pol").write_text("TWA\\TWS\t6\t12\t20\n0\t0\t0\t0\n40\t2\t\t4\n90\t4\t6\t7\n150\t3\t5\n")
+    control = (Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml").read_text()
+    assert 'polar = "maribot_vane"' in control
+    (tmp_path / "s.toml").write_text(control.replace('polar = "maribot_vane"', 'polar = "b.pol"'))
+    code = main(["route", str(tmp_path / "s.toml"), "--quiet", "--n-ranks", "20"])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 0
+    warned = [line for line in err if "warning" in line]
+    assert len(warned) == 1 and warned[0].startswith("pyroute-rel: warning: polar file ")
+    assert "2 empty or missing speed cell(s) filled" in warned[0]

@@ -11,12 +11,13 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from .. import __version__
-from ..errors import PyrouteError, ScenarioError
+from ..errors import PyrouteError, PyrouteWarning, ScenarioError
 from .gci import add_gci_parser
 
 __all__ = ["main", "build_parser"]
@@ -340,13 +341,27 @@ def _cmd_failure(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _one_line_warning(message: Warning | str, category: type[Warning], *_: object, **__: object) -> None:
+    """Our warnings as one line on stderr, as errors are; others as Python shows them."""
+    if issubclass(category, PyrouteWarning):
+        print(f"pyroute-rel: warning: {' '.join(str(message).split())}", file=sys.stderr)
+    else:
+        _SHOW_WARNING(message, category, *_, **__)  # type: ignore[arg-type]
+
+
+_SHOW_WARNING = warnings.showwarning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``pyroute-rel``; returns the exit code."""
     parser = build_parser()
     args = parser.parse_args(argv)
     func: Callable[[argparse.Namespace], int] = args.func
     try:
-        return func(args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("default", PyrouteWarning)  # shown once each, never raised
+            warnings.showwarning = _one_line_warning
+            return func(args)
     except PyrouteError as exc:
         if args.debug:
             raise

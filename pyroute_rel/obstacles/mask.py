@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from ..errors import ScenarioError
 from ..grid import Grid
+from .zones import Zone
 
 __all__ = ["Avoid", "ObstacleMask", "obstacle_mask", "check_points"]
 
@@ -61,7 +62,7 @@ class Avoid:
         if (
             isinstance(zones, str | bytes)
             or not isinstance(zones, Sequence)
-            or not all(hasattr(z, "geometry") and hasattr(z, "active") for z in zones)
+            or not all(isinstance(z, Zone) for z in zones)
         ):
             raise ScenarioError(
                 "Avoid.zones must be a sequence of Zone (pyroute_rel.obstacles.zones.load_zones(paths)) (got "

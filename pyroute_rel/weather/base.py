@@ -79,38 +79,29 @@ class WeatherSource(Protocol):
     :class:`~pyroute_rel.weather.gridded.GriddedWeather` are the two shipped implementations. The protocol is
     ``runtime_checkable``: ``isinstance(x, WeatherSource)`` checks that the members exist (not their types).
 
-    Attributes
-    ----------
-    steady : bool
-        True when the conditions do not change with time: the router then samples every arc once, at the
-        departure time, and skips the timing pass (see :mod:`pyroute_rel.cost`). False makes the router sample
-        each point at the time the craft gets there; it is always correct, only slower.
-    fields : frozenset of str
-        Names of the :class:`Conditions` fields the source defines (keys of :data:`FIELDS`); ``tws_kn`` and
-        ``twd_deg`` always. A field not listed comes back NaN (waves) or 0 (currents) from :meth:`sample`. The
-        router refuses a failure model needing a field not listed, and takes the fast wind-only cost path when
-        neither ``current_u_ms`` nor ``current_v_ms`` is listed.
-    max_current_ms : float
-        An upper bound on the current's speed anywhere, at any time [m/s] (0 without currents). The solver's
-        pruning bound is the polar's top speed plus this; a bound too small would make pruning inexact.
-
     Conventions of the methods: positions are longitude/latitude [deg] (any longitude convention), times
     ``numpy.datetime64`` (UTC), and every array argument is broadcast with the others.
     """
 
     @property
     def steady(self) -> bool:
-        """True when the conditions do not depend on time [-]."""
+        """True when the conditions do not change with time: the router then samples every arc once, at the
+        departure time, and skips the timing pass (see :mod:`pyroute_rel.cost`). False makes the router sample each
+        point at the time the craft gets there; it is always correct, only slower."""
         ...
 
     @property
     def fields(self) -> frozenset[str]:
-        """:class:`Conditions` fields the source defines (the others are NaN, or 0 [m/s] for currents)."""
+        """Names of the :class:`Conditions` fields the source defines (keys of :data:`FIELDS`); ``tws_kn`` and
+        ``twd_deg`` always. A field not listed comes back NaN (waves) or 0 [m/s] (currents) from :meth:`sample`. The
+        router refuses a failure model needing a field not listed, and takes the fast wind-only cost path when
+        neither ``current_u_ms`` nor ``current_v_ms`` is listed."""
         ...
 
     @property
     def max_current_ms(self) -> float:
-        """Upper bound on the current's speed anywhere, at any time [m/s]; 0 without currents."""
+        """An upper bound on the current's speed anywhere, at any time [m/s] (0 without currents). The solver's
+        pruning bound is the polar's top speed plus this; a bound too small would make pruning inexact."""
         ...
 
     def sample(
