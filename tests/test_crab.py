@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq, minimize_scalar
 
@@ -91,7 +91,7 @@ def _reference(course, twd, tws, u, v, polar, factor=1.0):
         if ga == 0.0:
             root = a
         elif (ga < 0) != (gb < 0) and gb != 0.0:
-            root = brentq(g, a, b, xtol=1e-300, rtol=4 * np.finfo(float).eps)
+            root = brentq(g, a, b, xtol=1e-300, rtol=4 * np.finfo(float).eps, maxiter=3000)  # roots near 1e-262 deg
         else:
             continue
         sog = V(root) * math.cos(math.radians(root)) + c_along
@@ -108,6 +108,8 @@ def _reference(course, twd, tws, u, v, polar, factor=1.0):
     cur=st.floats(0.01, 1.5),
     factor=st.sampled_from([1.0, 0.7]),
 )
+@example(course=0.0, twd=1.0, tws=2.0, cur_dir=3e-262, cur=1.0, factor=1.0)  # cross currents of ~1e-262 kn
+@example(course=1.2e-226, twd=0.01, tws=2.0, cur_dir=0.0, cur=1.0, factor=1.0)
 def test_speed_made_good_equals_a_scanned_exact_root(course, twd, tws, cur_dir, cur, factor) -> None:
     """The acceptance of issue 16 item 3: the speed made good equals the exact root's to 1e-6 (relative)."""
     u, v = cur * math.sin(math.radians(cur_dir)), cur * math.cos(math.radians(cur_dir))
