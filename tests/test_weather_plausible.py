@@ -340,3 +340,16 @@ def test_undeclared_fill_as_missing_forbids_the_arcs_through_it(tmp_path: Path) 
     )  # fmt: skip
     assert clean_inside.any()
     assert route.voyage_time_h > clean.voyage_time_h
+
+
+def test_the_command_line_refuses_in_one_line_and_writes_nothing(tmp_path: Path, capsys) -> None:
+    from pyroute_rel.cli.main import main
+
+    wind_file(tmp_path / "wind.nc", hole=True)
+    (tmp_path / "s.toml").write_text(TOML.format(weather='kind = "file"\npaths = ["wind.nc"]'))
+    out = tmp_path / "out"
+    assert main(["route", str(tmp_path / "s.toml"), "--quiet", "--out", str(out)]) == 2
+    _, err = capsys.readouterr()
+    assert err.count("\n") == 1 and err.startswith("pyroute-rel: ")
+    assert "variable 'u10': 3152 values outside the plausible range [-100, 100] m/s" in err
+    assert not out.exists() or not any(out.iterdir())

@@ -353,7 +353,8 @@ class GriddedWeather:
 
     Build it with :func:`~pyroute_rel.weather.readers.open_weather` (files) or
     :func:`~pyroute_rel.weather.readers.weather_from_dataset` (an in-memory :class:`xarray.Dataset`); the
-    constructor takes ready :class:`WeatherField` objects.
+    constructor takes ready :class:`WeatherField` objects. The source is :attr:`steady` when no field has a time axis
+    (readers give files whose fields each have a single time that way).
 
     Parameters
     ----------
@@ -361,9 +362,6 @@ class GriddedWeather:
         are copied into float32 blocks (fields on the same grid share one block).
     out_of_range : ``"error"`` (default) refuses a value outside its plausible range
         (:data:`~pyroute_rel.weather.base.RANGES`); ``"missing"`` treats it as missing (see :func:`check_plausible`).
-
-    The source is :attr:`steady` when no field has a time axis (readers give a file whose fields each have a single
-    time that way).
 
     Building one also loads the compiled sampling kernels: about half a second the first time in a process
     (numba's start-up), a few seconds once after installing (compiling them; the result is cached on disk).

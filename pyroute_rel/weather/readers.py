@@ -165,6 +165,9 @@ def open_weather(
     """Read NetCDF/GRIB weather files into a :class:`GriddedWeather`.
 
     Files are opened lazily (dask chunks for NetCDF) and only the box and time window are read.
+    Declared fill values (``_FillValue``, ``missing_value``) are missing (NaN), never data. When every field read
+    has a single time (an analysis, or one step of a forecast downloaded alone), the weather is steady: it is used
+    at all times, ``steady`` is True, and a :class:`~pyroute_rel.errors.WeatherWarning` says so once.
 
     Parameters
     ----------
@@ -184,10 +187,6 @@ def open_weather(
         (:data:`~pyroute_rel.weather.base.RANGES`; an undeclared fill value, a negative wave height) is an error
         naming the file, variable, count and a location; ``"missing"``: such values are missing (NaN: arcs through
         them are forbidden) and a :class:`~pyroute_rel.errors.WeatherWarning` says how many.
-
-    Declared fill values (``_FillValue``, ``missing_value``) are missing (NaN), never data. When every field read
-    has a single time (an analysis, or one step of a forecast downloaded alone), the weather is steady: it is used
-    at all times, ``steady`` is True, and a :class:`~pyroute_rel.errors.WeatherWarning` says so once.
 
     Raises
     ------
