@@ -158,19 +158,41 @@ def test_directions_are_checked_before_they_are_wrapped() -> None:
     assert got == pytest.approx(270.0, abs=1e-5)  # stored as float32 (sin, cos): 1 ulp = 6e-8 rad = 3e-6 deg
 
 
+def wind(speed_kn: float, direction_deg: float = 0.0, where: tuple[int, int, int] = (2, 0, 1)) -> xr.Dataset:
+    """A wind speed [kn] and direction [deg] file: 10 kn from the north but for one value of each at ``where``."""
+    spd = np.full(SHAPE, 10.0, np.float32)
+    spd[where] = speed_kn
+    drn = np.zeros(SHAPE, np.float32)
+    drn[where] = direction_deg
+    dims = ("time", "latitude", "longitude")
+    return xr.Dataset(
+        {
+            "ws": (dims, spd, {"units": "knots", "standard_name": "wind_speed"}),
+            "wd": (dims, drn, {"units": "degree", "standard_name": "wind_from_direction"}),
+        },
+        coords={"time": TIME, "latitude": LAT, "longitude": LON},
+    )
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    which=st.sampled_from(["tws_kn", "twd_deg"]),
+    data=st.data(),
+    where=st.tuples(st.integers(0, 2), st.integers(0, 2), st.integers(0, 3)),
+)
+def test_speed_or_direction_out_of_range_is_an_error(which: str, data, where: tuple[int, int, int]) -> None:
+    bad = data.draw(outside(which))
+    ds = wind(bad, 0.0, where) if which == "tws_kn" else wind(10.0, bad, where)
+    var = "ws" if which == "tws_kn" else "wd"
+    it, iy, ix = where
+    with pytest.raises(WeatherError) as info:
+        weather_from_dataset(ds)
+    assert f"variable '{var}': 1 value outside the plausible range {RANGES[which].describe()} " in str(info.value)
+    assert f"at lon {LON[ix]:g}, lat {LAT[iy]:g}, {str(TIME[it])[:16]})" in str(info.value)
+
+
 def test_speed_and_direction_files_are_checked_in_their_own_units() -> None:
     # wind speed in knots: 250 kn is beyond 200 kn; 150 kn is fine (and stored as u, v = 0, -150 kn in m/s)
-    def wind(speed_kn: float) -> xr.Dataset:
-        spd = np.full(SHAPE, 10.0, np.float32)
-        spd[2, 0, 1] = speed_kn
-        dims = ("time", "latitude", "longitude")
-        return xr.Dataset(
-            {
-                "ws": (dims, spd, {"units": "knots", "standard_name": "wind_speed"}),
-                "wd": (dims, np.zeros(SHAPE, np.float32), {"units": "degree", "standard_name": "wind_from_direction"}),
-            },
-            coords={"time": TIME, "latitude": LAT, "longitude": LON},
-        )
 
     with pytest.raises(WeatherError, match=r"variable 'ws': 1 value outside the plausible range \[0, 200\] kn .* "
                        r"at lon -19, lat 40, 2018-06-01T12:00"):  # fmt: skip
