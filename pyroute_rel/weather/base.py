@@ -14,6 +14,8 @@ Conventions
 - Currents are the velocity the water moves *to*: ``current_u_ms`` east, ``current_v_ms`` north [m/s].
 - A value that is unknown at a point (land in an ocean model, outside a file) is NaN; the cost function
   forbids arcs through NaN weather rather than treating it as calm.
+- Every quantity has a plausible range (:data:`RANGES`, with the reason for each bound); uniform and gridded
+  weather refuse values outside it (gridded files may ask for them to be treated as missing instead).
 """
 
 from __future__ import annotations
