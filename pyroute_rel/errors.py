@@ -24,6 +24,7 @@ __all__ = [
     "PyrouteWarning",
     "PolarWarning",
     "CacheWarning",
+    "WeatherWarning",
 ]
 
 
@@ -101,3 +102,8 @@ class PolarWarning(PyrouteWarning):
 
 class CacheWarning(PyrouteWarning):
     """The disk cache is not used (a folder other users may write); the run goes on without it."""
+
+
+class WeatherWarning(PyrouteWarning):
+    """Weather data were read with a caveat: a file with one time taken as steady weather, or values outside their
+    plausible range treated as missing."""

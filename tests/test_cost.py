@@ -147,7 +147,7 @@ def _varying_field():
     t, la, lo = np.meshgrid(np.arange(48.0), lat, lon, indexing="ij")
     speed = 6.0 + 3.0 * np.sin(t / 7.0 + lo / 5.0)
     frm = np.radians(40.0 * np.sin(t / 11.0 + la / 4.0))
-    hs = 2.0 + 2.5 * np.cos(la / 3.0 + t / 9.0)
+    hs = 2.5 + 2.0 * np.cos(la / 3.0 + t / 9.0)  # in [0.5, 4.5] m: plausible (a negative height is refused)
     hs[:, 10:12, 20:23] = np.nan  # an island: arcs next to it are forbidden as missing weather
     dims = ("time", "latitude", "longitude")
     ds = xr.Dataset(

@@ -124,7 +124,9 @@ def _irregular():
     hours = np.sort(rng.choice(np.arange(0, 240, 1), 9, replace=False)).astype(float)
     time = T0 + (hours * 3600).astype("timedelta64[s]")
     shape = (hours.size, lat.size, lon.size)
-    fields = {k: rng.normal(scale=8.0, size=shape).astype(np.float32) for k in ("u10", "v10", "uo", "vo")}
+    # wind 8 m/s and currents 2 m/s typical: inside their plausible ranges (weather.base.RANGES)
+    scales = {"u10": 8.0, "v10": 8.0, "uo": 2.0, "vo": 2.0}
+    fields = {k: rng.normal(scale=scale, size=shape).astype(np.float32) for k, scale in scales.items()}
     ds = era5(fields, lon, lat, time, attrs={"uo": {"units": "m s-1"}, "vo": {"units": "m s-1"}})
     return weather_from_dataset(ds), lon, lat, hours, fields
 

@@ -17,11 +17,13 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .base import FIELDS, Conditions, WeatherSource
+from .base import FIELDS, RANGES, Conditions, Range, WeatherSource
 from .uniform import Patch, UniformWeather
 
 __all__ = [
     "FIELDS",
+    "RANGES",
+    "Range",
     "Conditions",
     "WeatherSource",
     "Patch",

@@ -14,6 +14,8 @@ Conventions
 - Currents are the velocity the water moves *to*: ``current_u_ms`` east, ``current_v_ms`` north [m/s].
 - A value that is unknown at a point (land in an ocean model, outside a file) is NaN; the cost function
   forbids arcs through NaN weather rather than treating it as calm.
+- Every quantity has a plausible range (:data:`RANGES`, with the reason for each bound); uniform and gridded
+  weather refuse values outside it (gridded files may ask for them to be treated as missing instead).
 """
 
 from __future__ import annotations
@@ -25,19 +27,79 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Conditions", "WeatherSource", "FIELDS"]
+__all__ = ["Conditions", "WeatherSource", "FIELDS", "RANGES", "Range"]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Fields a control scenario (uniform value or patch) may set, with their units and valid range.
+
+@dataclass(frozen=True)
+class Range:
+    """The physically plausible values of one weather quantity, and why.
+
+    Attributes
+    ----------
+    label : What the quantity is, with its unit, e.g. ``"significant wave height [m]"``.
+    lo, hi : Smallest and largest plausible value (closed interval), in the quantity's unit.
+    why : Where the bounds come from (observed extremes they clear).
+    """
+
+    label: str
+    lo: float
+    hi: float
+    why: str
+
+    def describe(self) -> str:
+        """``"[lo, hi] unit"``, e.g. ``"[0, 30] m"``: the range in messages."""
+        unit = self.label[self.label.rfind("[") :] if "[" in self.label else ""
+        return f"[{self.lo:g}, {self.hi:g}] {unit.strip('[]')}".strip()
+
+
+_WIND = (
+    "the strongest surface winds measured are below 100 m/s (Hurricane Patricia, 2015: 95 m/s sustained, "
+    "Kimberlain et al. 2016, NHC Tropical Cyclone Report EP202015; gust record 113 m/s, Barrow Island 1996, WMO)"
+)
+_DIRECTION = (
+    "a direction, from, clockwise from north; files write [0, 360) or [-180, 180), normalised to [0, 360) after "
+    "the check"
+)
+
+#: Plausible range of every weather quantity, uniform or gridded: the one table both check against. A value
+#: outside is refused (a gridded file may ask to treat it as missing instead: ``out_of_range = "missing"``).
+#: These bounds also catch fill values a file does not declare (the netCDF default fill 9.97e36, 1e20, -9999).
+RANGES: dict[str, Range] = {
+    "tws_kn": Range("true wind speed [kn]", 0.0, 200.0, _WIND + "; 200 kn = 103 m/s"),
+    "twd_deg": Range("true wind direction, from [deg]", -180.0, 360.0, _DIRECTION),
+    "hs_m": Range(
+        "significant wave height [m]",
+        0.0,
+        30.0,
+        "the highest significant wave height measured is 19 m (buoy K5, North Atlantic, 4 February 2013, "
+        "WMO Archive of Weather and Climate Extremes); hindcasts of the worst storms stay below 25 m",
+    ),
+    "wave_dir_deg": Range("mean wave direction, from [deg]", -180.0, 360.0, _DIRECTION),
+    "wave_period_s": Range(
+        "wave period [s]",
+        0.0,
+        40.0,
+        "ocean swell periods stay below 30 s (WAVEWATCH III's and ERA5's wave spectra end near 0.035 Hz, about 29 s)",
+    ),
+    "current_u_ms": Range(
+        "eastward current, to [m/s]",
+        -10.0,
+        10.0,
+        "open-ocean currents stay below about 3 m/s (the Gulf Stream's core); only the fastest tidal races "
+        "(Saltstraumen, Norway: about 10 m/s) reach this bound",
+    ),
+    "current_v_ms": Range("northward current, to [m/s]", -10.0, 10.0, "as current_u_ms"),
+    "wind_u_ms": Range("eastward 10 m wind, to [m/s]", -100.0, 100.0, _WIND),
+    "wind_v_ms": Range("northward 10 m wind, to [m/s]", -100.0, 100.0, _WIND),
+}
+
+#: Fields a control scenario (uniform value or patch) may set, with their units and valid range (from
+#: :data:`RANGES`): the fields of :class:`Conditions`.
 FIELDS: dict[str, tuple[str, float, float]] = {
-    "tws_kn": ("true wind speed [kn]", 0.0, 200.0),
-    "twd_deg": ("true wind direction, from [deg]", 0.0, 360.0),
-    "hs_m": ("significant wave height [m]", 0.0, 30.0),
-    "wave_dir_deg": ("mean wave direction, from [deg]", 0.0, 360.0),
-    "wave_period_s": ("wave period [s]", 0.0, 40.0),
-    "current_u_ms": ("eastward current, to [m/s]", -10.0, 10.0),
-    "current_v_ms": ("northward current, to [m/s]", -10.0, 10.0),
+    name: (RANGES[name].label, RANGES[name].lo, RANGES[name].hi)
+    for name in ("tws_kn", "twd_deg", "hs_m", "wave_dir_deg", "wave_period_s", "current_u_ms", "current_v_ms")
 }
 
 

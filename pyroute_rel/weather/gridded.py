@@ -7,7 +7,9 @@ them, linear in time, latitude and longitude.
 Wind is interpolated as (u, v), then turned into speed [kn] and direction *from* [deg]; wave direction
 as a unit vector; currents as (u, v) *to* [m/s]. A point outside a field's loaded box or times, or with
 NaN in a grid value it draws on, gives NaN. Absent currents are 0 [m/s]; absent waves and periods NaN
-(see :attr:`GriddedWeather.fields`). A field without time is steady; one with a single time covers that instant.
+(see :attr:`GriddedWeather.fields`). A field without time is steady; one with a single time covers that instant
+(the readers turn files whose fields each have one time into steady fields). Values outside their plausible range
+(:data:`~pyroute_rel.weather.base.RANGES`) are refused, or with ``out_of_range="missing"`` made NaN.
 
 Sampling is the router's hot path (millions of points per route, scattered over a field of a gigabyte), so
 it runs in small compiled kernels (numba, ``nogil``: the cost kernel's threads run them side by side). Fields
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
@@ -27,20 +30,22 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import WeatherCoverageError, WeatherError
+from ..errors import WeatherCoverageError, WeatherError, WeatherWarning
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
-from .base import Conditions
+from .base import RANGES, Conditions
 
 if TYPE_CHECKING:
     pass
 
-__all__ = ["GRID_FIELDS", "GriddedWeather", "PreparedPoints", "WeatherField"]
+__all__ = ["GRID_FIELDS", "OUT_OF_RANGE", "GriddedWeather", "PreparedPoints", "WeatherField", "check_plausible"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 
-#: Knots per metre per second (1 kn = 1852 m / 3600 s).
+#: What to do with values outside their plausible range (:data:`~pyroute_rel.weather.base.RANGES`): ``"error"``
+#: refuses the data (the default); ``"missing"`` treats them as missing (NaN: arcs through them are forbidden).
+OUT_OF_RANGE = ("error", "missing")
 
 #: Fields a :class:`GriddedWeather` stores (files holding wind speed and direction are converted to u/v on load).
 GRID_FIELDS = ("wind_u_ms", "wind_v_ms", "hs_m", "wave_dir_deg", "wave_period_s", "current_u_ms", "current_v_ms")
@@ -348,26 +353,34 @@ class GriddedWeather:
 
     Build it with :func:`~pyroute_rel.weather.readers.open_weather` (files) or
     :func:`~pyroute_rel.weather.readers.weather_from_dataset` (an in-memory :class:`xarray.Dataset`); the
-    constructor takes ready :class:`WeatherField` objects.
+    constructor takes ready :class:`WeatherField` objects. The source is :attr:`steady` when no field has a time axis
+    (readers give files whose fields each have a single time that way).
 
     Parameters
     ----------
     fields : Fields on their own grids; ``wind_u_ms`` and ``wind_v_ms`` are required. Their arrays
         are copied into float32 blocks (fields on the same grid share one block).
+    out_of_range : ``"error"`` (default) refuses a value outside its plausible range
+        (:data:`~pyroute_rel.weather.base.RANGES`); ``"missing"`` treats it as missing (see :func:`check_plausible`).
 
     Building one also loads the compiled sampling kernels: about half a second the first time in a process
     (numba's start-up), a few seconds once after installing (compiling them; the result is cached on disk).
     """
 
-    def __init__(self, fields: Iterable[WeatherField]):
+    def __init__(self, fields: Iterable[WeatherField], *, out_of_range: str = "error"):
+        if out_of_range not in OUT_OF_RANGE:
+            raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {out_of_range!r})")
         fields = list(fields)
         names = [f.name for f in fields]
-        for f in fields:
+        for k, f in enumerate(fields):
+            if not isinstance(f, WeatherField):
+                raise WeatherError(f"fields must be WeatherField objects (got {type(f).__name__})")
             if f.name not in GRID_FIELDS:
                 raise WeatherError(f"field name must be one of {list(GRID_FIELDS)} (got {f.name!r})")
             if names.count(f.name) > 1:
                 raise WeatherError(f"field {f.name!r} is given more than once")
             _check_field(f)
+            fields[k] = check_plausible(f, out_of_range=out_of_range)
         if "wind_u_ms" not in names or "wind_v_ms" not in names:
             srcs = sorted({f.source for f in fields}) or ["<no field>"]
             raise WeatherError(
@@ -385,13 +398,14 @@ class GriddedWeather:
             key = (f.lon.tobytes(), f.lat.tobytes(), None if f.time is None else f.time.tobytes())
             groups.setdefault(key, []).append(f)
         self._blocks = [_Block(group) for group in groups.values()]
+        self._steady = all(f.time is None for f in fields)
         _load_kernels()  # numba's first call in a process costs half a second: pay it with the file, not the route
 
     @property
     def steady(self) -> bool:
-        """False: every point is sampled at its own time (even where a field has no time axis and the result
-        would not change)."""
-        return False
+        """True when no field has a time axis (the data hold at any time: the router samples each arc once); False
+        otherwise (every point is sampled at its own time)."""
+        return self._steady
 
     @property
     def fields(self) -> frozenset[str]:
@@ -601,6 +615,66 @@ def _check_field(f: WeatherField) -> None:
     for axis_name, axis in (("lon", f.lon), ("lat", f.lat), ("time", f.time)):
         if axis is not None and np.any(np.diff(axis.astype(np.int64) if axis_name == "time" else axis) <= 0):
             raise WeatherError(f"{where}: {axis_name} must be strictly increasing")
+
+
+def check_plausible(f: WeatherField, *, out_of_range: str = "error") -> WeatherField:
+    """The field with its values checked against their plausible range (:data:`~pyroute_rel.weather.base.RANGES`).
+
+    NaN is missing and always allowed. A value outside the range (an infinity, a fill value the file does not
+    declare such as the netCDF default 9.97e36, a negative wave height) is refused with a
+    :class:`~pyroute_rel.errors.WeatherError` naming the file, the variable, how many values and where the first one
+    lies; with ``out_of_range="missing"`` such values become NaN instead (arcs through them are forbidden, never
+    read as calm), with a :class:`~pyroute_rel.errors.WeatherWarning` saying how many.
+
+    Parameters
+    ----------
+    f : A field, its values in the units of its name (directions may still be in [-180, 180)).
+    out_of_range : ``"error"`` or ``"missing"`` (:data:`OUT_OF_RANGE`).
+
+    Returns
+    -------
+    WeatherField
+        ``f`` itself when every value is plausible; a copy with NaN in place of the others (``"missing"``).
+
+    Examples
+    --------
+    >>> hs = np.array([[[1.0, 2.0], [-5.0, 3.0]]])
+    >>> f = WeatherField("hs_m", hs, np.array([0.0, 1.0]), np.array([50.0, 51.0]), None, "waves.nc", "swh")
+    >>> try:
+    ...     check_plausible(f)
+    ... except WeatherError as exc:
+    ...     print(str(exc)[:75])
+    ...     print(str(exc)[76:].split(";")[0])
+    weather file 'waves.nc' variable 'swh': 1 value outside the plausible range
+    [0, 30] m of significant wave height (e.g. -5 at lon 0, lat 51, any time)
+    """
+    if out_of_range not in OUT_OF_RANGE:
+        raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {out_of_range!r})")
+    rng = RANGES[f.name]
+    values = np.asarray(f.values)
+    if values.size == 0 or values.dtype.kind not in "fiu":
+        return f
+    lo, hi = np.fmin.reduce(values, axis=None), np.fmax.reduce(values, axis=None)  # NaN only when all NaN
+    if not (lo < rng.lo or hi > rng.hi):
+        return f
+    bad = (values < rng.lo) | (values > rng.hi)  # False at NaN
+    count = int(np.count_nonzero(bad))
+    it, iy, ix = np.unravel_index(int(np.argmax(bad)), values.shape)
+    when = "any time" if f.time is None else iso_minute(f.time[it])
+    lon = (float(f.lon[ix]) + 180.0) % 360.0 - 180.0
+    what = (
+        f"weather file '{f.source}' variable '{f.variable or f.name}': {count} value{'s' * (count != 1)} outside the "
+        f"plausible range {rng.describe()} of {rng.label[: rng.label.rfind(' [')]} "
+        f"(e.g. {float(values[it, iy, ix]):.6g} at lon {lon:g}, lat {float(f.lat[iy]):g}, {when})"
+    )
+    if out_of_range == "error":
+        raise WeatherError(
+            f"{what}; a fill value the file does not declare? Declare it as _FillValue, or set [weather] "
+            f'out_of_range = "missing" to treat such values as missing'
+        )
+    warnings.warn(f"{what} treated as missing: arcs through them are forbidden", WeatherWarning, stacklevel=2)
+    cleaned = np.where(bad, np.nan, values)
+    return replace(f, values=cleaned.astype(values.dtype, copy=False) if values.dtype.kind == "f" else cleaned)
 
 
 # ----------------------------------------------------------------------------------------------- helpers

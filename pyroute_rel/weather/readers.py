@@ -12,8 +12,11 @@ and time axis; the same field in several files on one grid is joined along time 
 GRIB file per GFS step). Units come from the ``units`` attribute; a missing, empty or ``"unknown"`` one
 means m/s, degrees, m or s by the field's kind; a unit not recognised for the kind (``K`` for wind) is an error.
 
-Wind speed and direction files are stored as (u, v). A file without time is steady; one with a single time
-covers that instant.
+Wind speed and direction files are stored as (u, v). A file without time is steady, and so are files whose fields
+each have a single time (an analysis, or one forecast step downloaded alone; a warning says so); with several
+times, the data cover the times they hold. Every value is checked against its plausible range
+(:data:`~pyroute_rel.weather.base.RANGES`): declared fill values are missing (NaN), undeclared ones (9.97e36, 1e20)
+are out of range, refused or (``out_of_range="missing"``) made missing.
 
 References
 ----------
@@ -24,6 +27,7 @@ https://doi.org/10.1002/qj.3803
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import replace
 from importlib.util import find_spec
@@ -34,10 +38,10 @@ import numpy as np
 import numpy.typing as npt
 import xarray as xr
 
-from ..errors import ScenarioError, WeatherCoverageError, WeatherError
+from ..errors import ScenarioError, WeatherCoverageError, WeatherError, WeatherWarning, brief
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
-from .gridded import GriddedWeather, PreparedPoints, WeatherField
+from .gridded import OUT_OF_RANGE, GriddedWeather, PreparedPoints, WeatherField, check_plausible
 
 __all__ = [
     "BBOX_MARGIN_DEG",
@@ -156,10 +160,14 @@ def open_weather(
     time_window: Sequence[Any] | None = None,
     member: int | None = None,
     margin_deg: float = BBOX_MARGIN_DEG,
+    out_of_range: str = "error",
 ) -> GriddedWeather:
     """Read NetCDF/GRIB weather files into a :class:`GriddedWeather`.
 
     Files are opened lazily (dask chunks for NetCDF) and only the box and time window are read.
+    Declared fill values (``_FillValue``, ``missing_value``) are missing (NaN), never data. When every field read
+    has a single time (an analysis, or one step of a forecast downloaded alone), the weather is steady: it is used
+    at all times, ``steady`` is True, and a :class:`~pyroute_rel.errors.WeatherWarning` says so once.
 
     Parameters
     ----------
@@ -175,11 +183,16 @@ def open_weather(
         (equal to the member number for ERA5 and GEFS). Required when a file holds several members:
         an ensemble is never reduced silently.
     margin_deg : Margin around ``bbox`` [deg].
+    out_of_range : ``"error"`` (default): a value outside its plausible range
+        (:data:`~pyroute_rel.weather.base.RANGES`; an undeclared fill value, a negative wave height) is an error
+        naming the file, variable, count and a location; ``"missing"``: such values are missing (NaN: arcs through
+        them are forbidden) and a :class:`~pyroute_rel.errors.WeatherWarning` says how many.
 
     Raises
     ------
     WeatherError
-        A file is missing or unreadable, a variable has wrong units or is all NaN, wind is missing.
+        A file is missing or unreadable, a variable has wrong units, implausible values or is all NaN, wind is
+        missing.
     WeatherCoverageError
         A file does not reach into ``bbox``, or no file of a field reaches into ``time_window``.
     """
@@ -193,7 +206,13 @@ def open_weather(
             opened.append((str(p), _open_file(Path(p))))
         return GriddedWeather(
             read_fields(
-                opened, variables=variables, bbox=bbox, time_window=time_window, member=member, margin_deg=margin_deg
+                opened,
+                variables=variables,
+                bbox=bbox,
+                time_window=time_window,
+                member=member,
+                margin_deg=margin_deg,
+                out_of_range=out_of_range,
             )
         )
     finally:
@@ -211,6 +230,7 @@ def weather_from_dataset(
     member: int | None = None,
     margin_deg: float = BBOX_MARGIN_DEG,
     source: str = "<dataset>",
+    out_of_range: str = "error",
 ) -> GriddedWeather:
     """A :class:`GriddedWeather` from an in-memory :class:`xarray.Dataset` laid out like one of the supported files.
 
@@ -236,6 +256,7 @@ def weather_from_dataset(
             time_window=time_window,
             member=member,
             margin_deg=margin_deg,
+            out_of_range=out_of_range,
         )
     )
 
@@ -251,12 +272,13 @@ def weather_from_mapping(
     """Build from a scenario's ``[weather]`` table with ``kind = "file"``.
 
     Keys: ``kind = "file"``, ``paths = ["a.nc", ...]`` (relative to ``base_dir``, the TOML file's folder),
-    optional ``variables = {hs_m = "VHM0", ...}`` and ``member = 0``. ``bbox`` and ``time_window`` are
+    optional ``variables = {hs_m = "VHM0", ...}``, ``member = 0`` and ``out_of_range = "error"`` or ``"missing"``
+    (see :func:`open_weather`). ``bbox`` and ``time_window`` are
     passed on to :func:`open_weather` (the route's box and voyage window).
 
     Raises :class:`~pyroute_rel.errors.ScenarioError` naming the key on a malformed table.
     """
-    allowed = ("kind", "paths", "variables", "member")
+    allowed = ("kind", "paths", "variables", "member", "out_of_range")
     for key in table:
         if key not in allowed:
             raise ScenarioError(f"{where}: unknown key {key!r} (expected one of {', '.join(allowed)})")
@@ -279,9 +301,17 @@ def weather_from_mapping(
     member = table.get("member")
     if member is not None and (isinstance(member, bool) or not isinstance(member, int) or member < 0):
         raise ScenarioError(f"{where}.member must be an integer >= 0 (got {member!r})")
+    out_of_range = table.get("out_of_range", "error")
+    if not isinstance(out_of_range, str) or out_of_range not in OUT_OF_RANGE:
+        raise ScenarioError(
+            f"{where}.out_of_range must be one of {list(OUT_OF_RANGE)} (what to do with implausible values) "
+            f"(got {brief(out_of_range)})"
+        )
     base = Path(base_dir)
     paths = [p if p.is_absolute() else base / p for p in (Path(s).expanduser() for s in raw)]
-    return open_weather(paths, variables=variables, bbox=bbox, time_window=time_window, member=member)
+    return open_weather(
+        paths, variables=variables, bbox=bbox, time_window=time_window, member=member, out_of_range=out_of_range
+    )
 
 
 # ----------------------------------------------------------------------------------------------- reading
@@ -341,11 +371,15 @@ def read_fields(
     time_window: Sequence[Any] | None = None,
     member: int | None = None,
     margin_deg: float | None = None,
+    out_of_range: str = "error",
 ) -> list[WeatherField]:
-    """Find, cut, convert and merge every field of opened files, ``[(name, [datasets]), ...]``.
+    """Find, cut, convert, check and merge every field of opened files, ``[(name, [datasets]), ...]``.
 
-    Options as for :func:`open_weather`; ``margin_deg`` defaults to :data:`BBOX_MARGIN_DEG`.
+    Options as for :func:`open_weather`; ``margin_deg`` defaults to :data:`BBOX_MARGIN_DEG`. Fields that each have
+    a single time come back without time (steady), with a :class:`~pyroute_rel.errors.WeatherWarning`.
     """
+    if out_of_range not in OUT_OF_RANGE:
+        raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {brief(out_of_range)})")
     margin_deg = BBOX_MARGIN_DEG if margin_deg is None else margin_deg
     variables = dict(variables or {})
     for key, name in variables.items():
@@ -370,7 +404,7 @@ def read_fields(
     for source, datasets in files:
         found = _detect(source, datasets, variables)
         for name, (ds, var) in found.items():
-            field, had_members = _extract(ds[var], name, source, var, box, window, member, margin_deg)
+            field, had_members = _extract(ds[var], name, source, var, box, window, member, margin_deg, out_of_range)
             used_member |= had_members
             if field is None:
                 covered = ""
@@ -400,7 +434,24 @@ def read_fields(
                 f"weather file '{have.source}' variable '{have.variable}' gives one {what} component but the "
                 f"other ({v if u in merged else u}) was not found; name it with variables={{...}}"
             )
-    return list(merged.values())
+    return _steady_if_single_time(list(merged.values()))
+
+
+def _steady_if_single_time(fields: list[WeatherField]) -> list[WeatherField]:
+    """Fields that each have a single time (an analysis; one forecast step) -> the same fields steady (no time),
+    with a warning saying so once; any field with several times leaves them all as they are."""
+    singles = [f for f in fields if f.time is not None]
+    if not singles or any(f.time.size != 1 for f in singles):  # type: ignore[union-attr]
+        return fields
+    times = sorted({iso_minute(f.time[0]) for f in singles})  # type: ignore[index]
+    sources = sorted({f.source for f in singles})
+    warnings.warn(
+        f"weather {', '.join(map(repr, sources))} has a single time ({', '.join(times)}): taken as steady weather, "
+        "used at all times of the voyage",
+        WeatherWarning,
+        stacklevel=3,
+    )
+    return [replace(f, time=None) for f in fields]
 
 
 def _detect(source: str, datasets: list[xr.Dataset], variables: Mapping[str, str]) -> dict[str, tuple[xr.Dataset, str]]:
@@ -460,8 +511,10 @@ def _extract(
     window: tuple[np.datetime64, np.datetime64] | None,
     member: int | None,
     margin: float,
+    out_of_range: str = "error",
 ) -> tuple[WeatherField | None, bool]:
-    """Cut one variable to the box and window, load it, convert units -> (field or None, had members)."""
+    """Cut one variable to the box and window, load it, convert units, check its values -> (field or None, had
+    members). A variable with a single time is kept whatever the window (it may be steady weather)."""
     where = f"weather file '{source}' variable '{var}'"
     kinds = {d: _dim_kind(da, d) for d in da.dims}
     da, had_members = _drop_extra_dims(da, kinds, member, where)
@@ -485,17 +538,21 @@ def _extract(
     if lat_plan[1].size < 2 or lon_plan[1].size < 2:
         raise WeatherError(f"{where} needs at least two latitudes and two longitudes")
     t_index = np.arange(da.sizes[tdim])
-    if times is not None:
+    if times is not None and times.size > 1:
         t_plan = _time_plan(times, window, where)
         if t_plan is None:
             return None, had_members
         t_index, times = t_plan
     values = _load(da, (tdim, lat_dim_, lon_dim_), (t_index, lat_plan[0], lon_plan[0]), where)
+    if times is not None and np.isnat(times).any():
+        raise WeatherError(f"{where} has missing (NaT) times")
     values = _convert_units(values, da.attrs, name, where)
+    field = WeatherField(name, values, lon_plan[1], lat_plan[1], times, source, var, lon_plan[2])
+    field = check_plausible(field, out_of_range=out_of_range)
+    values = _normalise_direction(field.values, da.attrs, name)  # type: ignore[arg-type]
     if not np.isfinite(values).any():
         raise WeatherError(f"{where} is all NaN{' inside the requested box and time window' if box or window else ''}")
-    field = WeatherField(name, values, lon_plan[1], lat_plan[1], times, source, var, lon_plan[2])
-    return field, had_members
+    return replace(field, values=values), had_members
 
 
 def _drop_extra_dims(
@@ -676,10 +733,18 @@ def _convert_units(
         factor *= KN_PER_MS
     if factor != 1.0:
         values = values * np.float32(factor)
-    if kind == "direction":
-        values = np.mod(values, np.float32(360.0))
-        if "to_direction" in str(attrs.get("standard_name", "")):
-            values = np.mod(values + np.float32(180.0), np.float32(360.0))
+    return values
+
+
+def _normalise_direction(
+    values: npt.NDArray[np.float32], attrs: Mapping[str, Any], name: str
+) -> npt.NDArray[np.float32]:
+    """Directions [deg] into [0, 360), *from* (a ``*_to_direction`` variable turned round); other fields as given."""
+    if _KIND[name] != "direction":
+        return values
+    values = np.mod(values, np.float32(360.0))
+    if "to_direction" in str(attrs.get("standard_name", "")):
+        values = np.mod(values + np.float32(180.0), np.float32(360.0))
     return values
 
 
