@@ -200,3 +200,78 @@ def test_files_carry_the_new_fields(tmp_path: Path) -> None:
     assert line["voyage_failure_probability"] == route.voyage_failure_probability
     assert line["exposure_by_criterion_h"] == route.exposure_by_criterion_h
     assert [f["properties"]["leg_p_fail_leg"] for f in doc["features"][1:-1]] == route.legs.p_fail_leg.tolist()
+
+
+def test_a_course_through_a_waypoint_adds_up_its_legs(tmp_path: Path) -> None:
+    """Two legs of a course (through a mark inside the band): the voyage's hours per criterion are the legs' sums,
+    and its failure probability is that of the summed hazards, which uniform band crossing gives in closed form."""
+    model = write_model(tmp_path)
+    course = scenario_from_mapping(
+        {
+            "route": {"start": [0.0, 0.0], "finish": [-20.0, 0.0], "waypoints": [[-10.0, 0.0]]},
+            "grid": {"n_ranks": 12},
+            "weather": {
+                "kind": "uniform",
+                "tws_kn": 15.0,
+                "twd_deg": 0.0,
+                "patch": [{"lon": [-13.0, -7.0], "lat": [-30.0, 30.0], "hs_m": 4.5}],
+            },
+            "avoid": {"land": False},
+            "failure": {"model": str(model), "apf": 1.0},
+        }
+    ).route()
+    first, second = course.course_legs
+    key = "WH: hs_m >= 4 m"
+    assert (
+        course.exposure_by_criterion_h[key] == first.exposure_by_criterion_h[key] + second.exposure_by_criterion_h[key]
+    )
+    assert first.exposure_by_criterion_h[key] > 0 and second.exposure_by_criterion_h[key] > 0  # the mark is inside
+    hours = course.exposure_by_criterion_h[key]
+    assert course.voyage_failure_probability == pytest.approx(1.0 - (1.0 - P_BAND) ** (hours / EXPOSURE), rel=1e-12)
+    both = 1.0 - (1.0 - first.voyage_failure_probability) * (1.0 - second.voyage_failure_probability)
+    assert course.voyage_failure_probability == pytest.approx(both, rel=1e-12)
+
+
+def test_time_varying_weather_counts_the_hours_when_the_criterion_fires(tmp_path: Path) -> None:
+    """Gridded weather whose Hs falls linearly from 5 m at departure to 3 m 40 h later (then stays): hs >= 4 m for
+    the first 20 h wherever the craft is, so the route spends 20 h where WH fires (to the midpoint sampling of a
+    1 km sub-arc: half of 1 km at 4.54 kn, 0.06 h)."""
+    from pyroute_rel.polar import get_polar
+    from pyroute_rel.route import route_on_grid
+    from pyroute_rel.solve import RoutingProblem
+    from pyroute_rel.units import KN_PER_MS
+    from pyroute_rel.weather import GriddedWeather, WeatherField
+
+    t0 = np.datetime64("2018-06-01T00:00", "ns")
+    times = t0 + np.array([0, 40, 400]) * np.timedelta64(3600, "s")
+    lon, lat = np.array([-25.0, 0.0, 5.0]), np.array([-10.0, 0.0, 10.0])
+
+    def field(name: str, values: list[float]) -> WeatherField:
+        data = np.broadcast_to(np.array(values, dtype=np.float32)[:, None, None], (3, lat.size, lon.size))
+        return WeatherField(name, np.ascontiguousarray(data), lon, lat, times, source="test", variable=name)
+
+    north = -15.0 / KN_PER_MS  # 15 kn from the north blows to the south
+    weather = GriddedWeather(
+        [field("wind_u_ms", [0.0] * 3), field("wind_v_ms", [north] * 3), field("hs_m", [5.0, 3.0, 3.0])]
+    )
+    problem = RoutingProblem(
+        departure=t0,
+        weather=weather,
+        polar=get_polar("maribot_vane"),
+        failure=load_failure_model(write_model(tmp_path)),
+    )
+    grid = scenario_from_mapping(
+        {
+            "route": {"start": [0.0, 0.0], "finish": [-20.0, 0.0]},
+            "grid": {"n_ranks": 30},
+            "avoid": {"land": False},
+            "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+        }
+    ).leg_grids()[0]
+    route = route_on_grid(grid, problem)
+    speed_kmh = float(route.legs.sog_kn[0]) * KM_PER_NM
+    assert route.exposure_by_criterion_h["WH: hs_m >= 4 m"] == pytest.approx(
+        20.0, abs=0.5 * EXPOSURE_STEP_KM / speed_kmh
+    )
+    hours = route.exposure_by_criterion_h["WH: hs_m >= 4 m"]
+    assert route.voyage_failure_probability == pytest.approx(1.0 - (1.0 - P_BAND) ** (hours / EXPOSURE), rel=1e-12)
