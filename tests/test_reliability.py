@@ -275,3 +275,31 @@ def test_time_varying_weather_counts_the_hours_when_the_criterion_fires(tmp_path
     )
     hours = route.exposure_by_criterion_h["WH: hs_m >= 4 m"]
     assert route.voyage_failure_probability == pytest.approx(1.0 - (1.0 - P_BAND) ** (hours / EXPOSURE), rel=1e-12)
+
+
+def test_criteria_see_the_heading_the_craft_steers_in_a_current() -> None:
+    """West along the equator with 0.5 m/s of current to the north: the craft heads about 12 deg south of west to
+    hold its course. Waves from 208 deg are 62 deg off the course (WD, awd < 60 deg, would not fire) but about 50 deg
+    off the heading: WD fires all the way, as the router's cost function (same heading) says, leg by leg."""
+    route = scenario_from_mapping(
+        {
+            "route": {"start": [0.0, 0.0], "finish": [-10.0, 0.0]},
+            "grid": {"n_ranks": 10},
+            "weather": {
+                "kind": "uniform",
+                "tws_kn": 15.0,
+                "twd_deg": 0.0,
+                "hs_m": 1.0,
+                "wave_dir_deg": 208.0,
+                "current_u_ms": 0.0,
+                "current_v_ms": 0.5,
+            },
+            "avoid": {"land": False},
+            "failure": {"model": "dickson2018", "apf": 1.0},
+        }
+    ).route()
+    assert np.all(route.legs.p_f == 0.9)  # the cost function: WD fired on every leg
+    sailing_h = float(route.legs.time_h.sum())
+    assert route.exposure_by_criterion_h["WD: awd_deg < 60 deg"] == pytest.approx(sailing_h, rel=1e-12)
+    assert route.exposure_by_criterion_h["WH: hs_m >= 4 m"] == 0.0
+    assert route.voyage_failure_probability == pytest.approx(1.0 - 0.1 ** (sailing_h / 4.4), rel=1e-12)
