@@ -171,9 +171,9 @@ def leg_exposure(
     fired = np.asarray(model.fired(q))
     h = hazard(p, dt, model.exposure_h)
     return LegExposure(
-        hazard=np.bincount(leg, weights=h, minlength=n_legs),  # hazards are >= 0: a sum with inf is inf
+        hazard=np.asarray(np.bincount(leg, weights=h, minlength=n_legs), float),  # hazards >= 0: a sum with inf is inf
         criterion_h={
-            crit.describe(): np.bincount(leg, weights=np.where(fired[i], dt, 0.0), minlength=n_legs)
+            crit.describe(): np.asarray(np.bincount(leg, weights=np.where(fired[i], dt, 0.0), minlength=n_legs), float)
             for i, crit in enumerate(model.criteria)
         },
     )

@@ -91,7 +91,7 @@ class Legs(Mapping[str, FloatArray]):
         model's ``exposure_h`` in the worst conditions along the leg, what ``apf`` bounds.
     wait_h : Wait at the leg's start before sailing it [h].
     p_fail_leg : Probability of failure over the leg's sailing time, from the time it spends in each condition
-        (:mod:`pyroute_rel.exposure`) [-]; NaN where unknown (the default when not given).
+        (:mod:`pyroute_rel.exposure`) [-].
     """
 
     distance_nm: FloatArray
@@ -106,11 +106,9 @@ class Legs(Mapping[str, FloatArray]):
     awd_deg: FloatArray
     p_f: FloatArray
     wait_h: FloatArray
-    p_fail_leg: FloatArray | None = None
+    p_fail_leg: FloatArray
 
     def __post_init__(self) -> None:
-        if self.p_fail_leg is None:
-            object.__setattr__(self, "p_fail_leg", np.full(np.shape(self.time_h), np.nan))
         n = None
         for name in self:
             values = np.asarray(vars(self)[name], dtype=float)
@@ -118,6 +116,8 @@ class Legs(Mapping[str, FloatArray]):
                 raise ValueError(f"Legs.{name} must be a 1-D array of {n} values, one per leg (got {values.shape})")
             n = values.size
             object.__setattr__(self, name, values)
+        if np.any((self.p_fail_leg < 0.0) | (self.p_fail_leg > 1.0)):
+            raise ValueError(f"Legs.p_fail_leg must be probabilities in [0, 1] (got {self.p_fail_leg.tolist()})")
 
     def __getitem__(self, key: str) -> FloatArray:
         if key not in LEG_FIELDS:

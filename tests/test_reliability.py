@@ -303,3 +303,15 @@ def test_criteria_see_the_heading_the_craft_steers_in_a_current() -> None:
     assert route.exposure_by_criterion_h["WD: awd_deg < 60 deg"] == pytest.approx(sailing_h, rel=1e-12)
     assert route.exposure_by_criterion_h["WH: hs_m >= 4 m"] == 0.0
     assert route.voyage_failure_probability == pytest.approx(1.0 - 0.1 ** (sailing_h / 4.4), rel=1e-12)
+
+
+def test_legs_refuse_a_leg_probability_outside_0_1(tmp_path: Path) -> None:
+    from pyroute_rel.route import Legs
+
+    route = straight(write_model(tmp_path), 6, patch_lon=[-13.0, -7.0])
+    values = dict(route.legs)
+    assert Legs(**values).p_fail_leg.tolist() == route.legs.p_fail_leg.tolist()
+    with pytest.raises(ValueError, match=r"Legs\.p_fail_leg must be probabilities in \[0, 1\]"):
+        Legs(**{**values, "p_fail_leg": values["p_fail_leg"] + 1.5})
+    with pytest.raises(TypeError, match="p_fail_leg"):  # required: a route's legs always know it
+        Legs(**{k: v for k, v in values.items() if k != "p_fail_leg"})
