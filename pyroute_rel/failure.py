@@ -15,6 +15,11 @@ bytes and checked against pgmpy by the tests), so even a first run of a shipped 
 and 300 MB). Routing only gathers from the table (:meth:`FailureModel.p_fail`), never queries the network per
 arc.
 
+What a probability means: ``P(target = fail | evidence)`` is the probability of failure over a reference exposure
+``exposure_h`` [h] spent in those conditions (a field of the model file, default :data:`DEFAULT_EXPOSURE_H`). The
+``apf`` constraint compares it as it stands (``p_f > apf`` forbids an arc, whatever its duration); the voyage's
+failure probability adds up exposure (:mod:`pyroute_rel.exposure`).
+
 Missing values: a NaN quantity is never read as "criterion not met". By default (``if_missing = "nan"``)
 the probability of failure is NaN there, and the cost module forbids the arc as missing weather. A
 criterion may instead name a state to assume, or ``"prior"`` to leave its node unobserved.
@@ -60,11 +65,13 @@ __all__ = [
     "CLOSED_SIDES",
     "MISSING_RULES",
     "NETWORK_FORMATS",
+    "DEFAULT_EXPOSURE_H",
     "Criterion",
     "FailureModel",
     "load_failure_model",
     "list_failure_models",
     "build_network",
+    "check_exposure_h",
 ]
 
 #: Quantities a criterion may test (the cost module passes arrays of these names, of one shape).
@@ -110,7 +117,12 @@ NETWORK_FORMATS: dict[str, tuple[str, str]] = {
     ".net": ("NETReader", "Hugin (R bnlearn read.net)"),
 }
 
-_MODEL_KEYS = ("name", "description", "network", "references", "target", "criteria")
+#: The reference exposure [h] of a model that does not set ``exposure_h``: the duration of one leg of the paper's own
+#: grid (Dickson et al. 2018 apply P(fail) once per arc; on their 160 x 160 grid of the verification course an arc
+#: takes 703.9 h / 161 legs = 4.37 h), so a model written for the paper's per-arc reading keeps it.
+DEFAULT_EXPOSURE_H = 4.4
+
+_MODEL_KEYS = ("name", "description", "network", "references", "exposure_h", "target", "criteria")
 _TARGET_KEYS = ("node", "state")
 _CRITERION_KEYS = (
     "node",
@@ -213,8 +225,11 @@ class FailureModel:
     target, fail_state : Target node and its failure state.
     criteria : The criteria, in the order of the table's axes.
     nodes : All nodes of the network; ``edges`` its (parent, child) pairs; ``node_states`` their states.
-    table : ``P(target = fail_state | evidence)``, shape ``(len(c.states) for c in criteria)``.
+    table : ``P(target = fail_state | evidence)``, shape ``(len(c.states) for c in criteria)``: the probability of
+        failure over :attr:`exposure_h` hours spent in those conditions.
     references : Sources of the model.
+    exposure_h : The reference exposure of :attr:`table`'s probabilities [h] (finite, > 0; default
+        :data:`DEFAULT_EXPOSURE_H`).
     """
 
     name: str
@@ -231,6 +246,11 @@ class FailureModel:
     #: The table with one more slot per axis: the node left unobserved (its prior).
     _full: FloatArray = field(repr=False)
     references: tuple[str, ...] = ()
+    exposure_h: float = DEFAULT_EXPOSURE_H
+
+    def __post_init__(self) -> None:
+        check_exposure_h(self.exposure_h, f"failure model '{self.name}': exposure_h")
+        object.__setattr__(self, "exposure_h", float(self.exposure_h))
 
     @property
     def quantities(self) -> frozenset[str]:
@@ -417,6 +437,7 @@ class FailureModel:
                 "edges": [list(e) for e in self.edges],
             },
             "references": list(self.references),
+            "exposure_h": self.exposure_h,
             "table": table,
         }
 
@@ -558,6 +579,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
         table=full[tuple(slice(0, n) for n in shape)],
         references=tuple(spec["references"]),
         _full=full,
+        exposure_h=spec["exposure_h"],
     )
 
 
@@ -635,6 +657,7 @@ def _parse_spec(doc: dict[str, Any], label: str, *, default_name: str) -> dict[s
         "description": doc.get("description", ""),
         "network": _text(doc["network"], f"{label}: 'network'"),
         "references": refs,
+        "exposure_h": check_exposure_h(doc.get("exposure_h", DEFAULT_EXPOSURE_H), f"{label}: 'exposure_h'"),
         "target": {
             "node": _text(target["node"], f"{label}: [target] 'node'"),
             "state": _text(target["state"], f"{label}: [target] 'state'"),
@@ -650,6 +673,20 @@ def _parse_spec(doc: dict[str, Any], label: str, *, default_name: str) -> dict[s
     for i, raw in enumerate(crits):
         spec["criteria"].append(_parse_criterion(raw, f"{label}: criteria[{i}]"))
     return spec
+
+
+def check_exposure_h(value: Any, where: str) -> float:
+    """``value`` as a reference exposure [h]: a finite number > 0, else a :class:`FailureModelError` naming
+    ``where``.
+
+    >>> check_exposure_h(4.4, "exposure_h")
+    4.4
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(float(value)) or value <= 0:
+        raise FailureModelError(
+            f"{where} must be a finite number of hours > 0 (the exposure over which p_f applies) (got {value!r})"
+        )
+    return float(value)
 
 
 def _number(value: Any, where: str) -> float:

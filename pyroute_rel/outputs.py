@@ -1,4 +1,5 @@
-"""A route's files: GeoJSON, GPX, CSV, the JSON summary and the map, written together (all or none).
+"""A route's files: GeoJSON, GPX, CSV, the JSON summary, the forbidden arcs and the map, written together (all or
+none).
 
 Formats are functions of a :class:`~pyroute_rel.route.Route`; :func:`write_outputs` renders them into a folder
 through :func:`pyroute_rel.files.write_together`.
@@ -30,12 +31,21 @@ from .units import KN_PER_MS
 if TYPE_CHECKING:
     from .route import Route
 
-__all__ = ["OUTPUT_FILES", "TURN_THRESHOLD_DEG", "to_geojson", "to_gpx", "to_csv", "turning_points", "write_outputs"]
+__all__ = [
+    "OUTPUT_FILES",
+    "TURN_THRESHOLD_DEG",
+    "to_geojson",
+    "forbidden_geojson",
+    "to_gpx",
+    "to_csv",
+    "turning_points",
+    "write_outputs",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
 #: Files written by :func:`write_outputs`.
-OUTPUT_FILES = ("route.geojson", "route.gpx", "route.csv", "summary.json", "route.png")
+OUTPUT_FILES = ("route.geojson", "route.gpx", "route.csv", "summary.json", "forbidden.geojson", "route.png")
 
 #: Smallest course change [deg] that makes a track point a turning point of the GPX ``<rte>`` (:func:`turning_points`).
 TURN_THRESHOLD_DEG = 1.0
@@ -64,6 +74,7 @@ def to_geojson(route: Route) -> dict[str, Any]:
             "arrival": iso_utc(times[-1]),
             "max_failure_probability": route.max_failure_probability,
             "voyage_failure_probability": route.voyage_failure_probability,
+            "exposure_by_criterion_h": dict(route.exposure_by_criterion_h),
         },
     }
     points = []
@@ -79,6 +90,49 @@ def to_geojson(route: Route) -> dict[str, Any]:
             }
         )
     return {"type": "FeatureCollection", "features": [line, *points]}
+
+
+def forbidden_geojson(route: Route) -> dict[str, Any]:
+    """The arcs the route's DP found forbidden (:meth:`~pyroute_rel.route.Route.forbidden_arcs`) as a GeoJSON
+    FeatureCollection: one LineString per arc from its source to its destination (a MultiLineString split at the
+    antimeridian, like the track), in the table's order.
+
+    Each feature's properties are the table's row: ``leg``, ``rank``, ``src``, ``dst`` (int), ``departure_h`` [h
+    after the route's departure], ``departure`` (ISO 8601 UTC), ``p_f`` (null where the weather is missing),
+    ``reason`` (e.g. ``"failure"``, ``"failure+obstacle"``) and ``criteria`` (the criteria that fired, joined by
+    ``"; "``; ``""`` for other reasons).
+    """
+    arcs = route.forbidden_arcs()
+    features = []
+    for i in range(len(arcs)):
+        parts = _split_at_antimeridian(
+            np.array([arcs.from_lon_deg[i], arcs.to_lon_deg[i]]), np.array([arcs.from_lat_deg[i], arcs.to_lat_deg[i]])
+        )
+        geometry = (
+            {"type": "LineString", "coordinates": parts[0]}
+            if len(parts) == 1
+            else {"type": "MultiLineString", "coordinates": parts}
+        )
+        props = {
+            "leg": int(arcs.leg[i]),
+            "rank": int(arcs.rank[i]),
+            "src": int(arcs.src[i]),
+            "dst": int(arcs.dst[i]),
+            "departure_h": float(arcs.departure_h[i]),
+            "departure": iso_utc(arcs.departure[i]),
+            "p_f": _num(arcs.p_f[i]),
+            "reason": str(arcs.reason[i]),
+            "criteria": str(arcs.criteria[i]),
+        }
+        features.append({"type": "Feature", "geometry": geometry, "properties": props})
+    return {"type": "FeatureCollection", "features": features}
+
+
+def _feature_lines(collection: dict[str, Any]) -> str:
+    """A FeatureCollection as JSON text with one feature per line (compact: there may be many)."""
+    head = json.dumps({k: v for k, v in collection.items() if k != "features"})[:-1]
+    body = ",\n".join(json.dumps(f, separators=(",", ":")) for f in collection["features"])
+    return f'{head}, "features": [\n{body}\n]}}\n'
 
 
 def turning_points(route: Route, *, threshold_deg: float = TURN_THRESHOLD_DEG) -> npt.NDArray[np.intp]:
@@ -246,8 +300,8 @@ def _fmt(x: Any) -> str:
 def write_outputs(
     route: Route, out_dir: str | os.PathLike[str], *, plot: bool = True, extra: dict[str, Any] | None = None
 ) -> list[Path]:
-    """Write ``route.geojson``, ``route.gpx``, ``route.csv``, ``summary.json`` and ``route.png`` to a folder, all or
-    none (:func:`write_together`)."""
+    """Write ``route.geojson``, ``route.gpx``, ``route.csv``, ``summary.json``, ``forbidden.geojson``
+    (:func:`forbidden_geojson`) and ``route.png`` to a folder, all or none (:func:`write_together`)."""
     summary = route.summary()
     if extra:
         summary.update(extra)
@@ -256,6 +310,7 @@ def write_outputs(
         "route.gpx": lambda p: p.write_text(to_gpx(route), encoding="utf-8"),
         "route.csv": lambda p: p.write_text(to_csv(route), encoding="utf-8"),
         "summary.json": lambda p: p.write_text(json.dumps(summary, indent=1), encoding="utf-8"),
+        "forbidden.geojson": lambda p: p.write_text(_feature_lines(forbidden_geojson(route)), encoding="utf-8"),
     }
     if plot:
         from .plot import plot_route

@@ -1,13 +1,14 @@
 """The Route result: track, per-leg conditions and failure probabilities, and its exports.
 
-Voyage failure probability
---------------------------
-Each leg's ``p_f`` is the failure model's probability for the worst conditions met along that leg. The
-voyage failure probability is ``1 - prod(1 - p_f_leg)``: it assumes that failures on different legs are
-independent events, which overstates the risk when the same weather system is met over many consecutive
-legs (the legs are then strongly correlated) and depends on the grid's leg length. Treat it as an
-indicator for comparing routes on the same grid, not as a calibrated probability; the maximum leg
-``p_f`` (which the ``apf`` constraint bounds) does not depend on the grid.
+Failure probabilities
+---------------------
+Each leg's ``p_f`` is the failure model's probability for the worst conditions met along that leg: what the
+``apf`` constraint bounds (``p_f > apf`` forbids an arc), which does not depend on the grid. It is the probability of
+failure over the model's reference exposure ``exposure_h`` [h] in those conditions. The voyage's failure probability
+adds up exposure (:mod:`pyroute_rel.exposure`): each leg contributes the hazard of the time it spends in each
+condition, ``-ln(1 - p_f) * dt / exposure_h`` summed along it (``p_fail_leg = 1 - exp(-hazard)``), and the voyage
+``1 - exp(-sum of hazards)``. Unlike a product over legs ``1 - prod(1 - p_f_leg)`` (each leg one trial, so the
+figure grows with the number of legs), it converges as the grid is refined.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy.typing as npt
 from . import geodesy
 from .cost import REASONS, arc_quantities
 from .errors import NoFeasibleRouteError
+from .exposure import leg_exposure
 from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, grid_geometry, leg_costs
 from .times import hours_after, iso_utc
 
@@ -60,6 +62,7 @@ LEG_FIELDS = (
     "wave_dir_deg",
     "awd_deg",
     "p_f",
+    "p_fail_leg",
 )
 
 
@@ -84,8 +87,11 @@ class Legs(Mapping[str, FloatArray]):
     hs_m : Significant wave height [m].
     wave_dir_deg : Mean wave direction, where the waves come from [deg].
     awd_deg : Apparent wave direction (0 = head seas) [deg].
-    p_f : The leg's largest failure probability (0 without a failure model).
+    p_f : The leg's largest failure probability (0 without a failure model): the probability of failure over the
+        model's ``exposure_h`` in the worst conditions along the leg, what ``apf`` bounds.
     wait_h : Wait at the leg's start before sailing it [h].
+    p_fail_leg : Probability of failure over the leg's sailing time, from the time it spends in each condition
+        (:mod:`pyroute_rel.exposure`) [-].
     """
 
     distance_nm: FloatArray
@@ -100,6 +106,7 @@ class Legs(Mapping[str, FloatArray]):
     awd_deg: FloatArray
     p_f: FloatArray
     wait_h: FloatArray
+    p_fail_leg: FloatArray
 
     def __post_init__(self) -> None:
         n = None
@@ -109,6 +116,8 @@ class Legs(Mapping[str, FloatArray]):
                 raise ValueError(f"Legs.{name} must be a 1-D array of {n} values, one per leg (got {values.shape})")
             n = values.size
             object.__setattr__(self, name, values)
+        if np.any((self.p_fail_leg < 0.0) | (self.p_fail_leg > 1.0)):
+            raise ValueError(f"Legs.p_fail_leg must be probabilities in [0, 1] (got {self.p_fail_leg.tolist()})")
 
     def __getitem__(self, key: str) -> FloatArray:
         if key not in LEG_FIELDS:
@@ -209,6 +218,8 @@ class Route:
     course_legs : For a course through waypoints, the route of each leg between consecutive marks (empty
         otherwise).
     grid_track : For a refined route, the track on the grid routed on before refinement (None otherwise).
+    exposure_by_criterion_h : Hours sailed where each criterion of the failure model fires, by the criterion's
+        description (e.g. ``"WH: hs_m >= 4 m"``) [h]; empty without a failure model.
     """
 
     lon_deg: FloatArray
@@ -224,6 +235,7 @@ class Route:
     zones: tuple[Zone, ...] = ()
     course_legs: tuple[Route, ...] = ()
     grid_track: GridTrack | None = None
+    exposure_by_criterion_h: dict[str, float] = field(default_factory=dict)
 
     @property
     def weather(self) -> WeatherSource:
@@ -268,8 +280,10 @@ class Route:
 
     @property
     def voyage_failure_probability(self) -> float:
-        """``1 - prod(1 - p_f)`` over legs (legs assumed independent; see the module notes)."""
-        return float(1.0 - np.prod(1.0 - self.legs.p_f))
+        """Probability of failure over the voyage, ``1 - exp(-sum of the legs' hazards)`` [-] (see the module
+        notes): ``1 - prod(1 - p_fail_leg)``."""
+        with np.errstate(divide="ignore"):  # a leg with p_fail_leg = 1: log1p(-1) = -inf, certain failure
+            return float(-np.expm1(np.sum(np.log1p(-self.legs.p_fail_leg))))
 
     @property
     def touches_edge(self) -> bool:
@@ -352,6 +366,7 @@ class Route:
             },
             "max_failure_probability": self.max_failure_probability,
             "voyage_failure_probability": self.voyage_failure_probability,
+            "exposure_by_criterion_h": dict(self.exposure_by_criterion_h),
             **self.meta,
             "track": [
                 {"lon": float(lo), "lat": float(la), "time": iso_utc(t), "p_f": float(p)}
@@ -416,6 +431,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         course = course.copy()
         course[i] = geodesy.initial_bearing_deg(slon, slat, lon[i + 1], lat[i + 1])
     q = arc_quantities(cond, course)
+    exposure = leg_exposure(problem, lon, lat, elapsed[:-1] + waits, costs.time_h, costs.p_f)
     legs = Legs(
         distance_nm=dist,
         time_h=costs.time_h,
@@ -429,10 +445,12 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         awd_deg=q["awd_deg"],
         p_f=np.asarray(costs.p_f, dtype=float),
         wait_h=waits,
+        p_fail_leg=exposure.p_fail_leg,
     )
     meta: dict[str, Any] = {
         "apf": float(problem.apf),
         "failure_model": None if problem.failure is None else problem.failure.name,
+        "failure_exposure_h": None if problem.failure is None else problem.failure.exposure_h,
         "polar": problem.polar.name,
         "samples_per_arc": problem.samples,
     }
@@ -447,6 +465,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         dp=result,
         problem=problem,
         meta=meta,
+        exposure_by_criterion_h={k: float(v.sum()) for k, v in exposure.criterion_h.items()},
     )
 
 
@@ -495,6 +514,11 @@ def join_routes(routes: list[Route]) -> Route:
         zones=first.zones,
         course_legs=tuple(routes),
         grid_track=grid_track,
+        exposure_by_criterion_h={
+            k: sum(r.exposure_by_criterion_h.get(k, 0.0) for r in routes)
+            for r0 in routes
+            for k in r0.exposure_by_criterion_h
+        },
     )
 
 

@@ -64,7 +64,7 @@ def test_route_out_writes_every_file(tmp_path: Path, capsys: pytest.CaptureFixtu
     code, stdout, err = run(["route", str(EXAMPLE), *SMALL, "--out", str(out), "--quiet"], capsys)
     assert code == 0, err
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["route.csv", "route.geojson", "route.gpx", "route.png", "summary.json"]
+    assert names == ["forbidden.geojson", "route.csv", "route.geojson", "route.gpx", "route.png", "summary.json"]
     assert (out / "route.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     gj = json.loads((out / "route.geojson").read_text())
     assert gj["features"][0]["geometry"]["type"] == "LineString"
@@ -265,7 +265,7 @@ def test_output_files_get_the_usual_file_mode(tmp_path) -> None:
     mask = os.umask(0)
     os.umask(mask)
     modes = {p.name: stat.S_IMODE(p.stat().st_mode) for p in (tmp_path / "o").iterdir()}
-    assert len(modes) == 5 and set(modes.values()) == {0o666 & ~mask}, modes  # route.png was 0o600
+    assert len(modes) == 6 and set(modes.values()) == {0o666 & ~mask}, modes  # route.png was 0o600
 
 
 def test_a_grid_too_big_for_memory_is_refused(tmp_path, capsys) -> None:

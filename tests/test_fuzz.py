@@ -49,7 +49,7 @@ BASE = tomllib.loads(EXAMPLE_TEXT)
 POL = ROOT / "examples" / "maribot_vane.pol"
 POL_TEXT = POL.read_text(encoding="utf-8")
 TINY = ["--layout", "square", "--n-nodes", "5", "--n-ranks", "5"]
-OUTPUTS = ["route.csv", "route.geojson", "route.gpx", "route.png", "summary.json"]
+OUTPUTS = ["forbidden.geojson", "route.csv", "route.geojson", "route.gpx", "route.png", "summary.json"]
 
 _SCALE = int(os.environ.get("PYROUTE_FUZZ_EXAMPLES", "0"))
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import json
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -12,8 +13,15 @@ import numpy as np
 import pytest
 
 from pyroute_rel import geodesy
-from pyroute_rel.outputs import TURN_THRESHOLD_DEG, to_gpx, turning_points
-from pyroute_rel.route import Legs
+from pyroute_rel.outputs import (
+    OUTPUT_FILES,
+    TURN_THRESHOLD_DEG,
+    forbidden_geojson,
+    to_gpx,
+    turning_points,
+    write_outputs,
+)
+from pyroute_rel.route import ForbiddenArcs, Legs
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.times import iso_utc
 from pyroute_rel.units import KN_PER_MS
@@ -124,3 +132,57 @@ def test_small_bends_add_up_to_turning_points() -> None:
             leg = geodesy.initial_bearing_deg(lon[j], lat[j], lon[j + 1], lat[j + 1])
             assert geodesy.angle_diff_deg(leg, chord) < 2 * TURN_THRESHOLD_DEG
     assert len(turning_points(track, threshold_deg=0.1)) == len(lon)  # every bend exceeds 0.1 deg
+
+
+def test_forbidden_geojson_holds_the_forbidden_arcs_table(route, tmp_path: Path) -> None:
+    """``--out`` writes forbidden.geojson: read back with json, its features are Route.forbidden_arcs() row by row
+    (count, end points, every property)."""
+    written = write_outputs(route, tmp_path / "out", plot=False)
+    assert tmp_path / "out" / "forbidden.geojson" in written and "forbidden.geojson" in OUTPUT_FILES
+    doc = json.loads((tmp_path / "out" / "forbidden.geojson").read_text(encoding="utf-8"))
+    arcs = route.forbidden_arcs()
+    assert doc["type"] == "FeatureCollection" and len(doc["features"]) == len(arcs) > 0
+    assert {"failure"} <= set(arcs.reason.tolist())  # apf 0.5 forbids the arcs through the patches
+    for i, f in enumerate(doc["features"]):
+        assert f["type"] == "Feature" and f["geometry"]["type"] == "LineString"  # no arc crosses +-180 here
+        assert f["geometry"]["coordinates"] == [
+            [float(arcs.from_lon_deg[i]), float(arcs.from_lat_deg[i])],
+            [float(arcs.to_lon_deg[i]), float(arcs.to_lat_deg[i])],
+        ]
+        p = f["properties"]
+        assert (p["leg"], p["rank"], p["src"], p["dst"]) == (
+            int(arcs.leg[i]),
+            int(arcs.rank[i]),
+            int(arcs.src[i]),
+            int(arcs.dst[i]),
+        )
+        assert p["departure_h"] == float(arcs.departure_h[i]) and p["departure"] == iso_utc(arcs.departure[i])
+        assert p["p_f"] == (float(arcs.p_f[i]) if np.isfinite(arcs.p_f[i]) else None)
+        assert p["reason"] == str(arcs.reason[i]) and p["criteria"] == str(arcs.criteria[i])
+        assert set(p) == {"leg", "rank", "src", "dst", "departure_h", "departure", "p_f", "reason", "criteria"}
+    fired = [f["properties"]["criteria"] for f in doc["features"] if f["properties"]["reason"] == "failure"]
+    assert fired and all(c for c in fired)  # every arc the model forbids names the criteria that fired
+
+
+def test_forbidden_geojson_splits_arcs_at_the_antimeridian() -> None:
+    """An arc from 179 E to 179 W along the equator crosses +-180 at latitude 0: two parts, as RFC 7946 asks."""
+    one = {"leg": [0], "rank": [3], "src": [1], "dst": [2]}
+    table = ForbiddenArcs(
+        **{k: np.array(v, dtype=np.intp) for k, v in one.items()},
+        from_lon_deg=np.array([179.0]),
+        from_lat_deg=np.array([0.0]),
+        to_lon_deg=np.array([-179.0]),
+        to_lat_deg=np.array([0.0]),
+        departure_h=np.array([1.5]),
+        departure=np.array(["2018-06-01T01:30:00"], dtype="datetime64[s]"),
+        p_f=np.array([np.nan]),
+        reason=np.array(["weather"]),
+        criteria=np.array([""]),
+    )
+    doc = forbidden_geojson(SimpleNamespace(forbidden_arcs=lambda: table))
+    (f,) = doc["features"]
+    assert f["geometry"] == {
+        "type": "MultiLineString",
+        "coordinates": [[[179.0, 0.0], [180.0, 0.0]], [[-180.0, 0.0], [-179.0, 0.0]]],
+    }
+    assert f["properties"]["p_f"] is None and f["properties"]["departure"] == "2018-06-01T01:30:00Z"

@@ -1,0 +1,215 @@
+"""Exposure-based reliability: a voyage's failure probability from the time spent in each condition.
+
+A failure model's ``p_f`` is the probability of failure over a reference exposure ``exposure_h`` [h] spent in those
+conditions (:attr:`~pyroute_rel.failure.FailureModel.exposure_h`). Time spent in conditions with ``p_f`` adds the
+hazard
+
+    ``H = -ln(1 - p_f) * dt / exposure_h``  (``p_f = 1``: infinite hazard, certain failure on any exposure)
+
+and the probability of failure over a stretch of the voyage is ``1 - exp(-sum H)``: ``1 - (1 - p_f) ** (T /
+exposure_h)`` for ``T`` hours in uniform conditions, whatever the number of legs ``T`` is cut into. The ``apf``
+constraint is unchanged: it bounds the conditions' ``p_f`` (an arc with ``p_f > apf`` somewhere is forbidden).
+
+Where a leg's time goes: each leg of a route is cut into sub-arcs of at most :data:`EXPOSURE_STEP_KM` along its great
+circle; the cost function times each sub-arc (sampled at its midpoint, as the router samples arcs), and the times are
+scaled so that they add up to the leg's time exactly. Each sub-arc contributes the hazard of the conditions at its
+midpoint (the failure model's ``p_f`` for the heading the craft steers there), so the hours in each condition are
+resolved to the step, not to the grid's legs: the voyage's figure converges as the grid is refined. Waits at a node
+are not counted (the model's conditions need a heading).
+
+References
+----------
+Dickson, T., Blake, J. and Sear, D. (2018). Reliability informed routing for Autonomous Sailing Craft. Proc.
+International Robotic Sailing Conference 2018 (P(fail) per arc, Algorithm 1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from . import geodesy
+from .cost import arc_quantities
+from .crab import hold_course
+from .times import hours_after
+
+if TYPE_CHECKING:
+    from .solve import RoutingProblem
+    from .weather import Conditions
+
+__all__ = ["EXPOSURE_STEP_KM", "LegExposure", "hazard", "failure_probability", "leg_exposure"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Longest sub-arc [km] a leg is cut into to find how long it spends in each condition.
+EXPOSURE_STEP_KM = 1.0
+
+
+def hazard(p_f: npt.ArrayLike, dt_h: npt.ArrayLike, exposure_h: float) -> FloatArray:
+    """Hazard of ``dt_h`` hours in conditions whose failure probability over ``exposure_h`` hours is ``p_f``.
+
+    Parameters
+    ----------
+    p_f : Failure probability over the reference exposure [-], in [0, 1].
+    dt_h : Time spent in the conditions [h], >= 0.
+    exposure_h : The reference exposure [h], > 0.
+
+    Returns
+    -------
+    ``-ln(1 - p_f) * dt_h / exposure_h`` [-]: ``inf`` where ``p_f = 1`` and ``dt_h > 0``, 0 where ``dt_h = 0``.
+
+    Examples
+    --------
+    >>> float(hazard(0.5, 8.0, 4.0)) == 2.0 * float(np.log(2.0))
+    True
+    >>> hazard([1.0, 1.0, 0.0], [1.0, 0.0, 5.0], 4.0).tolist()
+    [inf, 0.0, 0.0]
+    """
+    p = np.asarray(p_f, dtype=float)
+    dt = np.asarray(dt_h, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = -np.log1p(-p) * (dt / exposure_h)
+    return np.asarray(np.where(dt > 0.0, h, 0.0), dtype=float)
+
+
+def failure_probability(total_hazard: npt.ArrayLike) -> FloatArray:
+    """Probability of failure ``1 - exp(-H)`` [-] of an accumulated hazard ``H`` [-].
+
+    >>> float(failure_probability(float(hazard(0.2, 10.0, 5.0))))  # two exposures at 0.2: 1 - 0.8 ** 2
+    0.36
+    """
+    return np.asarray(-np.expm1(-np.asarray(total_hazard, dtype=float)), dtype=float)
+
+
+@dataclass(frozen=True)
+class LegExposure:
+    """What each leg of a route adds to the voyage's failure probability.
+
+    Attributes
+    ----------
+    hazard : Hazard of each leg [-] (one value per leg; ``inf`` where it meets ``p_f = 1``).
+    criterion_h : Hours of each leg spent where each criterion of the failure model fires, by the criterion's
+        description (e.g. ``"WH: hs_m >= 4 m"``) [h].
+    """
+
+    hazard: FloatArray
+    criterion_h: dict[str, FloatArray]
+
+    @property
+    def p_fail_leg(self) -> FloatArray:
+        """Probability of failure over each leg's duration [-]."""
+        return failure_probability(self.hazard)
+
+
+def leg_exposure(
+    problem: RoutingProblem,
+    lon_deg: npt.ArrayLike,
+    lat_deg: npt.ArrayLike,
+    start_h: npt.ArrayLike,
+    time_h: npt.ArrayLike,
+    p_f: npt.ArrayLike,
+    *,
+    step_km: float = EXPOSURE_STEP_KM,
+) -> LegExposure:
+    """Hazard and hours per criterion of each leg of a track (see the module notes).
+
+    Parameters
+    ----------
+    problem : The routing problem (weather, polar, failure model; its ``apf`` and obstacles do not matter here).
+    lon_deg, lat_deg : Track points [deg] (one more than legs).
+    start_h : When each leg is sailed from its first point [h after ``problem.departure``] (after any wait).
+    time_h : Each leg's sailing time [h] (finite).
+    p_f : Each leg's largest failure probability as the router costed it [-]: used for a sub-arc whose weather
+        is missing at its midpoint (the router found the leg sailable, but a finer sample fell into a hole).
+    step_km : Longest sub-arc [km] (> 0).
+
+    Returns
+    -------
+    LegExposure
+        Zero hazards and no criteria without a failure model.
+    """
+    lon, lat = np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float)
+    t_leg = np.asarray(time_h, dtype=float)
+    model = problem.failure
+    if model is None:
+        return LegExposure(hazard=np.zeros(t_leg.size), criterion_h={})
+    if not step_km > 0:
+        raise ValueError(f"step_km must be > 0 [km] (got {step_km!r})")
+    n_legs = t_leg.size
+    d_km = geodesy.distance_km(lon[:-1], lat[:-1], lon[1:], lat[1:])
+    per_leg = np.maximum(1, np.ceil(d_km / step_km)).astype(np.intp)
+    leg = np.repeat(np.arange(n_legs), per_leg)
+    first = np.concatenate([[0], np.cumsum(per_leg)[:-1]])
+    j = np.arange(leg.size) - first[leg]
+    f0, f1 = j / per_leg[leg], (j + 1) / per_leg[leg]
+    a, b, c, d = lon[leg], lat[leg], lon[leg + 1], lat[leg + 1]
+    lon0, lat0 = geodesy.intermediate_point(a, b, c, d, f0)
+    lon1, lat1 = geodesy.intermediate_point(a, b, c, d, f1)
+    lon0, lat0 = np.where(j == 0, a, lon0), np.where(j == 0, b, lat0)  # the legs' own end points, exactly
+    last = j == per_leg[leg] - 1
+    lon1, lat1 = np.where(last, c, lon1), np.where(last, d, lat1)
+    timing = replace(problem, samples=1, apf=1.0)  # times only: the failure model forbids nothing here
+    start = np.asarray(start_h, dtype=float)[leg]
+    share = (f1 - f0) * t_leg[leg]  # the leg's time shared by length, a first guess (and where a sub-arc has none)
+    t0 = start + f0 * t_leg[leg]
+    dt = _scaled(timing.costs(lon0, lat0, lon1, lat1, t0).time_h, share, leg, t_leg)
+    if not problem.weather.steady:  # again, each sub-arc leaving when the craft gets there
+        before = np.cumsum(dt) - dt  # time sailed before each sub-arc, from the track's first point
+        t0 = start + before - before[first][leg]
+        dt = _scaled(timing.costs(lon0, lat0, lon1, lat1, t0).time_h, share, leg, t_leg)
+    mlon, mlat = geodesy.intermediate_point(lon0, lat0, lon1, lat1, 0.5)
+    course = geodesy.initial_bearing_deg(mlon, mlat, lon1, lat1)
+    cond = _sample(problem, mlon, mlat, t0 + 0.5 * dt)
+    q = arc_quantities(cond, _heading(problem, cond, course), model.quantities)
+    index, unknown = model.evidence_index(q)  # the cost function's gather (p_fail would also check ranges)
+    p = model.p_flat[index]
+    if unknown is not None:  # missing weather at a sub-arc's midpoint: the leg's p_f as the router costed it
+        p = np.where(unknown, np.asarray(p_f, dtype=float)[leg], p)
+    fired = np.asarray(model.fired(q))
+    h = hazard(p, dt, model.exposure_h)
+    return LegExposure(
+        hazard=np.asarray(np.bincount(leg, weights=h, minlength=n_legs), float),  # hazards >= 0: a sum with inf is inf
+        criterion_h={
+            crit.describe(): np.asarray(np.bincount(leg, weights=np.where(fired[i], dt, 0.0), minlength=n_legs), float)
+            for i, crit in enumerate(model.criteria)
+        },
+    )
+
+
+def _scaled(w: FloatArray, share: FloatArray, leg: npt.NDArray[np.intp], t_leg: FloatArray) -> FloatArray:
+    """Sub-arc times ``w`` [h] scaled so that each leg's add up to its time ``t_leg`` [h] (``share`` [h] where a
+    sub-arc has no finite time)."""
+    w = np.where(np.isfinite(w), w, share)
+    total = np.bincount(leg, weights=w, minlength=t_leg.size)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(total > 0.0, t_leg / total, 0.0)
+    return np.asarray(w * scale[leg], dtype=float)
+
+
+def _sample(problem: RoutingProblem, lon: FloatArray, lat: FloatArray, t_h: FloatArray) -> Conditions:
+    """The problem's weather at points and times [h after departure] (at the departure when it is steady)."""
+    if problem.weather.steady:
+        return problem.weather.sample(lon, lat, problem.departure)
+    return problem.weather.sample(lon, lat, hours_after(problem.departure, t_h))
+
+
+def _heading(problem: RoutingProblem, cond: Conditions, course_deg: FloatArray) -> FloatArray:
+    """The heading the craft steers to hold ``course_deg`` [deg]: the course itself, or with a current the crab
+    heading (:func:`~pyroute_rel.crab.hold_course`, as the cost function steers)."""
+    if not cond.has_current:
+        return course_deg
+    factor = 1.0 if problem.wave_loss is None else problem.wave_loss.factor(cond.hs_m)
+    crab = hold_course(
+        course_deg,
+        cond.twd_deg,
+        cond.tws_kn,
+        cond.current_u_ms,
+        cond.current_v_ms,
+        problem.polar,
+        beyond=problem.beyond,
+        speed_factor=factor,
+    )
+    return np.asarray(np.where(np.isfinite(crab.heading_deg), crab.heading_deg, course_deg), dtype=float)
