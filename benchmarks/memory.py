@@ -1,11 +1,14 @@
-"""Memory estimate vs measured peak. Run: ``python benchmarks/memory.py [--quick] [--only NAME ...]``.
+"""Memory estimate vs measured peak. Run: ``python benchmarks/memory.py [--quick] [--only NAME ...] [--parts]``.
 
 Each case routes a scenario in a fresh process: the child builds the grid and the routing problem, takes the
 estimate of :func:`pyroute_rel.solve.route_memory` (what :func:`~pyroute_rel.solve.forward_dp` checks against the
-budget), routes, and reports; the parent reads the child's peak resident memory from ``os.wait4`` (checked against
-the child's own ``VmHWM``). The table shows
-estimate, measured peak and their ratio; the script exits 1 when a ratio leaves [0.5, 2] (the estimate must be within
-2x of the peak). Memory is not timing: the figures hardly depend on the machine's load.
+budget), resets its high-water mark of resident memory (``/proc/self/clear_refs``: loading a gridded weather file
+peaks before routing, and that peak is not the route's), routes, and reports; the parent reads the child's peak
+resident memory from ``os.wait4``. The table shows estimate, measured peak and their ratio; the script exits 1 when a
+ratio leaves [0.5, 2] (the estimate must be within 2x of the peak). The last columns leave out what the process held
+when the estimate was made (interpreter, libraries, weather): the routing's own estimate and growth (memory freed
+before, e.g. by loading weather, is reused without growing, so small growths understate). Memory is not timing: the
+figures hardly depend on the machine's load.
 """
 
 from __future__ import annotations
@@ -43,6 +46,11 @@ CASES: dict[str, tuple[str, dict[str, Any]]] = {
     "era5_default": (ERA5, {}),
     "era5_square_160_s8": (ERA5, {"layout": "square", "n_ranks": 160, "n_nodes": 160, "samples_per_arc": 8}),
     "real_course_land_zone": (REAL, {}),
+    "refine_3_apf05": (CONTROL, {"apf": 0.5, "refine": 3}),
+    "square_160_s8_refine_3": (
+        CONTROL,
+        {"layout": "square", "n_ranks": 160, "n_nodes": 160, "samples_per_arc": 8, "refine": 3},
+    ),
 }
 QUICK = ("square_80_s8", "angular_default", "era5_default")
 
@@ -55,11 +63,17 @@ sc = load_scenario(path).with_options(**options)
 grid = sc.make_grid()
 problem = sc.problem(grid=grid)
 est = route_memory(grid, problem)
+try:  # reset this process's high-water mark: VmHWM is then the peak of the routing alone
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+    reset = True
+except OSError:
+    reset = False
 route = sc.route(grids=[grid])
 with open("/proc/self/status") as f:  # the high-water mark of this process's resident memory [KiB]
     hwm = next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmHWM:"))
 print(json.dumps({"estimate": est.total_bytes, "parts": est.parts, "what": est.what,
-                  "voyage_h": route.voyage_time_h, "hwm": hwm}))
+                  "voyage_h": route.voyage_time_h, "hwm": hwm, "reset": reset}))
 """
 
 
@@ -82,7 +96,6 @@ def measure(name: str) -> dict[str, Any]:
         raise SystemExit(f"{name}: child exited with status {status}")
     result = json.loads(out)
     result["peak"] = usage.ru_maxrss * 1024  # [KiB] on Linux
-    assert abs(result["peak"] - result["hwm"]) < 0.05 * result["peak"], result  # two readings of the same peak
     return result
 
 
@@ -93,16 +106,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--parts", action="store_true", help="also print the estimate's parts [MiB]")
     args = ap.parse_args(argv)
     names = args.only or (list(QUICK) if args.quick else list(CASES))
-    print(f"{'case':26s} {'grid':36s} {'estimate MiB':>12s} {'peak MiB':>9s} {'peak/est':>8s}")
+    print(
+        f"{'case':26s} {'grid':36s} {'estimate MiB':>12s} {'peak MiB':>9s} {'peak/est':>8s}   "
+        f"{'routing est':>11s} {'routing peak':>12s} {'ratio':>6s}"
+    )
     bad = 0
     for name in names:
         res = measure(name)
         ratio = res["peak"] / res["estimate"]
         ok = 0.5 <= ratio <= 2.0
+        # the routing alone: the estimate less what the process held when it was made, and the peak less that
+        added = res["estimate"] - res["parts"]["process"]
+        grown = (res["hwm"] if res["reset"] else res["peak"]) - res["parts"]["process"]
         bad += not ok
         print(
             f"{name:26s} {res['what']:36s} {res['estimate'] / 2**20:12.0f} {res['peak'] / 2**20:9.0f} "
-            f"{ratio:8.2f}{'' if ok else '  OUT OF [0.5, 2]'}",
+            f"{ratio:8.2f}   {added / 2**20:11.0f} {grown / 2**20:12.0f} {grown / added:6.2f}"
+            f"{'' if ok else '  OUT OF [0.5, 2]'}",
             flush=True,
         )
         if args.parts:
