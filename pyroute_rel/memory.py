@@ -63,8 +63,8 @@ AVAILABLE_FRACTION = 0.75
 #: Float64 arrays of one value per sample alive at once while the arcs into a rank are costed (steady weather):
 #: the sampled conditions (7 fields), sample positions, TWA, boat speed, speed over ground, per-sample time and
 #: p_f, flags, the failure table's gather index, temporaries of ``np.where``; the same bound covers the halving
-#: of arcs into samples (sub-arc ends and midpoints as x, y, z). Counted in the code, checked by
-#: ``benchmarks/memory.py``.
+#: of arcs into samples (sub-arc ends and midpoints as x, y, z). An upper count: ``benchmarks/memory.py`` measures
+#: 14-16 on all-to-all grids (square 80 with 32 samples, square 240 with 8).
 RANK_ARRAYS_STEADY = 24
 #: As :data:`RANK_ARRAYS_STEADY` with time-varying weather: sample times of both passes, elapsed times and the
 #: prepared sampling positions (cell indices and weights) kept between the passes.
