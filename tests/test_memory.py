@@ -298,6 +298,7 @@ def test_estimate_within_2x_of_measured_peak(options: dict[str, Any], monkeypatc
     assert 0.5 <= ratio <= 2.0, ratio
 
 
+@pytest.mark.slow  # two cold compiles of a failure model: pgmpy's import and grammar, about 5 s
 def test_huge_failure_table_is_refused_before_compiling(tmp_path: Path) -> None:
     """24 criteria pass the count, but their table has 3^24 = 2.8e11 entries: refused once the network's states are
     known, before the joint is queried. Reading any network imports pgmpy and builds its BIF grammar (about 2 s and
