@@ -439,16 +439,19 @@ def route_memory(grid: Grid, problem: RoutingProblem) -> MemoryEstimate:
     """Estimated peak memory of :func:`forward_dp` on a grid [bytes], from sizes alone (nothing is allocated): the
     process as it is, the arc geometry not cached on the grid yet, obstacle masks, the arrays of one rank at work,
     the DP state and the failure table (:func:`pyroute_rel.memory.route_estimate`)."""
-    n_start = grid.start_points[0].size
-    per_rank = [grid.n_nodes * n_start] + [grid.n_nodes * grid.width] * (grid.n_ranks - 1) + [grid.n_nodes]
-    cached = grid.cache.geometry
-    todo = sum(n for k, n in enumerate(per_rank) if (k, problem.samples) not in cached)
+    n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
+
+    def arcs_into(k: int) -> int:  # candidate arcs into rank k: from the start points, between ranks, to the finish
+        return n_nodes * (grid.start_points[0].size if k == 0 else grid.width if k < n_ranks else 1)
+
+    cached = sum(arcs_into(k) for k, samples in grid.cache.geometry if samples == problem.samples)
+    todo = arcs_into(0) + (n_ranks - 1) * arcs_into(1) + arcs_into(n_ranks) - cached
     failure = problem.failure
     return route_estimate(
-        n_ranks=grid.n_ranks,
-        n_nodes=grid.n_nodes,
+        n_ranks=n_ranks,
+        n_nodes=n_nodes,
         arcs=todo,
-        rank_arcs=max(per_rank),
+        rank_arcs=max(arcs_into(0), arcs_into(min(1, n_ranks))),
         samples=problem.samples,
         steady=bool(problem.weather.steady),
         obstacles=problem.blocked is not None,

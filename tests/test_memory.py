@@ -114,10 +114,17 @@ def test_estimate_arithmetic() -> None:
     assert e.total_bytes == sum(e.parts.values()) and e.what == "grid 3 x 5, 4 samples per arc"
 
 
-@pytest.mark.parametrize(("samples", "deviation"), [(1, None), (3, None), (4, 45.0), (8, 60.0)])
-def test_geometry_part_is_the_cached_geometry(samples: int, deviation: float | None) -> None:
-    """The estimate's arc geometry equals, byte for byte, what the DP caches on the grid."""
-    grid = make_grid((-12.0, 45.0), (-30.0, 35.0), n_ranks=7, n_nodes=9, max_deviation_deg=deviation)
+@pytest.mark.parametrize(
+    ("samples", "deviation", "n_ranks", "line"),
+    [(1, None, 7, False), (3, None, 7, False), (4, 45.0, 7, False), (8, 60.0, 7, True), (2, None, 1, True)],
+)
+def test_geometry_part_is_the_cached_geometry(samples: int, deviation: float | None, n_ranks: int, line: bool) -> None:
+    """The estimate's arc geometry equals, byte for byte, what the DP caches on the grid (a start line's points
+    each join the first rank; a single rank joins start and finish only)."""
+    start_line = ((-13.0, 46.0), (-11.0, 44.0)) if line else None
+    grid = make_grid(
+        (-12.0, 45.0), (-30.0, 35.0), n_ranks=n_ranks, n_nodes=9, max_deviation_deg=deviation, start_line=start_line
+    )
     problem = _problem(samples=samples)
     before = route_memory(grid, problem).parts["arc geometry"]
     forward_dp(grid, problem)
