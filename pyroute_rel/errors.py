@@ -21,6 +21,7 @@ __all__ = [
     "NoFeasibleRouteError",
     "OutputError",
     "CoordinateError",
+    "MemoryBudgetError",
     "PyrouteWarning",
     "PolarWarning",
     "CacheWarning",
@@ -89,6 +90,10 @@ class OutputError(PyrouteError, OSError):
 
 class CoordinateError(PyrouteError, ValueError):
     """A position is off the globe: a latitude outside [-90, 90] deg."""
+
+
+class MemoryBudgetError(PyrouteError, MemoryError):
+    """A route would need more memory than the budget allows (:mod:`pyroute_rel.memory`); refused before allocating."""
 
 
 class PyrouteWarning(UserWarning):

@@ -57,6 +57,7 @@ import numpy.typing as npt
 
 from . import diskcache
 from .errors import FailureModelError
+from .memory import check_budget, table_estimate
 
 __all__ = [
     "QUANTITIES",
@@ -652,6 +653,8 @@ def _parse_spec(doc: dict[str, Any], label: str, *, default_name: str) -> dict[s
     crits = doc.get("criteria")
     if not isinstance(crits, list) or not crits or not all(isinstance(c, dict) for c in crits):
         raise FailureModelError(f"{label}: needs at least one [[criteria]] table (got {crits!r})")
+    if len(crits) > 32:  # before the network is read: its joint table would have 2^33 entries or more
+        raise FailureModelError(f"{label}: at most 32 criteria are supported (got {len(crits)})")
     spec: dict[str, Any] = {
         "name": _text(doc.get("name", default_name), f"{label}: 'name'"),
         "description": doc.get("description", ""),
@@ -953,6 +956,10 @@ def _compile(net_bytes: bytes, net_label: str, spec: dict[str, Any], label: str)
     edges = [[p, n] for n in names for p in cpds[n].variables[1:]]
     criteria = _check_structure(spec, states, label, net_label)
     target, fail = spec["target"]["node"], spec["target"]["state"]
+    check_budget(
+        table_estimate([len(states[c.node]) for c in criteria], len(states[target]), label),
+        knobs="use fewer criteria or fewer states per criterion",
+    )
     order = [target] + [c.node for c in criteria]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -40,6 +40,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .errors import GridError
+from .memory import MemoryEstimate, check_budget, resident_bytes
 
 if TYPE_CHECKING:
     import networkx as nx
@@ -61,6 +62,9 @@ __all__ = [
 #: arc at its peak, so 40 M arcs take 6-12 GB (the paper's square 320 x 320, 32.8 M arcs, routes in 1.1 GB without
 #: failure model and samples). Larger grids are refused before anything is allocated.
 MAX_ARCS = 40_000_000
+#: Bytes per node while a grid's nodes are placed (:func:`rank_points`: offsets, rank centres, courses and the
+#: destination points' trigonometry, about eight float64 arrays of one value per node).
+NODE_BYTES = 64
 
 #: networkx node labels of the start and finish nodes; other nodes are ``(rank, node)`` tuples.
 START = "start"
@@ -378,16 +382,11 @@ def make_grid(
     else:
         band = n_nodes - 1
 
+    width = min(2 * band + 1, n_nodes)
+    _check_size(n_ranks, n_nodes, width)  # before the nodes are placed: a huge grid is refused at once
     offset = ((np.arange(n_nodes) - (n_nodes - 1) / 2.0) * spacing_km).astype(np.float64)
     lon, lat = rank_points((lon_s, lat_s), (lon_f, lat_f), np.broadcast_to(offset, (n_ranks, n_nodes)))
 
-    width = min(2 * band + 1, n_nodes)
-    if n_ranks * n_nodes * width > MAX_ARCS:
-        raise GridError(
-            f"the grid would have {n_ranks * n_nodes * width / 1e6:.0f} M candidate arcs ({n_ranks} ranks x "
-            f"{n_nodes} nodes x {width} arcs per node), more than the {MAX_ARCS / 1e6:.0f} M that fit in memory: "
-            "use fewer ranks or nodes, a larger spacing_km (a smaller aspect) or a smaller max_deviation_deg"
-        )
     j = np.arange(n_nodes)
     first = np.clip(j - band, 0, n_nodes - width)
     src = first[:, None] + np.arange(width)[None, :]
@@ -427,6 +426,23 @@ def make_grid(
         start_lon=s_lon,
         start_lat=s_lat,
         finish_line=fin_line,
+    )
+
+
+def _check_size(n_ranks: int, n_nodes: int, width: int) -> None:
+    """Refuse a grid with more than :data:`MAX_ARCS` candidate arcs, or whose nodes alone exceed the memory budget."""
+    if n_ranks * n_nodes * width > MAX_ARCS:
+        raise GridError(
+            f"the grid would have {n_ranks * n_nodes * width / 1e6:.0f} M candidate arcs ({n_ranks} ranks x "
+            f"{n_nodes} nodes x {width} arcs per node), more than the {MAX_ARCS / 1e6:.0f} M that fit in memory: "
+            "use fewer ranks or nodes, a larger spacing_km (a smaller aspect) or a smaller max_deviation_deg"
+        )
+    check_budget(
+        MemoryEstimate(
+            parts={"process": resident_bytes(), "grid nodes": NODE_BYTES * n_ranks * n_nodes},
+            what=f"grid {n_ranks} x {n_nodes}",
+        ),
+        knobs="use fewer ranks or nodes",
     )
 
 

@@ -47,13 +47,23 @@ from .cost import (
 from .errors import ScenarioError
 from .failure import FailureModel
 from .grid import Grid
+from .memory import MemoryEstimate, check_budget, parse_bytes, route_estimate
 from .polar import Polar, check_beyond
 from .progress import progress_bar
 from .times import hours_after
 from .units import KN_PER_MS
 from .weather import WeatherSource
 
-__all__ = ["DPResult", "forward_dp", "RoutingProblem", "explain_infeasible", "leg_costs", "path_costs", "grid_geometry"]
+__all__ = [
+    "DPResult",
+    "forward_dp",
+    "RoutingProblem",
+    "explain_infeasible",
+    "leg_costs",
+    "path_costs",
+    "grid_geometry",
+    "route_memory",
+]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -121,6 +131,9 @@ class RoutingProblem:
         and the forbidden counts then cover the arcs costed only. Applied where a node has more than
         :data:`PRUNE_MIN_WIDTH` candidate arcs (all-to-all grids), and not with waiting, a finish line, or a
         weather source whose bound on currents (``max_current_ms``) is not finite.
+    max_memory : Memory budget of a route [bytes, or a string with a unit: ``"8G"``, ``"500M"``]; None:
+        ``$PYROUTE_REL_MAX_MEMORY``, else a share of the available memory (:func:`pyroute_rel.memory.budget_bytes`).
+        :func:`forward_dp` refuses a grid whose estimated peak (:func:`route_memory`) exceeds it before allocating.
     """
 
     departure: np.datetime64
@@ -135,8 +148,11 @@ class RoutingProblem:
     max_wait_h: float = 0.0
     wave_loss: WaveLoss | None = None
     prune: bool = True
+    max_memory: int | str | None = None
 
     def __post_init__(self) -> None:
+        if self.max_memory is not None:
+            parse_bytes(self.max_memory, "RoutingProblem.max_memory")
         if self.time_step_h is not None and not (
             isinstance(self.time_step_h, int | float) and 0.0 < float(self.time_step_h) <= 48.0
         ):
@@ -368,6 +384,7 @@ def forward_dp(
             "the problem's obstacle mask was built for another grid: build the problem for this grid "
             "(Scenario.problem(grid=...))"
         )
+    check_budget(route_memory(grid, problem), max_memory=problem.max_memory, knobs=_memory_knobs(grid, problem))
     arrival = np.full((n_ranks, n_nodes), np.inf)
     back = np.full((n_ranks, n_nodes), -1, dtype=np.intp)
     finish_h, finish_back = np.inf, -1
@@ -416,6 +433,41 @@ def forward_dp(
         wait_h=wait_into,
         **end,
     )
+
+
+def route_memory(grid: Grid, problem: RoutingProblem) -> MemoryEstimate:
+    """Estimated peak memory of :func:`forward_dp` on a grid [bytes], from sizes alone (nothing is allocated): the
+    process as it is, the arc geometry not cached on the grid yet, obstacle masks, the arrays of one rank at work,
+    the DP state and the failure table (:func:`pyroute_rel.memory.route_estimate`)."""
+    n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
+
+    def arcs_into(k: int) -> int:  # candidate arcs into rank k: from the start points, between ranks, to the finish
+        return n_nodes * (grid.start_points[0].size if k == 0 else grid.width if k < n_ranks else 1)
+
+    cached = sum(arcs_into(k) for k, samples in grid.cache.geometry if samples == problem.samples)
+    todo = arcs_into(0) + (n_ranks - 1) * arcs_into(1) + arcs_into(n_ranks) - cached
+    failure = problem.failure
+    return route_estimate(
+        n_ranks=n_ranks,
+        n_nodes=n_nodes,
+        arcs=todo,
+        rank_arcs=max(arcs_into(0), arcs_into(min(1, n_ranks))),
+        samples=problem.samples,
+        steady=bool(problem.weather.steady),
+        obstacles=problem.blocked is not None,
+        table_entries=0 if failure is None else math.prod(len(c.states) + 1 for c in failure.criteria),
+    )
+
+
+def _memory_knobs(grid: Grid, problem: RoutingProblem) -> str:
+    """What lowers a route's memory, for :class:`~pyroute_rel.errors.MemoryBudgetError`."""
+    knobs = []
+    if problem.samples > 1:
+        knobs.append("fewer samples per arc (--samples, or a larger --sample-km)")
+    knobs.append("fewer ranks or nodes (--n-ranks, --n-nodes, --half-width-km)")
+    if grid.max_deviation_deg is None:
+        knobs.append("banded arcs (--max-deviation 45)")
+    return "use " + ", ".join(knobs)
 
 
 @dataclass(frozen=True)

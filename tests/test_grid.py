@@ -159,3 +159,33 @@ def test_derived_data_live_in_a_typed_cache_outside_equality_and_repr() -> None:
     assert a.cache.node_xyz is not None and a.cache.node_xyz.shape == (4, 5, 3)
     assert "cache" not in repr(a) and a.n_ranks == b.n_ranks
     assert b.cache.geometry == {}  # nothing leaked to the other grid
+
+
+@pytest.mark.parametrize(
+    ("n_ranks", "n_nodes", "deviation"),
+    [(100_000, 100_000, None), (300, 400, None), (10**9, 5, 45.0)],  # 1e15, 48 M and 5e9 candidate arcs
+)
+def test_too_many_arcs_refused_before_nodes_are_placed(
+    n_ranks: int, n_nodes: int, deviation: float | None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 17: a square 100000 x 100000 grid allocated 74.5 GiB before the arc limit was checked."""
+    import pyroute_rel.grid as grid_module
+
+    def placed(*args: object, **kw: object) -> None:
+        raise AssertionError("rank_points called: nodes placed before the size check")
+
+    monkeypatch.setattr(grid_module, "rank_points", placed)
+    with pytest.raises(GridError, match=rf"\({n_ranks} ranks x {n_nodes} nodes x \d+ arcs per node\), more than"):
+        make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=n_ranks, n_nodes=n_nodes, max_deviation_deg=deviation)
+
+
+def test_grid_nodes_over_the_budget_are_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    from pyroute_rel.errors import MemoryBudgetError
+    from pyroute_rel.grid import NODE_BYTES
+
+    monkeypatch.setenv("PYROUTE_REL_MAX_MEMORY", "1G")
+    # band 0 (arcs within 1e-3 deg): one arc per node, so 20 M nodes pass the arc limit; their placement alone takes
+    # 20e6 x 64 bytes = 1.2 GiB, plus the process
+    with pytest.raises(MemoryBudgetError, match=r"grid 4000000 x 5\) but the budget PYROUTE_REL_MAX_MEMORY is 1.0 GiB"):
+        make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=4_000_000, n_nodes=5, spacing_km=1.0, max_deviation_deg=1e-3)
+    assert NODE_BYTES * 4_000_000 * 5 > 1024**3
