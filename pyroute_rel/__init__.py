@@ -74,6 +74,8 @@ _EXPORTS: dict[str, str] = {
     "NoFeasibleRouteError": "errors",
     "OutputError": "errors",
     "CoordinateError": "errors",
+    "MemoryBudgetError": "errors",
+    "PyrouteWarning": "errors",
 }
 
 __all__ = ["__version__", *_EXPORTS]
@@ -97,12 +99,14 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .errors import (
         ConvergenceError,
         CoordinateError,
+        MemoryBudgetError,
         FailureModelError,
         GridError,
         NoFeasibleRouteError,
         OutputError,
         PolarError,
         PyrouteError,
+        PyrouteWarning,
         ScenarioError,
         WeatherCoverageError,
         WeatherError,
