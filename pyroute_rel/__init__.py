@@ -99,9 +99,9 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .errors import (
         ConvergenceError,
         CoordinateError,
-        MemoryBudgetError,
         FailureModelError,
         GridError,
+        MemoryBudgetError,
         NoFeasibleRouteError,
         OutputError,
         PolarError,
