@@ -104,3 +104,168 @@ def _closed_pipe(cmd: list[str]) -> tuple[int, str]:
         proc.stdout.close()
         err = proc.stderr.read().decode()
         return proc.wait(timeout=60), err
+
+
+# --------------------------------------------------------------------------------------------------
+# item 5: all-or-nothing outputs
+# --------------------------------------------------------------------------------------------------
+
+
+def listing(folder: Path) -> dict[str, str]:
+    """Every entry under ``folder`` (recursively) with its content ('<dir>' for folders)."""
+    return {
+        str(p.relative_to(folder)): "<dir>" if p.is_dir() else p.read_text(errors="replace")
+        for p in sorted(folder.rglob("*"))
+    }
+
+
+@pytest.mark.parametrize("in_the_way", ["route.csv", "route.png", "summary.json"])
+def test_route_refuses_a_folder_where_a_file_goes(
+    in_the_way: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    (out / in_the_way).mkdir(parents=True)
+    (out / "route.gpx").write_text("an earlier run's gpx")
+    before = listing(out)
+    code, outtext, err = run(["route", str(EXAMPLE), *SMALL, "--out", str(out)], capsys)
+    assert code == 2 and err.count("\n") == 1 and outtext == ""
+    assert f"{in_the_way} is a folder" in err and "nothing was written" in err
+    assert listing(out) == before  # nothing written, nothing removed, no staging folder
+
+
+@pytest.mark.parametrize("in_the_way", ["gci.json", "gci.png"])
+def test_gci_refuses_a_folder_where_a_file_goes(
+    in_the_way: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "g"
+    (out / in_the_way).mkdir(parents=True)
+    before = listing(out)
+    code, _, err = run(["gci", "--h", "1,2,4", "--phi", "700.3,701.2,704.8", "--out", str(out)], capsys)
+    assert code == 2 and err.count("\n") == 1 and f"{in_the_way} is a folder" in err
+    assert listing(out) == before
+
+
+def test_write_together_checks_every_target_first(tmp_path: Path) -> None:
+    from pyroute_rel.errors import OutputError
+    from pyroute_rel.files import write_together
+
+    (tmp_path / "c.txt").mkdir()
+    calls = []
+    writers = {n: (lambda p, n=n: (calls.append(n), p.write_text(n))) for n in ("a.txt", "b.txt", "c.txt")}
+    with pytest.raises(OutputError, match="c.txt is a folder"):
+        write_together(tmp_path, writers)
+    assert calls == [] and listing(tmp_path) == {"c.txt": "<dir>"}
+
+
+def test_a_failed_publish_restores_the_previous_set(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from pyroute_rel.errors import OutputError
+    from pyroute_rel.files import write_together
+
+    for n in ("a.txt", "b.txt", "c.txt"):
+        (tmp_path / n).write_text(f"old {n}")
+    real_replace = os.replace
+    published = []
+
+    def replace(src, dst):  # the third rename into the folder fails (a disk error, say)
+        if Path(dst).parent == tmp_path and not Path(src).name.startswith(".old-"):
+            if len(published) == 2:
+                raise OSError(5, "Input/output error")
+            published.append(dst)
+        real_replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(OutputError, match="Input/output error"):
+        write_together(tmp_path, {n: (lambda p, n=n: p.write_text(f"new {n}")) for n in ("a.txt", "b.txt", "c.txt")})
+    assert len(published) == 2  # two were published, then put back
+    assert listing(tmp_path) == {n: f"old {n}" for n in ("a.txt", "b.txt", "c.txt")}
+
+
+SLOW_WRITER = """
+import sys, time
+from pathlib import Path
+from pyroute_rel.files import write_together
+
+def slow(p: Path) -> None:
+    p.write_text("partial")
+    print("writing", flush=True)
+    time.sleep(60)
+
+write_together(sys.argv[1], {"a.txt": lambda p: p.write_text("a"), "b.txt": slow})
+"""
+
+
+def _start_slow_writer(out: Path) -> subprocess.Popen[str]:
+    proc = subprocess.Popen([sys.executable, "-c", SLOW_WRITER, str(out)], stdout=subprocess.PIPE, text=True, env=ENV)
+    assert proc.stdout.readline() == "writing\n"  # inside the second writer: a.txt and b.txt are staged
+    return proc
+
+
+def test_a_killed_run_leaves_staging_that_the_next_run_removes(tmp_path: Path) -> None:
+    from pyroute_rel.files import STAGING_MARKER, STAGING_PREFIX
+
+    out = tmp_path / "g"
+    out.mkdir()
+    with _start_slow_writer(out) as proc:
+        proc.kill()  # SIGKILL: nothing of ours runs
+        proc.wait(timeout=30)
+    (staging,) = [p for p in out.iterdir()]
+    assert staging.name.startswith(STAGING_PREFIX)
+    assert sorted(p.name for p in staging.iterdir()) == sorted([STAGING_MARKER, "a.txt", "b.txt"])
+    # a folder of the same prefix that is not ours (no marker) and one of a live writer (this test's pid) stay
+    foreign = out / f"{STAGING_PREFIX}mine"
+    foreign.mkdir()
+    (foreign / "keep.txt").write_text("user data")
+    live = out / f"{STAGING_PREFIX}live"
+    live.mkdir()
+    (live / STAGING_MARKER).write_text(f"pyroute-rel staging\npid {os.getpid()}\n")
+    done = cli("gci", "--h", "1,2,4", "--phi", "700.3,701.2,704.8", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    assert not staging.exists()
+    assert sorted(p.name for p in out.iterdir()) == sorted(["gci.csv", "gci.json", "gci.png", foreign.name, live.name])
+    assert (foreign / "keep.txt").read_text() == "user data"
+
+
+def test_sigterm_while_writing_leaves_nothing(tmp_path: Path) -> None:
+    import signal
+
+    out = tmp_path / "g"  # created by the writer: removed again, as nothing was published
+    with _start_slow_writer(out) as proc:
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == 128 + signal.SIGTERM
+    assert not out.exists()
+
+
+def test_empty_out_is_an_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(["route", str(EXAMPLE), *SMALL, "--out", ""], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1 and "--out needs a folder name" in err
+    code, out, err = run(["gci", "--h", "1,2,4", "--phi", "1,2,4", "--out", ""], capsys)
+    assert code == 2 and "--out needs a folder name" in err
+
+
+def test_file_mode_never_sets_the_umask(monkeypatch: pytest.MonkeyPatch) -> None:
+    from pyroute_rel import files
+
+    mask = os.umask(0o027)  # the test's own reference: a umask other than the usual 022
+    try:
+
+        def no_umask(_: int) -> int:
+            raise AssertionError("file_mode() changed the umask")
+
+        monkeypatch.setattr(os, "umask", no_umask)
+        files.file_mode.cache_clear()
+        assert files.file_mode() == 0o640  # 0o666 & ~0o027
+        # without /proc: the probe file's mode
+        real_read_text = Path.read_text
+
+        def no_proc(self: Path, *a, **k) -> str:
+            if str(self) == "/proc/self/status":
+                raise OSError(2, "No such file or directory")
+            return real_read_text(self, *a, **k)
+
+        monkeypatch.setattr(Path, "read_text", no_proc)
+        files.file_mode.cache_clear()
+        assert files.file_mode() == 0o640
+    finally:
+        monkeypatch.undo()
+        os.umask(mask)
+        files.file_mode.cache_clear()

@@ -15,6 +15,9 @@ __all__ = ["add_gci_parser"]
 
 EXIT_OK, EXIT_GATE = 0, 1
 
+#: The files ``gci --out`` writes.
+GCI_FILES = ("gci.png", "gci.csv", "gci.json")
+
 #: Arguments that are (lists of) numbers even when they start with '-' ("--h -1,2,4", "--max-gci -1e-3"), so that
 #: argparse hands them to the option's type and the validation can say what is wrong, instead of reading them as
 #: an unknown option. argparse's own pattern covers only single plain numbers such as "-1" or "-.5".
@@ -166,7 +169,7 @@ def _gate_args(p: argparse.ArgumentParser) -> None:
 def _check_gate_args(args: argparse.Namespace) -> None:
     """Refuse bad gate and output options before any work (one line naming the option)."""
     from ..errors import ConvergenceError
-    from ..files import check_out_dir
+    from ..files import check_out_dir, check_targets
     from ..gci.numbers import check_safety_factor
 
     check_safety_factor(args.safety_factor, "gci", "--safety-factor")
@@ -176,7 +179,9 @@ def _check_gate_args(args: argparse.Namespace) -> None:
     if not (math.isfinite(tol) and tol >= 0.0):
         raise ConvergenceError(f"--asymptotic-tol must be a finite number >= 0, e.g. 0.1 (got {tol:g})")
     if args.out is not None:
-        check_out_dir(args.out)
+        out = check_out_dir(args.out)
+        if out.is_dir():
+            check_targets(out, GCI_FILES)
 
 
 def _gate(study: Any, args: argparse.Namespace) -> str | None:

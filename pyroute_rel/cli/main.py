@@ -179,12 +179,15 @@ def _cmd_route(args: argparse.Namespace) -> int:
         refine=args.refine,
         sample_km=args.sample_km,
     )
-    if args.out:
-        from ..files import check_out_dir
+    if args.out is not None:  # '' too: refused, not read as "no --out"
+        from ..files import check_out_dir, check_targets
+        from ..outputs import OUTPUT_FILES
 
-        check_out_dir(args.out)  # before the work, not after it
+        out = check_out_dir(args.out)  # before the work, not after it
+        if out.is_dir():
+            check_targets(out, OUTPUT_FILES)
     if args.departures is not None:
-        if args.out:
+        if args.out is not None:
             raise ScenarioError(
                 "--out writes one route's files; with --departures use --json for the table, or "
                 "route each departure on its own"
@@ -194,7 +197,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - t0
     summary = route.summary()
     summary["runtime_s"] = elapsed
-    if args.out:
+    if args.out is not None:
         from ..outputs import write_outputs
 
         write_outputs(route, args.out, extra={"runtime_s": elapsed})
