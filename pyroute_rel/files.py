@@ -10,6 +10,7 @@ import contextlib
 import functools
 import os
 import signal
+import stat
 import tempfile
 import threading
 from collections.abc import Callable, Iterable, Iterator
@@ -26,6 +27,7 @@ __all__ = [
     "clean_stale_staging",
     "write_together",
     "file_mode",
+    "read_regular_bytes",
     "STAGING_PREFIX",
     "STAGING_MARKER",
 ]
@@ -58,6 +60,56 @@ def file_mode() -> int:
     finally:
         Path(probe).unlink(missing_ok=True)
         os.rmdir(folder)
+
+
+def read_regular_bytes(
+    path: str | os.PathLike[str], *, limit_bytes: int, error: type[Exception], label: str, what: str = "file"
+) -> bytes:
+    """The bytes of a user's input file, refusing what is not a regular file or larger than ``limit_bytes``.
+
+    A FIFO, a device (``/dev/zero``), a socket or a folder is refused without reading (the file is opened
+    non-blocking, so a FIFO without a writer cannot hang the call, and checked with ``fstat`` on the open
+    descriptor, so it cannot be swapped after the check); a file larger than ``limit_bytes`` [bytes] is refused
+    before it is read. Errors are ``error`` with a one-line message that starts with ``label`` (e.g. the file
+    name) and calls the file ``what``: "zone file not found", "zone file is not a regular file (a FIFO)", "zone
+    file is larger than the 10 MB limit", "cannot read zone file (...)".
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0))
+    except FileNotFoundError:
+        raise error(f"{label}: {what} not found") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
+        raise error(f"{label}: cannot read {what} ({getattr(exc, 'strerror', None) or exc})") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            kind = _KINDS.get(stat.S_IFMT(info.st_mode), "a special file")
+            raise error(f"{label}: {what} is not a regular file ({kind}); give the path of a file")
+        if info.st_size > limit_bytes:
+            raise error(
+                f"{label}: {what} of {info.st_size / 1e6:.1f} MB is larger than the {limit_bytes / 1e6:g} MB limit "
+                "for this kind of file"
+            )
+        with os.fdopen(os.dup(fd), "rb") as fh:
+            data = fh.read(limit_bytes + 1)
+    except OSError as exc:
+        if isinstance(exc, error):
+            raise
+        raise error(f"{label}: cannot read {what} ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+    if len(data) > limit_bytes:  # grew while being read
+        raise error(f"{label}: {what} is larger than the {limit_bytes / 1e6:g} MB limit for this kind of file")
+    return data
+
+
+_KINDS = {
+    stat.S_IFDIR: "a folder",
+    stat.S_IFIFO: "a FIFO",
+    stat.S_IFCHR: "a character device",
+    stat.S_IFBLK: "a block device",
+    stat.S_IFSOCK: "a socket",
+}
 
 
 def check_out_dir(path: str | os.PathLike[str], *, option: str = "--out") -> Path:

@@ -21,7 +21,10 @@ ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
 
 
 def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    code = main(args)
+    try:
+        code = main(args)
+    except SystemExit as exc:  # argparse's usage errors
+        code = int(exc.code or 0)
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -112,11 +115,17 @@ def _closed_pipe(cmd: list[str]) -> tuple[int, str]:
 
 
 def listing(folder: Path) -> dict[str, str]:
-    """Every entry under ``folder`` (recursively) with its content ('<dir>' for folders)."""
-    return {
-        str(p.relative_to(folder)): "<dir>" if p.is_dir() else p.read_text(errors="replace")
-        for p in sorted(folder.rglob("*"))
-    }
+    """Every entry under ``folder`` (recursively) with its content ('<dir>' for folders, sizes of big files)."""
+
+    def content(p: Path) -> str:
+        if p.is_symlink() or not (p.is_file() or p.is_dir()):
+            return "<special>"
+        if p.is_dir():
+            return "<dir>"
+        size = p.stat().st_size
+        return p.read_text(errors="replace") if size < 100_000 else f"<{size} bytes>"
+
+    return {str(p.relative_to(folder)): content(p) for p in sorted(folder.rglob("*"))}
 
 
 @pytest.mark.parametrize("in_the_way", ["route.csv", "route.png", "summary.json"])
@@ -269,3 +278,168 @@ def test_file_mode_never_sets_the_umask(monkeypatch: pytest.MonkeyPatch) -> None
         monkeypatch.undo()
         os.umask(mask)
         files.file_mode.cache_clear()
+
+
+# --------------------------------------------------------------------------------------------------
+# item 3: exit 2 and one line for user mistakes that used to be internal errors (or hangs)
+# --------------------------------------------------------------------------------------------------
+
+BASE = EXAMPLE.read_text()
+SQUARE = POLY = {"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], [0, 0]]]}
+
+
+def _scenario(tmp: Path, text: str, name: str = "s.toml") -> str:
+    (tmp / name).write_text(text)
+    return str(tmp / name)
+
+
+def _with_zone(tmp: Path, zone_file: str, content: object = None, raw: bytes | None = None) -> str:
+    """A scenario whose [avoid].zones lists ``zone_file`` (written from ``content`` or ``raw`` when given)."""
+    if raw is not None:
+        (tmp / zone_file).write_bytes(raw)
+    elif content is not None:
+        (tmp / zone_file).write_text(json.dumps(content))
+    return _scenario(tmp, BASE + f'\n[avoid]\nland = false\nzones = ["{zone_file}"]\n')
+
+
+def _feature(**props: object) -> dict:
+    return {"type": "Feature", "properties": props, "geometry": SQUARE}
+
+
+def _fifo(tmp: Path, name: str) -> str:
+    os.mkfifo(tmp / name)
+    return str(tmp / name)
+
+
+def _sparse(tmp: Path, name: str, size: int, head: bytes = b"") -> str:
+    with open(tmp / name, "wb") as fh:
+        fh.write(head)
+        fh.truncate(size)
+    return str(tmp / name)
+
+
+def _route(scenario: str, *extra: str) -> list[str]:
+    return ["route", scenario, *SMALL, *extra]
+
+
+#: (builder of the arguments, a fragment the one-line message must hold); the first 11 are the issue's cases.
+MISTAKES = {
+    "toml 5000 nested arrays": (
+        lambda t: ["route", _scenario(t, "x = " + "[" * 5000 + "]" * 5000 + "\n")],
+        "nested too deeply",
+    ),
+    "toml 3000 nested tables": (
+        lambda t: ["route", _scenario(t, "[" + ".".join(["a"] * 3000) + "]\n")],
+        "nested 3001 levels deep",
+    ),
+    "geojson nested 1e5 deep": (
+        lambda t: _route(_with_zone(t, "z.geojson", raw=b"[" * 10**5 + b"]" * 10**5)),
+        "nested too deeply",
+    ),
+    "zone crs.properties = [1]": (
+        lambda t: _route(_with_zone(t, "z.geojson", {**SQUARE, "crs": {"type": "name", "properties": [1]}})),
+        "WGS84 lon/lat",
+    ),
+    "zone valid_from year 1 +05:00": (
+        lambda t: _route(_with_zone(t, "z.geojson", _feature(valid_from="0001-01-01T00:00:00+05:00"))),
+        "'valid_from' is out of range in UTC",
+    ),
+    "--out component of 300 characters": (
+        lambda t: _route(str(EXAMPLE), "--out", str(t / ("x" * 300))),
+        "File name too long",
+    ),
+    "--out path of 5000 characters": (
+        lambda t: _route(str(EXAMPLE), "--out", str(t / "/".join(["abcdefghi"] * 500))),
+        "File name too long",
+    ),
+    "scenario /dev/zero": (lambda t: ["route", "/dev/zero"], "not a regular file (a character device)"),
+    "scenario FIFO without a writer": (lambda t: ["route", _fifo(t, "s.toml")], "not a regular file (a FIFO)"),
+    "polar name of 5 MB": (
+        lambda t: _route(_scenario(t, BASE.replace('"maribot_vane"', '"' + "p" * 5_000_000 + '"'))),
+        "characters cut",
+    ),
+    "polar name of 10 MB (file over the limit)": (
+        lambda t: _route(_scenario(t, BASE.replace('"maribot_vane"', '"' + "p" * 10_000_000 + '"'))),
+        "larger than the 10 MB limit",
+    ),
+    # --- our own ---
+    "toml 3000 nested inline tables": (
+        lambda t: ["route", _scenario(t, "x = " + "{a=" * 3000 + "1" + "}" * 3000 + "\n")],
+        "nested too deeply",
+    ),
+    "zone valid_to year 9999 -05:00": (
+        lambda t: _route(_with_zone(t, "z.geojson", _feature(valid_to="9999-12-31T23:00:00-05:00"))),
+        "'valid_to' is out of range in UTC",
+    ),
+    "zone crs.properties a string": (
+        lambda t: _route(_with_zone(t, "z.geojson", {**SQUARE, "crs": {"properties": "x" * 10**5}})),
+        "WGS84 lon/lat",
+    ),
+    "gci --out component of 300 characters": (
+        lambda t: ["gci", "--h", "1,2,4", "--phi", "1,2,4", "--out", str(t / ("x" * 300))],
+        "File name too long",
+    ),
+    "scenario is a folder": (lambda t: ["route", str(t)], "not a regular file (a folder)"),
+    "scenario of 11 MB": (lambda t: ["route", _sparse(t, "s.toml", 11_000_000)], "larger than the 10 MB limit"),
+    "scenario not UTF-8": (lambda t: ["route", _sparse(t, "s.toml", 8, b"\xff\xfe\x00\x80")], "not UTF-8 text"),
+    "scenario a symlink loop": (
+        lambda t: (os.symlink(t / "loop.toml", t / "loop.toml"), ["route", str(t / "loop.toml")])[1],
+        "Too many levels of symbolic links",
+    ),
+    "unknown key of 100 kB": (
+        lambda t: _route(_scenario(t, BASE.replace("[grid]\n", "[grid]\n" + "k" * 100_000 + " = 1\n"))),
+        "characters cut",
+    ),
+    "zone file /dev/zero": (lambda t: _route(_with_zone(t, "/dev/zero")), "zone file is not a regular file"),
+    "zone file a FIFO": (lambda t: (_fifo(t, "z.geojson"), _route(_with_zone(t, "z.geojson")))[1], "(a FIFO)"),
+    "zone file of 101 MB": (
+        lambda t: (_sparse(t, "z.geojson", 101_000_000), _route(_with_zone(t, "z.geojson")))[1],
+        "larger than the 100 MB limit",
+    ),
+    "zone file not UTF-8": (lambda t: _route(_with_zone(t, "z.geojson", raw=b'{"type": "\xff"}')), "not UTF-8"),
+    "zone polygon crossing itself": (
+        lambda t: _route(
+            _with_zone(t, "z.geojson", {"type": "Polygon", "coordinates": [[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]]})
+        ),
+        "edges cross at lon 1, lat 1",
+    ),
+    "failure model /dev/zero": (lambda t: _route(str(EXAMPLE), "--failure-model", "/dev/zero"), "not a regular file"),
+    "failure model a FIFO": (
+        lambda t: _route(str(EXAMPLE), "--failure-model", _fifo(t, "m.toml")),
+        "not a regular file (a FIFO)",
+    ),
+    "polar file a FIFO": (
+        lambda t: (_fifo(t, "b.pol"), _route(_scenario(t, BASE.replace('"maribot_vane"', '"b.pol"'))))[1],
+        "not a regular file (a FIFO)",
+    ),
+    "--out a FIFO": (lambda t: _route(str(EXAMPLE), "--out", _fifo(t, "o")), "is a file, not a folder"),
+    "--out with route.csv a FIFO": (
+        lambda t: ((t / "o").mkdir(), _fifo(t / "o", "route.csv"), _route(str(EXAMPLE), "--out", str(t / "o")))[2],
+        "route.csv is not a regular file",
+    ),
+    "gci --h of 100 kB garbage": (lambda t: ["gci", "--h", "x" * 100_000, "--phi", "1,2,3"], "characters cut"),
+    "--departures of 100 kB garbage": (
+        lambda t: _route(str(EXAMPLE), "--departures", "x" * 100_000),
+        "characters cut",
+    ),
+    "departure year 1 +05:00": (
+        lambda t: _route(_scenario(t, BASE.replace('"2018-06-01T00:00:00Z"', '"0001-01-01T00:00:00+05:00"'))),
+        "out of range",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(MISTAKES))
+def test_user_mistake_is_exit_2_with_one_line(case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    build, needle = MISTAKES[case]
+    work = tmp_path / "w"
+    work.mkdir()
+    args = build(work)
+    before = listing(work)
+    code, out, err = run(args, capsys)
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith("pyroute-rel") and "Traceback" not in err
+    assert len(err) <= 1100  # MESSAGE_MAX_CHARS plus the prefix
+    assert needle in err
+    assert out == ""
+    assert listing(work) == before  # nothing written: no --out folder, no staging

@@ -20,16 +20,36 @@ from .. import __version__
 from ..errors import PyrouteError, PyrouteWarning, ScenarioError
 from .gci import add_gci_parser
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
 EXIT_OK, EXIT_GATE, EXIT_USER, EXIT_INTERNAL = 0, 1, 2, 3
+
+#: Longest message line printed [characters]: a user value echoed in a message (a 10 MB polar name, a key) is cut
+#: in the middle beyond this, so that an error stays one readable line.
+MESSAGE_MAX_CHARS = 1000
+
+
+def one_line(text: object, limit: int = MESSAGE_MAX_CHARS) -> str:
+    """``text`` on one line (white space runs collapsed), cut in the middle to at most ``limit`` characters.
+
+    >>> one_line("a\\n  b"), len(one_line("x" * 5000))
+    ('a b', 1000)
+    """
+    line = " ".join(str(text).split())
+    if len(line) <= limit:
+        return line
+    keep = limit
+    for _ in range(3):  # the note's own length depends on the count it states: settle it
+        cut = f" ... [{len(line) - keep} characters cut] ... "
+        keep = limit - len(cut)
+    return line[: keep // 2] + cut + line[len(line) - (keep - keep // 2) :]
 
 
 class _Parser(argparse.ArgumentParser):
     """argparse with exit code 2 and one line for usage errors (its default is also 2)."""
 
     def error(self, message: str) -> Any:  # type: ignore[override]
-        self.exit(EXIT_USER, f"{self.prog}: error: {message} (see --help)\n")
+        self.exit(EXIT_USER, f"{self.prog}: error: {one_line(message)} (see --help)\n")
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -216,7 +236,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     for note in scenario.notes:  # how the file was read (a time without a zone): with the result, even if --quiet
-        print(f"pyroute-rel: note: {note}", file=sys.stderr)
+        print(f"pyroute-rel: note: {one_line(note)}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -347,7 +367,7 @@ def _cmd_failure(args: argparse.Namespace) -> int:
 def _one_line_warning(message: Warning | str, category: type[Warning], *_: object, **__: object) -> None:
     """Our warnings as one line on stderr, as errors are; others as Python shows them."""
     if issubclass(category, PyrouteWarning):
-        print(f"pyroute-rel: warning: {' '.join(str(message).split())}", file=sys.stderr)
+        print(f"pyroute-rel: warning: {one_line(message)}", file=sys.stderr)
     else:
         _SHOW_WARNING(message, category, *_, **__)  # type: ignore[arg-type]
 
@@ -368,8 +388,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PyrouteError as exc:
         if args.debug:
             raise
-        msg = " ".join(str(exc).split())
-        print(f"pyroute-rel: error: {msg}", file=sys.stderr)
+        print(f"pyroute-rel: error: {one_line(exc)}", file=sys.stderr)
         return EXIT_USER
     except BrokenPipeError:  # e.g. piped into `head`: not an error of ours
         import os
@@ -383,8 +402,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         print(
-            f"pyroute-rel: internal error: {exc.__class__.__name__}: {exc}. This is a bug: please report it with the "
-            "command, the scenario file and the output of the same command with --debug.",
+            f"pyroute-rel: internal error: {exc.__class__.__name__}: {one_line(exc)}. This is a bug: please report "
+            "it with the command, the scenario file and the output of the same command with --debug.",
             file=sys.stderr,
         )
         return EXIT_INTERNAL
