@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import tomllib
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -15,11 +16,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .config import parse_departure, parse_options, parse_tables
-from .errors import FailureModelError, PyrouteError, ScenarioError
+from .errors import FailureModelError, PyrouteError, PyrouteWarning, ScenarioError, brief
 from .files import brief_path, read_regular_bytes
 from .geodesy import distance_km
 from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid
 from .obstacles.mask import Avoid, check_points, obstacle_mask
+from .obstacles.zones import zones_outside
 from .route import GridTrack, Route, build_route, join_routes, route_on_grid
 from .solve import RoutingProblem
 
@@ -266,7 +268,9 @@ class Scenario:
         failure = self.load_failure()
         routes = []
         departure = self.departure
-        for grid in self.leg_grids() if grids is None else grids:
+        grids = self.leg_grids() if grids is None else grids
+        self._warn_zones_outside(grids)
+        for grid in grids:
             # the weather must cover the leg's end points and its departure; cells missing elsewhere in the
             # (wider) grid are NaN and forbid the arcs through them
             s_lon, s_lat = grid.start_points
@@ -283,6 +287,23 @@ class Scenario:
         return replace(
             route, meta={**route.meta, "scenario": self.source, "land": self.avoid.land}, zones=self.avoid.zones
         )
+
+    def _warn_zones_outside(self, grids: list[Grid]) -> None:
+        """One :class:`~pyroute_rel.errors.PyrouteWarning` per zone that lies wholly outside every leg's grid."""
+        if not self.avoid.zones:
+            return
+        lon = np.concatenate([np.append(g.lon_deg.ravel(), [*g.start_points[0], g.finish[0]]) for g in grids])
+        lat = np.concatenate([np.append(g.lat_deg.ravel(), [*g.start_points[1], g.finish[1]]) for g in grids])
+        for zone in zones_outside(self.avoid.zones, lon, lat):
+            x0, y0, x1, y1 = zone.geometry.bounds
+            warnings.warn(
+                f"{self.source}: zone {brief(zone.name)} (lon {x0:g} to {x1:g}, lat {y0:g} to {y1:g} [deg]) lies "
+                f"wholly outside the routing area (lon {lon.min():.2f} to {lon.max():.2f}, lat {lat.min():.2f} to "
+                f"{lat.max():.2f}): it cannot change the route; check that its coordinates are [lon, lat] (GeoJSON "
+                "order) and that it is the intended file",
+                PyrouteWarning,
+                stacklevel=3,
+            )
 
     def _refined(self, route: Route, problem: RoutingProblem) -> Route:
         """The route with its track refined in corridors (:mod:`pyroute_rel.refine`); the grid, its DP result and

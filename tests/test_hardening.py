@@ -443,3 +443,66 @@ def test_user_mistake_is_exit_2_with_one_line(case: str, tmp_path: Path, capsys:
     assert needle in err
     assert out == ""
     assert listing(work) == before  # nothing written: no --out folder, no staging
+
+
+# --------------------------------------------------------------------------------------------------
+# item 7: coordinates that look swapped, zones that miss the course
+# --------------------------------------------------------------------------------------------------
+
+
+def test_summary_echoes_marks_with_hemispheres(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    text = BASE.replace("finish = [-60.0, 17.5]", "finish = [-60.0, 17.5]\nwaypoints = [[-30.0, -5.0]]")
+    code, out, err = run(_route(_scenario(tmp_path, text)), capsys)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0] == "start            45.00°N 12.00°W  ([lon, lat] = [-12, 45])"
+    assert lines[1] == "waypoint[0]      5.00°S 30.00°W  ([lon, lat] = [-30, -5])"
+    assert lines[2] == "finish           17.50°N 60.00°W  ([lon, lat] = [-60, 17.5])"
+    # the JSON keeps its fields
+    code, out, _ = run([*_route(str(EXAMPLE)), "--json"], capsys)
+    assert code == 0 and "start" not in json.loads(out) and json.loads(out)["track"][0]["lon"] == -12.0
+
+
+def test_swapped_start_and_finish_show_in_the_echo(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # [lat, lon] by mistake: [45, -12] is a valid [lon, lat] (45 E, 12 S, off Madagascar), so no check can refuse
+    # it; the echo names the hemispheres that give it away
+    text = BASE.replace(
+        "start = [-12.0, 45.0]\nfinish = [-60.0, 17.5]", "start = [45.0, -12.0]\nfinish = [50.0, -40.0]"
+    )
+    code, out, err = run(_route(_scenario(tmp_path, text)), capsys)
+    assert code == 0, err  # uniform weather covers everything: the wrong course is routed...
+    # ...but the summary says where it goes: southern and eastern hemispheres, not the intended 45 N 12 W
+    assert out.splitlines()[:2] == [
+        "start            12.00°S 45.00°E  ([lon, lat] = [45, -12])",
+        "finish           40.00°S 50.00°E  ([lon, lat] = [50, -40])",
+    ]
+
+
+def _zone_scenario(tmp: Path, ring: list[list[float]]) -> str:
+    return _with_zone(tmp, "z.geojson", {"type": "Polygon", "coordinates": [ring]})
+
+
+def test_zone_wholly_outside_the_routing_area_warns(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # a box at 35-36 E, 30-31 S: the same box as a mistaken [lat, lon] of 30-31 N, 35-36 W, which is on the course
+    far = [[35.0, -30.0], [36.0, -30.0], [36.0, -31.0], [35.0, -31.0], [35.0, -30.0]]
+    code, _, err = run(_route(_zone_scenario(tmp_path, far)), capsys)
+    assert code == 0
+    (line,) = [row for row in err.splitlines() if "warning" in row]
+    assert line.startswith("pyroute-rel: warning: ") and "zone 'z' (lon 35 to 36, lat -31 to -30 [deg])" in line
+    assert "wholly outside the routing area" in line and "[lon, lat]" in line
+    near = [[-36.0, 30.0], [-35.0, 30.0], [-35.0, 31.0], [-36.0, 31.0], [-36.0, 30.0]]
+    code, _, err = run(_route(_zone_scenario(tmp_path, near)), capsys)
+    assert code == 0 and "warning" not in err
+
+
+def test_zones_outside_against_a_hand_made_hull() -> None:
+    import shapely
+
+    from pyroute_rel.obstacles.zones import Zone, zones_outside
+
+    # the hull of (0,0), (10,0), (0,10) is the triangle x + y <= 10 (x, y >= 0)
+    lon, lat = [0.0, 10.0, 0.0], [0.0, 0.0, 10.0]
+    inside = Zone("inside", shapely.box(1.0, 1.0, 2.0, 2.0))
+    straddles = Zone("straddles", shapely.box(4.0, 4.0, 7.0, 7.0))  # (4, 4) has x + y = 8 <= 10
+    beyond = Zone("beyond", shapely.box(6.0, 6.0, 7.0, 7.0))  # nearest corner (6, 6): x + y = 12 > 10
+    assert [z.name for z in zones_outside([inside, straddles, beyond], lon, lat)] == ["beyond"]

@@ -240,7 +240,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary))
     else:
-        print(_route_text(route, elapsed, args.out))
+        print(_route_text(route, elapsed, args.out, scenario.marks()))
     return EXIT_OK
 
 
@@ -295,10 +295,35 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _route_text(route: Any, elapsed: float, out: str | None) -> str:
+def hemispheres(lon_deg: float, lat_deg: float) -> str:
+    """A position as sailors write it, latitude first, with hemispheres: the main defence against a start or
+    finish given as [lat, lon] by mistake, which the numbers alone often cannot reveal (both orders are valid
+    positions whenever |lon| <= 90).
+
+    >>> hemispheres(-12.0, 45.0), hemispheres(151.25, -33.85), hemispheres(0.0, 0.0)
+    ('45.00°N 12.00°W', '33.85°S 151.25°E', '0.00°N 0.00°E')
+    """
+    ns = "S" if lat_deg < 0 else "N"
+    ew = "W" if lon_deg < 0 else "E"
+    return f"{abs(lat_deg):.2f}°{ns} {abs(lon_deg):.2f}°{ew}"
+
+
+def _marks_lines(marks: Sequence[tuple[str, tuple[float, float]]]) -> list[str]:
+    """The course's marks with hemispheres (start, waypoints, finish), and [lon, lat] as written in the file."""
+    lines = []
+    for name, (lon, lat) in marks:
+        label = name.removeprefix("[route].").replace("waypoints", "waypoint")
+        lines.append(f"{label:<16} {hemispheres(lon, lat)}  ([lon, lat] = [{lon:g}, {lat:g}])")
+    return lines
+
+
+def _route_text(
+    route: Any, elapsed: float, out: str | None, marks: Sequence[tuple[str, tuple[float, float]]] = ()
+) -> str:
     s = route.summary()
     days, hours = divmod(round(route.voyage_time_h, 1), 24.0)  # 311.98 h is 13 d 0.0 h, not 12 d 24.0 h
     lines = [
+        *_marks_lines(marks),
         f"voyage time      {route.voyage_time_h:.2f} h ({int(days)} d {hours:.1f} h)",
         f"distance         {route.distance_nm:.1f} nm",
         f"departure        {s['departure']}",

@@ -27,7 +27,14 @@ from ..errors import ScenarioError, brief
 from ..files import brief_path, read_regular_bytes
 from .areas import area_index, as_arcs, blocked_flat, checked_samples
 
-__all__ = ["Zone", "load_zones", "zones_active", "arcs_blocked_by_zones", "ZONE_MAX_BYTES"]
+__all__ = [
+    "Zone",
+    "load_zones",
+    "zones_active",
+    "arcs_blocked_by_zones",
+    "zones_outside",
+    "ZONE_MAX_BYTES",
+]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
@@ -316,3 +323,22 @@ def _invalid_polygon(geom: shapely.Geometry) -> str:
             "reorder its positions, or give the two parts as a MultiPolygon"
         )
     return f"invalid polygon{where} ({reason}): rings must not cross or touch, holes must lie inside the shell"
+
+
+def zones_outside(zones: Iterable[Zone], lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> list[Zone]:
+    """The zones that lie wholly outside the routing area: the convex hull of the given points (a grid's nodes,
+    its start and finish) [deg]. Such a zone cannot change the route, which usually means a mistake: coordinates
+    written [lat, lon] instead of GeoJSON's [lon, lat], or the wrong file.
+
+    The hull is taken in lon/lat; a grid across the antimeridian spans nearly all longitudes, so a zone is then
+    reported only when it is clear of the grid's latitudes (no false warnings, fewer true ones).
+
+    >>> z = Zone("far", shapely.box(100.0, 10.0, 101.0, 11.0))
+    >>> [zone.name for zone in zones_outside([z], [-12.0, -60.0, -30.0], [45.0, 17.5, 40.0])]
+    ['far']
+    """
+    lon = np.asarray(lon_deg, dtype=float).ravel()
+    lat = np.asarray(lat_deg, dtype=float).ravel()
+    ok = np.isfinite(lon) & np.isfinite(lat)
+    hull = shapely.multipoints(np.column_stack([lon[ok], lat[ok]])).convex_hull
+    return [zone for zone in zones if not hull.intersects(zone.geometry)]
