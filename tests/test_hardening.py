@@ -78,7 +78,7 @@ def test_issue_case_gate_fails_with_one_line(capsys: pytest.CaptureFixture[str])
     code, _, err = run(args, capsys)
     assert code == 1 and err.count("\n") == 1
     assert "indeterminate" in err and "round-off" in err
-    # an implausible order (p = 9.97 from 10, 10.001, 11: |eps32/eps21| = 1000 = 2^9.97) fails --max-gci
+    # an implausible order (p = 9.964 from 10, 10.001, 11: |eps32/eps21| = 0.999 / 0.001 = 999 = 2^9.964)
     code, _, err = run(["gci", "--h", "1,2,4", "--phi", "10,10.001,11", "--max-gci", "0.5"], capsys)
     assert code == 1 and "outside the plausible 0.5 to 8" in err
     # without a gate the study is reported, exit 0
