@@ -354,9 +354,11 @@ def grid_convergence(
     phi3 == phi2 != phi1), where R' = R ln(r32) / ln(r21) equals Celik's R for a constant ratio and, for
     r21 != r32, moves the boundary to where the apparent order reaches 0 (data phi0 + C h^0.3 on
     r21 = 1.5, r32 = 4/3 converge although R = 1.27); converged (phi1 == phi2 == phi3: p None,
-    phi_ext = phi1, errors and GCI 0) or indeterminate (phi1 == phi2 != phi3: p, phi_ext, e_ext and GCI
-    None). For divergent triplets, or when the order
-    equation has no positive root, p and everything derived from it are None; ``note`` says why.
+    phi_ext = phi1, errors and GCI 0) or indeterminate (phi1 == phi2 != phi3, or 0 < |phi2 - phi1| <=
+    :data:`ROUNDOFF_REL` max |phi|, a difference at round-off level: p, phi_ext, e_ext and GCI None). An order
+    outside :data:`P_PLAUSIBLE` is reported as computed; :meth:`StudyResult.verdict` judges it. For divergent
+    triplets, or when the order equation has no positive root, p and everything derived from it are None;
+    ``note`` says why.
 
     Parameters
     ----------
