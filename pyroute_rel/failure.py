@@ -57,6 +57,7 @@ import numpy.typing as npt
 
 from . import diskcache
 from .errors import FailureModelError
+from .files import read_regular_bytes
 from .memory import check_budget, table_estimate
 
 __all__ = [
@@ -608,6 +609,8 @@ def _sibling(toml_file: Traversable, name: str) -> Traversable:
 
 
 def _read(file: Traversable, label: str) -> bytes:
+    if isinstance(file, Path):  # a user's file: regular files only, at most 10 MB (no hang on a FIFO or /dev/zero)
+        return read_regular_bytes(file, limit_bytes=10_000_000, error=FailureModelError, label=label)
     try:
         return file.read_bytes()
     except FileNotFoundError:

@@ -81,7 +81,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .errors import OutputError, PolarError, PolarWarning, show
-from .files import atomic_write_text
+from .files import atomic_write_text, read_regular_bytes
 
 __all__ = [
     "Polar",
@@ -539,12 +539,10 @@ def _write_matrix(polar: Polar, path: Path, label: str, sep: str) -> Path:
 
 
 def _read_lines(path: Path) -> list[str]:
-    try:
-        data = path.read_bytes()
-    except ValueError as exc:  # e.g. a NUL in the name
-        raise PolarError(f"polar file '{show(path)}': cannot be read ({exc})") from None
-    except OSError as exc:
-        raise PolarError(f"polar file '{show(path)}': cannot be read ({exc.strerror or exc})") from exc
+    # regular files only, at most 10 MB (a polar is a few kB): no hang on a FIFO, no read of a device
+    data = read_regular_bytes(
+        path, limit_bytes=10_000_000, error=PolarError, label=f"polar file '{show(path)}': cannot be read", what="file"
+    )
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:

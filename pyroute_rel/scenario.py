@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import tomllib
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -15,10 +16,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .config import parse_departure, parse_options, parse_tables
-from .errors import FailureModelError, PyrouteError, ScenarioError, show
+from .errors import FailureModelError, PyrouteError, PyrouteWarning, ScenarioError, brief
+from .files import brief_path, read_regular_bytes
 from .geodesy import distance_km
 from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid
 from .obstacles.mask import Avoid, check_points, obstacle_mask
+from .obstacles.zones import zones_outside
 from .route import GridTrack, Route, build_route, join_routes, route_on_grid
 from .solve import RoutingProblem
 
@@ -28,7 +31,22 @@ if TYPE_CHECKING:
     from .polar import Polar
     from .weather import WeatherSource
 
-__all__ = ["Scenario", "load_scenario", "scenario_from_mapping", "parse_departure"]
+#: Largest scenario file read [bytes]: 10 MB, a thousand times the largest example (a scenario holds settings
+#: and file names, not data), so that a wrong path (a log, an image) is refused at once instead of parsed.
+SCENARIO_MAX_BYTES = 10_000_000
+#: Deepest nesting of arrays and tables in a scenario: the schema needs 5 ([weather] -> [[weather.patch]] ->
+#: its table -> lon = [a, b]); 16 leaves room and refuses a crafted file before anything recurses over it.
+SCENARIO_MAX_DEPTH = 16
+
+__all__ = [
+    "Scenario",
+    "load_scenario",
+    "scenario_from_mapping",
+    "parse_departure",
+    "nesting_depth",
+    "SCENARIO_MAX_BYTES",
+    "SCENARIO_MAX_DEPTH",
+]
 
 
 @dataclass(frozen=True)
@@ -250,7 +268,9 @@ class Scenario:
         failure = self.load_failure()
         routes = []
         departure = self.departure
-        for grid in self.leg_grids() if grids is None else grids:
+        grids = self.leg_grids() if grids is None else grids
+        self._warn_zones_outside(grids)
+        for grid in grids:
             # the weather must cover the leg's end points and its departure; cells missing elsewhere in the
             # (wider) grid are NaN and forbid the arcs through them
             s_lon, s_lat = grid.start_points
@@ -267,6 +287,23 @@ class Scenario:
         return replace(
             route, meta={**route.meta, "scenario": self.source, "land": self.avoid.land}, zones=self.avoid.zones
         )
+
+    def _warn_zones_outside(self, grids: list[Grid]) -> None:
+        """One :class:`~pyroute_rel.errors.PyrouteWarning` per zone that lies wholly outside every leg's grid."""
+        if not self.avoid.zones:
+            return
+        lon = np.concatenate([np.append(g.lon_deg.ravel(), [*g.start_points[0], g.finish[0]]) for g in grids])
+        lat = np.concatenate([np.append(g.lat_deg.ravel(), [*g.start_points[1], g.finish[1]]) for g in grids])
+        for zone in zones_outside(self.avoid.zones, lon, lat):
+            x0, y0, x1, y1 = zone.geometry.bounds
+            warnings.warn(
+                f"{self.source}: zone {brief(zone.name)} (lon {x0:g} to {x1:g}, lat {y0:g} to {y1:g} [deg]) lies "
+                f"wholly outside the routing area (lon {lon.min():.2f} to {lon.max():.2f}, lat {lat.min():.2f} to "
+                f"{lat.max():.2f}): it cannot change the route; check that its coordinates are [lon, lat] (GeoJSON "
+                "order) and that it is the intended file",
+                PyrouteWarning,
+                stacklevel=3,
+            )
 
     def _refined(self, route: Route, problem: RoutingProblem) -> Route:
         """The route with its track refined in corridors (:mod:`pyroute_rel.refine`); the grid, its DP result and
@@ -314,17 +351,48 @@ def load_scenario(path: str | Path) -> Scenario:
     Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file and the field for any problem.
     """
     p = Path(path)
+    data = read_regular_bytes(
+        p, limit_bytes=SCENARIO_MAX_BYTES, error=ScenarioError, label=brief_path(p), what="scenario file"
+    )
     try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ScenarioError(f"{show(p)}: scenario file not found") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ScenarioError(f"{show(p)}: cannot read scenario file ({exc.__class__.__name__}: {show(exc)})") from None
+        text = data.decode("utf-8-sig")  # a byte-order mark (Windows editors) is not part of the TOML
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(
+            f"{brief_path(p)}: cannot read scenario file (not UTF-8 text: byte {exc.object[exc.start]:#04x} at offset "
+            f"{exc.start})"
+        ) from None
     try:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{p}: not valid TOML ({exc})") from None
+        raise ScenarioError(f"{brief_path(p)}: not valid TOML ({exc})") from None
+    except RecursionError:
+        raise ScenarioError(
+            f"{brief_path(p)}: arrays or tables nested too deeply to read (a scenario needs at most "
+            f"{SCENARIO_MAX_DEPTH} levels)"
+        ) from None
+    depth = nesting_depth(table)
+    if depth > SCENARIO_MAX_DEPTH:
+        raise ScenarioError(
+            f"{brief_path(p)}: arrays or tables nested {depth} levels deep (a scenario needs at most "
+            f"{SCENARIO_MAX_DEPTH})"
+        )
     return scenario_from_mapping(table, base_dir=p.parent, source=str(p))
+
+
+def nesting_depth(value: Any) -> int:
+    """How deeply lists and mappings nest in ``value`` (0 for a scalar), without recursion."""
+    deepest, todo = 0, [(value, 0)]
+    while todo:
+        item, depth = todo.pop()
+        if isinstance(item, Mapping):
+            todo.extend((v, depth + 1) for v in item.values())
+        elif isinstance(item, list | tuple):
+            todo.extend((v, depth + 1) for v in item)
+        else:
+            deepest = max(deepest, depth)
+            continue
+        deepest = max(deepest, depth + 1)
+    return deepest
 
 
 def scenario_from_mapping(

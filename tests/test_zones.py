@@ -181,11 +181,19 @@ def test_vectorised_zone_test_equals_slow_reference(tmp_path):
     assert 0.2 < fast.mean() < 0.8
 
 
-def test_self_intersecting_polygon_is_repaired(tmp_path):
+def test_self_intersecting_polygon_is_refused_where_it_crosses(tmp_path):
+    # issue 17 item 7: a figure of eight is a mistake (positions out of order), not two zones: refused, with where.
+    # The edges (0,0)-(2,2) and (2,0)-(0,2) cross at (1, 1).
     bowtie = {"type": "Polygon", "coordinates": [[[0, 0], [2, 2], [2, 0], [0, 2], [0, 0]]]}
-    (zone,) = zn.load_zones([write(tmp_path, "bowtie.geojson", bowtie)])
-    assert zone.geometry.is_valid
-    assert zone.geometry.area == pytest.approx(2.0)  # two triangles of area 1
+    with pytest.raises(ScenarioError, match=r"bowtie.geojson: the polygon's edges cross at lon 1, lat 1"):
+        zn.load_zones([write(tmp_path, "bowtie.geojson", bowtie)])
+    # (10,40)-(12,44) and (12,40)-(10,44) cross at (11, 42); a hole outside its shell is refused too
+    eight = {"type": "Polygon", "coordinates": [[[10, 40], [12, 44], [12, 40], [10, 44], [10, 40]]]}
+    with pytest.raises(ScenarioError, match=r"cross at lon 11, lat 42"):
+        zn.load_zones([write(tmp_path, "eight.geojson", eight)])
+    outside = {"type": "Polygon", "coordinates": [square(0, 0, 1, 1), square(5, 5, 6, 6)]}
+    with pytest.raises(ScenarioError, match=r"invalid polygon at lon 5, lat 5 \(Hole lies outside shell"):
+        zn.load_zones([write(tmp_path, "outside.geojson", outside)])
     unclosed = {"type": "Polygon", "coordinates": [[[0, 0], [1, 0], [1, 1], [0, 1]]]}
     (zone,) = zn.load_zones([write(tmp_path, "unclosed.geojson", unclosed)])
     assert zone.geometry.equals(shapely.box(0, 0, 1, 1))
@@ -213,7 +221,7 @@ POLY = {"type": "Polygon", "coordinates": [square(0, 0, 1, 1)]}
         ),
         ({"type": "FeatureCollection", "features": []}, "no features"),
         ({"type": "Polygon", "coordinates": [square(170, 0, 200, 1)]}, r"lon in \[-180, 180\].*200"),
-        ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [2, 2], [0, 0]]]}, "cannot be repaired"),
+        ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [2, 2], [0, 0]]]}, "edges cross at lon 1, lat 1"),
         ({"type": "Polygon", "coordinates": [[[0, 0], [1, "a"], [2, 2], [0, 0]]]}, "number pairs"),
         ({"type": "Polygon", "coordinates": [[[0, 0], [1, 1], [0, 0]]]}, "at least 3 distinct"),
         ({"type": "Feature", "properties": {"valid_from": "June 2018"}, "geometry": POLY}, "ISO 8601"),

@@ -15,6 +15,9 @@ __all__ = ["add_gci_parser"]
 
 EXIT_OK, EXIT_GATE = 0, 1
 
+#: The files ``gci --out`` writes.
+GCI_FILES = ("gci.png", "gci.csv", "gci.json")
+
 #: Arguments that are (lists of) numbers even when they start with '-' ("--h -1,2,4", "--max-gci -1e-3"), so that
 #: argparse hands them to the option's type and the validation can say what is wrong, instead of reading them as
 #: an unknown option. argparse's own pattern covers only single plain numbers such as "-1" or "-.5".
@@ -166,7 +169,7 @@ def _gate_args(p: argparse.ArgumentParser) -> None:
 def _check_gate_args(args: argparse.Namespace) -> None:
     """Refuse bad gate and output options before any work (one line naming the option)."""
     from ..errors import ConvergenceError
-    from ..files import check_out_dir
+    from ..files import check_out_dir, check_targets
     from ..gci.numbers import check_safety_factor
 
     check_safety_factor(args.safety_factor, "gci", "--safety-factor")
@@ -176,11 +179,21 @@ def _check_gate_args(args: argparse.Namespace) -> None:
     if not (math.isfinite(tol) and tol >= 0.0):
         raise ConvergenceError(f"--asymptotic-tol must be a finite number >= 0, e.g. 0.1 (got {tol:g})")
     if args.out is not None:
-        check_out_dir(args.out)
+        out = check_out_dir(args.out)
+        if out.is_dir():
+            check_targets(out, GCI_FILES)
 
 
-def _gate(fin: Any, args: argparse.Namespace) -> str | None:
-    """Reason the gate fails, or None."""
+def _gate(study: Any, args: argparse.Namespace) -> str | None:
+    """Reason the gate fails, or None. A study whose verdict is "indeterminate" (implausible order, round-off
+    level differences, divergent, ...) fails any gate: it cannot pass by accident."""
+    fin = study.finest
+    if args.max_gci is not None or args.require_asymptotic:
+        verdict, why = study.verdict()
+        if verdict == "indeterminate":
+            gates = [f"--max-gci {args.max_gci:g}"] if args.max_gci is not None else []
+            gates += ["--require-asymptotic"] if args.require_asymptotic else []
+            return f"the gate ({', '.join(gates)}) requires a converging study; it is indeterminate: {why}"
     if args.max_gci is not None:
         if fin.gci_fine is None or not fin.gci_fine <= args.max_gci:
             got = "undefined" if fin.gci_fine is None else f"{fin.gci_fine:.4g} ({100.0 * fin.gci_fine:.4g} %)"
@@ -215,9 +228,9 @@ def _write_out(out: str, payload: dict[str, Any], csv_text: str, study: Any, tit
     )
 
 
-def _add_gate(payload: dict[str, Any], fin: Any, args: argparse.Namespace) -> str | None:
+def _add_gate(payload: dict[str, Any], study: Any, args: argparse.Namespace) -> str | None:
     """Put the gate's settings and verdict into ``payload["gate"]``; the reason it fails, or None."""
-    reason = _gate(fin, args)
+    reason = _gate(study, args)
     payload["gate"] = {
         "max_gci": args.max_gci,
         "require_asymptotic": args.require_asymptotic,
@@ -229,7 +242,14 @@ def _add_gate(payload: dict[str, Any], fin: Any, args: argparse.Namespace) -> st
 
 
 def _finish(payload: dict[str, Any], text: str, reason: str | None, args: argparse.Namespace) -> int:
-    print(json.dumps(payload) if args.json else text)
+    """Print the result and return the exit code: the gate's verdict survives a closed stdout (``| head``)."""
+    try:
+        print(json.dumps(payload) if args.json else text)
+        sys.stdout.flush()
+    except BrokenPipeError:  # the reader went away: stdout to /dev/null so that the exit's flush stays quiet
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     if reason is not None:
         print(f"pyroute-rel: gate failed: {reason}", file=sys.stderr)
         return EXIT_GATE
@@ -255,7 +275,7 @@ def _cmd_gci(args: argparse.Namespace) -> int:
         }
     )
     csv_text = "h,phi\n" + "".join(f"{h:.10g},{p:.10g}\n" for h, p in zip(study.h, study.phi, strict=True))
-    reason = _add_gate(payload, fin, args)
+    reason = _add_gate(payload, study, args)
     if args.out is not None:
         _write_out(args.out, payload, csv_text, study, f"{len(study.h)} grids: {fin.convergence}")
     return _finish(payload, study.report(), reason, args)
@@ -344,7 +364,7 @@ def _cmd_study(args: argparse.Namespace) -> int:
             f"{r['arcs']:>11} {r['voyage_time_h']:>12.4f} {r['runtime_s']:>11.2f}"
         )
     text = "\n".join(lines) + "\n\n" + result.study.report()
-    reason = _add_gate(payload, result.study.finest, args)
+    reason = _add_gate(payload, result.study, args)
     if args.out is not None:
         _write_out(
             args.out, payload, result.csv(), result.study, f"{Path(args.scenario).name}: {args.refinement} refinement"

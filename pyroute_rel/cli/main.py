@@ -20,16 +20,36 @@ from .. import __version__
 from ..errors import PyrouteError, PyrouteWarning, ScenarioError
 from .gci import add_gci_parser
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
 EXIT_OK, EXIT_GATE, EXIT_USER, EXIT_INTERNAL = 0, 1, 2, 3
+
+#: Longest message line printed [characters]: a user value echoed in a message (a 10 MB polar name, a key) is cut
+#: in the middle beyond this, so that an error stays one readable line.
+MESSAGE_MAX_CHARS = 1000
+
+
+def one_line(text: object, limit: int = MESSAGE_MAX_CHARS) -> str:
+    """``text`` on one line (white space runs collapsed), cut in the middle to at most ``limit`` characters.
+
+    >>> one_line("a\\n  b"), len(one_line("x" * 5000))
+    ('a b', 1000)
+    """
+    line = " ".join(str(text).split())
+    if len(line) <= limit:
+        return line
+    keep = limit
+    for _ in range(3):  # the note's own length depends on the count it states: settle it
+        cut = f" ... [{len(line) - keep} characters cut] ... "
+        keep = limit - len(cut)
+    return line[: keep // 2] + cut + line[len(line) - (keep - keep // 2) :]
 
 
 class _Parser(argparse.ArgumentParser):
     """argparse with exit code 2 and one line for usage errors (its default is also 2)."""
 
     def error(self, message: str) -> Any:  # type: ignore[override]
-        self.exit(EXIT_USER, f"{self.prog}: error: {message} (see --help)\n")
+        self.exit(EXIT_USER, f"{self.prog}: error: {one_line(message)} (see --help)\n")
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -179,12 +199,15 @@ def _cmd_route(args: argparse.Namespace) -> int:
         refine=args.refine,
         sample_km=args.sample_km,
     )
-    if args.out:
-        from ..files import check_out_dir
+    if args.out is not None:  # '' too: refused, not read as "no --out"
+        from ..files import check_out_dir, check_targets
+        from ..outputs import OUTPUT_FILES
 
-        check_out_dir(args.out)  # before the work, not after it
+        out = check_out_dir(args.out)  # before the work, not after it
+        if out.is_dir():
+            check_targets(out, OUTPUT_FILES)
     if args.departures is not None:
-        if args.out:
+        if args.out is not None:
             raise ScenarioError(
                 "--out writes one route's files; with --departures use --json for the table, or "
                 "route each departure on its own"
@@ -194,7 +217,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - t0
     summary = route.summary()
     summary["runtime_s"] = elapsed
-    if args.out:
+    if args.out is not None:
         from ..outputs import write_outputs
 
         write_outputs(route, args.out, extra={"runtime_s": elapsed})
@@ -213,11 +236,11 @@ def _cmd_route(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     for note in scenario.notes:  # how the file was read (a time without a zone): with the result, even if --quiet
-        print(f"pyroute-rel: note: {note}", file=sys.stderr)
+        print(f"pyroute-rel: note: {one_line(note)}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
     else:
-        print(_route_text(route, elapsed, args.out))
+        print(_route_text(route, elapsed, args.out, scenario.marks()))
     return EXIT_OK
 
 
@@ -272,10 +295,35 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _route_text(route: Any, elapsed: float, out: str | None) -> str:
+def hemispheres(lon_deg: float, lat_deg: float) -> str:
+    """A position as sailors write it, latitude first, with hemispheres: the main defence against a start or
+    finish given as [lat, lon] by mistake, which the numbers alone often cannot reveal (both orders are valid
+    positions whenever |lon| <= 90).
+
+    >>> hemispheres(-12.0, 45.0), hemispheres(151.25, -33.85), hemispheres(0.0, 0.0)
+    ('45.00°N 12.00°W', '33.85°S 151.25°E', '0.00°N 0.00°E')
+    """
+    ns = "S" if lat_deg < 0 else "N"
+    ew = "W" if lon_deg < 0 else "E"
+    return f"{abs(lat_deg):.2f}°{ns} {abs(lon_deg):.2f}°{ew}"
+
+
+def _marks_lines(marks: Sequence[tuple[str, tuple[float, float]]]) -> list[str]:
+    """The course's marks with hemispheres (start, waypoints, finish), and [lon, lat] as written in the file."""
+    lines = []
+    for name, (lon, lat) in marks:
+        label = name.removeprefix("[route].").replace("waypoints", "waypoint")
+        lines.append(f"{label:<16} {hemispheres(lon, lat)}  ([lon, lat] = [{lon:g}, {lat:g}])")
+    return lines
+
+
+def _route_text(
+    route: Any, elapsed: float, out: str | None, marks: Sequence[tuple[str, tuple[float, float]]] = ()
+) -> str:
     s = route.summary()
     days, hours = divmod(round(route.voyage_time_h, 1), 24.0)  # 311.98 h is 13 d 0.0 h, not 12 d 24.0 h
     lines = [
+        *_marks_lines(marks),
         f"voyage time      {route.voyage_time_h:.2f} h ({int(days)} d {hours:.1f} h)",
         f"distance         {route.distance_nm:.1f} nm",
         f"departure        {s['departure']}",
@@ -344,7 +392,7 @@ def _cmd_failure(args: argparse.Namespace) -> int:
 def _one_line_warning(message: Warning | str, category: type[Warning], *_: object, **__: object) -> None:
     """Our warnings as one line on stderr, as errors are; others as Python shows them."""
     if issubclass(category, PyrouteWarning):
-        print(f"pyroute-rel: warning: {' '.join(str(message).split())}", file=sys.stderr)
+        print(f"pyroute-rel: warning: {one_line(message)}", file=sys.stderr)
     else:
         _SHOW_WARNING(message, category, *_, **__)  # type: ignore[arg-type]
 
@@ -365,8 +413,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except PyrouteError as exc:
         if args.debug:
             raise
-        msg = " ".join(str(exc).split())
-        print(f"pyroute-rel: error: {msg}", file=sys.stderr)
+        print(f"pyroute-rel: error: {one_line(exc)}", file=sys.stderr)
         return EXIT_USER
     except BrokenPipeError:  # e.g. piped into `head`: not an error of ours
         import os
@@ -380,8 +427,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         print(
-            f"pyroute-rel: internal error: {exc.__class__.__name__}: {exc}. This is a bug: please report it with the "
-            "command, the scenario file and the output of the same command with --debug.",
+            f"pyroute-rel: internal error: {exc.__class__.__name__}: {one_line(exc)}. This is a bug: please report "
+            "it with the command, the scenario file and the output of the same command with --debug.",
             file=sys.stderr,
         )
         return EXIT_INTERNAL

@@ -53,6 +53,8 @@ __all__ = [
     "grid_convergence",
     "least_squares_convergence",
     "convergence_study",
+    "P_PLAUSIBLE",
+    "ROUNDOFF_REL",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -60,7 +62,8 @@ FloatArray = npt.NDArray[np.float64]
 #: Labels of ``ThreeGridResult.convergence`` (and of ``LeastSquaresResult.convergence``, which uses the
 #: first three). With R = eps21 / eps32 and R' = R ln(r32) / ln(r21) (= R for a constant ratio):
 #: "monotonic" 0 < R' < 1, "oscillatory" R < 0, "divergent" R' >= 1 (including phi3 == phi2 != phi1),
-#: "converged" phi1 == phi2 == phi3, "indeterminate" phi1 == phi2 != phi3.
+#: "converged" phi1 == phi2 == phi3, "indeterminate" phi1 == phi2 != phi3 or |phi2 - phi1| at round-off level
+#: (:data:`ROUNDOFF_REL`).
 CONVERGENCE_LABELS = ("monotonic", "oscillatory", "divergent", "converged", "indeterminate")
 
 #: Forms :func:`least_squares_convergence` may fit, in the normalised spacing x = h / h_fine:
@@ -70,6 +73,20 @@ LS_FITS = ("power", "first", "second", "first+second", "data-range", "constant")
 
 #: Weightings of the least-squares fits; "auto" fits both and keeps the smaller standard deviation.
 LS_WEIGHTINGS = ("auto", "weighted", "unweighted")
+
+#: Plausible observed orders of convergence [-]. The voyage time of a rank-digraph route converges at formal
+#: order 1 (heading quantised to the grid's arc angles, a finish reached between ranks) to 2 (a smooth track
+#: drawn as chords: the length error of a chord of length h is O(h^2)); observed orders scatter around these but
+#: an order below 0.5 makes the extrapolated correction more than 1 / (2^0.5 - 1) = 2.4 times the fine-grid
+#: difference for r = 2, and one above 8 (four times the highest formal order) means the coarse difference dwarfs
+#: the fine one -- a coincidence or round-off, not convergence. Outside this range a study is "indeterminate"
+#: (:meth:`StudyResult.verdict`) and a gate that requires convergence fails.
+P_PLAUSIBLE = (0.5, 8.0)
+#: Differences between grids no larger than this fraction of max |phi| are round-off, not discretisation
+#: change: about 4.5e5 units in the last place of a double, far above the ~1e-13 relative error that summing a
+#: few thousand arc times accumulates, and far below any discretisation change a gate is meant to judge. A
+#: triplet whose fine difference (or both differences) is this small is "indeterminate".
+ROUNDOFF_REL = 1e-10
 
 #: Celik et al. (2008) recommend refinement ratios of at least this value.
 _R_RECOMMENDED = 1.3
@@ -337,9 +354,11 @@ def grid_convergence(
     phi3 == phi2 != phi1), where R' = R ln(r32) / ln(r21) equals Celik's R for a constant ratio and, for
     r21 != r32, moves the boundary to where the apparent order reaches 0 (data phi0 + C h^0.3 on
     r21 = 1.5, r32 = 4/3 converge although R = 1.27); converged (phi1 == phi2 == phi3: p None,
-    phi_ext = phi1, errors and GCI 0) or indeterminate (phi1 == phi2 != phi3: p, phi_ext, e_ext and GCI
-    None). For divergent triplets, or when the order
-    equation has no positive root, p and everything derived from it are None; ``note`` says why.
+    phi_ext = phi1, errors and GCI 0) or indeterminate (phi1 == phi2 != phi3, or 0 < |phi2 - phi1| <=
+    :data:`ROUNDOFF_REL` max |phi|, a difference at round-off level: p, phi_ext, e_ext and GCI None). An order
+    outside :data:`P_PLAUSIBLE` is reported as computed; :meth:`StudyResult.verdict` judges it. For divergent
+    triplets, or when the order equation has no positive root, p and everything derived from it are None;
+    ``note`` says why.
 
     Parameters
     ----------
@@ -385,7 +404,8 @@ def grid_convergence(
         raise ConvergenceError(f"{func}: 'phi' differences overflow the float range (got {[phi1, phi2, phi3]})")
     e_a = _rel(eps21, phi1)
     notes = _triplet_notes(phi1, phi2, r21, r32)
-    label, ratio_r, lead = _classify_triplet(eps21, eps32, r21, r32)
+    tol = ROUNDOFF_REL * max(abs(phi1), abs(phi2), abs(phi3))
+    label, ratio_r, lead = _classify_triplet(eps21, eps32, r21, r32, tol)
 
     def build(note: list[str], **kw: Any) -> ThreeGridResult:
         return ThreeGridResult(
@@ -439,15 +459,26 @@ def _triplet_notes(phi1: float, phi2: float, r21: float, r32: float) -> list[str
     return notes
 
 
-def _classify_triplet(eps21: float, eps32: float, r21: float, r32: float) -> tuple[str, float | None, str]:
+def _classify_triplet(
+    eps21: float, eps32: float, r21: float, r32: float, tol: float = 0.0
+) -> tuple[str, float | None, str]:
     """(label, convergence ratio R, leading note) of a triplet from its differences and refinement ratios.
 
-    The note is "" for monotonic and oscillatory triplets, and says why the order is undefined otherwise.
+    ``tol`` is the round-off level of the differences [unit of phi]: a nonzero ``|eps21| <= tol`` is
+    "indeterminate". The note is "" for monotonic and oscillatory triplets, and says why the order is undefined
+    otherwise.
     """
     if eps21 == 0.0 and eps32 == 0.0:
         return "converged", None, "converged: phi1 == phi2 == phi3, no discretisation change; apparent order undefined"
     if eps21 == 0.0:
         return "indeterminate", 0.0, "indeterminate: phi1 == phi2 but phi3 differs; apparent order unbounded, no GCI"
+    if abs(eps21) <= tol:
+        return (
+            "indeterminate",
+            eps21 / eps32 if eps32 != 0.0 else math.inf,
+            f"indeterminate: phi2 - phi1 = {eps21:.3g} is at round-off level (<= {ROUNDOFF_REL:g} of max |phi|); "
+            "apparent order meaningless, no GCI",
+        )
     ratio_r = eps21 / eps32 if eps32 != 0.0 else math.inf
     same_sign = eps32 != 0.0 and (eps21 > 0.0) == (eps32 > 0.0)
     # monotonic/divergent boundary: the apparent order reaches 0 where R ln(r32) / ln(r21) = 1 (R = 1 when
@@ -845,9 +876,38 @@ class StudyResult:
         """The three-grid result of the three finest grids."""
         return self.triplets[0]
 
+    def verdict(self) -> tuple[str, str]:
+        """("converging", "") when the finest triplet's estimates can be trusted, else ("indeterminate", reason).
+
+        Indeterminate: the finest triplet is not monotonic or oscillatory with an order (its label and note say
+        why: divergent, round-off level differences, ...), or its observed order lies outside
+        :data:`P_PLAUSIBLE` (0.5 to 8; see there for the reason). A converged triplet (phi1 == phi2 == phi3
+        exactly) is "converged". Gates that require convergence fail unless the verdict is "converging" or
+        "converged".
+
+        >>> convergence_study([1.0, 2.0, 4.0], [700.0, 700.000000000001, 703.0]).verdict()[0]
+        'indeterminate'
+        """
+        fin = self.finest
+        if fin.convergence == "converged":
+            return "converged", ""
+        if fin.convergence not in ("monotonic", "oscillatory") or fin.p is None or fin.p <= 0.0:
+            return "indeterminate", f"finest triplet {fin.note or fin.convergence}"
+        lo, hi = P_PLAUSIBLE
+        if not lo <= fin.p <= hi:
+            return "indeterminate", (
+                f"observed order p = {fin.p:.4g} on the finest triplet is outside the plausible {lo:g} to {hi:g} "
+                "(formal orders 1 to 2 of the route's discretisation): a coincidence of the values, not convergence"
+            )
+        return "converging", ""
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict: h, phi, finest, triplets, least_squares (None with three grids)."""
+        """JSON-ready dict: h, phi, finest, triplets, least_squares (None with three grids), verdict and its
+        reason (:meth:`verdict`)."""
+        verdict, why = self.verdict()
         return {
+            "verdict": verdict,
+            "verdict_reason": why,
             "h": _clean(self.h),
             "phi": _clean(self.phi),
             "finest": self.finest.to_dict(),
@@ -888,6 +948,9 @@ class StudyResult:
                 f"  U(phi1) = {_fmt(ls.uncertainty_abs, '.4g')} = {_pct(ls.uncertainty)} % of phi1 ({ls.convergence})",
                 f"  note: {ls.note}",
             ]
+        verdict, why = self.verdict()
+        if verdict == "indeterminate":
+            lines += ["", f"verdict: indeterminate ({why})"]
         return "\n".join(lines)
 
 

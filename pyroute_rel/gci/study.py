@@ -85,6 +85,8 @@ class RoutedStudy:
             "note": fin.note,
             "triplets": [t.to_dict() for t in self.study.triplets],
             "least_squares": None if ls is None else ls.to_dict(),
+            "verdict": self.study.verdict()[0],
+            "verdict_reason": self.study.verdict()[1],
         }
 
     def csv(self) -> str:

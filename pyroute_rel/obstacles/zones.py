@@ -23,16 +23,28 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from ..errors import ScenarioError, show
-from .areas import area_index, as_arcs, blocked_flat, checked_samples, polygon_parts
+from ..errors import ScenarioError, brief
+from ..files import brief_path, read_regular_bytes
+from .areas import area_index, as_arcs, blocked_flat, checked_samples
 
-__all__ = ["Zone", "load_zones", "zones_active", "arcs_blocked_by_zones"]
+__all__ = [
+    "Zone",
+    "load_zones",
+    "zones_active",
+    "arcs_blocked_by_zones",
+    "zones_outside",
+    "ZONE_MAX_BYTES",
+]
 
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 PathLike = str | os.PathLike[str]
 
 _GEOJSON_POLYGONAL = ("Polygon", "MultiPolygon")
+
+#: Largest zone file read [bytes]: 100 MB holds about 3 million positions of GeoJSON, far more than any
+#: exclusion zone needs; a wrong path (a device, a huge download) is refused before it is read.
+ZONE_MAX_BYTES = 100_000_000
 
 
 @dataclass(frozen=True)
@@ -132,8 +144,8 @@ def load_zones(paths: PathLike | Iterable[PathLike], *, base_dir: PathLike | Non
     polygonal Feature becomes one :class:`Zone` (holes allowed). Optional Feature properties: ``name``
     (default: file stem, with the feature number when there are several), ``valid_from`` and
     ``valid_to`` (ISO 8601; naive times are UTC, offsets are converted to UTC; a date alone is its
-    midnight). Self-intersecting polygons are repaired with ``shapely.make_valid``. A polygon that
-    crosses the antimeridian must be split into parts on either side of it.
+    midnight). Invalid polygons (edges that cross, a figure of eight) are refused with the place where they
+    cross. A polygon that crosses the antimeridian must be split into parts on either side of it.
 
     Parameters
     ----------
@@ -148,7 +160,8 @@ def load_zones(paths: PathLike | Iterable[PathLike], *, base_dir: PathLike | Non
     ------
     ScenarioError
         Naming the file (and feature) and what was wrong: missing, not JSON, not a polygon, coordinates
-        out of range, unrepairable polygon, bad time.
+        out of range, invalid (self-crossing) polygon, bad time, not a regular file or larger than
+        :data:`ZONE_MAX_BYTES`.
     """
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
@@ -162,23 +175,33 @@ def load_zones(paths: PathLike | Iterable[PathLike], *, base_dir: PathLike | Non
 
 
 def _read_zone_file(path: Path) -> list[Zone]:
+    data = read_regular_bytes(
+        path, limit_bytes=ZONE_MAX_BYTES, error=ScenarioError, label=brief_path(path), what="zone file"
+    )
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ScenarioError(f"{show(path)}: zone file not found") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ScenarioError(f"{show(path)}: cannot read zone file ({show(exc)})") from None
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{brief_path(path)}: cannot read zone file (not UTF-8 text: offset {exc.start})") from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})") from None
+        raise ScenarioError(
+            f"{brief_path(path)}: not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})"
+        ) from None
+    except RecursionError:
+        raise ScenarioError(f"{brief_path(path)}: JSON arrays or objects nested too deeply to read") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("type"), str):
-        raise ScenarioError(f"{path}: expected a GeoJSON object with a 'type' member (got {type(doc).__name__})")
+        raise ScenarioError(
+            f"{brief_path(path)}: expected a GeoJSON object with a 'type' member (got {type(doc).__name__})"
+        )
     crs = doc.get("crs")
     if crs is not None:
-        name = str((crs.get("properties") or {}).get("name", "")) if isinstance(crs, dict) else ""
+        props = crs.get("properties") if isinstance(crs, dict) else None
+        name = str(props.get("name", "")) if isinstance(props, dict) else ""
         if not (name.endswith("CRS84") or name.endswith("4326")):
-            raise ScenarioError(f"{path}: coordinates must be WGS84 lon/lat (CRS84) (got crs {name or crs!r})")
+            raise ScenarioError(
+                f"{brief_path(path)}: coordinates must be WGS84 lon/lat (CRS84) (got crs {brief(name or crs)})"
+            )
     kind = doc["type"]
     if kind == "FeatureCollection":
         features = doc.get("features")
@@ -227,7 +250,10 @@ def _parse_time(value: Any, where: str, key: str) -> np.datetime64 | None:
             f"{where}: property {key!r} must be an ISO 8601 time like 2018-06-01T00:00:00Z (got {value!r})"
         ) from None
     if t.tzinfo is not None:
-        t = t.astimezone(dt.UTC).replace(tzinfo=None)
+        try:
+            t = t.astimezone(dt.UTC).replace(tzinfo=None)
+        except OverflowError:  # e.g. 0001-01-01T00:00:00+05:00 is before year 1 in UTC
+            raise ScenarioError(f"{where}: property {key!r} is out of range in UTC (got {brief(value)})") from None
     return np.datetime64(t, "s")
 
 
@@ -279,11 +305,40 @@ def _parse_geometry(raw: Any, where: str) -> shapely.Geometry:
         polys.append(shapely.Polygon(shell, holes))
     geom = polys[0] if kind == "Polygon" else shapely.MultiPolygon(polys)
     if not geom.is_valid:
-        reason = shapely.is_valid_reason(geom)
-        parts = polygon_parts(shapely.make_valid(geom))
-        if len(parts) == 0:
-            raise ScenarioError(f"{where}: invalid polygon that cannot be repaired ({reason})")
-        geom = parts[0] if len(parts) == 1 else shapely.union_all(parts)
+        raise ScenarioError(f"{where}: {_invalid_polygon(geom)}")
     if geom.is_empty or geom.area <= 0.0:
         raise ScenarioError(f"{where}: polygon has zero area")
     return geom
+
+
+def _invalid_polygon(geom: shapely.Geometry) -> str:
+    """Why a polygon is invalid, with where (shapely's ``is_valid_reason``, e.g. 'Self-intersection[1 1]')."""
+    reason = str(shapely.is_valid_reason(geom))
+    what, _, at = reason.partition("[")
+    xy = at.rstrip("]").split()
+    where = f" at lon {float(xy[0]):g}, lat {float(xy[1]):g}" if len(xy) >= 2 else ""
+    if what.strip().lower().startswith(("self-intersection", "ring self-intersection")):
+        return (
+            f"the polygon's edges cross{where} ({reason}): a zone must be a simple ring, not a figure of eight; "
+            "reorder its positions, or give the two parts as a MultiPolygon"
+        )
+    return f"invalid polygon{where} ({reason}): rings must not cross or touch, holes must lie inside the shell"
+
+
+def zones_outside(zones: Iterable[Zone], lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> list[Zone]:
+    """The zones that lie wholly outside the routing area: the convex hull of the given points (a grid's nodes,
+    its start and finish) [deg]. Such a zone cannot change the route, which usually means a mistake: coordinates
+    written [lat, lon] instead of GeoJSON's [lon, lat], or the wrong file.
+
+    The hull is taken in lon/lat; a grid across the antimeridian spans nearly all longitudes, so a zone is then
+    reported only when it is clear of the grid's latitudes (no false warnings, fewer true ones).
+
+    >>> z = Zone("far", shapely.box(100.0, 10.0, 101.0, 11.0))
+    >>> [zone.name for zone in zones_outside([z], [-12.0, -60.0, -30.0], [45.0, 17.5, 40.0])]
+    ['far']
+    """
+    lon = np.asarray(lon_deg, dtype=float).ravel()
+    lat = np.asarray(lat_deg, dtype=float).ravel()
+    ok = np.isfinite(lon) & np.isfinite(lat)
+    hull = shapely.multipoints(np.column_stack([lon[ok], lat[ok]])).convex_hull
+    return [zone for zone in zones if not hull.intersects(zone.geometry)]
