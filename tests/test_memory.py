@@ -324,3 +324,19 @@ def test_huge_failure_table_is_refused_before_compiling(tmp_path: Path) -> None:
     ), report["err"]
     assert report["s"] < one["s"] + 1.0, (report["s"], one["s"])
     assert peak < one_peak + 50 * 1024**2, (peak / 2**20, one_peak / 2**20)
+
+
+def test_the_cli_takes_a_budget_and_leaves_the_environment_as_it_was(capsys, monkeypatch) -> None:
+    from pathlib import Path
+
+    from pyroute_rel import memory
+    from pyroute_rel.cli import main
+
+    monkeypatch.delenv(memory.ENV, raising=False)
+    control = str(Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml")
+    assert main(["route", control, "--quiet", "--no-land", "--max-memory", "1M"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "needs about" in err[0] and "--max-memory" in err[0]
+    assert memory.ENV not in os.environ
+    assert main(["route", control, "--quiet", "--no-land", "--max-memory", "lots"]) == 2
+    assert "--max-memory must be a memory size" in capsys.readouterr().err

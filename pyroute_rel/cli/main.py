@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 import warnings
@@ -144,6 +145,12 @@ def _add_route_parser(sub: Any) -> None:
         "along the ranks (0 = none; overrides [grid].refine)",
     )
     r.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1]")
+    r.add_argument(
+        "--max-memory",
+        metavar="SIZE",
+        help="memory budget, e.g. 8G or 500M (default: $PYROUTE_REL_MAX_MEMORY, else 75%% of the available "
+        "memory): a route that would need more is refused before allocating",
+    )
     r.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
     r.add_argument(
         "--time-step",
@@ -178,6 +185,23 @@ def _add_route_parser(sub: Any) -> None:
 
 
 def _cmd_route(args: argparse.Namespace) -> int:
+    if args.max_memory is None:
+        return _route(args)
+    from ..memory import ENV, parse_bytes
+
+    budget = str(parse_bytes(args.max_memory, "--max-memory"))
+    before = os.environ.get(ENV)
+    os.environ[ENV] = budget  # the grid, the failure table and the DP all read it
+    try:
+        return _route(args)
+    finally:
+        if before is None:
+            del os.environ[ENV]
+        else:
+            os.environ[ENV] = before
+
+
+def _route(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()  # runtime: loading the scenario, polar, weather and failure model, then routing
     from ..scenario import load_scenario
 
@@ -338,7 +362,9 @@ def _route_text(
         f"runtime          {elapsed:.2f} s (loading the scenario and its weather, routing)",
     ]
     if out:
-        lines.append(f"outputs          {Path(out)}/ (route.geojson, route.gpx, route.csv, summary.json, route.png)")
+        from ..outputs import OUTPUT_FILES
+
+        lines.append(f"outputs          {Path(out)}/ ({', '.join(OUTPUT_FILES)})")
     return "\n".join(lines)
 
 
