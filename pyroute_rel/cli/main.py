@@ -99,15 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _add_route_parser(sub: Any) -> None:
-    """Add ``route``."""
-    r = sub.add_parser(
-        "route",
-        help="route a scenario",
-        description="Route a scenario TOML file. The runtime it reports (runtime_s in --json and summary.json) "
-        "covers loading the scenario, polar, weather and failure model and routing, not writing --out files.",
-    )
-    r.add_argument("scenario", help="scenario TOML file")
+def _add_grid_options(r: argparse.ArgumentParser) -> None:
+    """``route``'s grid and sampling options."""
     r.add_argument(
         "--layout",
         choices=("angular", "square"),
@@ -144,6 +137,18 @@ def _add_route_parser(sub: Any) -> None:
         help="refine the track in LEVELS corridor grids around it, each solved exactly: its points slide "
         "along the ranks (0 = none; overrides [grid].refine)",
     )
+
+
+def _add_route_parser(sub: Any) -> None:
+    """Add ``route``."""
+    r = sub.add_parser(
+        "route",
+        help="route a scenario",
+        description="Route a scenario TOML file. The runtime it reports (runtime_s in --json and summary.json) "
+        "covers loading the scenario, polar, weather and failure model and routing, not writing --out files.",
+    )
+    r.add_argument("scenario", help="scenario TOML file")
+    _add_grid_options(r)
     r.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1]")
     r.add_argument(
         "--max-memory",
@@ -171,7 +176,8 @@ def _add_route_parser(sub: Any) -> None:
     r.add_argument(
         "--out",
         help="folder for route.geojson, route.gpx (the track with times and speeds, and a route of its turning "
-        "points for chart plotters such as OpenCPN), route.csv, summary.json, route.png",
+        "points for chart plotters such as OpenCPN), route.csv, summary.json, forbidden.geojson (the arcs the "
+        "route could not take, and why), route.png",
     )
     r.add_argument(
         "--json",
