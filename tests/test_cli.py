@@ -357,3 +357,12 @@ def test_runtime_covers_loading_the_scenario_and_weather(
     assert printed >= 0.3 and "loading the scenario and its weather" in line
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["runtime_s"] == pytest.approx(printed, abs=0.006)  # the same figure, printed to 0.01 s
+
+
+@pytest.mark.parametrize("value", ["-inf", "-nan", "-1", "-0.5e1"])
+def test_a_negative_or_non_finite_time_step_is_a_value_not_an_option(value, capsys) -> None:
+    """argparse read '--time-step -inf' as a missing argument; it is a bad value, refused by name."""
+    code = main(["route", str(EXAMPLE), "--time-step", value, "--max-wait", "2"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert "time_step_h must be in (0, 48] [h]" in err[0]

@@ -727,3 +727,11 @@ def test_max_current_bounds_every_sampled_current():
     assert np.nanmax(speed) <= w.max_current_ms
     no_current = weather_from_dataset(ds[["u10", "v10"]])
     assert no_current.max_current_ms == 0.0
+
+
+@pytest.mark.parametrize("special", ["/dev/zero", "/dev/null"])
+def test_a_device_as_weather_file_is_refused_in_one_line(special) -> None:
+    from pyroute_rel.weather.readers import open_weather
+
+    with pytest.raises(WeatherError, match=r"is not a regular file \(a device, pipe or socket\)"):
+        open_weather(special)

@@ -21,7 +21,7 @@ GCI_FILES = ("gci.png", "gci.csv", "gci.json")
 #: Arguments that are (lists of) numbers even when they start with '-' ("--h -1,2,4", "--max-gci -1e-3"), so that
 #: argparse hands them to the option's type and the validation can say what is wrong, instead of reading them as
 #: an unknown option. argparse's own pattern covers only single plain numbers such as "-1" or "-.5".
-_NEGATIVE_NUMBERS = re.compile(r"^-(\.?\d[\d.,eE+\-]*%?|inf|infinity|nan)$", re.IGNORECASE)
+NEGATIVE_NUMBERS = re.compile(r"^-(\.?\d[\d.,eE+\-]*%?|inf|infinity|nan)$", re.IGNORECASE)
 
 #: Options of ``gci study`` that only apply to one --refinement.
 _ANGULAR_ONLY = (
@@ -106,7 +106,7 @@ def add_gci_parser(
         if action.dest in shared:
             action.default = argparse.SUPPRESS
     for parser in (g, s):
-        parser._negative_number_matcher = _NEGATIVE_NUMBERS
+        parser._negative_number_matcher = NEGATIVE_NUMBERS
 
 
 def _parse_max_gci(text: str) -> float:

@@ -19,7 +19,7 @@ from typing import Any
 
 from .. import __version__
 from ..errors import PyrouteError, PyrouteWarning, ScenarioError
-from .gci import add_gci_parser
+from .gci import NEGATIVE_NUMBERS, add_gci_parser
 
 __all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
@@ -148,6 +148,7 @@ def _add_route_parser(sub: Any) -> None:
         "covers loading the scenario, polar, weather and failure model and routing, not writing --out files.",
     )
     r.add_argument("scenario", help="scenario TOML file")
+    r._negative_number_matcher = NEGATIVE_NUMBERS  # "--time-step -inf" is a (bad) value, not an option
     _add_grid_options(r)
     r.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1]")
     r.add_argument(

@@ -322,8 +322,10 @@ def _open_file(path: Path) -> list[xr.Dataset]:
         raise WeatherError(
             f"weather file '{path}' is a folder: list the NetCDF or GRIB files in it under [weather].paths"
         )
-    if not path.is_file():
+    if not path.exists():
         raise WeatherError(f"weather file '{path}' does not exist")
+    if not path.is_file():  # a device, FIFO or socket: never read (it may not end, or block)
+        raise WeatherError(f"weather file '{path}' is not a regular file (a device, pipe or socket)")
     try:
         with open(path, "rb") as fh:
             head = fh.read(8)
