@@ -350,6 +350,8 @@ def load_scenario(path: str | Path) -> Scenario:
 
     Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file and the field for any problem.
     """
+    if not isinstance(path, (str, Path)):
+        raise ScenarioError(f"a scenario path must be a str or pathlib.Path (got {brief(path)})")
     p = Path(path)
     data = read_regular_bytes(
         p, limit_bytes=SCENARIO_MAX_BYTES, error=ScenarioError, label=brief_path(p), what="scenario file"
@@ -399,6 +401,10 @@ def scenario_from_mapping(
     table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<scenario>"
 ) -> Scenario:
     """Validate a scenario given as nested mappings (the parsed TOML)."""
+    if not isinstance(table, Mapping):
+        raise ScenarioError(
+            f"{source}: a scenario must be a mapping of tables such as {{'route': {{...}}}} (got {brief(table)})"
+        )
     try:
         settings = parse_tables(table, Path(base_dir))
     except PyrouteError as exc:
