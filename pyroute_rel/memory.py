@@ -102,7 +102,13 @@ def format_bytes(n: float) -> str:
 
     >>> format_bytes(21.3 * 1024**3), format_bytes(512 * 1024**2), format_bytes(3 * 1024**5)
     ('21.3 GiB', '512 MiB', '3072.0 TiB')
+    >>> format_bytes(1000), format_bytes(2048)  # below 1 MiB: not "0 MiB"
+    ('1000 bytes', '2.0 KiB')
     """
+    if n < 1024:
+        return f"{n:.0f} bytes"
+    if n < 1024**2:
+        return f"{n / 1024:.1f} KiB"
     if n < 1024**3:
         return f"{n / 1024**2:.0f} MiB"
     if n < 1024**4:

@@ -337,6 +337,11 @@ def test_the_cli_takes_a_budget_and_leaves_the_environment_as_it_was(capsys, mon
     assert main(["route", control, "--quiet", "--no-land", "--max-memory", "1M"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "needs about" in err[0] and "--max-memory" in err[0]
+    # The budget is named as the user gave it (it said "the budget PYROUTE_REL_MAX_MEMORY is", the CLI's carrier),
+    # and 1 KiB is not rounded to "0 MiB".
+    assert "the budget --max-memory is 1 MiB" in err[0] and f"the budget {memory.ENV} is" not in err[0]
+    assert main(["route", control, "--quiet", "--no-land", "--max-memory", "1K"]) == 2
+    assert "the budget --max-memory is 1.0 KiB" in capsys.readouterr().err
     assert memory.ENV not in os.environ
     assert main(["route", control, "--quiet", "--no-land", "--max-memory", "lots"]) == 2
     assert "--max-memory must be a memory size" in capsys.readouterr().err
