@@ -93,7 +93,9 @@ def parse_bytes(value: object, where: str = ENV) -> int:
         number, unit = float(m.group(1)), m.group(2).upper()
     size = number * _UNITS[unit]
     if not (math.isfinite(size) and 1 <= size < 2**62):
-        raise ScenarioError(f"{where} must be a positive memory size such as 8G or 500M (got {value!r:.60})")
+        raise ScenarioError(
+            f"{where} must be a memory size of at least 1 byte and below 4 EiB, such as 8G or 500M (got {value!r:.60})"
+        )
     return int(size)
 
 

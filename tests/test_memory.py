@@ -345,3 +345,11 @@ def test_the_cli_takes_a_budget_and_leaves_the_environment_as_it_was(capsys, mon
     assert memory.ENV not in os.environ
     assert main(["route", control, "--quiet", "--no-land", "--max-memory", "lots"]) == 2
     assert "--max-memory must be a memory size" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text", ["999999999999T", "4194304T", 2**62, "0"])
+def test_parse_bytes_states_both_bounds(text: Any) -> None:
+    # 999999999999T is positive but too large: the message said "must be a positive memory size".
+    # 4194304T = 2**22 * 2**40 = 2**62 bytes (4 EiB) is the first size refused.
+    with pytest.raises(ScenarioError, match=r"at least 1 byte and below 4 EiB"):
+        memory.parse_bytes(text, "--max-memory")
