@@ -221,3 +221,16 @@ def test_scenario_from_mapping_refuses_what_is_not_a_mapping(table: object) -> N
     # None and 5 raised TypeError, [] AttributeError, and "route" read its letters as tables ("unknown table [r]").
     with pytest.raises(ScenarioError, match=r"<scenario>: a scenario must be a mapping of tables"):
         scenario_from_mapping(table)  # type: ignore[arg-type]
+
+
+def test_route_refuses_grids_that_are_not_one_grid_per_leg() -> None:
+    # grids=5 raised TypeError, grids="x" AttributeError; a list shorter than the legs routed only the first legs.
+    sc = scenario_from_mapping(with_table("route", waypoints=[[-16.0, 43.0]]))  # two legs
+    grids = sc.leg_grids()
+    assert len(grids) == 2
+    for bad in (5, "x", [None, None]):
+        with pytest.raises(ScenarioError, match="grids must be a list of Grid from leg_grids"):
+            sc.route(grids=bad)  # type: ignore[arg-type]
+    with pytest.raises(ScenarioError, match=r"one Grid per leg of the course \(2\), from leg_grids\(\) \(got 1\)"):
+        sc.route(grids=grids[:1])
+    assert sc.route(grids=grids).voyage_time_h == sc.route().voyage_time_h  # the same grids route the same
