@@ -727,3 +727,10 @@ def test_max_current_bounds_every_sampled_current():
     assert np.nanmax(speed) <= w.max_current_ms
     no_current = weather_from_dataset(ds[["u10", "v10"]])
     assert no_current.max_current_ms == 0.0
+
+
+@pytest.mark.parametrize("paths", [None, 5, [None], ["a.nc", 3]])
+def test_open_weather_refuses_what_is_not_a_path(paths: object) -> None:
+    # 5 raised TypeError ("not iterable"), [None] TypeError from pathlib.
+    with pytest.raises(WeatherError, match=r"weather files must be a path or a list of paths"):
+        open_weather(paths)  # type: ignore[arg-type]
