@@ -57,7 +57,7 @@ import numpy.typing as npt
 
 from . import diskcache
 from .errors import FailureModelError, brief
-from .files import read_regular_bytes
+from .files import brief_path, read_regular_bytes
 from .memory import check_budget, table_estimate
 
 __all__ = [
@@ -539,7 +539,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     (['WH: hs_m >= 4 m', 'WD: awd_deg < 60 deg'], [[0.0, 0.9], [0.9, 1.0]])
     """
     toml_file = _resolve(name_or_path)
-    label = str(toml_file)
+    label = brief_path(str(toml_file))  # for messages: control characters escaped, a long path cut in the middle
     toml_bytes = _read(toml_file, label)
     try:
         doc = tomllib.loads(toml_bytes.decode("utf-8"))
@@ -569,7 +569,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     full.setflags(write=False)
     return FailureModel(
         name=spec["name"],
-        path=label,
+        path=str(toml_file),
         description=spec["description"],
         network_path=net_label,
         target=spec["target"]["node"],

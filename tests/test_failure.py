@@ -717,3 +717,11 @@ def test_a_model_given_by_something_else_than_a_name_or_path_is_refused(name: ob
     # None and 5 raised TypeError from os.fspath.
     with pytest.raises(FailureModelError, match="must be given by name or path"):
         load_failure_model(name)  # type: ignore[arg-type]
+
+
+def test_a_very_long_model_path_is_cut_in_the_message() -> None:
+    # A 5000-character .toml path was echoed whole (a 5000-character error line); now cut in the middle.
+    with pytest.raises(FailureModelError) as info:
+        load_failure_model("x" * 5000 + ".toml")
+    msg = str(info.value)
+    assert len(msg) < 250 and "..." in msg and msg.startswith("xxx")
