@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
+
+from output_options import add_output_options, output_folder
 
 from pyroute_rel.gci.numbers import convergence_study
 from pyroute_rel.grid import make_grid, plan_grid
@@ -40,12 +41,7 @@ def route_time(scenario, grid, failure) -> tuple[float, int, float]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", help="output folder (default: examples/output/, which git ignores)")
-    ap.add_argument(
-        "--figures",
-        action="store_true",
-        help="write into examples/figures/ instead: refreshes the committed figures the README shows",
-    )
+    add_output_options(ap)
     ap.add_argument("--quick", action="store_true", help="smaller sweep (for a smoke run)")
     args = ap.parse_args()
     out = output_folder(ap, args)
@@ -181,16 +177,6 @@ def plot(results: dict, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
-
-
-def output_folder(ap: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
-    """The folder to write into: --out, examples/figures/ with --figures, else examples/output/ (never both)."""
-    if args.figures and args.out is not None:
-        print(f"{ap.prog}: error: give --out or --figures, not both", file=sys.stderr)
-        raise SystemExit(2)
-    out = HERE / "figures" if args.figures else Path(args.out) if args.out is not None else HERE / "output"
-    out.mkdir(parents=True, exist_ok=True)
-    return out
 
 
 if __name__ == "__main__":

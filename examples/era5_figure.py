@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from output_options import add_output_options, output_folder
 
 from pyroute_rel.scenario import load_scenario
 
@@ -22,12 +23,7 @@ HERE = Path(__file__).resolve().parent
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", help="output folder (default: examples/output/, which git ignores)")
-    ap.add_argument(
-        "--figures",
-        action="store_true",
-        help="write into examples/figures/ instead: refreshes the committed figures the README shows",
-    )
+    add_output_options(ap)
     args = ap.parse_args()
     out = output_folder(ap, args)
     data = HERE / "data" / "era5_synthetic.nc"
@@ -80,16 +76,6 @@ def main() -> None:
     fig.tight_layout()
     fig.savefig(out / "era5_route.png")
     print(f"wrote {out / 'era5_route.png'}")
-
-
-def output_folder(ap: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
-    """The folder to write into: --out, examples/figures/ with --figures, else examples/output/ (never both)."""
-    if args.figures and args.out is not None:
-        print(f"{ap.prog}: error: give --out or --figures, not both", file=sys.stderr)
-        raise SystemExit(2)
-    out = HERE / "figures" if args.figures else Path(args.out) if args.out is not None else HERE / "output"
-    out.mkdir(parents=True, exist_ok=True)
-    return out
 
 
 if __name__ == "__main__":

@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
+
+from output_options import add_output_options, output_folder
 
 from pyroute_rel.plot import plot_routes
 from pyroute_rel.scenario import load_scenario
@@ -25,12 +26,7 @@ PAPER = {1.0: 703.25, 0.95: 703.25 + 25.0, 0.5: 703.25 + 50.0}  # 29 d 7 h, +25 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", help="output folder (default: examples/output/, which git ignores)")
-    ap.add_argument(
-        "--figures",
-        action="store_true",
-        help="write into examples/figures/ instead: refreshes the committed figures the README shows",
-    )
+    add_output_options(ap)
     ap.add_argument("--layout", choices=("angular", "square"), default="angular")
     args = ap.parse_args()
     out = output_folder(ap, args)
@@ -101,16 +97,6 @@ def _areas_crossed(route, weather) -> list[str]:
                 ]
             ).max()
             out.append(f"{p.name} ({depth_km:.0f} km deep)")
-    return out
-
-
-def output_folder(ap: argparse.ArgumentParser, args: argparse.Namespace) -> Path:
-    """The folder to write into: --out, examples/figures/ with --figures, else examples/output/ (never both)."""
-    if args.figures and args.out is not None:
-        print(f"{ap.prog}: error: give --out or --figures, not both", file=sys.stderr)
-        raise SystemExit(2)
-    out = HERE / "figures" if args.figures else Path(args.out) if args.out is not None else HERE / "output"
-    out.mkdir(parents=True, exist_ok=True)
     return out
 
 

@@ -551,8 +551,9 @@ def register_weather_kind(kind: str, builder: WeatherBuilder, *, replace: bool =
 
     Raises
     ------
-    ValueError
-        For an empty kind, a builder that is not callable, or a kind already registered without ``replace``.
+    ScenarioError
+        (a ``ValueError``) for an empty kind, a builder that is not callable, or a kind already registered without
+        ``replace``.
 
     Examples
     --------
@@ -565,11 +566,11 @@ def register_weather_kind(kind: str, builder: WeatherBuilder, *, replace: bool =
     >>> del WEATHER_KINDS["calm"]
     """
     if not isinstance(kind, str) or not kind.strip():
-        raise ValueError(f"a weather kind must be a non-empty string (got {kind!r})")
+        raise ScenarioError(f"a weather kind must be a non-empty string (got {brief(kind)})")
     if not callable(builder):
-        raise ValueError(f"the builder of weather kind {kind!r} must be callable (got {type(builder).__name__})")
+        raise ScenarioError(f"the builder of weather kind {kind!r} must be callable (got {type(builder).__name__})")
     if kind in WEATHER_KINDS and not replace:
-        raise ValueError(f"weather kind {kind!r} is already registered (pass replace=True to replace it)")
+        raise ScenarioError(f"weather kind {kind!r} is already registered (pass replace=True to replace it)")
     WEATHER_KINDS[kind] = builder
 
 

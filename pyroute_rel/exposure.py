@@ -70,8 +70,10 @@ def hazard(p_f: npt.ArrayLike, dt_h: npt.ArrayLike, exposure_h: float) -> FloatA
     """
     p = np.asarray(p_f, dtype=float)
     dt = np.asarray(dt_h, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         h = -np.log1p(-p) * (dt / exposure_h)
+    # p_f = 0 is no hazard however long the stay: 0, not 0 * inf = nan when dt_h / exposure_h overflows.
+    h = np.where(p == 0.0, 0.0, h)
     return np.asarray(np.where(dt > 0.0, h, 0.0), dtype=float)
 
 

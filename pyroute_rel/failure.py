@@ -56,8 +56,8 @@ import numpy as np
 import numpy.typing as npt
 
 from . import diskcache
-from .errors import FailureModelError
-from .files import read_regular_bytes
+from .errors import FailureModelError, brief
+from .files import brief_path, read_regular_bytes
 from .memory import check_budget, table_estimate
 
 __all__ = [
@@ -539,7 +539,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     (['WH: hs_m >= 4 m', 'WD: awd_deg < 60 deg'], [[0.0, 0.9], [0.9, 1.0]])
     """
     toml_file = _resolve(name_or_path)
-    label = str(toml_file)
+    label = brief_path(str(toml_file))  # for messages: control characters escaped, a long path cut in the middle
     toml_bytes = _read(toml_file, label)
     try:
         doc = tomllib.loads(toml_bytes.decode("utf-8"))
@@ -569,7 +569,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     full.setflags(write=False)
     return FailureModel(
         name=spec["name"],
-        path=label,
+        path=str(toml_file),
         description=spec["description"],
         network_path=net_label,
         target=spec["target"]["node"],
@@ -586,6 +586,10 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
 
 
 def _resolve(name_or_path: str | os.PathLike[str]) -> Traversable:
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise FailureModelError(
+            f"a failure model must be given by name or path (str or pathlib.Path) (got {brief(name_or_path)})"
+        )
     text = os.fspath(name_or_path)
     shipped = list_failure_models()
     if not text.strip():
@@ -595,10 +599,14 @@ def _resolve(name_or_path: str | os.PathLike[str]) -> Traversable:
     if text in shipped:
         return _shipped().joinpath(f"{text}.toml")
     path = Path(text).expanduser()
-    if path.suffix.lower() == ".toml" or path.exists() or os.sep in text or "/" in text:
+    try:
+        exists = path.exists()
+    except OSError:  # e.g. a name longer than the file system allows (ENAMETOOLONG)
+        exists = False
+    if path.suffix.lower() == ".toml" or exists or os.sep in text or "/" in text:
         return path
     raise FailureModelError(
-        f"failure model {text!r} not found: expected a shipped name, one of {shipped}, or the path of a .toml file"
+        f"failure model {brief(text)} not found: expected a shipped name, one of {shipped}, or the path of a .toml file"
     )
 
 

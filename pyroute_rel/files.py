@@ -16,7 +16,7 @@ import threading
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from .errors import OutputError, show
+from .errors import OutputError, brief, show
 
 __all__ = [
     "atomic_write",
@@ -116,6 +116,8 @@ def check_out_dir(path: str | os.PathLike[str], *, option: str = "--out") -> Pat
     """Refuse, before any work, an output folder that cannot be written: a file, a folder under a file, a name too
     long for the file system, or a place without write permission (:class:`~pyroute_rel.errors.OutputError`,
     naming ``option``). Creates nothing."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise OutputError(f"{option} must be a folder name (str or pathlib.Path) (got {brief(path)})")
     if str(path).strip() == "":
         raise OutputError(f"{option} needs a folder name (got an empty string)")
     out = Path(path)

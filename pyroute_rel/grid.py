@@ -560,6 +560,8 @@ def plan_grid(
     """
     if layout not in LAYOUTS:
         raise GridError(f"layout must be one of {list(LAYOUTS)} (got {layout!r})")
+    _checked_point(start, "start")  # before the angular layout measures the route with them
+    _checked_point(finish, "finish")
     if layout == "square":
         return make_grid(
             start,

@@ -93,7 +93,9 @@ def parse_bytes(value: object, where: str = ENV) -> int:
         number, unit = float(m.group(1)), m.group(2).upper()
     size = number * _UNITS[unit]
     if not (math.isfinite(size) and 1 <= size < 2**62):
-        raise ScenarioError(f"{where} must be a positive memory size such as 8G or 500M (got {value!r:.60})")
+        raise ScenarioError(
+            f"{where} must be a memory size of at least 1 byte and below 4 EiB, such as 8G or 500M (got {value!r:.60})"
+        )
     return int(size)
 
 
@@ -102,7 +104,13 @@ def format_bytes(n: float) -> str:
 
     >>> format_bytes(21.3 * 1024**3), format_bytes(512 * 1024**2), format_bytes(3 * 1024**5)
     ('21.3 GiB', '512 MiB', '3072.0 TiB')
+    >>> format_bytes(1000), format_bytes(2048)  # below 1 MiB: not "0 MiB"
+    ('1000 bytes', '2.0 KiB')
     """
+    if n < 1024:
+        return f"{n:.0f} bytes"
+    if n < 1024**2:
+        return f"{n / 1024:.1f} KiB"
     if n < 1024**3:
         return f"{n / 1024**2:.0f} MiB"
     if n < 1024**4:

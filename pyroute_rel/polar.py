@@ -80,7 +80,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .errors import OutputError, PolarError, PolarWarning, show
+from .errors import OutputError, PolarError, PolarWarning, brief, show
 from .files import atomic_write_text, read_regular_bytes
 
 __all__ = [
@@ -436,7 +436,7 @@ def get_polar(
     except TypeError:
         raise PolarError(
             f"polar must be a built-in name {sorted(BUILTIN_POLARS)} or a path to a polar file "
-            f"(got {type(name_or_path).__name__} {name_or_path!r})"
+            f"(got {type(name_or_path).__name__} {brief(name_or_path)})"
         ) from None
     looks_like_path = (
         not isinstance(name_or_path, str)
@@ -446,7 +446,7 @@ def get_polar(
     )
     if not looks_like_path:
         raise PolarError(
-            f"unknown polar {text!r}: expected one of the built-in polars {sorted(BUILTIN_POLARS)} "
+            f"unknown polar {brief(text)}: expected one of the built-in polars {sorted(BUILTIN_POLARS)} "
             f"or a path to a {'/'.join(POLAR_SUFFIXES)} file"
         )
     path = Path(text).expanduser()

@@ -189,6 +189,9 @@ def refine(
     if isinstance(levels, bool) or not isinstance(levels, int) or levels < 1:
         raise GridError(f"refine levels must be a whole number >= 1 (got {levels!r})")
     _check_n_nodes(n_nodes)
+    for name, value, kind in (("grid", grid, Grid), ("problem", problem, RoutingProblem), ("result", result, DPResult)):
+        if not isinstance(value, kind):
+            raise GridError(f"refine: {name} must be a {kind.__name__} (got {type(value).__name__})")
     if not np.isfinite(result.finish_h):
         raise GridError("result has no route to refine (the finish is unreachable on the grid)")
     half = FIRST_HALF_WIDTH * grid.spacing_km

@@ -268,7 +268,7 @@ class Scenario:
         failure = self.load_failure()
         routes = []
         departure = self.departure
-        grids = self.leg_grids() if grids is None else grids
+        grids = self.leg_grids() if grids is None else self._checked_grids(grids)
         self._warn_zones_outside(grids)
         for grid in grids:
             # the weather must cover the leg's end points and its departure; cells missing elsewhere in the
@@ -287,6 +287,18 @@ class Scenario:
         return replace(
             route, meta={**route.meta, "scenario": self.source, "land": self.avoid.land}, zones=self.avoid.zones
         )
+
+    def _checked_grids(self, grids: Any) -> list[Grid]:
+        """``grids`` given to :meth:`route`: one :class:`Grid` per leg (a shorter list routed only the first legs)."""
+        n_legs = len(self.waypoints) + 1
+        if not isinstance(grids, list | tuple) or not all(isinstance(g, Grid) for g in grids):
+            raise ScenarioError(f"{self.source}: grids must be a list of Grid from leg_grids() (got {brief(grids)})")
+        if len(grids) != n_legs:
+            raise ScenarioError(
+                f"{self.source}: grids must hold one Grid per leg of the course ({n_legs}), from leg_grids() "
+                f"(got {len(grids)})"
+            )
+        return list(grids)
 
     def _warn_zones_outside(self, grids: list[Grid]) -> None:
         """One :class:`~pyroute_rel.errors.PyrouteWarning` per zone that lies wholly outside every leg's grid."""
@@ -350,6 +362,8 @@ def load_scenario(path: str | Path) -> Scenario:
 
     Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file and the field for any problem.
     """
+    if not isinstance(path, (str, Path)):
+        raise ScenarioError(f"a scenario path must be a str or pathlib.Path (got {brief(path)})")
     p = Path(path)
     data = read_regular_bytes(
         p, limit_bytes=SCENARIO_MAX_BYTES, error=ScenarioError, label=brief_path(p), what="scenario file"
@@ -399,6 +413,10 @@ def scenario_from_mapping(
     table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<scenario>"
 ) -> Scenario:
     """Validate a scenario given as nested mappings (the parsed TOML)."""
+    if not isinstance(table, Mapping):
+        raise ScenarioError(
+            f"{source}: a scenario must be a mapping of tables such as {{'route': {{...}}}} (got {brief(table)})"
+        )
     try:
         settings = parse_tables(table, Path(base_dir))
     except PyrouteError as exc:

@@ -232,37 +232,25 @@ class RoutingProblem:
         with np.errstate(invalid="ignore"):
             return np.ceil(np.asarray(t_h) / step - 1e-9) * step
 
+    def _cost_options(self) -> dict[str, Any]:
+        """The settings both cost functions take from this problem (keyword arguments)."""
+        return {
+            "departure": self.departure,
+            "weather": self.weather,
+            "polar": self.polar,
+            "failure": self.failure,
+            "apf": float(self.apf),
+            "beyond": self.beyond,
+            "wave_loss": self.wave_loss,
+        }
+
     def geometry_costs(self, geom: ArcGeometry, t0_h: Any) -> ArcCosts:
         """Arc costs on precomputed geometry."""
-        return geometry_costs(
-            geom,
-            t0_h,
-            departure=self.departure,
-            weather=self.weather,
-            polar=self.polar,
-            failure=self.failure,
-            apf=float(self.apf),
-            beyond=self.beyond,
-            wave_loss=self.wave_loss,
-        )
+        return geometry_costs(geom, t0_h, **self._cost_options())
 
     def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
         """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`)."""
-        return arc_costs(
-            lon0,
-            lat0,
-            lon1,
-            lat1,
-            t0_h,
-            departure=self.departure,
-            weather=self.weather,
-            polar=self.polar,
-            failure=self.failure,
-            apf=float(self.apf),
-            samples=self.samples,
-            beyond=self.beyond,
-            wave_loss=self.wave_loss,
-        )
+        return arc_costs(lon0, lat0, lon1, lat1, t0_h, samples=self.samples, **self._cost_options())
 
 
 @dataclass

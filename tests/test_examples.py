@@ -17,6 +17,8 @@ SCRIPTS = ["paper_reproduction", "convergence_study", "real_course", "era5_figur
 
 
 def _load(name: str):
+    if str(EXAMPLES) not in sys.path:  # as `python examples/<name>.py` does: the scripts import output_options
+        sys.path.insert(0, str(EXAMPLES))
     spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -54,3 +56,15 @@ def test_paper_reproduction_leaves_the_committed_figures_alone(tmp_path: Path) -
     assert run.returncode == 0, run.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["paper_routes_angular.json", "paper_routes_angular.png"]
     assert {p: p.stat().st_mtime_ns for p in (EXAMPLES / "figures").iterdir()} == committed
+
+
+def test_the_scripts_share_one_output_folder_helper() -> None:
+    # The --out/--figures handling was written four times; each script now uses examples/output_options.py.
+    for name in SCRIPTS:
+        module = _load(name)
+        shared = sys.modules["output_options"]  # what the script imported
+        assert module.output_folder is shared.output_folder
+        assert module.add_output_options is shared.add_output_options
+        ap = argparse.ArgumentParser()
+        module.add_output_options(ap)
+        assert ap.parse_args(["--out", "x"]) == argparse.Namespace(out="x", figures=False)

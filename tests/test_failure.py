@@ -702,3 +702,26 @@ def test_one_map_from_quantities_to_weather_fields():
     assert list(arc_quantities(c, 80.0, ["hs_m"])) == ["hs_m"]
     model = load_failure_model("dickson2018")
     assert model.weather_fields == {QUANTITY_FIELDS[q][0] for q in model.quantities} == {"hs_m", "wave_dir_deg"}
+
+
+def test_a_model_name_too_long_for_the_file_system_is_not_found_not_an_oserror() -> None:
+    # 5000 characters: Path.exists() raised OSError (ENAMETOOLONG), which the CLI reported as an internal error
+    # (exit 3). Now the usual "not found", with the name cut to a short repr.
+    with pytest.raises(FailureModelError, match=r"failure model 'xxx+\.\.\. not found") as info:
+        load_failure_model("x" * 5000)
+    assert len(str(info.value)) < 200
+
+
+@pytest.mark.parametrize("name", [None, 5, ["dickson2018"]])
+def test_a_model_given_by_something_else_than_a_name_or_path_is_refused(name: object) -> None:
+    # None and 5 raised TypeError from os.fspath.
+    with pytest.raises(FailureModelError, match="must be given by name or path"):
+        load_failure_model(name)  # type: ignore[arg-type]
+
+
+def test_a_very_long_model_path_is_cut_in_the_message() -> None:
+    # A 5000-character .toml path was echoed whole (a 5000-character error line); now cut in the middle.
+    with pytest.raises(FailureModelError) as info:
+        load_failure_model("x" * 5000 + ".toml")
+    msg = str(info.value)
+    assert len(msg) < 250 and "..." in msg and msg.startswith("xxx")

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from pyroute_rel import geodesy
 from pyroute_rel.errors import GridError
-from pyroute_rel.grid import FINISH, START, make_grid
+from pyroute_rel.grid import FINISH, START, make_grid, plan_grid
 
 START_PT, FINISH_PT = (-12.0, 45.0), (-60.0, 17.5)
 
@@ -189,3 +189,11 @@ def test_grid_nodes_over_the_budget_are_refused(monkeypatch: pytest.MonkeyPatch)
     with pytest.raises(MemoryBudgetError, match=r"grid 4000000 x 5\) but the budget PYROUTE_REL_MAX_MEMORY is 1.0 GiB"):
         make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=4_000_000, n_nodes=5, spacing_km=1.0, max_deviation_deg=1e-3)
     assert NODE_BYTES * 4_000_000 * 5 > 1024**3
+
+
+@pytest.mark.parametrize("start", [("a", "b"), (1.0,), (1.0, 2.0, 3.0), None])
+def test_plan_grid_refuses_a_start_that_is_not_a_lon_lat_pair(start: object) -> None:
+    # The angular layout measured the route before make_grid checked the points: ('a', 'b') raised a bare
+    # ValueError, (1.0,) an IndexError.
+    with pytest.raises(GridError, match=r"start must be a pair \[lon, lat\] of numbers"):
+        plan_grid(start, (-60.0, 17.5), n_ranks=20)  # type: ignore[arg-type]

@@ -356,7 +356,7 @@ MISTAKES = {
     "scenario FIFO without a writer": (lambda t: ["route", _fifo(t, "s.toml")], "not a regular file (a FIFO)"),
     "polar name of 5 MB": (
         lambda t: _route(_scenario(t, BASE.replace('"maribot_vane"', '"' + "p" * 5_000_000 + '"'))),
-        "characters cut",
+        "unknown polar 'ppppppppp",  # the name is cut where the message is made (no need for the CLI's cap)
     ),
     "polar name of 10 MB (file over the limit)": (
         lambda t: _route(_scenario(t, BASE.replace('"maribot_vane"', '"' + "p" * 10_000_000 + '"'))),
@@ -506,3 +506,13 @@ def test_zones_outside_against_a_hand_made_hull() -> None:
     straddles = Zone("straddles", shapely.box(4.0, 4.0, 7.0, 7.0))  # (4, 4) has x + y = 8 <= 10
     beyond = Zone("beyond", shapely.box(6.0, 6.0, 7.0, 7.0))  # nearest corner (6, 6): x + y = 12 > 10
     assert [z.name for z in zones_outside([inside, straddles, beyond], lon, lat)] == ["beyond"]
+
+
+@pytest.mark.parametrize("path", [None, 5, ["out"]])
+def test_an_output_folder_of_the_wrong_type_is_an_output_error(path: object) -> None:
+    # write_outputs(route, None) raised TypeError from pathlib (str(None) = "None" passed the empty-name check).
+    from pyroute_rel.errors import OutputError
+    from pyroute_rel.files import check_out_dir
+
+    with pytest.raises(OutputError, match=r"--out must be a folder name \(str or pathlib.Path\)"):
+        check_out_dir(path)  # type: ignore[arg-type]

@@ -337,6 +337,19 @@ def test_the_cli_takes_a_budget_and_leaves_the_environment_as_it_was(capsys, mon
     assert main(["route", control, "--quiet", "--no-land", "--max-memory", "1M"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "needs about" in err[0] and "--max-memory" in err[0]
+    # The budget is named as the user gave it (it said "the budget PYROUTE_REL_MAX_MEMORY is", the CLI's carrier),
+    # and 1 KiB is not rounded to "0 MiB".
+    assert "the budget --max-memory is 1 MiB" in err[0] and f"the budget {memory.ENV} is" not in err[0]
+    assert main(["route", control, "--quiet", "--no-land", "--max-memory", "1K"]) == 2
+    assert "the budget --max-memory is 1.0 KiB" in capsys.readouterr().err
     assert memory.ENV not in os.environ
     assert main(["route", control, "--quiet", "--no-land", "--max-memory", "lots"]) == 2
     assert "--max-memory must be a memory size" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("text", ["999999999999T", "4194304T", 2**62, "0"])
+def test_parse_bytes_states_both_bounds(text: Any) -> None:
+    # 999999999999T is positive but too large: the message said "must be a positive memory size".
+    # 4194304T = 2**22 * 2**40 = 2**62 bytes (4 EiB) is the first size refused.
+    with pytest.raises(ScenarioError, match=r"at least 1 byte and below 4 EiB"):
+        memory.parse_bytes(text, "--max-memory")

@@ -595,3 +595,10 @@ def test_beyond_is_checked_in_one_place_with_one_error():
     ):
         with pytest.raises(PolarError, match=re.escape(f"{name} must be one of ['clamp', 'forbid']")):
             call()
+
+
+def test_an_unknown_polar_name_is_cut_in_the_message() -> None:
+    # A 5000-character name was echoed whole: one error "line" of over 5000 characters.
+    with pytest.raises(PolarError, match=r"unknown polar 'xxx+\.\.\.: expected one of the built-in polars") as info:
+        get_polar("x" * 5000)
+    assert len(str(info.value)) < 200

@@ -19,6 +19,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from pyproj import Geod
+from test_solve import SamplesOnly  # the WeatherSource protocol around a sample()-only test source
 
 from pyroute_rel import geodesy
 from pyroute_rel.errors import NoFeasibleRouteError
@@ -26,8 +27,7 @@ from pyroute_rel.grid import Grid, make_grid
 from pyroute_rel.polar import Polar
 from pyroute_rel.route import route_on_grid
 from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
-from pyroute_rel.times import hours_after
-from pyroute_rel.weather import FIELDS, Conditions, Patch, UniformWeather
+from pyroute_rel.weather import Conditions, Patch, UniformWeather
 
 DEP = np.datetime64("2018-06-01T00:00:00")
 SPHERE = Geod(a=geodesy.EARTH_RADIUS_KM * 1000.0, b=geodesy.EARTH_RADIUS_KM * 1000.0)
@@ -178,25 +178,6 @@ def test_dp_invariant_under_patch_order_and_far_patches(data: st.DataObject) -> 
 
 # ---------------------------------------------------------------------------------------------------------
 # 3. Route times are consistent
-
-
-class SamplesOnly:
-    """The rest of the WeatherSource protocol for a test source that only knows how to ``sample``: not steady,
-    every field defined, no current; ``prepare``/``sample_at`` sample the same points at the asked times."""
-
-    steady = False
-    fields = frozenset(FIELDS)
-    max_current_ms = 0.0
-
-    def prepare(self, lon_deg: Any, lat_deg: Any) -> Any:
-        return np.broadcast_arrays(np.asarray(lon_deg, float), np.asarray(lat_deg, float))
-
-    def sample_at(self, prepared: Any, departure: Any, *, offset_h: Any = None, fields: Any = None) -> Conditions:
-        time = departure if offset_h is None else hours_after(departure, offset_h)
-        return self.sample(prepared[0], prepared[1], time)  # type: ignore[attr-defined]
-
-    def check_coverage(self, *args: Any) -> None:
-        return None
 
 
 @dataclass(frozen=True)

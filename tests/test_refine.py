@@ -134,6 +134,11 @@ def test_bad_arguments_are_refused() -> None:
     )
     with pytest.raises(GridError, match="refine levels must be a whole number >= 1"):
         refine(grid, problem, forward_dp(grid, problem), levels=0)
+    # None in place of the grid or the result raised AttributeError ('NoneType' object has no attribute ...).
+    with pytest.raises(GridError, match="refine: grid must be a Grid"):
+        refine(None, problem, forward_dp(grid, problem), levels=1)  # type: ignore[arg-type]
+    with pytest.raises(GridError, match="refine: result must be a DPResult"):
+        refine(grid, problem, None, levels=1)  # type: ignore[arg-type]
 
 
 def test_track_offsets_follow_the_path() -> None:

@@ -315,3 +315,17 @@ def test_legs_refuse_a_leg_probability_outside_0_1(tmp_path: Path) -> None:
         Legs(**{**values, "p_fail_leg": values["p_fail_leg"] + 1.5})
     with pytest.raises(TypeError, match="p_fail_leg"):  # required: a route's legs always know it
         Legs(**{k: v for k, v in values.items() if k != "p_fail_leg"})
+
+
+def test_hazard_of_a_tiny_exposure_is_inf_or_zero_never_nan() -> None:
+    # exposure_h = 1e-320 [h] (subnormal, accepted as > 0): dt_h / exposure_h overflows to inf. p_f = 0 must stay
+    # no hazard (it gave 0 * inf = nan, and summary.json a nan voyage_failure_probability), p_f > 0 is certain
+    # failure (inf), and a missing p_f (nan) stays nan; no RuntimeWarning escapes.
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        h = hazard([0.0, 0.5, float("nan")], [10.0, 10.0, 10.0], 1e-320)
+    assert h[0] == 0.0
+    assert h[1] == float("inf")
+    assert np.isnan(h[2])

@@ -154,7 +154,7 @@ def test_a_registered_weather_kind_routes() -> None:
 
     register_weather_kind("breeze", steady_breeze)
     try:
-        with pytest.raises(ValueError, match="'breeze' is already registered"):
+        with pytest.raises(ScenarioError, match="'breeze' is already registered"):
             register_weather_kind("breeze", steady_breeze)
         sc = scenario_from_mapping({**BASE, "weather": {"kind": "breeze", "knots": 15.0}})
         assert seen["table"] == {"kind": "breeze", "knots": 15.0}
@@ -175,7 +175,7 @@ def test_a_registered_weather_kind_routes() -> None:
     with pytest.raises(ScenarioError, match=r"\[weather\].kind must be one of \['uniform', 'file'\] \(got 'breeze'\)"):
         scenario_from_mapping({**BASE, "weather": {"kind": "breeze", "knots": 15.0}})
     for kind, builder in (("", steady_breeze), ("x", 3)):
-        with pytest.raises(ValueError):
+        with pytest.raises(ScenarioError):  # the domain error (a ValueError), not a bare ValueError
             register_weather_kind(kind, builder)  # type: ignore[arg-type]
 
 
@@ -207,3 +207,30 @@ def test_the_command_line_prints_the_notes_once(tmp_path: Path, capsys: pytest.C
     assert err == (
         f"pyroute-rel: note: {path}: [route].departure '2018-06-01T00:00:00' has no time zone: read as UTC\n"
     )
+
+
+@pytest.mark.parametrize("path", [b"scenario.toml", ["a.toml"], float("nan"), None, 5])
+def test_load_scenario_refuses_a_path_of_the_wrong_type(path: object) -> None:
+    # bytes, lists, numbers and None raised TypeError from pathlib (not the domain error).
+    with pytest.raises(ScenarioError, match="a scenario path must be a str or pathlib.Path"):
+        load_scenario(path)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("table", [None, 5, [], "route"])
+def test_scenario_from_mapping_refuses_what_is_not_a_mapping(table: object) -> None:
+    # None and 5 raised TypeError, [] AttributeError, and "route" read its letters as tables ("unknown table [r]").
+    with pytest.raises(ScenarioError, match=r"<scenario>: a scenario must be a mapping of tables"):
+        scenario_from_mapping(table)  # type: ignore[arg-type]
+
+
+def test_route_refuses_grids_that_are_not_one_grid_per_leg() -> None:
+    # grids=5 raised TypeError, grids="x" AttributeError; a list shorter than the legs routed only the first legs.
+    sc = scenario_from_mapping(with_table("route", waypoints=[[-16.0, 43.0]]))  # two legs
+    grids = sc.leg_grids()
+    assert len(grids) == 2
+    for bad in (5, "x", [None, None]):
+        with pytest.raises(ScenarioError, match="grids must be a list of Grid from leg_grids"):
+            sc.route(grids=bad)  # type: ignore[arg-type]
+    with pytest.raises(ScenarioError, match=r"one Grid per leg of the course \(2\), from leg_grids\(\) \(got 1\)"):
+        sc.route(grids=grids[:1])
+    assert sc.route(grids=grids).voyage_time_h == sc.route().voyage_time_h  # the same grids route the same

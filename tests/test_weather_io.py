@@ -735,3 +735,10 @@ def test_a_device_as_weather_file_is_refused_in_one_line(special) -> None:
 
     with pytest.raises(WeatherError, match=r"is not a regular file \(a device, pipe or socket\)"):
         open_weather(special)
+
+
+@pytest.mark.parametrize("paths", [None, 5, [None], ["a.nc", 3]])
+def test_open_weather_refuses_what_is_not_a_path(paths: object) -> None:
+    # 5 raised TypeError ("not iterable"), [None] TypeError from pathlib.
+    with pytest.raises(WeatherError, match=r"weather files must be a path or a list of paths"):
+        open_weather(paths)  # type: ignore[arg-type]

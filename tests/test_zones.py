@@ -423,3 +423,10 @@ def test_unreadable_zone_file_names_the_file(tmp_path):
     with pytest.raises(ScenarioError, match=r"latin1\.geojson: cannot read zone file") as info:
         zn.load_zones([path])
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("paths", [None, 5, [None], ["a.geojson", 3]])
+def test_load_zones_refuses_what_is_not_a_path(paths: object) -> None:
+    # None and 5 raised TypeError ("not iterable"), [None] TypeError from pathlib.
+    with pytest.raises(ScenarioError, match=r"zone files? must be a path"):
+        zn.load_zones(paths)  # type: ignore[arg-type]

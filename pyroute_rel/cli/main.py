@@ -194,6 +194,7 @@ def _add_route_parser(sub: Any) -> None:
 def _cmd_route(args: argparse.Namespace) -> int:
     if args.max_memory is None:
         return _route(args)
+    from ..errors import MemoryBudgetError
     from ..memory import ENV, parse_bytes
 
     budget = str(parse_bytes(args.max_memory, "--max-memory"))
@@ -201,6 +202,8 @@ def _cmd_route(args: argparse.Namespace) -> int:
     os.environ[ENV] = budget  # the grid, the failure table and the DP all read it
     try:
         return _route(args)
+    except MemoryBudgetError as exc:  # the budget is the user's --max-memory, not the environment's
+        raise MemoryBudgetError(str(exc).replace(f"the budget {ENV} is", "the budget --max-memory is")) from None
     finally:
         if before is None:
             del os.environ[ENV]

@@ -165,6 +165,12 @@ def load_zones(paths: PathLike | Iterable[PathLike], *, base_dir: PathLike | Non
     """
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
+    if not isinstance(paths, Iterable):
+        raise ScenarioError(f"zone files must be a path or a list of paths (got {brief(paths)})")
+    paths = list(paths)
+    for p in paths:  # every one before any file is read
+        if not isinstance(p, (str, os.PathLike)):
+            raise ScenarioError(f"a zone file must be a path (str or pathlib.Path) (got {brief(p)})")
     zones: list[Zone] = []
     for p in paths:
         path = Path(p)

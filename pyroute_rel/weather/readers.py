@@ -198,6 +198,10 @@ def open_weather(
     """
     if isinstance(paths, str | os.PathLike):
         paths = [paths]
+    if not isinstance(paths, Sequence) or not all(isinstance(p, str | os.PathLike) for p in paths):
+        raise WeatherError(
+            f"weather files must be a path or a list of paths (str or pathlib.Path) (got {brief(paths)})"
+        )
     if not paths:
         raise WeatherError("no weather file given (expected at least one path)")
     opened: list[tuple[str, list[xr.Dataset]]] = []
