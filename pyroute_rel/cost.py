@@ -40,7 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .crab import hold_course
+from .crab import steer
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
@@ -520,16 +520,7 @@ def _sample_costs(
     current = cond.has_current
     factor = None if wave_loss is None else wave_loss.factor(cond.hs_m)
     if current:  # the heading that holds the course in the current (exact crab angle, pyroute_rel.crab)
-        crab = hold_course(
-            course_deg,
-            cond.twd_deg,
-            cond.tws_kn,
-            cond.current_u_ms,
-            cond.current_v_ms,
-            polar,
-            beyond=beyond,
-            speed_factor=1.0 if factor is None else factor,
-        )
+        crab = steer(cond, course_deg, polar, beyond=beyond, speed_factor=1.0 if factor is None else factor)
         heading, twa, v, sog = crab.heading_deg, crab.twa_deg, crab.boat_speed_kn, crab.sog_kn
         cannot = ~crab.ok & np.isfinite(v) & (v > 0)  # the boat sails, but no heading holds the course
         reason |= np.where(cannot, REASONS["current"], 0).astype(np.uint8)

@@ -43,8 +43,9 @@ import numpy.typing as npt
 from . import geodesy
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .units import KN_PER_MS
+from .weather.base import Conditions
 
-__all__ = ["CrabSolution", "hold_course"]
+__all__ = ["CrabSolution", "hold_course", "steer"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -152,6 +153,28 @@ def hold_course(
         boat_speed_kn=v.reshape(shape),
         sog_kn=sog.reshape(shape),
         ok=ok.reshape(shape),
+    )
+
+
+def steer(
+    cond: Conditions,
+    course_deg: npt.ArrayLike,
+    polar: Polar,
+    *,
+    beyond: str = "clamp",
+    speed_factor: npt.ArrayLike = 1.0,
+) -> CrabSolution:
+    """:func:`hold_course` in the wind and current of ``cond`` (one place for the cost function and the exposure
+    integral, so both judge the heading the craft really steers)."""
+    return hold_course(
+        course_deg,
+        cond.twd_deg,
+        cond.tws_kn,
+        cond.current_u_ms,
+        cond.current_v_ms,
+        polar,
+        beyond=beyond,
+        speed_factor=speed_factor,
     )
 
 

@@ -33,8 +33,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .cost import arc_quantities
-from .crab import hold_course
-from .times import hours_after
+from .crab import steer
 
 if TYPE_CHECKING:
     from .solve import RoutingProblem
@@ -164,7 +163,7 @@ def leg_exposure(
         dt = _scaled(timing.costs(lon0, lat0, lon1, lat1, t0).time_h, share, leg, t_leg)
     mlon, mlat = geodesy.intermediate_point(lon0, lat0, lon1, lat1, 0.5)
     course = geodesy.initial_bearing_deg(mlon, mlat, lon1, lat1)
-    cond = _sample(problem, mlon, mlat, t0 + 0.5 * dt)
+    cond = problem.weather_at(mlon, mlat, t0 + 0.5 * dt)
     q = arc_quantities(cond, _heading(problem, cond, course), model.quantities)
     index, unknown = model.evidence_index(q)  # the cost function's gather (p_fail would also check ranges)
     p = model.p_flat[index]
@@ -191,27 +190,11 @@ def _scaled(w: FloatArray, share: FloatArray, leg: npt.NDArray[np.intp], t_leg: 
     return np.asarray(w * scale[leg], dtype=float)
 
 
-def _sample(problem: RoutingProblem, lon: FloatArray, lat: FloatArray, t_h: FloatArray) -> Conditions:
-    """The problem's weather at points and times [h after departure] (at the departure when it is steady)."""
-    if problem.weather.steady:
-        return problem.weather.sample(lon, lat, problem.departure)
-    return problem.weather.sample(lon, lat, hours_after(problem.departure, t_h))
-
-
 def _heading(problem: RoutingProblem, cond: Conditions, course_deg: FloatArray) -> FloatArray:
     """The heading the craft steers to hold ``course_deg`` [deg]: the course itself, or with a current the crab
     heading (:func:`~pyroute_rel.crab.hold_course`, as the cost function steers)."""
     if not cond.has_current:
         return course_deg
     factor = 1.0 if problem.wave_loss is None else problem.wave_loss.factor(cond.hs_m)
-    crab = hold_course(
-        course_deg,
-        cond.twd_deg,
-        cond.tws_kn,
-        cond.current_u_ms,
-        cond.current_v_ms,
-        problem.polar,
-        beyond=problem.beyond,
-        speed_factor=factor,
-    )
+    crab = steer(cond, course_deg, problem.polar, beyond=problem.beyond, speed_factor=factor)
     return np.asarray(np.where(np.isfinite(crab.heading_deg), crab.heading_deg, course_deg), dtype=float)

@@ -31,7 +31,7 @@ if TYPE_CHECKING:
     from .failure import FailureModel
     from .grid import Grid
     from .obstacles.zones import Zone
-    from .weather import Conditions, WeatherSource
+    from .weather import WeatherSource
 
 __all__ = [
     "Route",
@@ -375,13 +375,6 @@ class Route:
         }
 
 
-def _sample(problem: RoutingProblem, lon: FloatArray, lat: FloatArray, t_h: FloatArray) -> Conditions:
-    """The problem's weather at points and times [h after departure] (at the departure when it is steady)."""
-    if problem.weather.steady:
-        return problem.weather.sample(lon, lat, problem.departure)
-    return problem.weather.sample(lon, lat, hours_after(problem.departure, np.asarray(t_h, dtype=float)))
-
-
 def _put(values: FloatArray, i: npt.NDArray[np.intp], new: FloatArray) -> FloatArray:
     out = np.array(values, dtype=float)  # a copy
     out[i] = new
@@ -418,7 +411,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
     mlon, mlat = geodesy.intermediate_point(lon[:-1], lat[:-1], lon[1:], lat[1:], 0.5)
     course = geodesy.initial_bearing_deg(mlon, mlat, lon[1:], lat[1:])
     mid_h = elapsed[:-1] + waits + 0.5 * costs.time_h
-    cond = _sample(problem, mlon, mlat, mid_h)
+    cond = problem.weather_at(mlon, mlat, mid_h)
     hole = ~(np.isfinite(cond.tws_kn) & np.isfinite(cond.twd_deg)) & np.isfinite(costs.time_h)
     if hole.any() and problem.samples > 1:
         # a sailable leg whose midpoint falls in a hole of the data (a NaN cell its samples straddle): report the
@@ -426,7 +419,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         frac = (problem.samples // 2 - 0.5) / problem.samples
         i = np.flatnonzero(hole)
         slon, slat = geodesy.intermediate_point(lon[i], lat[i], lon[i + 1], lat[i + 1], frac)
-        at = _sample(problem, slon, slat, (elapsed[:-1] + waits)[i] + frac * costs.time_h[i])
+        at = problem.weather_at(slon, slat, (elapsed[:-1] + waits)[i] + frac * costs.time_h[i])
         cond = replace(cond, **{f.name: _put(vars(cond)[f.name], i, vars(at)[f.name]) for f in fields(cond)})
         course = course.copy()
         course[i] = geodesy.initial_bearing_deg(slon, slat, lon[i + 1], lat[i + 1])

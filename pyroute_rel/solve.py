@@ -52,7 +52,7 @@ from .polar import Polar, check_beyond
 from .progress import progress_bar
 from .times import hours_after
 from .units import KN_PER_MS
-from .weather import WeatherSource
+from .weather import Conditions, WeatherSource
 
 __all__ = [
     "DPResult",
@@ -251,6 +251,12 @@ class RoutingProblem:
     def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
         """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`)."""
         return arc_costs(lon0, lat0, lon1, lat1, t0_h, samples=self.samples, **self._cost_options())
+
+    def weather_at(self, lon_deg: Any, lat_deg: Any, t_h: Any) -> Conditions:
+        """The weather at points [deg] and times [h after departure] (at the departure when it is steady)."""
+        if self.weather.steady:
+            return self.weather.sample(lon_deg, lat_deg, self.departure)
+        return self.weather.sample(lon_deg, lat_deg, hours_after(self.departure, np.asarray(t_h, dtype=float)))
 
 
 @dataclass

@@ -12,40 +12,10 @@ import json
 import numpy as np
 import pytest
 import shapely
-from pyproj import Geod
+from test_obstacles import random_arcs, reference_blocked  # the same slow reference serves land and zones
 
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.obstacles import zones as zn
-
-R_KM = 6371.0088
-SPHERE = Geod(a=R_KM * 1000.0, b=R_KM * 1000.0)
-
-
-def reference_blocked(lon0, lat0, lon1, lat1, geometry, step_km=0.5):
-    """Slow per-arc reference: PROJ great-circle points every <= step_km, one LineString per arc."""
-    slow = shapely.from_wkb(shapely.to_wkb(geometry))  # an unprepared copy
-    out = []
-    for a, b, c, d in zip(lon0, lat0, lon1, lat1, strict=True):
-        length_km = SPHERE.inv(a, b, c, d)[2] / 1000.0
-        n = int(np.ceil(length_km / step_km)) - 1
-        pts = np.array([(a, b), *SPHERE.npts(a, b, c, d, max(n, 0)), (c, d)])
-        pts[:, 0] = pts[0, 0] + np.cumsum(np.r_[0.0, (np.diff(pts[:, 0]) + 180.0) % 360.0 - 180.0])
-        line = shapely.LineString(pts)
-        hit = slow.intersects(line)
-        for shift in (-360.0, 360.0):
-            if (pts[:, 0] + shift).min() <= 180.0 and (pts[:, 0] + shift).max() >= -180.0:
-                hit = hit or slow.intersects(shapely.LineString(pts + [shift, 0.0]))
-        out.append(hit)
-    return np.array(out)
-
-
-def random_arcs(rng, n, box, length_km):
-    lon0 = rng.uniform(box[0], box[2], n)
-    lat0 = rng.uniform(box[1], box[3], n)
-    az = rng.uniform(0.0, 360.0, n)
-    dist = rng.uniform(*length_km, n)
-    lon1, lat1, _ = SPHERE.fwd(lon0, lat0, az, dist * 1000.0)
-    return lon0, lat0, np.asarray(lon1), np.asarray(lat1)
 
 
 def write(tmp_path, name, doc):
