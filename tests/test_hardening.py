@@ -516,3 +516,119 @@ def test_an_output_folder_of_the_wrong_type_is_an_output_error(path: object) -> 
 
     with pytest.raises(OutputError, match=r"--out must be a folder name \(str or pathlib.Path\)"):
         check_out_dir(path)  # type: ignore[arg-type]
+
+
+# --------------------------------------------------------------------------------------------------
+# CF valid_range / valid_min / valid_max: values outside are missing, like declared fill values
+# --------------------------------------------------------------------------------------------------
+
+T0 = "2018-06-01T00:00"
+GRID_LON, GRID_LAT = [-20.0, -19.0, -18.0, -17.0], [40.0, 41.0, 42.0]
+
+
+def _waves(hs: list[list[list[float]]], attrs: dict, encoding: dict | None = None, *, path: Path) -> Path:
+    """A NetCDF file with ``swh`` [m] (and a steady 5 m/s wind) on (time, latitude, longitude), written by xarray;
+    ``hs`` (one time) is stored at two times 6 h apart (one time would make steady weather, with a warning)."""
+    import numpy as np
+    import xarray as xr
+
+    hs = [*hs, *hs]
+    time = np.datetime64(T0, "ns") + np.arange(len(hs)) * np.timedelta64(6, "h")
+    dims, wind = ("time", "latitude", "longitude"), np.full((2, 3, 4), 5.0, np.float32)
+    ds = xr.Dataset(
+        {
+            "swh": (dims, np.asarray(hs, np.float32), {"units": "m", **attrs}),
+            "u10": (dims, wind, {"units": "m s-1"}),
+            "v10": (dims, wind, {"units": "m s-1"}),
+        },
+        coords={"time": time, "latitude": GRID_LAT, "longitude": GRID_LON},
+    )
+    ds.to_netcdf(path, encoding={"swh": encoding or {"_FillValue": None}})
+    return path
+
+
+def _raw(path: Path) -> list:
+    """The variable as stored, without any masking or unpacking (netCDF4 with auto mask and scale off)."""
+    import netCDF4
+
+    with netCDF4.Dataset(path) as nc:
+        nc.set_auto_maskandscale(False)
+        return nc["swh"][:].tolist()
+
+
+def _hs_grid(w) -> list:
+    import numpy as np
+
+    lon, lat = np.meshgrid(GRID_LON, GRID_LAT)
+    return w.sample(lon, lat, np.datetime64(T0)).hs_m.tolist()
+
+
+@pytest.mark.parametrize(
+    ("attrs", "missing"),
+    [
+        # 25 m is a plausible wave height (RANGES allows 0..30 m): only the declared range makes it missing
+        ({"valid_range": [0.0, 20.0]}, {(0, 1), (2, 3)}),
+        ({"valid_min": 0.5}, {(2, 3), (1, 0)}),
+        ({"valid_max": 20.0}, None),  # -1 m is inside this declared range: the plausibility check refuses it
+        ({"valid_min": 0.5, "valid_max": 20.0}, {(0, 1), (2, 3), (1, 0)}),
+        ({"valid_range": [0.0, 30.0], "valid_min": 5.0}, {(2, 3)}),  # valid_range wins over valid_min
+    ],
+)
+def test_values_outside_the_cf_valid_range_are_missing(attrs: dict, missing: set | None, tmp_path: Path) -> None:
+    import math
+    import warnings
+
+    from pyroute_rel.errors import WeatherError
+    from pyroute_rel.weather.readers import open_weather
+
+    hs = [[[2.0, 25.0, 3.0, 4.0], [0.25, 1.0, 2.0, 3.0], [1.0, 2.0, 3.0, -1.0]]]
+    path = _waves(hs, attrs, path=tmp_path / "w.nc")
+    assert _raw(path) == [*hs, *hs]  # the file holds the values unmasked
+    if missing is None:
+        with pytest.raises(WeatherError, match=r"variable 'swh': 2 values outside the plausible range .*e\.g\. -1 "):
+            open_weather(path)
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # missing by declaration: no warning, no error (-1 m would be refused)
+        w = open_weather(path)
+    got = _hs_grid(w)
+    for iy in range(3):
+        for ix in range(4):
+            if (iy, ix) in missing:
+                assert math.isnan(got[iy][ix]), (iy, ix)
+            else:
+                assert got[iy][ix] == hs[0][iy][ix], (iy, ix)
+
+
+def test_a_packed_variable_has_its_valid_range_in_packed_units(tmp_path: Path) -> None:
+    # CF 2.5.1 / 8.1: for a packed variable valid_range is in the packed type: [0, 2000] * 0.01 m = [0, 20] m
+    import math
+
+    import numpy as np
+
+    from pyroute_rel.weather.readers import open_weather
+
+    hs = [[[2.0, 25.0, 3.0, 4.0], [0.5, 1.0, 2.0, 3.0], [1.0, 2.0, 19.99, 20.01]]]
+    enc = {"dtype": "int16", "scale_factor": 0.01, "_FillValue": np.int16(-32767)}
+    path = _waves(hs, {"valid_range": np.array([0, 2000], np.int16)}, enc, path=tmp_path / "p.nc")
+    assert _raw(path)[0][0][1] == 2500 and _raw(path)[0][2][3] == 2001  # stored packed
+    got = _hs_grid(open_weather(path))
+    assert math.isnan(got[0][1]) and math.isnan(got[2][3])
+    assert got[2][2] == pytest.approx(19.99, abs=1e-5) and got[0][0] == pytest.approx(2.0, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("attrs", "needle"),
+    [
+        ({"valid_range": [0.0, 1.0, 2.0]}, "valid_range must be two numbers"),
+        ({"valid_range": [20.0, 0.0]}, "min 20 > max 0"),
+        ({"valid_min": "low"}, "valid_min attribute that is not a number"),
+    ],
+)
+def test_a_malformed_valid_range_is_a_weather_error(attrs: dict, needle: str, tmp_path: Path) -> None:
+    from pyroute_rel.errors import WeatherError
+    from pyroute_rel.weather.readers import open_weather
+
+    path = _waves([[[1.0] * 4] * 3], attrs, path=tmp_path / "w.nc")
+    with pytest.raises(WeatherError, match=f"variable 'swh'.*{needle}"):
+        open_weather(path)

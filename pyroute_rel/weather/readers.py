@@ -15,8 +15,9 @@ means m/s, degrees, m or s by the field's kind; a unit not recognised for the ki
 Wind speed and direction files are stored as (u, v). A file without time is steady, and so are files whose fields
 each have a single time (an analysis, or one forecast step downloaded alone; a warning says so); with several
 times, the data cover the times they hold. Every value is checked against its plausible range
-(:data:`~pyroute_rel.weather.base.RANGES`): declared fill values are missing (NaN), undeclared ones (9.97e36, 1e20)
-are out of range, refused or (``out_of_range="missing"``) made missing.
+(:data:`~pyroute_rel.weather.base.RANGES`): declared fill values and values outside a declared CF ``valid_range``
+(``valid_min``, ``valid_max``) are missing (NaN), undeclared fill values (9.97e36, 1e20) are out of range, refused
+or (``out_of_range="missing"``) made missing.
 
 References
 ----------
@@ -165,7 +166,8 @@ def open_weather(
     """Read NetCDF/GRIB weather files into a :class:`GriddedWeather`.
 
     Files are opened lazily (dask chunks for NetCDF) and only the box and time window are read.
-    Declared fill values (``_FillValue``, ``missing_value``) are missing (NaN), never data. When every field read
+    Declared fill values (``_FillValue``, ``missing_value``) and values outside the CF ``valid_range`` (or
+    ``valid_min`` / ``valid_max``, in packed units when packed) are missing (NaN), never data. When every field read
     has a single time (an analysis, or one step of a forecast downloaded alone), the weather is steady: it is used
     at all times, ``steady`` is True, and a :class:`~pyroute_rel.errors.WeatherWarning` says so once.
 
@@ -522,6 +524,7 @@ def _extract(
     """Cut one variable to the box and window, load it, convert units, check its values -> (field or None, had
     members). A variable with a single time is kept whatever the window (it may be steady weather)."""
     where = f"weather file '{source}' variable '{var}'"
+    valid = _valid_range(da, where)  # before any selection: attributes and encoding as the file has them
     kinds = {d: _dim_kind(da, d) for d in da.dims}
     da, had_members = _drop_extra_dims(da, kinds, member, where)
     lon_dim, lat_dim, time_dims = ([d for d in da.dims if kinds[d] == kind] for kind in ("lon", "lat", "time"))
@@ -552,6 +555,9 @@ def _extract(
     values = _load(da, (tdim, lat_dim_, lon_dim_), (t_index, lat_plan[0], lon_plan[0]), where)
     if times is not None and np.isnat(times).any():
         raise WeatherError(f"{where} has missing (NaT) times")
+    if valid is not None:  # outside the declared valid range: missing, like a declared fill value
+        lo, hi = np.float64(valid[0]), np.float64(valid[1])
+        values = np.where((values < lo) | (values > hi), np.float32(np.nan), values).astype(np.float32, copy=False)
     values = _convert_units(values, da.attrs, name, where)
     field = WeatherField(name, values, lon_plan[1], lat_plan[1], times, source, var, lon_plan[2])
     field = check_plausible(field, out_of_range=out_of_range)
@@ -559,6 +565,45 @@ def _extract(
     if not np.isfinite(values).any():
         raise WeatherError(f"{where} is all NaN{' inside the requested box and time window' if box or window else ''}")
     return replace(field, values=values), had_members
+
+
+def _valid_range(da: xr.DataArray, where: str) -> tuple[float, float] | None:
+    """The CF ``valid_range`` (or ``valid_min`` / ``valid_max``) of a variable in its unpacked units, or None.
+
+    As the CF conventions (section 2.5.1) and the netCDF user guide say, these bounds are in the packed data's units
+    when the variable is packed (``scale_factor`` / ``add_offset``, which xarray moved to ``encoding`` when it
+    unpacked the values); ``valid_range`` wins over ``valid_min`` / ``valid_max``. Values outside are missing.
+    """
+
+    def number(key: str, value: Any) -> float:
+        try:
+            x = float(value)
+        except (TypeError, ValueError):
+            x = float("nan")
+        if np.isnan(x):
+            raise WeatherError(f"{where} has a {key} attribute that is not a number (got {brief(value)})")
+        return x
+
+    attrs = da.attrs
+    if "valid_range" in attrs:
+        pair = np.atleast_1d(np.asarray(attrs["valid_range"], dtype=object)).ravel()
+        if pair.size != 2:
+            raise WeatherError(
+                f"{where}: valid_range must be two numbers [min, max] (got {brief(attrs['valid_range'])})"
+            )
+        lo, hi = number("valid_range", pair[0]), number("valid_range", pair[1])
+    elif "valid_min" in attrs or "valid_max" in attrs:
+        lo = number("valid_min", attrs["valid_min"]) if "valid_min" in attrs else -np.inf
+        hi = number("valid_max", attrs["valid_max"]) if "valid_max" in attrs else np.inf
+    else:
+        return None
+    if lo > hi:
+        raise WeatherError(f"{where}: the valid range has min {lo:g} > max {hi:g}")
+    packing = da.encoding  # unpacked by xarray; packing attributes still in attrs mean values are still packed
+    scale = number("scale_factor", packing.get("scale_factor", 1.0)) if "scale_factor" not in attrs else 1.0
+    offset = number("add_offset", packing.get("add_offset", 0.0)) if "add_offset" not in attrs else 0.0
+    lo, hi = lo * scale + offset, hi * scale + offset
+    return (min(lo, hi), max(lo, hi))
 
 
 def _drop_extra_dims(
