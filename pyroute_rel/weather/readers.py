@@ -39,7 +39,15 @@ import numpy as np
 import numpy.typing as npt
 import xarray as xr
 
-from ..errors import ScenarioError, WeatherCoverageError, WeatherError, WeatherWarning, brief
+from ..errors import (
+    ScenarioError,
+    WeatherCoverageError,
+    WeatherError,
+    WeatherWarning,
+    brief,
+    check_instance,
+    check_numbers,
+)
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
 from .gridded import OUT_OF_RANGE, GriddedWeather, PreparedPoints, WeatherField, check_plausible
@@ -254,6 +262,8 @@ def weather_from_dataset(
     >>> round(float(c.tws_kn), 4), float(c.twd_deg), sorted(w.fields)
     (1.9438, 270.0, ['twd_deg', 'tws_kn'])
     """
+    check_instance(ds, xr.Dataset, "ds", WeatherError, expected="an xarray.Dataset")
+    check_instance(source, str, "source", WeatherError)
     return GriddedWeather(
         read_fields(
             [(source, [ds])],
@@ -386,26 +396,9 @@ def read_fields(
     Options as for :func:`open_weather`; ``margin_deg`` defaults to :data:`BBOX_MARGIN_DEG`. Fields that each have
     a single time come back without time (steady), with a :class:`~pyroute_rel.errors.WeatherWarning`.
     """
-    if out_of_range not in OUT_OF_RANGE:
-        raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {brief(out_of_range)})")
-    margin_deg = BBOX_MARGIN_DEG if margin_deg is None else margin_deg
-    variables = dict(variables or {})
-    for key, name in variables.items():
-        if key not in VARIABLES:
-            raise WeatherError(f"variables: field must be one of {list(VARIABLES)} (got {key!r})")
-        if not any(name in ds.data_vars for _, dss in files for ds in dss):
-            where = ", ".join(f"'{s}'" for s, _ in files)
-            raise WeatherError(f"variables[{key!r}] = {name!r}: no such variable in {where}")
-    box = _check_bbox(bbox)
-    window = None
-    if time_window is not None:
-        if isinstance(time_window, str) or len(time_window) != 2:
-            raise WeatherError(f"time_window must be a pair (first, last) (got {time_window!r})")
-        window = (to_datetime64(time_window[0], "time_window"), to_datetime64(time_window[1], "time_window"))
-        if window[1] < window[0]:
-            raise WeatherError(f"time_window must have first <= last (got {time_window!r})")
-    if not np.isfinite(margin_deg) or margin_deg < 0:
-        raise WeatherError(f"margin_deg must be a finite number >= 0 [deg] (got {margin_deg!r})")
+    variables, box, window, margin_deg = _check_options(
+        files, variables, bbox, time_window, member, margin_deg, out_of_range
+    )
     parts: dict[str, list[WeatherField]] = {}
     dropped: dict[str, list[str]] = {}
     used_member = False
@@ -443,6 +436,46 @@ def read_fields(
                 f"other ({v if u in merged else u}) was not found; name it with variables={{...}}"
             )
     return _steady_if_single_time(list(merged.values()))
+
+
+def _check_options(
+    files: list[tuple[str, list[xr.Dataset]]],
+    variables: Any,
+    bbox: Any,
+    time_window: Any,
+    member: Any,
+    margin_deg: Any,
+    out_of_range: Any,
+) -> tuple[dict[str, str], tuple[float, float, float, float] | None, tuple[np.datetime64, np.datetime64] | None, float]:
+    """The options of :func:`read_fields` checked -> (variables, box, time window, margin [deg])."""
+    if not isinstance(out_of_range, str) or out_of_range not in OUT_OF_RANGE:
+        raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {brief(out_of_range)})")
+    margin_deg = BBOX_MARGIN_DEG if margin_deg is None else margin_deg
+    margin = check_numbers(margin_deg, "margin_deg", WeatherError, missing=False, unit="deg")
+    if margin.shape != () or margin < 0:
+        raise WeatherError(f"margin_deg must be a finite number >= 0 [deg] (got {brief(margin_deg)})")
+    if variables is not None:
+        check_instance(variables, Mapping, "variables", WeatherError, expected='a dict {field: "file variable"}')
+    if member is not None and (isinstance(member, bool) or not isinstance(member, (int, np.integer)) or member < 0):
+        raise WeatherError(f"member must be an integer >= 0 (got {brief(member)})")
+    variables = dict(variables or {})
+    for key, name in variables.items():
+        if not isinstance(name, str):
+            raise WeatherError(f"variables[{brief(key)}] must be the name of a file variable (got {brief(name)})")
+        if key not in VARIABLES:
+            raise WeatherError(f"variables: field must be one of {list(VARIABLES)} (got {key!r})")
+        if not any(name in ds.data_vars for _, dss in files for ds in dss):
+            where = ", ".join(f"'{s}'" for s, _ in files)
+            raise WeatherError(f"variables[{key!r}] = {name!r}: no such variable in {where}")
+    box = _check_bbox(bbox)
+    window = None
+    if time_window is not None:
+        if not isinstance(time_window, (list, tuple, np.ndarray)) or len(time_window) != 2:
+            raise WeatherError(f"time_window must be a pair (first, last) (got {brief(time_window)})")
+        window = (to_datetime64(time_window[0], "time_window"), to_datetime64(time_window[1], "time_window"))
+        if window[1] < window[0]:
+            raise WeatherError(f"time_window must have first <= last (got {brief(time_window)})")
+    return variables, box, window, float(margin)
 
 
 def _steady_if_single_time(fields: list[WeatherField]) -> list[WeatherField]:
@@ -851,7 +884,7 @@ def _check_bbox(bbox: Sequence[float] | None) -> tuple[float, float, float, floa
     try:
         west, south, east, north = (float(v) for v in bbox)
     except (TypeError, ValueError):
-        raise WeatherError(f"bbox must be (west, south, east, north) [deg] (got {bbox!r})") from None
+        raise WeatherError(f"bbox must be (west, south, east, north) [deg] (got {brief(bbox)})") from None
     if not all(np.isfinite((west, south, east, north))) or not -90.0 <= south <= north <= 90.0:
         raise WeatherError(f"bbox must be finite (west, south, east, north) with south <= north [deg] (got {bbox!r})")
     if east < west:

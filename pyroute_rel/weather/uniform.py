@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ScenarioError, brief
-from .base import FIELDS, Conditions
+from .base import FIELDS, Conditions, sample_points
 
 __all__ = ["Patch", "PreparedUniform", "UniformWeather"]
 
@@ -42,6 +42,8 @@ class Patch:
     name: str = ""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise ScenarioError(f"Patch.name must be a string (got {brief(self.name)})")
         where = f"Patch {self.name!r}" if self.name else "Patch"
         object.__setattr__(self, "lon", _range(self.lon, f"{where}.lon", -180.0, 180.0))
         object.__setattr__(self, "lat", _range(self.lat, f"{where}.lat", -90.0, 90.0))
@@ -144,10 +146,8 @@ class UniformWeather:
         lat_deg : Latitudes [deg].
         time : Times (``datetime64``, UTC); only their shape counts (broadcast with the points).
         """
-        lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
-        shape = np.broadcast_shapes(lon.shape, np.shape(time))
-        lon = np.broadcast_to(lon, shape)
-        lat = np.broadcast_to(lat, shape)
+        lon, lat, _ = sample_points(lon_deg, lat_deg, time)
+        shape = lon.shape
         out = {name: np.full(shape, float(getattr(self, name))) for name in FIELDS}
         for patch in self.patches:
             inside = patch.contains(lon, lat)
