@@ -58,6 +58,8 @@ def show(value: object) -> str:
 def brief(value: object, limit: int = 60) -> str:
     """``repr(value)`` cut to ``limit`` characters, for one-line messages about user values."""
     r = repr(value)
+    if "\n" in r:  # numpy arrays, long containers: one line
+        r = " ".join(r.split())
     return r if len(r) <= limit else r[: limit - 3] + "..."
 
 

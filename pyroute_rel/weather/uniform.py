@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ScenarioError, brief
+from ..errors import ScenarioError, WeatherError, brief
 from .base import FIELDS, Conditions, sample_points
 
 __all__ = ["Patch", "PreparedUniform", "UniformWeather"]
@@ -146,8 +146,15 @@ class UniformWeather:
         lat_deg : Latitudes [deg].
         time : Times (``datetime64``, UTC); only their shape counts (broadcast with the points).
         """
-        lon, lat, _ = sample_points(lon_deg, lat_deg, time)
-        shape = lon.shape
+        lon, lat, _ = sample_points(lon_deg, lat_deg, np.datetime64(0, "s"))  # time is ignored, but for its shape
+        try:
+            shape = np.broadcast_shapes(lon.shape, np.shape(time))
+        except ValueError:
+            raise WeatherError(
+                f"time must broadcast with the points (got shapes {np.shape(time)}, {lon.shape})"
+            ) from None
+        lon = np.broadcast_to(lon, shape)
+        lat = np.broadcast_to(lat, shape)
         out = {name: np.full(shape, float(getattr(self, name))) for name in FIELDS}
         for patch in self.patches:
             inside = patch.contains(lon, lat)
