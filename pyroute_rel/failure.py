@@ -695,8 +695,18 @@ def _parse_spec(doc: dict[str, Any], label: str, *, default_name: str) -> dict[s
         raise FailureModelError(f"{label}: 'network': {exc}") from None
     if not isinstance(spec["description"], str):
         raise FailureModelError(f"{label}: 'description' must be a string (got {spec['description']!r})")
+    seen: set[str] = set()
     for i, raw in enumerate(crits):
-        spec["criteria"].append(_parse_criterion(raw, f"{label}: criteria[{i}]"))
+        c = _parse_criterion(raw, f"{label}: criteria[{i}]")
+        # before the network is read (reading it may import pgmpy, seconds): what the TOML alone shows wrong
+        if c["node"] in seen:
+            raise FailureModelError(f"{c['where']}: node {c['node']!r} is set by two criteria")
+        if c["node"] == spec["target"]["node"]:
+            raise FailureModelError(
+                f"{c['where']}: node {c['node']!r} is the target; a criterion must set another node"
+            )
+        seen.add(c["node"])
+        spec["criteria"].append(c)
     return spec
 
 

@@ -586,6 +586,10 @@ def plan_grid(
         raise GridError(f"n_nodes must be a whole number (got {brief(n_nodes)})")  # checked even where unused
     if n_nodes is not None and n_nodes < 1:
         raise GridError(f"n_nodes must be a whole number >= 1 (got {n_nodes})")
+    if aspect is not None and not (_real(aspect) and math.isfinite(aspect) and 0.01 <= aspect <= 1000.0):
+        raise GridError(f"aspect (rank spacing / lateral spacing) must be in [0.01, 1000] (got {brief(aspect)})")
+    if half_width_km is not None and not (_real(half_width_km) and math.isfinite(half_width_km) and half_width_km >= 0):
+        raise GridError(f"half_width_km must be a non-negative number of km (got {brief(half_width_km)})")
     _checked_point(start, "start")  # before the angular layout measures the route with them
     _checked_point(finish, "finish")
     if layout == "square":
