@@ -64,7 +64,12 @@ def brief(value: object, limit: int = 60) -> str:
 
 
 class PyrouteError(Exception):
-    """Base class of every error pyroute_rel raises on purpose."""
+    """Base class of every error pyroute_rel raises on purpose. Its message is one line: a value quoted in it whose
+    ``repr`` spans lines (a numpy array) is joined onto one, as the command line prints it."""
+
+    def __str__(self) -> str:
+        text = super().__str__()
+        return " ".join(text.split()) if "\n" in text or "\r" in text else text
 
 
 class ScenarioError(PyrouteError, ValueError):

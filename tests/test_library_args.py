@@ -277,6 +277,11 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
     # ---- weather
     "UniformWeather tws None": (lambda: pr.UniformWeather(tws_kn=None, twd_deg=0.0), ScenarioError, ("tws_kn",)),
     "UniformWeather tws NaN": (lambda: pr.UniformWeather(tws_kn=NAN, twd_deg=0.0), ScenarioError, ("tws_kn",)),
+    "UniformWeather tws a 2-D array (message on one line)": (
+        lambda: pr.UniformWeather(tws_kn=np.zeros((3, 2)), twd_deg=0.0),
+        ScenarioError,
+        ("tws_kn must be a number", "array([[0., 0.], [0., 0.], [0., 0.]])"),
+    ),
     "UniformWeather hs negative": (
         lambda: pr.UniformWeather(tws_kn=5.0, twd_deg=0.0, hs_m=-1.0),
         ScenarioError,
@@ -407,6 +412,11 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
     "make_grid n_nodes 2.5": (lambda: pr.make_grid((0, 0), (1, 1), n_ranks=3, n_nodes=2.5), GridError, ("n_nodes",)),
     "make_grid start None": (lambda: pr.make_grid(None, (1, 1), n_ranks=3, n_nodes=3), GridError, ("start",)),
     "make_grid start NaN": (lambda: pr.make_grid((NAN, 0), (1, 1), n_ranks=3, n_nodes=3), GridError, ("start",)),
+    "make_grid start a 2-D array": (
+        lambda: pr.make_grid(np.zeros((2, 2)), (1, 1), n_ranks=3, n_nodes=3),
+        GridError,
+        ("start must be a pair", "array([[0., 0.], [0., 0.]])"),
+    ),
     "make_grid start == finish": (
         lambda: pr.make_grid((1, 1), (1, 1), n_ranks=3, n_nodes=3),
         GridError,
