@@ -43,7 +43,7 @@ __all__ = ["plot_route", "plot_routes", "failure_field", "new_figure", "map_mesh
 
 _COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
 #: Points of the mesh the failure model and the weather are evaluated on, along the longer side of the map.
-MESH_POINTS = 240
+MESH_POINTS = 200
 #: Wind barbs along the longer side of the map.
 _BARBS = 18
 _START_STYLE: dict[str, Any] = {"color": "tab:green", "lw": 3.0, "solid_capstyle": "butt"}
@@ -215,8 +215,9 @@ def risk_levels(field: RiskField, *, max_shades: int = 4) -> list[tuple[int, int
 
 #: Lightest and darkest fill of each class (class 0, allowed, is left unshaded); hatches when the weather is drawn in
 #: colour underneath.
-_RISK_FILL = {2: ("#f6a5a5", "#b3001b"), 1: ("#fde3a7", "#f08c00"), -1: ("0.75", "0.75")}
+_RISK_FILL = {2: ("#f6a5a5", "#b3001b"), 1: ("#fff1a8", "#f2bf00"), -1: ("0.75", "0.75")}
 _RISK_HATCH = {2: "x", 1: "/", -1: "."}
+_RISK_HATCH_COLOUR = {2: "#b3001b", 1: "#d98200", -1: "0.45"}
 
 
 def _draw_risk(ax: Axes, field: RiskField, *, hatched: bool) -> list[Artist]:
@@ -228,7 +229,8 @@ def _draw_risk(ax: Axes, field: RiskField, *, hatched: bool) -> list[Artist]:
     for cls, k, n, mask, label in risk_levels(field):
         light, dark = (np.array(to_rgb(c)) for c in _RISK_FILL[cls])
         colour = tuple(light + (dark - light) * (k / (n - 1) if n > 1 else 1.0))
-        if hatched:
+        if hatched:  # over the wave heights' colours: strong hatch colours, denser for higher p_f
+            colour = _RISK_HATCH_COLOUR[cls]
             hatch = _RISK_HATCH[cls] * (2 + k)
             style: dict[str, Any] = {"colors": ["none"], "hatches": [hatch], "hatchcolor": colour}
             handle = Patch(facecolor="none", edgecolor=colour, hatch=hatch, label=label)
@@ -420,6 +422,8 @@ def plot_routes(
     matplotlib.figure.Figure
         On its own Agg canvas (:func:`new_figure`): ``fig.savefig`` works, and nothing needs closing.
     """
+    from matplotlib.lines import Line2D
+
     grids = routes[0].grids
     view = _unwrap(grids[0].start[0])  # continuous longitudes across the antimeridian
     shaded = routes[shade] if shade is not None else None
@@ -447,11 +451,15 @@ def plot_routes(
     _frame(ax, limits)
     ax.grid(True, lw=0.3)
     lines, names = ax.get_legend_handles_labels()
+    finish = [ln for ln in ax.get_lines() if ln.get_gid() == "finish line"]
+    if finish:  # the legend's finish line chequered like the map's: black under white dashes
+        dashes = Line2D([], [], color="w", lw=1.6, ls=(0, (2, 2)))
+        lines = [(h, dashes) if n == "finish line" else h for h, n in zip(lines, names, strict=True)]
     ax.legend([*lines, *handles], [*names, *(h.get_label() for h in handles)], fontsize=6.5, loc="best")
     ax.set_title(title or f"{grids[0].n_ranks} ranks x {grids[0].n_nodes} nodes", fontsize=10)
     if shaded is not None:
         fig.text(0.01, 0.01, _caption(shaded, labels[shade or 0], weather), fontsize=6.5, color="0.3", va="bottom")
-    fig.tight_layout(rect=(0.0, 0.035, 1.0, 1.0))
+    fig.subplots_adjust(left=0.07, right=0.97, bottom=0.1, top=0.95)  # fixed margins: no layout pass (a draw)
     if path is not None:
         from .files import atomic_write
 
