@@ -443,3 +443,19 @@ def test_probabilities_keep_their_digits() -> None:
 
     check()
     assert [format_probability(p) for p in (0.001, 0.0, 1.0, 0.95)] == ["0.001", "0", "1", "0.95"]
+
+
+@pytest.mark.slow
+def test_a_small_probability_keeps_its_digits_on_the_map(tmp_path) -> None:
+    from test_reliability import straight, write_model
+
+    from pyroute_rel.plot import plot_route
+
+    route = straight(write_model(tmp_path, p=0.001), 20, patch_lon=[-12.0, -8.0])
+    assert route.max_failure_probability == pytest.approx(0.001, rel=1e-12)
+    ax = plot_route(route).axes[0]
+    assert "max p_f 0.001," in ax.get_title()  # was "max p_f 0.00"
+    voyage = float(ax.get_title().split("voyage p_f ")[1])
+    assert voyage == pytest.approx(route.voyage_failure_probability, rel=0.05) and voyage > 0.0
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "criteria fire, allowed: p_f 0.001 <= apf 1" in legend
