@@ -459,3 +459,31 @@ def test_a_small_probability_keeps_its_digits_on_the_map(tmp_path) -> None:
     assert voyage == pytest.approx(route.voyage_failure_probability, rel=0.05) and voyage > 0.0
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     assert "criteria fire, allowed: p_f 0.001 <= apf 1" in legend
+
+
+@pytest.mark.slow
+def test_in_a_current_the_shading_uses_the_heading_the_craft_steers() -> None:
+    """West along the equator with 0.5 m/s of current to the north (as in test_reliability): the craft heads south
+    of west to hold its course; waves from 208 deg are 62 deg off the course (WD would not fire) but within 60 deg of
+    the heading, so the map shades WD (p_f 0.9) along the track, as the router's costs say leg by leg."""
+    from pyroute_rel.risk import route_risk_field
+    from pyroute_rel.scenario import scenario_from_mapping
+
+    route = scenario_from_mapping(
+        {
+            "route": {"start": [0.0, 0.0], "finish": [-10.0, 0.0]},
+            "grid": {"n_ranks": 10},
+            "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0, "hs_m": 1.0, "wave_dir_deg": 208.0,
+                        "current_u_ms": 0.0, "current_v_ms": 0.5},
+            "avoid": {"land": False},
+            "failure": {"model": "dickson2018", "apf": 1.0},
+        }
+    ).route()  # fmt: skip
+    assert np.all(route.legs.p_f == 0.9)
+    lon, lat = np.meshgrid(np.linspace(-9.5, -0.5, 10), [-0.2, 0.0, 0.2])
+    field = route_risk_field(route, lon, lat)
+    assert np.all(_dickson(1.0, 208.0, field.course_deg)[0] == 0.0)  # on the course alone WD would not fire
+    south_of_course = (field.course_deg - field.heading_deg + 180.0) % 360.0 - 180.0
+    assert np.all((south_of_course > 5.0) & (south_of_course < 20.0))
+    np.testing.assert_array_equal(field.p_f, 0.9)
+    np.testing.assert_array_equal(field.risk_class, 1)
