@@ -4,7 +4,8 @@ What a route's map shows
 ------------------------
 - **The failure model, in three classes against the route's apf** (:func:`~pyroute_rel.risk.route_risk_field`):
   forbidden (``p_f > apf``: the router forbids arcs there, red), criteria fire but allowed (``p_f <= apf``,
-  amber), allowed (no criterion fires, unshaded); the legend gives the p_f values of each class. Criteria such as the
+  yellow), allowed (no criterion fires, unshaded), darker for higher p_f; the legend gives the p_f values of each
+  class (:func:`risk_levels`). Over wave-height colours the classes are hatched instead. Criteria such as the
   apparent wave direction depend on the heading, and time-varying weather on the time, so each point is evaluated
   as the route would meet it: with the course the route sails where it passes nearest (the heading that holds it
   in a current) and with the weather at the time it passes there. Along the track this is exactly what the router
@@ -265,6 +266,8 @@ def _draw_weather(ax: Axes, fig: Figure, field: RiskField) -> None:
     ok = np.isfinite(tws) & np.isfinite(to)
     # the wind's velocity (blowing to): matplotlib draws the barb's shaft towards where it comes from
     u, v = -tws * np.sin(to), -tws * np.cos(to)
+    if not ok.any():
+        return
     barbs = ax.barbs(
         field.lon_deg[sel][ok],
         field.lat_deg[sel][ok],
@@ -408,8 +411,9 @@ def plot_routes(
     ----------
     routes : The routes; the first one's grids give the extents, lines and waypoints.
     labels : Legend label of each route (default ``route 1``, ``route 2``, ...).
-    weather : The weather to draw: a uniform weather's patches, or (weather varying in space) wave height and wind
-        at the times the shaded route passes (default: the shaded route's weather).
+    weather : The weather whose patches are drawn (a uniform weather's; default: the shaded route's). When the shaded
+        route's own weather varies in space (a file), its wave height and wind are drawn, at the times that route
+        passes.
     zones : Exclusion zones (:class:`~pyroute_rel.obstacles.zones.Zone` or shapely geometries [deg]).
     shade : Index of the route whose failure model, apf, headings and times the shading and the weather follow
         (:func:`~pyroute_rel.risk.route_risk_field`; see the module notes); None draws neither.
@@ -434,7 +438,7 @@ def plot_routes(
     handles: list[Artist] = []
     if shaded is not None:
         field = route_risk_field(shaded, *map_mesh(limits))
-        varying = weather is not None and not isinstance(weather, UniformWeather)
+        varying = not isinstance(shaded.weather, UniformWeather)
         if varying:
             _draw_weather(ax, fig, field)
         if shaded.failure is not None:
@@ -458,7 +462,7 @@ def plot_routes(
     ax.legend([*lines, *handles], [*names, *(h.get_label() for h in handles)], fontsize=6.5, loc="best")
     ax.set_title(title or f"{grids[0].n_ranks} ranks x {grids[0].n_nodes} nodes", fontsize=10)
     if shaded is not None:
-        fig.text(0.01, 0.01, _caption(shaded, labels[shade or 0], weather), fontsize=6.5, color="0.3", va="bottom")
+        fig.text(0.01, 0.01, _caption(shaded, labels[shade or 0]), fontsize=6.5, color="0.3", va="bottom")
     fig.subplots_adjust(left=0.07, right=0.97, bottom=0.1, top=0.95)  # fixed margins: no layout pass (a draw)
     if path is not None:
         from .files import atomic_write
@@ -467,7 +471,7 @@ def plot_routes(
     return fig
 
 
-def _caption(route: Route, label: str, weather: WeatherSource | None) -> str:
+def _caption(route: Route, label: str) -> str:
     """What the shading and the weather drawn are: for which route, heading and time."""
     lines = []
     if route.failure is not None:
@@ -475,7 +479,7 @@ def _caption(route: Route, label: str, weather: WeatherSource | None) -> str:
             f"Shading: failure model '{route.failure.name}' against apf {format_probability(route.problem.apf)} of "
             f"{label!r}, for the course it sails where it passes nearest each point, in the weather when it passes."
         )
-    if weather is not None and not isinstance(weather, UniformWeather):
+    if not isinstance(route.weather, UniformWeather):
         lines.append(
             "Wind barbs [kn] point where the wind comes from (half barb 5 kn, barb 10 kn, pennant 50 kn); wave height "
             "and wind at the time the route passes nearest."

@@ -1,4 +1,5 @@
-"""What a route map shades: the failure model's probability and fired criteria over an area.
+"""What a route map shades: the failure model's probability, fired criteria and class against apf over an area,
+for the heading and time of the route where it passes nearest (:func:`route_risk_field`).
 
 The maps of :mod:`pyroute_rel.plot` only draw; the physics they show (weather sampled on a mesh, the quantities the
 failure model reads, its probability) is computed here, from the same functions the router costs arcs with
@@ -55,7 +56,11 @@ def continuous_lon_deg(lon_deg: npt.ArrayLike, ref_deg: float) -> FloatArray:
 def failure_field(
     grid: Grid, weather: WeatherSource, failure: FailureModel, *, time: Any = None, n: int = 200
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Failure probability and fired-criteria count on a lon/lat mesh covering the grid.
+    """Failure probability and fired-criteria count on a lon/lat mesh covering the grid, for a craft heading
+    towards the finish.
+
+    The maps use :func:`route_risk_field` instead: criteria that depend on the heading fire here for a heading no
+    route may sail (south of the finish, heading north), and time-varying weather is read at one time.
 
     Parameters
     ----------
