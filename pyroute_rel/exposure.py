@@ -180,44 +180,47 @@ def arc_exposure(
 
 @dataclass(frozen=True)
 class _SubArcs:
-    """Arcs cut into sub-arcs of at most ``step_km``: each sub-arc's arc, its fractions ``f0, f1`` along the arc and
-    its end points [deg]."""
+    """Arcs (end points ``a0, b0 -> a1, b1`` [deg]) cut into sub-arcs of at most ``step_km``: each sub-arc's arc
+    ``leg`` and its fractions ``f0, f1`` along it; ``first`` the first sub-arc of each arc."""
 
+    a0: FloatArray
+    b0: FloatArray
+    a1: FloatArray
+    b1: FloatArray
     leg: npt.NDArray[np.intp]
     first: npt.NDArray[np.intp]
-    per_leg: npt.NDArray[np.intp]
     f0: FloatArray
     f1: FloatArray
-    lon0: FloatArray
-    lat0: FloatArray
-    lon1: FloatArray
-    lat1: FloatArray
 
     @classmethod
     def cut(cls, a0: FloatArray, b0: FloatArray, a1: FloatArray, b1: FloatArray, step_km: float) -> _SubArcs:
-        d_km = geodesy.distance_km(a0, b0, a1, b1)
-        per_leg = np.maximum(1, np.ceil(d_km / step_km)).astype(np.intp)
+        per_leg = np.maximum(1, np.ceil(geodesy.distance_km(a0, b0, a1, b1) / step_km)).astype(np.intp)
         leg = np.repeat(np.arange(a0.size), per_leg)
         first = np.concatenate([[0], np.cumsum(per_leg)[:-1]]).astype(np.intp)
         j = np.arange(leg.size) - first[leg]
-        f0, f1 = j / per_leg[leg], (j + 1) / per_leg[leg]
-        a, b, c, d = a0[leg], b0[leg], a1[leg], b1[leg]
-        lon0, lat0 = geodesy.intermediate_point(a, b, c, d, f0)
-        lon1, lat1 = geodesy.intermediate_point(a, b, c, d, f1)
-        lon0, lat0 = np.where(j == 0, a, lon0), np.where(j == 0, b, lat0)  # the legs' own end points, exactly
-        last = j == per_leg[leg] - 1
-        lon1, lat1 = np.where(last, c, lon1), np.where(last, d, lat1)
-        return cls(leg, first, per_leg, f0, f1, lon0, lat0, lon1, lat1)
+        return cls(a0, b0, a1, b1, leg, first, j / per_leg[leg], (j + 1) / per_leg[leg])
+
+    def ends(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The sub-arcs' end points [deg] (the arcs' own end points exactly at their ends)."""
+        leg = self.leg
+        a, b, c, d = self.a0[leg], self.b0[leg], self.a1[leg], self.b1[leg]
+        lon0, lat0 = geodesy.intermediate_point(a, b, c, d, self.f0)
+        lon1, lat1 = geodesy.intermediate_point(a, b, c, d, self.f1)
+        start, last = self.f0 == 0.0, self.f1 == 1.0
+        return np.where(start, a, lon0), np.where(start, b, lat0), np.where(last, c, lon1), np.where(last, d, lat1)
 
     def conditions(
         self, problem: RoutingProblem, t_mid_h: npt.ArrayLike
     ) -> tuple[FloatArray, npt.NDArray[np.bool_] | None, npt.NDArray[np.bool_]]:
-        """``p_f`` at each sub-arc's midpoint for the heading steered there, at ``t_mid_h`` [h] (NaN where the
-        weather is missing), where it is unknown, and which criteria fire (shape ``(n_criteria, n_sub_arcs)``)."""
+        """``p_f`` at each sub-arc's midpoint (half-way between its fractions along the arc) for the heading steered
+        there to hold the arc's great circle, at ``t_mid_h`` [h] (NaN where the weather is missing), where it is
+        unknown, and which criteria fire (shape ``(n_criteria, n_sub_arcs)``)."""
         model = problem.failure
         assert model is not None
-        mlon, mlat = geodesy.intermediate_point(self.lon0, self.lat0, self.lon1, self.lat1, 0.5)
-        course = geodesy.initial_bearing_deg(mlon, mlat, self.lon1, self.lat1)
+        leg = self.leg
+        c, d = self.a1[leg], self.b1[leg]
+        mlon, mlat = geodesy.intermediate_point(self.a0[leg], self.b0[leg], c, d, 0.5 * (self.f0 + self.f1))
+        course = geodesy.initial_bearing_deg(mlon, mlat, c, d)
         cond = problem.weather_at(mlon, mlat, t_mid_h)
         q = arc_quantities(cond, _heading(problem, cond, course), model.quantities)
         index, unknown = model.evidence_index(q)  # the cost function's gather (p_fail would also check ranges)
@@ -265,11 +268,12 @@ def _sub_arc_exposure(
     start = start_leg[leg]
     share = (f1 - f0) * t_leg[leg]  # the leg's time shared by length, a first guess (and where a sub-arc has none)
     t0 = start + f0 * t_leg[leg]
-    dt = _scaled(timing.costs(sub.lon0, sub.lat0, sub.lon1, sub.lat1, t0).time_h, share, leg, t_leg)
+    ends = sub.ends()
+    dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
     if not problem.weather.steady:  # again, each sub-arc leaving when the craft gets there
         before = np.cumsum(dt) - dt  # time sailed before each sub-arc, from the first arc's start
         t0 = start + before - before[sub.first][leg]
-        dt = _scaled(timing.costs(sub.lon0, sub.lat0, sub.lon1, sub.lat1, t0).time_h, share, leg, t_leg)
+        dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
     p, unknown, fired = sub.conditions(problem, t0 + 0.5 * dt)
     if unknown is not None:  # missing weather at a sub-arc's midpoint: the leg's p_f as the router costed it
         p = np.where(unknown, p_leg[leg], p)
