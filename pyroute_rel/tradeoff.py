@@ -111,6 +111,7 @@ class FrontPoint:
             "voyage_time_h": self.voyage_time_h,
             "max_failure_probability": self.max_failure_probability,
             "voyage_failure_probability": self.voyage_failure_probability,
+            "hazard": self.hazard,
             "distance_nm": self.distance_nm,
             "apf": self.apf,
             "track": [[float(lo), float(la)] for lo, la in zip(self.route.lon_deg, self.route.lat_deg, strict=True)],
