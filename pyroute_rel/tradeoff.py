@@ -162,8 +162,8 @@ def _point(route: Route, apf: float | None = None) -> FrontPoint:
     return FrontPoint(
         voyage_time_h=route.voyage_time_h,
         max_failure_probability=route.max_failure_probability,
-        voyage_failure_probability=route.voyage_failure_probability,
-        hazard=h,
+        voyage_failure_probability=route.voyage_failure_probability + 0.0,  # never -0.0
+        hazard=h + 0.0,
         distance_nm=route.distance_nm,
         route=route,
         apf=apf,
@@ -285,7 +285,7 @@ def voyage_front(grid: Grid, problem: RoutingProblem, *, max_labels: int = MAX_L
     points = []
     for i in range(labels.node.size):  # the finish's labels: the front, fastest first
         route = _label_route(grid, problem, history, i)
-        points.append(replace(_point(route), hazard=float(labels.h[i])))
+        points.append(replace(_point(route), hazard=float(labels.h[i]) + 0.0))
     return Front(
         kind="voyage",
         points=tuple(points),

@@ -129,12 +129,11 @@ def _text(doc: dict[str, Any], out: str | None) -> str:
     ]
     if doc["labels"]["max"] is not None:
         lines[0] += f", labels per node: mean {doc['labels']['mean']:.1f}, max {doc['labels']['max']}"
-    lines.append(f"{'time [h]':>10} {'max p_f':>8} {'voyage p_f':>10} {'distance [nm]':>13}")
+    lines.append(f"{'time [h]':>10} {'max p_f':>8} {'voyage p_f':>10} {'hazard':>8} {'distance [nm]':>13}")
     for p in doc["front"]:
-        dist = p.get("distance_nm", float("nan"))
         lines.append(
             f"{p['voyage_time_h']:10.2f} {p['max_failure_probability']:8.3g} "
-            f"{p['voyage_failure_probability']:10.3g} {dist:13.1f}"
+            f"{p['voyage_failure_probability']:10.4f} {p['hazard']:8.3g} {p['distance_nm']:13.1f}"
         )
     if doc["sensitivity"]:
         lines.append(f"sensitivity at apf {doc['apf']:g}:")
