@@ -204,10 +204,25 @@ class _SubArcs:
         """The sub-arcs' end points [deg] (the arcs' own end points exactly at their ends)."""
         leg = self.leg
         a, b, c, d = self.a0[leg], self.b0[leg], self.a1[leg], self.b1[leg]
-        lon0, lat0 = geodesy.intermediate_point(a, b, c, d, self.f0)
-        lon1, lat1 = geodesy.intermediate_point(a, b, c, d, self.f1)
+        lon0, lat0 = self.along(self.f0)
+        lon1, lat1 = self.along(self.f1)
         start, last = self.f0 == 0.0, self.f1 == 1.0
         return np.where(start, a, lon0), np.where(start, b, lat0), np.where(last, c, lon1), np.where(last, d, lat1)
+
+    def along(self, fraction: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Points [deg] at ``fraction`` (one per sub-arc) along each sub-arc's arc. The arcs' sub-arcs are laid out
+        in rows (padded with NaN) so that each arc's end points are converted once, when the padding is small; the
+        points are the same either way."""
+        n_arcs, leg = self.a0.size, self.leg
+        width = int(np.max(np.bincount(leg, minlength=n_arcs))) if leg.size else 0
+        if n_arcs * width > 2 * leg.size:  # arcs of very different lengths: one point at a time
+            return geodesy.intermediate_point(self.a0[leg], self.b0[leg], self.a1[leg], self.b1[leg], fraction)
+        col = np.arange(leg.size) - self.first[leg]
+        rows = np.full((n_arcs, width), np.nan)
+        rows[leg, col] = fraction
+        ends = (x[:, None] for x in (self.a0, self.b0, self.a1, self.b1))
+        lon, lat = geodesy.intermediate_point(*ends, rows)
+        return lon[leg, col], lat[leg, col]
 
     def conditions(
         self, problem: RoutingProblem, t_mid_h: npt.ArrayLike
@@ -219,7 +234,7 @@ class _SubArcs:
         assert model is not None
         leg = self.leg
         c, d = self.a1[leg], self.b1[leg]
-        mlon, mlat = geodesy.intermediate_point(self.a0[leg], self.b0[leg], c, d, 0.5 * (self.f0 + self.f1))
+        mlon, mlat = self.along(0.5 * (self.f0 + self.f1))
         course = geodesy.initial_bearing_deg(mlon, mlat, c, d)
         cond = problem.weather_at(mlon, mlat, t_mid_h)
         q = arc_quantities(cond, _heading(problem, cond, course), model.quantities)
