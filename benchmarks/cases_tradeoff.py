@@ -8,7 +8,7 @@ Claims under test, on the control course (``examples/microtransat_control.toml``
 "One route" is the scenario's route on a fresh grid, first in its process after loading (arc geometry computed); each
 front is computed on another fresh grid of the same size, so neither profits from the other's cache. The voyage case
 records a refusal at the label cap (``LabelLimitError``) as a failed target, with the rank it stopped at and the time
-it took to get there. ``*_40`` repeats both on a 40-rank grid, where the voyage front completes.
+it took to get there (it needs 711 labels at one node: ``*_1024`` allows them). ``*_40`` repeats both on a 40-rank grid, where the voyage front completes.
 """
 
 from __future__ import annotations
@@ -55,6 +55,11 @@ CASES = {
         _CODE.format(path=str(EXAMPLE), extra="", kind="voyage", kw=", max_labels=512", target=10.0),
         None,
         "voyage front of the control course, default grid, 512 labels per node (issue 20: under 10x one route)",
+    ),
+    "tradeoff_voyage_control_1024": (
+        _CODE.format(path=str(EXAMPLE), extra="", kind="voyage", kw=", max_labels=1024", target=10.0),
+        None,
+        "voyage front of the control course, default grid, 1024 labels per node (it needs 711 at most)",
     ),
     "tradeoff_bottleneck_control_40": (
         _CODE.format(path=str(EXAMPLE), extra=", n_ranks=40", kind="bottleneck", kw="", target=5.0),

@@ -168,7 +168,7 @@ def on_or_dominated(front: Front, objective: str, t: float, x: float) -> bool:
     )
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(st.integers(0, 6), st.integers(0, 6)), min_size=1, max_size=30))
 def test_pareto_indices_keep_exactly_the_nondominated_points_sorted(pairs: list[tuple[int, int]]) -> None:
     a, b = (np.array(v, dtype=float) for v in zip(*pairs, strict=True))
@@ -176,6 +176,10 @@ def test_pareto_indices_keep_exactly_the_nondominated_points_sorted(pairs: list[
     assert [(a[i], b[i]) for i in idx] == nondominated(a, b)
 
 
+SEEDS = [0, *(pytest.param(s, marks=pytest.mark.slow) for s in (1, 2, 3))]
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_voyage_front_equals_every_path_enumerated_on_steady_weather(seed: int) -> None:
     sc = small(seed)
@@ -195,7 +199,7 @@ def test_voyage_front_equals_every_path_enumerated_on_steady_weather(seed: int) 
     assert 1 <= front.labels_mean <= front.labels_max  # type: ignore[operator]
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+@pytest.mark.parametrize("seed", SEEDS)
 def test_bottleneck_front_equals_every_path_and_dominates_every_single_apf_route(seed: int) -> None:
     sc = small(seed)
     grid = sc.make_grid()
@@ -212,6 +216,7 @@ def test_bottleneck_front_equals_every_path_and_dominates_every_single_apf_route
         assert on_or_dominated(front, "max_failure_probability", r.voyage_time_h, r.max_failure_probability)
 
 
+@pytest.mark.slow
 def test_voyage_front_is_exact_over_fifo_time_varying_weather() -> None:
     """A storm (4 m -> 5 m waves, WH fires) grows over a box from hour 30: leaving an arc later never arrives
     earlier (the wind is steady) nor meets less hazard, so dropping dominated labels loses nothing."""
@@ -252,6 +257,7 @@ def test_without_removes_a_criterion_from_the_table() -> None:
         m.without("XX")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("apf", [0.2, 0.5, 0.95])
 def test_sensitivity_hours_are_the_difference_of_two_routes_run_separately(apf: float) -> None:
     sc = load_scenario(CONTROL).with_options(n_ranks=24, apf=apf)
@@ -270,6 +276,7 @@ def test_sensitivity_hours_are_the_difference_of_two_routes_run_separately(apf: 
         assert np.all(row.bound_legs[which == i])
 
 
+@pytest.mark.slow
 def test_control_course_bottleneck_front_dominates_each_route_apf() -> None:
     sc = load_scenario(CONTROL).with_options(n_ranks=40)
     grid = sc.make_grid()
@@ -327,6 +334,7 @@ def cli(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "pyroute_rel", *args], capture_output=True, text=True, cwd=ROOT)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["bottleneck", "voyage"])
 def test_cli_json_contract_and_files(tmp_path: Path, kind: str) -> None:
     out = tmp_path / "out"
@@ -346,6 +354,7 @@ def test_cli_json_contract_and_files(tmp_path: Path, kind: str) -> None:
     assert json.loads((out / "tradeoff.json").read_text())["front"] == doc["front"]
 
 
+@pytest.mark.slow
 def test_cli_refuses_a_bad_cap_with_exit_2(tmp_path: Path) -> None:
     run = cli("tradeoff", str(small_toml(tmp_path)), "--front", "voyage", "--max-labels", "1", "--quiet")
     assert run.returncode == 2
