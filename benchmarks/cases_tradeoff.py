@@ -8,7 +8,8 @@ Claims under test, on the control course (``examples/microtransat_control.toml``
 "One route" is the scenario's route on a fresh grid, first in its process after loading (arc geometry computed); each
 front is computed on another fresh grid of the same size, so neither profits from the other's cache. The voyage case
 records a refusal at the label cap (``LabelLimitError``) as a failed target, with the rank it stopped at and the time
-it took to get there (it needs 711 labels at one node: ``*_1024`` allows them). ``*_40`` repeats both on a 40-rank grid, where the voyage front completes.
+it took to get there (it needs 711 labels at one node: ``*_1024`` allows them). ``*_40`` repeats both on a 40-rank
+grid, where the voyage front completes.
 """
 
 from __future__ import annotations
