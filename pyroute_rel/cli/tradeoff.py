@@ -112,7 +112,9 @@ def _figures(result: dict[str, Any], kind: str) -> dict[str, Any]:
     from ..tradeoff import bounding_criterion
 
     key, _ = OBJECTIVE[kind]
-    marked = [(f"route at apf {p.apf:.3g}", p.voyage_time_h, getattr(p, key)) for p in result["bottleneck"].points]
+    marked = [
+        (f"route at apf {p.apf:.3g}", p.voyage_time_h, getattr(p, key), p.hazard) for p in result["bottleneck"].points
+    ]
     route, rows = result["route"], result["rows"]
     return {
         "front.png": front_figure(result[kind], marked),

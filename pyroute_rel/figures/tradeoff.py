@@ -39,25 +39,41 @@ def _figure(width: float, height: float) -> Figure:
     return fig
 
 
-def front_figure(front: Front, marked: Sequence[tuple[str, float, float]] = (), *, title: str | None = None) -> Figure:
+def front_figure(
+    front: Front, marked: Sequence[tuple[str, float, float, float]] = (), *, title: str | None = None
+) -> Figure:
     """The front: voyage time [h] against its second objective, as a staircase (the region it dominates is above
-    and right of it), with other routes marked (e.g. the routes at single apf values: ``(label, time [h], value)``).
+    and right of it), with other routes marked (e.g. the routes at single apf values: ``(label, time [h], value,
+    hazard)``). The voyage front has a second panel, the hazard on a log scale: its probabilities crowd near 1.
     """
     key, label = OBJECTIVE[front.kind]
     t = np.array([p.voyage_time_h for p in front.points])
     y = np.array([getattr(p, key) for p in front.points])
-    fig = _figure(8.0, 5.0)
-    ax = fig.add_subplot()
-    ax.step(t, y, where="post", color="tab:blue", lw=1.2, label=f"{front.kind} front ({t.size} routes)")
-    ax.plot(t, y, "o", color="tab:blue", ms=4)
-    for i, (name, mt, my) in enumerate(marked):
-        ax.plot([mt], [my], "x", ms=9, mew=2, color=_CRITERION_COLOURS[i % len(_CRITERION_COLOURS)], label=name)
-    ax.set_xlabel("voyage time [h]")
-    ax.set_ylabel(label)
-    ax.set_ylim(-0.03, 1.03)
-    ax.grid(True, lw=0.3)
-    ax.legend(fontsize=7, loc="best")
-    ax.set_title(title or f"time against reliability: {front.kind} front")
+    voyage = front.kind == "voyage"
+    fig = _figure(8.0, 7.5 if voyage else 5.0)
+    axes = [fig.add_subplot(2, 1, 1) if voyage else fig.add_subplot()]
+    if voyage:
+        axes.append(fig.add_subplot(2, 1, 2, sharex=axes[0]))
+    panels = [(y, label, (-0.03, 1.03))]
+    if voyage:
+        panels.append(
+            (np.array([p.hazard for p in front.points]), "hazard -ln(1 - p) [-] (log; inf and 0 off scale)", None)
+        )
+    for j, (ax, (values, name, limits)) in enumerate(zip(axes, panels, strict=True)):
+        ax.step(t, values, where="post", color="tab:blue", lw=1.2, label=f"{front.kind} front ({t.size} routes)")
+        ax.plot(t, values, "o", color="tab:blue", ms=4)
+        for i, mark in enumerate(marked):
+            colour = _CRITERION_COLOURS[i % len(_CRITERION_COLOURS)]
+            ax.plot([mark[1]], [mark[2 + j]], "x", ms=9, mew=2, color=colour, label=mark[0])
+        ax.set_ylabel(name)
+        if limits is None:
+            ax.set_yscale("log")
+        else:
+            ax.set_ylim(*limits)
+        ax.grid(True, lw=0.3)
+        ax.legend(fontsize=7, loc="best")
+    axes[-1].set_xlabel("voyage time [h]")
+    axes[0].set_title(title or f"time against reliability: {front.kind} front")
     fig.tight_layout()
     return fig
 
