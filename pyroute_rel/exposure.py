@@ -225,11 +225,12 @@ class _SubArcs:
         return lon[leg, col], lat[leg, col]
 
     def conditions(
-        self, problem: RoutingProblem, t_mid_h: npt.ArrayLike
+        self, problem: RoutingProblem, t_mid_h: npt.ArrayLike, *, any_fired: bool = False
     ) -> tuple[FloatArray, npt.NDArray[np.bool_] | None, npt.NDArray[np.bool_]]:
         """``p_f`` at each sub-arc's midpoint (half-way between its fractions along the arc) for the heading steered
         there to hold the arc's great circle, at ``t_mid_h`` [h] (NaN where the weather is missing), where it is
-        unknown, and which criteria fire (shape ``(n_criteria, n_sub_arcs)``)."""
+        unknown, and which criteria fire (shape ``(n_criteria, n_sub_arcs)``; with ``any_fired``, whether any does,
+        shape ``(1, n_sub_arcs)``, from the table's bit sets, where the evidence is known)."""
         model = problem.failure
         assert model is not None
         leg = self.leg
@@ -239,6 +240,8 @@ class _SubArcs:
         cond = problem.weather_at(mlon, mlat, t_mid_h)
         q = arc_quantities(cond, _heading(problem, cond, course), model.quantities)
         index, unknown = model.evidence_index(q)  # the cost function's gather (p_fail would also check ranges)
+        if any_fired:
+            return model.p_flat[index], unknown, (model.fired_bits_flat[index] != 0).reshape(1, -1)
         return model.p_flat[index], unknown, np.asarray(model.fired(q)).reshape(len(model.criteria), -1)
 
 
@@ -248,8 +251,8 @@ def _exposed(
     """Steady weather: the arcs where some sub-arc's midpoint has ``p_f > 0``, unknown weather or a criterion
     fired (the others add no hazard and no hours whatever their times)."""
     sub = _SubArcs.cut(a0, b0, a1, b1, step_km)
-    p, unknown, fired = sub.conditions(problem, 0.0)
-    hit = (p > 0.0) | fired.any(axis=0)
+    p, unknown, fired = sub.conditions(problem, 0.0, any_fired=True)
+    hit = (p > 0.0) | fired[0]
     if unknown is not None:
         hit |= unknown
     return np.asarray(np.bincount(sub.leg, weights=hit, minlength=a0.size) > 0, dtype=bool)

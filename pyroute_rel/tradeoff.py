@@ -388,11 +388,15 @@ def _reduce(c: _Candidates) -> _Labels:
     node's keys are all larger than a later node's)."""
     if c.node.size == 0:
         return _Labels(c.node, c.t, c.h, c.parent)
-    order = np.lexsort((np.arange(c.node.size), c.h, c.t, c.node))
-    node, h = c.node[order], c.h[order]
-    _, h_rank = np.unique(h, return_inverse=True)
+    by_h = np.argsort(c.h, kind="stable")
+    h_sorted = c.h[by_h]
+    h_rank = np.empty(c.h.size, dtype=np.int64)  # equal hazards share a rank
+    h_rank[by_h] = np.concatenate([[0], np.cumsum(h_sorted[1:] != h_sorted[:-1])])
+    by_t = by_h[np.argsort(c.t[by_h], kind="stable")]
+    order = by_t[np.argsort(c.node[by_t], kind="stable")]  # by node, time, hazard, then as given
+    node = c.node[order]
     span = int(h_rank.max()) + 2
-    key = (int(node.max()) - node).astype(np.int64) * span + h_rank.astype(np.int64)
+    key = (int(node.max()) - node).astype(np.int64) * span + h_rank[order]
     running = np.minimum.accumulate(key)
     keep = np.ones(node.size, dtype=bool)
     same = node[1:] == node[:-1]
