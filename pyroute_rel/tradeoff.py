@@ -106,7 +106,7 @@ class FrontPoint:
     apf: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        """The JSON of a front point (``pyroute-rel tradeoff --json``)."""
+        """The JSON of a front point (``pyroute-rel tradeoff --json``); its track as ``pyroute-rel route --json``'s."""
         return {
             "voyage_time_h": self.voyage_time_h,
             "max_failure_probability": self.max_failure_probability,
@@ -114,7 +114,7 @@ class FrontPoint:
             "hazard": self.hazard,
             "distance_nm": self.distance_nm,
             "apf": self.apf,
-            "track": [[float(lo), float(la)] for lo, la in zip(self.route.lon_deg, self.route.lat_deg, strict=True)],
+            "track": self.route.summary()["track"],  # as `pyroute-rel route --json`: lon, lat, time, p_f per point
         }
 
 
