@@ -116,7 +116,10 @@ def routes_figure(front: Front, *, title: str | None = None, max_labelled: int =
     named = set(np.linspace(0, n - 1, min(n, max_labelled)).round().astype(int).tolist())
     for i, p in enumerate(front.points):
         colour = cmap(i / max(n - 1, 1))
-        label = f"{p.voyage_time_h:.1f} h, p {getattr(p, key):.3g}" if i in named else None
+        label = None
+        if i in named:
+            label = f"{p.voyage_time_h:.1f} h, p {getattr(p, key):.3g}"
+            label += f", hazard {p.hazard:.3g}" if front.kind == "voyage" else ""
         ax.plot(view(p.route.lon_deg), p.route.lat_deg, color=colour, lw=1.2, label=label)
     ax.legend(fontsize=7, loc="best", title=f"{front.kind} front: time, {key.replace('_', ' ')}", title_fontsize=7)
     ax.set_title(title or f"the {n} routes of the {front.kind} front")
