@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from .cost import arc_geometry, geometry_costs
+from .cost import ArcGeometry, arc_geometry, geometry_costs
 from .errors import ScenarioError
 from .evaluate import Track, as_track, evaluation_problem, sail_tracks
 from .units import KN_PER_MS
@@ -177,6 +177,8 @@ class PerturbedWind:
         self.inner.check_coverage(*args, **kwargs)
 
     def _perturb(self, cond: Conditions) -> Conditions:
+        if not (self.east_ms.any() or self.north_ms.any()):
+            return cond
         tws, twd = np.asarray(cond.tws_kn, dtype=float), np.asarray(cond.twd_deg, dtype=float)
         extra = (slice(None),) + (None,) * (tws.ndim - 1)
         de, dn = self.east_ms[extra] * KN_PER_MS, self.north_ms[extra] * KN_PER_MS
@@ -356,8 +358,9 @@ def _sail_runs(
             break
         idx = np.flatnonzero(go)
         weather = PerturbedWind(problem.weather, east[idx, k], north[idx, k])
-        geom = arc_geometry(
-            np.full(idx.size, lon[k]), np.full(idx.size, lat[k]), lon[k + 1], lat[k + 1], samples=problem.samples
+        one = arc_geometry(lon[k], lat[k], lon[k + 1], lat[k + 1], samples=problem.samples)  # the same arc for all
+        geom = ArcGeometry(
+            *(np.broadcast_to(a, (idx.size, *a.shape)) for a in (one.lon_deg, one.lat_deg, one.course_deg, one.seg_nm))
         )
         c = geometry_costs(
             geom,
