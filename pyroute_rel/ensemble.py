@@ -136,7 +136,7 @@ def cvar(times_h: npt.ArrayLike, alpha: float) -> float:
     (the sorted time straddling ``alpha`` weighed by its share; see the module notes).
 
     >>> cvar([1.0, 2.0, 3.0, 4.0], 0.5), cvar([1.0, 2.0, 3.0, 4.0], 0.6), cvar([1.0, 2.0], 0.0)
-    (3.5, 3.75, 1.5)
+    (3.5, 3.625, 1.5)
     """
     t = np.sort(np.asarray(times_h, dtype=float))
     n = t.size
@@ -250,26 +250,32 @@ def _worker_init() -> None:
     os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads inside
 
 
-def _run(tasks: list[tuple[Any, ...]], fn: Any, workers: int, bar: Any) -> list[Any]:
-    """``[fn(*t) for t in tasks]`` in ``workers`` processes (in this one when ``workers`` is 1); order kept."""
-    if workers <= 1 or len(tasks) <= 1:
+def _run(tasks: list[tuple[Any, ...]], fn: Any, pool: ProcessPoolExecutor | None, bar: Any) -> list[Any]:
+    """``[fn(*t) for t in tasks]`` in the pool's processes (in this one without a pool); order kept."""
+    if pool is None or len(tasks) <= 1:
         out = []
         for t in tasks:
             out.append(fn(*t))
             bar.update(1)
         return out
+    from concurrent.futures import as_completed
+
     results: list[Any] = [None] * len(tasks)
+    futures = {pool.submit(fn, *t): i for i, t in enumerate(tasks)}
+    for f in as_completed(futures):
+        results[futures[f]] = f.result()
+        bar.update(1)
+    return results
+
+
+def _pool(workers: int) -> ProcessPoolExecutor | None:
+    """Worker processes for both steps (a worker keeps the members' weather it has read), or None for 1 worker."""
+    if workers <= 1:
+        return None
     import multiprocessing
 
     context = multiprocessing.get_context("forkserver")  # not fork: this process may run threads
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init) as pool:
-        futures = {pool.submit(fn, *t): i for i, t in enumerate(tasks)}
-        from concurrent.futures import as_completed
-
-        for f in as_completed(futures):
-            results[futures[f]] = f.result()
-            bar.update(1)
-    return results
+    return ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init)
 
 
 # ------------------------------------------------------------------------------------------------ the ensemble
@@ -448,9 +454,33 @@ def route_ensemble(
     files = None if member_files is None else tuple(str(Path(f).resolve()) for f in member_files)
     opts = dict(options or {})
     with_mean = mean_field and files is None
+    _CACHE.clear()  # the files may have changed since an earlier call in this process
+    _GRIDS.clear()
+    pool = _pool(workers)
+    try:
+        return _route_and_sail(path, chosen, files, opts, with_mean, r, pool, progress)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+        _CACHE.clear()
+        _GRIDS.clear()
+
+
+def _route_and_sail(
+    path: str | Path,
+    chosen: list[int],
+    files: tuple[str, ...] | None,
+    opts: dict[str, Any],
+    with_mean: bool,
+    r: Risk,
+    pool: ProcessPoolExecutor | None,
+    progress: bool,
+) -> EnsembleResult:
+    """The two steps of :func:`route_ensemble`: route the members (and the mean), then sail every route in every
+    member."""
     jobs = [(str(path), m) for m in chosen] + ([(str(path), MEAN_NAME)] if with_mean else [])
     bar = progress_bar(len(jobs), enabled=progress, desc="routing members", unit="member")
-    routed = _run([(p, m, files, opts) for p, m in jobs], _route_task, workers, bar)
+    routed = _run([(p, m, files, opts) for p, m in jobs], _route_task, pool, bar)
     bar.close()
     member_routes = tuple(routed[: len(chosen)])
     mean_route = routed[-1] if with_mean else None
@@ -461,7 +491,7 @@ def route_ensemble(
     tracks = [np.column_stack([c.lon_deg, c.lat_deg]) for c in cands]
     bar = progress_bar(len(chosen), enabled=progress, desc="sailing in members", unit="member")
     sailed = _run(
-        [(str(path), m, files, opts, tracks, i == 0) for i, m in enumerate(chosen)], _sail_in_member, workers, bar
+        [(str(path), m, files, opts, tracks, i == 0) for i, m in enumerate(chosen)], _sail_in_member, pool, bar
     )
     bar.close()
     times, p_max, over, ok, on_land = (np.column_stack([s[k] for s in sailed]) for k in range(5))
