@@ -241,3 +241,17 @@ def test_cli_evaluate_monte_carlo(tmp_path: Path, capsys: pytest.CaptureFixture[
     code = main(args)
     again, _ = capsys.readouterr()
     assert json.loads(again)["monte_carlo"] == mc  # the seed reproduces the runs
+
+
+@pytest.mark.slow
+def test_ensemble_spread_is_zero_for_identical_members_and_grows_with_lead_time(tmp_path: Path):
+    from pyroute_rel.monte_carlo import spread_from_members
+
+    track = np.column_stack([np.linspace(-14.0, -22.0, 9), np.linspace(31.0, 25.0, 9)])
+    (tmp_path / "a").mkdir()
+    flat = write_ensemble_scenario(tmp_path / "a", n_members=3, spread=0.0)
+    np.testing.assert_allclose(spread_from_members(flat, track), 0.0, atol=1e-12)  # std of equal values: rounding
+    (tmp_path / "b").mkdir()
+    wide = write_ensemble_scenario(tmp_path / "b", n_members=6, spread=1.0)
+    s = spread_from_members(wide, track)
+    assert (s > 0).all() and s[-1] > s[0]  # the members' displacement grows with lead time
