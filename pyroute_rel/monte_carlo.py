@@ -148,7 +148,7 @@ class PerturbedWind:
     """A weather source whose wind is offset by a per-run error: queries whose first axis is the run.
 
     Wraps a :class:`~pyroute_rel.weather.WeatherSource`; ``east_ms``/``north_ms`` (one value per run [m/s]) are added
-    to the wind's (u, v) components of every point of run ``r`` (row ``r`` of the query). Where both are 0 the
+    to the wind's (u, v) components of every point of run ``r`` (row ``r`` of the query). When every error is 0 the
     conditions are the wrapped source's, unchanged.
     """
 
@@ -183,11 +183,11 @@ class PerturbedWind:
         extra = (slice(None),) + (None,) * (tws.ndim - 1)
         de, dn = self.east_ms[extra] * KN_PER_MS, self.north_ms[extra] * KN_PER_MS
         rad = np.radians(twd)
-        u = -tws * np.sin(rad) + de  # the wind's velocity (to), east and north [kn]
-        v = -tws * np.cos(rad) + dn
-        moved = (de != 0.0) | (dn != 0.0)
-        speed = np.where(moved, np.hypot(u, v), tws)
-        direction = np.where(moved, np.degrees(np.arctan2(-u, -v)) % 360.0, twd)
+        u = de - tws * np.sin(rad)  # the wind's velocity (to), east and north [kn]
+        v = dn - tws * np.cos(rad)
+        speed = np.hypot(u, v)
+        direction = np.degrees(np.arctan2(-u, -v))
+        direction %= 360.0
         return replace(cond, tws_kn=speed, twd_deg=direction)
 
     def sample(self, lon_deg: Any, lat_deg: Any, time: Any) -> Conditions:
