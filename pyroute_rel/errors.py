@@ -23,6 +23,7 @@ __all__ = [
     "OutputError",
     "CoordinateError",
     "MemoryBudgetError",
+    "TrackError",
     "PyrouteWarning",
     "PolarWarning",
     "CacheWarning",
@@ -100,6 +101,10 @@ class MemoryBudgetError(PyrouteError, MemoryError):
 class LabelLimitError(PyrouteError, RuntimeError):
     """A multi-objective search kept more non-dominated labels at a node than its cap allows
     (:func:`pyroute_rel.tradeoff.voyage_front`, ``--max-labels``); refused rather than run on unbounded."""
+
+
+class TrackError(PyrouteError, ValueError):
+    """A track file (GPX, GeoJSON, CSV) cannot be read as a track: no line in it, a bad coordinate or time."""
 
 
 class PyrouteWarning(UserWarning):
