@@ -19,7 +19,10 @@ from typing import Any
 
 from .. import __version__
 from ..errors import PyrouteError, PyrouteWarning, ScenarioError
+from .ensemble import add_ensemble_parser
+from .evaluate import add_evaluate_parser
 from .gci import NEGATIVE_NUMBERS, add_gci_parser
+from .tradeoff import add_tradeoff_parser
 
 __all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
@@ -96,6 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
     f.set_defaults(func=_cmd_failure)
 
     add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
+    add_tradeoff_parser(sub, _add_common)
+    add_evaluate_parser(sub, _add_common)
+    add_ensemble_parser(sub, _add_common)
     return parser
 
 
