@@ -482,6 +482,33 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
     "load_zones a dict": (lambda: pr.load_zones({}), ScenarioError, ("zone files must be",)),
     "load_zones base_dir 5": (lambda: pr.load_zones([], base_dir=5), ScenarioError, ("base_dir must be",)),
     "load_zones None": (lambda: pr.load_zones(None), ScenarioError, ("zone files must be",)),
+    # ---- tracks, evaluation, Monte Carlo, ensembles (modules of other branches: what they refuse well already)
+    "Track None": (lambda: pr.Track(None, None), pr.TrackError, ("two or more points",)),
+    "Track NaN": (lambda: pr.Track([0.0, NAN], [0.0, 1.0]), pr.TrackError, ("finite numbers",)),
+    "Track shapes": (lambda: pr.Track([0.0, 1.0, 2.0], [0.0, 1.0]), pr.TrackError, ("two or more points",)),
+    "read_track missing": (lambda: pr.read_track("/nonexistent/t.csv"), pr.TrackError, ("track file not found",)),
+    "evaluate_track None": (lambda: pr.evaluate_track(None, None), pr.TrackError, ("a track must be",)),
+    "evaluate_track apf 2": (
+        lambda: pr.evaluate_track(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], apf=2.0),
+        ScenarioError,
+        ("apf must be a probability",),
+    ),
+    "MonteCarloSettings sigma NaN": (
+        lambda: pr.MonteCarloSettings(sigma0_ms=NAN),
+        ScenarioError,
+        ("sigma0_ms must be a finite number",),
+    ),
+    "MonteCarloSettings kappa None": (lambda: pr.MonteCarloSettings(kappa=None), ScenarioError, ("kappa",)),
+    "monte_carlo runs 0": (
+        lambda: pr.monte_carlo(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=0),
+        ScenarioError,
+        ("runs >= 1",),
+    ),
+    "route_ensemble risk 'x'": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", risk="x"),
+        ScenarioError,
+        ("--risk must be",),
+    ),
     # ---- grid convergence
     "grid_convergence None": (lambda: pr.grid_convergence(None, None), ConvergenceError, ()),
     "grid_convergence NaN h": (lambda: pr.grid_convergence([1, NAN, 4], [1, 2, 3]), ConvergenceError, ()),
@@ -517,8 +544,9 @@ def test_a_bad_argument_is_a_domain_error_in_one_line(case: str, tmp_path: Path,
 NO_ARGUMENTS = {"__version__", "list_failure_models"}
 #: Results the library builds and hands out (their constructors are not an entry point); a Protocol
 RESULTS = {"Route", "Legs", "ForbiddenArcs", "Conditions", "Grid", "FailureModel", "Scenario", "WeatherSource"}
-#: In solve.py, which another session owns: known open (see the report of this session)
-OPEN = {"RoutingProblem", "forward_dp"}
+RESULTS |= {"EnsembleResult", "Evaluation"}
+#: In modules another branch owns (solve.py; evaluate.py, ensemble.py): known open, see RAW_ELSEWHERE
+OPEN = {"RoutingProblem", "forward_dp", "read_track", "route_ensemble"}
 
 
 def _public_callables() -> list[str]:
@@ -553,11 +581,34 @@ def test_none_for_every_required_argument_is_a_domain_error(name: str, tmp_path:
         assert isinstance(obj(), obj)
         return
     if name in OPEN:
-        pytest.xfail(f"{name} is in solve.py, not edited in this session")
+        pytest.xfail(f"{name} is in a module another branch owns (not edited here)")
     with pytest.raises(PyrouteError) as info:
         obj(**required)
     assert "\n" not in str(info.value)
     assert list(tmp_path.iterdir()) == []
+
+
+#: Raw exceptions found in modules other branches own (solve.py, evaluate.py, monte_carlo.py, ensemble.py)
+RAW_ELSEWHERE: dict[str, Callable[[], Any]] = {
+    "forward_dp grid None": lambda: pr.forward_dp(None, route().problem),
+    "forward_dp cost_hook 'x'": lambda: pr.forward_dp(route().grid, route().problem, cost_hook="x"),
+    "RoutingProblem departure 10**30": lambda: pr.RoutingProblem(10**30, scenario().weather, polar()),
+    "RoutingProblem.costs lon0 'x'": lambda: route().problem.costs("x", 0.0, 1.0, 0.0, 0.0),
+    "Track lon 'x'": lambda: pr.Track("x", [1.0]),
+    "read_track None": lambda: pr.read_track(None),
+    "evaluate_track track 'x'": lambda: pr.evaluate_track(scenario(), "x"),
+    "monte_carlo seed 'x'": lambda: pr.monte_carlo(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, seed="x"),
+    "monte_carlo settings 5": lambda: pr.monte_carlo(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, settings=5),
+    "route_ensemble None": lambda: pr.route_ensemble(None),
+}
+
+
+@pytest.mark.parametrize("case", list(RAW_ELSEWHERE))
+@pytest.mark.xfail(strict=True, raises=(TypeError, ValueError, AttributeError, OverflowError), reason="other owner")
+def test_raw_exceptions_left_in_modules_of_other_branches(case: str, tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(PyrouteError):
+        RAW_ELSEWHERE[case]()
 
 
 @pytest.mark.xfail(strict=True, reason="main: importing the submodule pyroute_rel.refine first binds pr.refine to it")
