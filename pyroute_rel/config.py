@@ -23,6 +23,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import numbers
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -31,7 +32,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .cost import WaveLoss
-from .errors import ScenarioError, brief, show
+from .errors import ScenarioError, brief, check_flag, show
 from .geodesy import along_track_km, crossing_fraction, distance_km, intermediate_point
 from .grid import DEFAULT_N_RANKS, LAYOUTS
 from .obstacles.mask import Avoid
@@ -552,7 +553,8 @@ def register_weather_kind(kind: str, builder: WeatherBuilder, *, replace: bool =
     Raises
     ------
     ScenarioError
-        (a ``ValueError``) for an empty kind, a builder that is not callable, or a kind already registered without
+        (a ``ValueError``) for a kind that is not a name (letters, digits, ``_``, ``-``; e.g. none with spaces), a
+        builder that is not callable, a ``replace`` other than True or False, or a kind already registered without
         ``replace``.
 
     Examples
@@ -565,8 +567,12 @@ def register_weather_kind(kind: str, builder: WeatherBuilder, *, replace: bool =
     True
     >>> del WEATHER_KINDS["calm"]
     """
-    if not isinstance(kind, str) or not kind.strip():
-        raise ScenarioError(f"a weather kind must be a non-empty string (got {brief(kind)})")
+    if not isinstance(kind, str) or not re.fullmatch(r"[A-Za-z][A-Za-z0-9_-]{0,63}", kind):
+        raise ScenarioError(
+            "a weather kind must be a name of letters, digits, '_' and '-' starting with a letter, at most 64 "
+            f"characters (got {brief(kind)})"
+        )
+    check_flag(replace, "replace", ScenarioError)
     if not callable(builder):
         raise ScenarioError(f"the builder of weather kind {kind!r} must be callable (got {type(builder).__name__})")
     if kind in WEATHER_KINDS and not replace:

@@ -1,15 +1,32 @@
-"""Domain errors of pyroute_rel, all in one place.
+"""Domain errors of pyroute_rel, all in one place, and the argument checks that raise them.
 
 Every error a user can cause (a bad scenario, polar, weather file or failure model) is one of these. Each
 subclasses a built-in so callers may catch ``ValueError`` as usual; the CLI turns any :class:`PyrouteError`
 into one line on stderr and exit code 2.
+
+Public functions and the constructors of public classes check their arguments with :func:`check_flag`,
+:func:`check_numbers`, :func:`check_instance`, :func:`check_path` and :func:`check_callable`: a wrong type, None
+where a value is needed, an infinity or a NaN where no value may be missing is one of these errors naming the
+argument, never a raw ``TypeError`` or ``AttributeError`` from deep inside, a NaN result or a silent default.
+Inner kernels trust their callers and stay fast.
 """
 
 from __future__ import annotations
 
+import os
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
 __all__ = [
     "show",
     "brief",
+    "check_flag",
+    "check_numbers",
+    "check_instance",
+    "check_path",
+    "check_callable",
     "PyrouteError",
     "ScenarioError",
     "PolarError",
@@ -43,11 +60,18 @@ def show(value: object) -> str:
 def brief(value: object, limit: int = 60) -> str:
     """``repr(value)`` cut to ``limit`` characters, for one-line messages about user values."""
     r = repr(value)
+    if "\n" in r:  # numpy arrays, long containers: one line
+        r = " ".join(r.split())
     return r if len(r) <= limit else r[: limit - 3] + "..."
 
 
 class PyrouteError(Exception):
-    """Base class of every error pyroute_rel raises on purpose."""
+    """Base class of every error pyroute_rel raises on purpose. Its message is one line: a value quoted in it whose
+    ``repr`` spans lines (a numpy array) is joined onto one, as the command line prints it."""
+
+    def __str__(self) -> str:
+        text = super().__str__()
+        return " ".join(text.split()) if "\n" in text or "\r" in text else text
 
 
 class ScenarioError(PyrouteError, ValueError):
@@ -123,3 +147,108 @@ class CacheWarning(PyrouteWarning):
 class WeatherWarning(PyrouteWarning):
     """Weather data were read with a caveat: a file with one time taken as steady weather, or values outside their
     plausible range treated as missing."""
+
+
+# ----------------------------------------------------------------------------------------------- argument checks
+
+
+def _got(value: object) -> str:
+    if value is None:
+        return "None"
+    kind = type(value).__name__
+    return f"{brief(value)}, {'an' if kind[:1] in 'aeiouAEIOU' else 'a'} {kind}"
+
+
+def check_flag(value: Any, name: str, error: type[PyrouteError]) -> bool:
+    """``value`` as a bool; anything but ``True``/``False`` (None, 1, "yes", an array) is ``error``.
+
+    >>> check_flag(np.True_, "plot", ScenarioError)
+    True
+    >>> check_flag("no", "plot", ScenarioError)
+    Traceback (most recent call last):
+    ...
+    pyroute_rel.errors.ScenarioError: plot must be True or False (got 'no', a str)
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise error(f"{name} must be True or False (got {_got(value)})")
+
+
+def check_numbers(
+    value: Any, name: str, error: type[PyrouteError], *, missing: bool = True, infinite: bool = False, unit: str = ""
+) -> npt.NDArray[np.float64]:
+    """``value`` (a number or an array of them, any shape) as float64; a non-numeric value (None, a string, a
+    complex or boolean value, objects) is ``error``, and so is an infinity unless ``infinite``, and NaN unless
+    ``missing`` (NaN then means a missing value and passes through).
+
+    >>> check_numbers([1, 2.5], "tws_kn", ScenarioError).tolist()
+    [1.0, 2.5]
+    >>> check_numbers("a", "twa_deg", ScenarioError, unit="deg")
+    Traceback (most recent call last):
+    ...
+    pyroute_rel.errors.ScenarioError: twa_deg must be a number or numbers [deg] (got 'a', a str)
+    """
+    arr = value if isinstance(value, np.ndarray) else None
+    if arr is None and _plain(value):
+        try:
+            arr = np.asarray(value)
+        except (TypeError, ValueError):  # ragged lists
+            arr = None
+    kind = "a number or numbers" if arr is None or arr.ndim else "a number"
+    what = f"{name} must be {kind}{f' [{unit}]' if unit else ''}"
+    if arr is None or arr.dtype.kind not in "fiu":
+        raise error(f"{what} (got {_got(value)})")
+    arr = arr.astype(np.float64, copy=False)
+    if arr.size and not (missing and infinite):
+        bad = np.isnan(arr) if infinite else np.isinf(arr) if missing else ~np.isfinite(arr)
+        if bad.any():
+            first = float(arr.reshape(-1)[int(np.argmax(bad.reshape(-1)))])
+            rule = "not NaN" if infinite else "finite (NaN for missing)" if missing else "finite"
+            raise error(f"{what}, {rule} (got {first:g}{f' at index {_where(bad)}' if arr.ndim else ''})")
+    return arr
+
+
+def _plain(value: Any) -> bool:
+    """A number, or a (nested) list or tuple: what ``np.asarray`` may turn into numbers (never a str or object)."""
+    return isinstance(value, (int, float, np.number, list, tuple)) and not isinstance(value, bool)
+
+
+def _where(bad: npt.NDArray[np.bool_]) -> str:
+    index = np.unravel_index(int(np.argmax(bad)), bad.shape)
+    return str(int(index[0])) if len(index) == 1 else str(tuple(int(i) for i in index))
+
+
+def check_instance(
+    value: Any, types: type | tuple[type, ...], name: str, error: type[PyrouteError], *, expected: str = ""
+) -> Any:
+    """``value`` itself when it is one of ``types``, else ``error`` naming the expected (``expected``, default the
+    types' names) and the given type.
+
+    >>> check_instance(None, dict, "extra", OutputError)
+    Traceback (most recent call last):
+    ...
+    pyroute_rel.errors.OutputError: extra must be a dict (got None)
+    """
+    if isinstance(value, types):
+        return value
+    names = expected or "a " + " or ".join(t.__name__ for t in (types if isinstance(types, tuple) else (types,)))
+    raise error(f"{name} must be {names} (got {_got(value)})")
+
+
+def check_path(value: Any, name: str, error: type[PyrouteError]) -> str | os.PathLike[str]:
+    """``value`` when it is a non-empty file name (``str`` or ``os.PathLike`` of str), else ``error``."""
+    if isinstance(value, os.PathLike):
+        value_ = os.fspath(value)
+        if isinstance(value_, str) and value_:
+            return value
+    elif isinstance(value, str) and value.strip():
+        return value
+    got = "an empty name" if isinstance(value, str) else _got(value)
+    raise error(f"{name} must be a file name (str or pathlib.Path) (got {got})")
+
+
+def check_callable(value: Any, name: str, error: type[PyrouteError]) -> Any:
+    """``value`` when it can be called, else ``error``."""
+    if callable(value):
+        return value
+    raise error(f"{name} must be a function (got {_got(value)})")

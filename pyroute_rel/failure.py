@@ -57,7 +57,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import diskcache
-from .errors import FailureModelError, brief
+from .errors import FailureModelError, brief, check_flag, check_instance, check_numbers
 from .files import brief_path, read_regular_bytes
 from .memory import check_budget, table_estimate
 
@@ -307,9 +307,19 @@ class FailureModel:
         >>> m.p_fail({"hs_m": [3.9, 4.0, 4.0, 5.0], "awd_deg": [90.0, 90.0, 59.0, float("nan")]}).tolist()
         [0.0, 0.9, 1.0, nan]
         """
+        check_instance(quantities, Mapping, "p_fail: quantities", FailureModelError, expected="a dict {name: array}")
+        self._check_quantities(quantities)
+        arrays = {c.quantity: check_numbers(quantities[c.quantity], f"p_fail: {c.quantity}", FailureModelError)
+                  for c in self.criteria}  # fmt: skip
+        try:
+            np.broadcast_shapes(*(a.shape for a in arrays.values()))
+        except ValueError:
+            shapes = {k: a.shape for k, a in arrays.items()}
+            raise FailureModelError(f"p_fail: the quantities must broadcast together (got shapes {shapes})") from None
+        quantities = arrays
         for name, (lo, hi) in _QUANTITY_RANGES.items():
             if name in quantities:
-                v = np.asarray(quantities[name], dtype=float)
+                v = quantities[name]
                 bad = np.isfinite(v) & ((v < lo) | (v > hi))
                 if bad.any():
                     raise FailureModelError(
@@ -564,6 +574,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     >>> [c.describe() for c in m.criteria], m.table.tolist()
     (['WH: hs_m >= 4 m', 'WD: awd_deg < 60 deg'], [[0.0, 0.9], [0.9, 1.0]])
     """
+    cache = check_flag(cache, "cache", FailureModelError)
     toml_file = _resolve(name_or_path)
     label = brief_path(str(toml_file))  # for messages: control characters escaped, a long path cut in the middle
     toml_bytes = _read(toml_file, label)
@@ -710,8 +721,18 @@ def _parse_spec(doc: dict[str, Any], label: str, *, default_name: str) -> dict[s
         raise FailureModelError(f"{label}: 'network': {exc}") from None
     if not isinstance(spec["description"], str):
         raise FailureModelError(f"{label}: 'description' must be a string (got {spec['description']!r})")
+    seen: set[str] = set()
     for i, raw in enumerate(crits):
-        spec["criteria"].append(_parse_criterion(raw, f"{label}: criteria[{i}]"))
+        c = _parse_criterion(raw, f"{label}: criteria[{i}]")
+        # before the network is read (reading it may import pgmpy, seconds): what the TOML alone shows wrong
+        if c["node"] in seen:
+            raise FailureModelError(f"{c['where']}: node {c['node']!r} is set by two criteria")
+        if c["node"] == spec["target"]["node"]:
+            raise FailureModelError(
+                f"{c['where']}: node {c['node']!r} is the target; a criterion must set another node"
+            )
+        seen.add(c["node"])
+        spec["criteria"].append(c)
     return spec
 
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -39,7 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .errors import GridError
+from .errors import GridError, brief, check_numbers
 from .memory import MemoryEstimate, check_budget, resident_bytes
 
 if TYPE_CHECKING:
@@ -240,13 +241,13 @@ class Grid:
 
     def pattern(self, k: int) -> tuple[IntArray, BoolArray]:
         """Arc pattern into rank k: source index of each candidate arc and whether it exists, shape (n_dst, width)."""
+        if isinstance(k, bool) or not isinstance(k, int | np.integer) or not 0 <= k <= self.n_ranks:
+            raise GridError(f"rank index must be a whole number in [0, {self.n_ranks}] (got {brief(k)})")
         if k == 0:
             pattern = self.start_pattern
             return np.broadcast_to(np.arange(pattern.shape[1], dtype=np.intp)[None, :], pattern.shape), pattern
         if k == self.n_ranks:
             return np.arange(self.n_nodes, dtype=np.intp)[None, :], self.finish_valid[None, :]
-        if not 0 < k < self.n_ranks:
-            raise IndexError(f"rank index must be in [0, {self.n_ranks}] (got {k})")
         return self.src_index, (self.arc_valid if self.rank_valid is None else self.rank_valid[k - 1])
 
     def arcs(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, IntArray, BoolArray]:
@@ -284,6 +285,22 @@ class Grid:
             valid,
         )
 
+    def _weights(self, weight: Any) -> list[FloatArray]:
+        """Arc weights per rank for :meth:`to_networkx`: one array of numbers per rank 0 .. n_ranks, each of the
+        shape of that rank's arcs, or GridError."""
+        if isinstance(weight, str | bytes | Mapping) or not isinstance(weight, Sequence | np.ndarray):
+            raise GridError(f"weight must be a list of n_ranks + 1 arrays (got {brief(weight)})")
+        if len(weight) != self.n_ranks + 1:
+            raise GridError(f"weight must hold n_ranks + 1 = {self.n_ranks + 1} arrays (got {len(weight)})")
+        out = []
+        for k, w in enumerate(weight):
+            arr = check_numbers(w, f"weight[{k}]", GridError, missing=False, infinite=True)
+            shape = self.pattern(k)[1].shape
+            if arr.shape != shape:
+                raise GridError(f"weight[{k}] must have the shape {shape} of the arcs into rank {k} (got {arr.shape})")
+            out.append(arr)
+        return out
+
     def to_networkx(self, weight: npt.ArrayLike | None = None) -> nx.DiGraph:
         """Export the digraph to networkx.
 
@@ -303,7 +320,7 @@ class Grid:
         for r in range(self.n_ranks):
             for i in range(self.n_nodes):
                 g.add_node((r, i), lon=float(self.lon_deg[r, i]), lat=float(self.lat_deg[r, i]))
-        weights = None if weight is None else list(weight)  # type: ignore[arg-type]
+        weights = None if weight is None else self._weights(weight)
         for k in range(self.n_ranks + 1):
             *_, src, valid = self.arcs(k)
             w = None if weights is None else np.asarray(weights[k], dtype=float)
@@ -365,7 +382,7 @@ def make_grid(
     rank_spacing = length / (n_ranks + 1)
     if spacing_km is None:
         spacing_km = rank_spacing
-    if not (isinstance(spacing_km, numbers.Real) and math.isfinite(spacing_km) and spacing_km > 0):
+    if not (_real(spacing_km) and math.isfinite(spacing_km) and spacing_km > 0):
         raise GridError(f"spacing_km must be a positive number of km (got {spacing_km!r})")
     spacing_km = float(spacing_km)
     half = (n_nodes - 1) / 2.0 * spacing_km
@@ -375,7 +392,7 @@ def make_grid(
             "spacing_km (at most 5000 km from the great circle)"
         )
     if max_deviation_deg is not None:
-        if not (isinstance(max_deviation_deg, numbers.Real) and 0.0 < max_deviation_deg < 90.0):
+        if not (_real(max_deviation_deg) and 0.0 < max_deviation_deg < 90.0):
             raise GridError(f"max_deviation_deg must be in (0, 90) [deg] (got {max_deviation_deg!r})")
         band = int(math.floor(math.tan(math.radians(max_deviation_deg)) * rank_spacing / spacing_km + 1e-9))
         band = min(band, n_nodes - 1)
@@ -476,6 +493,11 @@ def rank_points(
     )
 
 
+def _real(x: Any) -> bool:
+    """A real number (not a bool: ``True`` is no spacing)."""
+    return isinstance(x, numbers.Real) and not isinstance(x, bool | np.bool_)
+
+
 def _checked_line(line: Any, name: str) -> tuple[tuple[float, float], tuple[float, float]]:
     if isinstance(line, str) or not hasattr(line, "__len__") or len(line) != 2:
         raise GridError(f"{name} must be two (lon, lat) end points [deg] (got {line!r:.60})")
@@ -558,8 +580,16 @@ def plan_grid(
     >>> g.n_nodes, g.band, round(g.aspect, 6)
     (17, 4, 4.0)
     """
-    if layout not in LAYOUTS:
-        raise GridError(f"layout must be one of {list(LAYOUTS)} (got {layout!r})")
+    if not isinstance(layout, str) or layout not in LAYOUTS:
+        raise GridError(f"layout must be one of {list(LAYOUTS)} (got {brief(layout)})")
+    if n_nodes is not None and (isinstance(n_nodes, bool) or not isinstance(n_nodes, int | np.integer)):
+        raise GridError(f"n_nodes must be a whole number (got {brief(n_nodes)})")  # checked even where unused
+    if n_nodes is not None and n_nodes < 1:
+        raise GridError(f"n_nodes must be a whole number >= 1 (got {n_nodes})")
+    if aspect is not None and not (_real(aspect) and math.isfinite(aspect) and 0.01 <= aspect <= 1000.0):
+        raise GridError(f"aspect (rank spacing / lateral spacing) must be in [0.01, 1000] (got {brief(aspect)})")
+    if half_width_km is not None and not (_real(half_width_km) and math.isfinite(half_width_km) and half_width_km >= 0):
+        raise GridError(f"half_width_km must be a non-negative number of km (got {brief(half_width_km)})")
     _checked_point(start, "start")  # before the angular layout measures the route with them
     _checked_point(finish, "finish")
     if layout == "square":
@@ -580,14 +610,14 @@ def plan_grid(
     rank_spacing = length / (n_ranks + 1)
     if spacing_km is None:
         a = DEFAULT_ASPECT if aspect is None else aspect
-        if not (isinstance(a, numbers.Real) and math.isfinite(a) and 0.01 <= a <= 1000.0):
+        if not (_real(a) and math.isfinite(a) and 0.01 <= a <= 1000.0):
             raise GridError(f"aspect (rank spacing / lateral spacing) must be in [0.01, 1000] (got {a!r})")
         spacing_km = rank_spacing / float(a)
     if half_width_km is None:
         half_width_km = DEFAULT_HALF_WIDTH_KM
-    if not (isinstance(half_width_km, numbers.Real) and math.isfinite(half_width_km) and half_width_km >= 0):
+    if not (_real(half_width_km) and math.isfinite(half_width_km) and half_width_km >= 0):
         raise GridError(f"half_width_km must be a non-negative number of km (got {half_width_km!r})")
-    if not (isinstance(spacing_km, numbers.Real) and math.isfinite(spacing_km) and spacing_km > 0):
+    if not (_real(spacing_km) and math.isfinite(spacing_km) and spacing_km > 0):
         raise GridError(f"spacing_km must be a positive number of km (got {spacing_km!r})")
     nodes = 2 * int(math.ceil(half_width_km / spacing_km - 1e-9)) + 1
     if nodes > 20001:

@@ -11,11 +11,12 @@ import csv
 import datetime as _dt
 import io
 import json
+import math
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import gpxpy
 import gpxpy.gpx
@@ -23,13 +24,11 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .files import write_together
-from .route import LEG_FIELDS
+from .errors import OutputError, brief, check_flag, check_instance
+from .files import check_out_dir, write_together
+from .route import LEG_FIELDS, Route
 from .times import iso_utc
 from .units import KN_PER_MS
-
-if TYPE_CHECKING:
-    from .route import Route
 
 __all__ = [
     "OUTPUT_FILES",
@@ -298,18 +297,42 @@ def _fmt(x: Any) -> str:
 
 
 def write_outputs(
-    route: Route, out_dir: str | os.PathLike[str], *, plot: bool = True, extra: dict[str, Any] | None = None
+    route: Route, out_dir: str | os.PathLike[str], *, plot: bool = True, extra: Mapping[str, Any] | None = None
 ) -> list[Path]:
     """Write ``route.geojson``, ``route.gpx``, ``route.csv``, ``summary.json``, ``forbidden.geojson``
-    (:func:`forbidden_geojson`) and ``route.png`` to a folder, all or none (:func:`write_together`)."""
-    summary = route.summary()
-    if extra:
-        summary.update(extra)
+    (:func:`forbidden_geojson`) and ``route.png`` to a folder, all or none (:func:`write_together`).
+
+    Parameters
+    ----------
+    route : The route (:meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>`).
+    out_dir : The folder (created if needed).
+    plot : Whether to draw ``route.png``.
+    extra : More entries for ``summary.json``: str keys, JSON values (None, bool, int, finite float, str, lists
+        and dicts of them). NaN and infinities are not JSON, so they are refused (give None for a missing value);
+        non-finite numbers of the route's own summary are written as ``null``.
+
+    Raises
+    ------
+    OutputError
+        ``route`` is not a Route, ``out_dir`` not a folder name or not writable, ``plot`` not a bool, ``extra`` not
+        a mapping of JSON values, or writing failed (then nothing was written).
+    """
+    check_instance(route, Route, "route", OutputError)
+    check_out_dir(out_dir, option="out_dir")
+    plot = check_flag(plot, "plot", OutputError)
+    summary = _finite_or_null(route.summary())
+    if extra is not None:
+        check_instance(extra, Mapping, "extra", OutputError, expected="a dict of JSON values")
+        for key, value in extra.items():
+            if not isinstance(key, str):
+                raise OutputError(f"extra: keys must be str (got {brief(key)}, a {type(key).__name__})")
+            summary[key] = _json_value(value, f"extra[{brief(key)}]")
+    text = json.dumps(summary, indent=1, allow_nan=False)
     writers: dict[str, Callable[[Path], object]] = {
         "route.geojson": lambda p: p.write_text(json.dumps(to_geojson(route), indent=1), encoding="utf-8"),
         "route.gpx": lambda p: p.write_text(to_gpx(route), encoding="utf-8"),
         "route.csv": lambda p: p.write_text(to_csv(route), encoding="utf-8"),
-        "summary.json": lambda p: p.write_text(json.dumps(summary, indent=1), encoding="utf-8"),
+        "summary.json": lambda p: p.write_text(text, encoding="utf-8"),
         "forbidden.geojson": lambda p: p.write_text(_feature_lines(forbidden_geojson(route)), encoding="utf-8"),
     }
     if plot:
@@ -320,3 +343,40 @@ def write_outputs(
     for name in set(OUTPUT_FILES) - set(writers):  # e.g. a route.png from an earlier run with a plot: stale now
         (Path(out_dir) / name).unlink(missing_ok=True)
     return written
+
+
+def _json_value(value: Any, where: str) -> Any:
+    """A user's value for ``summary.json`` as plain JSON (numpy scalars and arrays to Python), or OutputError."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    elif isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if not math.isfinite(value):
+            raise OutputError(f"{where} is {value}, which is not valid JSON (give None for a missing value)")
+        return value
+    if isinstance(value, (list, tuple)):
+        return [_json_value(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, Mapping):
+        out = {}
+        for k, v in value.items():
+            if not isinstance(k, str):
+                raise OutputError(f"{where}: keys must be str (got {brief(k)}, a {type(k).__name__})")
+            out[k] = _json_value(v, f"{where}[{brief(k)}]")
+        return out
+    if isinstance(value, (bool, str)):  # numpy bools and strings, made Python ones by .item() above
+        return value
+    raise OutputError(f"{where} cannot be written to JSON (got {brief(value)}, a {type(value).__name__})")
+
+
+def _finite_or_null(value: Any) -> Any:
+    """The route's summary with every non-finite float as None (JSON null): NaN is not JSON."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite_or_null(v) for v in value]
+    return value

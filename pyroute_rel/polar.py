@@ -80,7 +80,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .errors import OutputError, PolarError, PolarWarning, brief, show
+from .errors import OutputError, PolarError, PolarWarning, brief, check_instance, check_numbers, check_path, show
 from .files import atomic_write_text, read_regular_bytes
 
 __all__ = [
@@ -293,7 +293,8 @@ def boat_speed_kn(
     Raises
     ------
     PolarError (a ValueError)
-        ``beyond`` is not one of :data:`BEYOND_MODES`, or some TWS is negative.
+        ``beyond`` is not one of :data:`BEYOND_MODES`; ``polar`` is not a :class:`Polar`; an angle or speed is
+        not a number, some TWS is negative, or the shapes do not broadcast.
 
     References
     ----------
@@ -316,8 +317,14 @@ def boat_speed_kn(
     >>> boat_speed_kn(vane, [170.0, 100.0], 25.0, beyond="forbid").tolist()
     [0.0, 0.0]
     """
+    check_instance(polar, Polar, "polar", PolarError)
     check_beyond(beyond)
-    a, w = np.broadcast_arrays(fold_twa_deg(twa_deg), np.asarray(tws_kn, dtype=np.float64))
+    twa = check_numbers(twa_deg, "twa_deg", PolarError, infinite=True, unit="deg")
+    tws = check_numbers(tws_kn, "tws_kn", PolarError, infinite=True, unit="kn")
+    try:
+        a, w = np.broadcast_arrays(fold_twa_deg(twa), tws)
+    except ValueError:
+        raise PolarError(f"twa_deg and tws_kn must broadcast (got shapes {twa.shape} and {tws.shape})") from None
     shape = a.shape
     a = a.reshape(-1)  # 1-D (a copy when broadcast) so that every step below works in place
     w = w.reshape(-1)
@@ -429,10 +436,14 @@ def get_polar(
     """
     if isinstance(name_or_path, Polar):
         return name_or_path
+    if base_dir is not None:
+        check_path(base_dir, "base_dir", PolarError)
     if isinstance(name_or_path, str) and name_or_path in BUILTIN_POLARS:
         return BUILTIN_POLARS[name_or_path]
     try:
         text = os.fspath(name_or_path)
+        if not isinstance(text, str):  # bytes
+            raise TypeError
     except TypeError:
         raise PolarError(
             f"polar must be a built-in name {sorted(BUILTIN_POLARS)} or a path to a polar file "
@@ -468,7 +479,9 @@ def read_polar(path: str | os.PathLike[str], *, name: str | None = None) -> Pola
     PolarError
         Unknown suffix, unreadable or malformed file.
     """
-    path = Path(path)
+    path = Path(check_path(path, "polar file", PolarError))
+    if name is not None:
+        check_instance(name, str, "name", PolarError)
     suffix = path.suffix.lower()
     if suffix not in POLAR_SUFFIXES:
         raise PolarError(

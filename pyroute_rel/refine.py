@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from .errors import GridError
+from .errors import GridError, check_callable
 from .geodesy import EARTH_RADIUS_KM
 from .grid import Grid, rank_points
 from .solve import DPResult, RoutingProblem, forward_dp
@@ -189,6 +189,8 @@ def refine(
     if isinstance(levels, bool) or not isinstance(levels, int) or levels < 1:
         raise GridError(f"refine levels must be a whole number >= 1 (got {levels!r})")
     _check_n_nodes(n_nodes)
+    if problem_for is not None:
+        check_callable(problem_for, "refine: problem_for", GridError)
     for name, value, kind in (("grid", grid, Grid), ("problem", problem, RoutingProblem), ("result", result, DPResult)):
         if not isinstance(value, kind):
             raise GridError(f"refine: {name} must be a {kind.__name__} (got {type(value).__name__})")

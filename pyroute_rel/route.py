@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .cost import REASONS, ArcCosts, arc_quantities
-from .errors import NoFeasibleRouteError
+from .errors import NoFeasibleRouteError, ScenarioError, check_flag, check_instance
 from .exposure import LegExposure, leg_exposure
 from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, grid_geometry, leg_costs
 from .times import hours_after, iso_utc
@@ -395,7 +395,14 @@ def route_on_grid(
     NoFeasibleRouteError
         When every path has a forbidden arc; the message says at which rank the front of reachable nodes
         died and which criteria forbade the arcs there.
+    ScenarioError
+        ``grid`` is not a Grid, ``problem`` not a RoutingProblem or ``progress`` not True or False.
     """
+    from .grid import Grid
+
+    check_instance(grid, Grid, "grid", ScenarioError)
+    check_instance(problem, RoutingProblem, "problem", ScenarioError)
+    progress = check_flag(progress, "progress", ScenarioError)
     result = forward_dp(grid, problem, progress=progress)
     if result.dead_rank is not None or not np.isfinite(result.finish_h):
         raise NoFeasibleRouteError(explain_infeasible(grid, problem, result))

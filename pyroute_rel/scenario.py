@@ -16,14 +16,23 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .config import parse_departure, parse_options, parse_tables
-from .errors import FailureModelError, PyrouteError, PyrouteWarning, ScenarioError, brief
+from .errors import (
+    FailureModelError,
+    PyrouteError,
+    PyrouteWarning,
+    ScenarioError,
+    brief,
+    check_flag,
+    check_instance,
+    check_path,
+)
 from .files import brief_path, read_regular_bytes
 from .geodesy import distance_km
 from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid
 from .obstacles.mask import Avoid, check_points, obstacle_mask
 from .obstacles.zones import zones_outside
 from .route import GridTrack, Route, build_route, join_routes, route_on_grid
-from .solve import RoutingProblem
+from .solve import ArcMask, RoutingProblem
 
 if TYPE_CHECKING:
     from .cost import WaveLoss
@@ -188,6 +197,16 @@ class Scenario:
         With ``samples_per_arc`` unset the number of weather samples per arc follows the grid
         (:func:`~pyroute_rel.grid.auto_samples`).
         """
+        if failure is not None:
+            from .failure import FailureModel  # at run time only when given (loading it is not cheap)
+
+            check_instance(failure, FailureModel, "failure", ScenarioError, expected="a FailureModel or None")
+        if isinstance(blocked, str) and blocked != "auto":
+            raise ScenarioError(f'blocked must be "auto", None or an obstacle mask (got {brief(blocked)})')
+        if not isinstance(blocked, str) and blocked is not None and not isinstance(blocked, ArcMask):
+            raise ScenarioError(f'blocked must be "auto", None or an obstacle mask (got {brief(blocked)})')
+        if grid is not None:
+            check_instance(grid, Grid, "grid", ScenarioError, expected="a Grid or None")
         samples = self.samples_per_arc
         if grid is None:
             grid = self.make_grid()
@@ -201,7 +220,7 @@ class Scenario:
                     f"sample_km = {km:g} needs {samples} weather samples per arc on this grid (at "
                     "most 64): use a larger sample_km or more ranks"
                 )
-        if blocked == "auto":
+        if isinstance(blocked, str):  # "auto"
             blocked = obstacle_mask(grid, self.avoid)
         assert samples is not None
         return RoutingProblem(
@@ -264,6 +283,7 @@ class Scenario:
         >>> float(route.legs.tws_kn[0]), len(route.forbidden_arcs())
         (15.0, 0)
         """
+        progress = check_flag(progress, "progress", ScenarioError)
         check_points(self.marks(), self.avoid)
         failure = self.load_failure()
         routes = []
@@ -413,6 +433,8 @@ def scenario_from_mapping(
     table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<scenario>"
 ) -> Scenario:
     """Validate a scenario given as nested mappings (the parsed TOML)."""
+    check_instance(source, str, "source", ScenarioError)
+    check_path(base_dir, "base_dir", ScenarioError)
     if not isinstance(table, Mapping):
         raise ScenarioError(
             f"{source}: a scenario must be a mapping of tables such as {{'route': {{...}}}} (got {brief(table)})"

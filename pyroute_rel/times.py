@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import WeatherError
+from .errors import WeatherError, brief
 
 __all__ = ["hours_after", "iso_utc", "iso_minute", "to_datetime64"]
 
@@ -44,8 +44,10 @@ def to_datetime64(value: Any, what: str) -> np.datetime64:
         if isinstance(value, str):
             value = value.strip().removesuffix("Z").removesuffix("+00:00")
         out = np.datetime64(value, "ns")  # type: ignore[call-overload]
-    except (TypeError, ValueError):
-        raise WeatherError(f"{what}: expected a time (datetime64 or ISO 8601 string, UTC) (got {value!r})") from None
+    except (TypeError, ValueError, OverflowError):
+        raise WeatherError(
+            f"{what}: expected a time (datetime64 or ISO 8601 string, UTC) (got {brief(value)})"
+        ) from None
     if np.isnat(out):
         raise WeatherError(f"{what}: expected a time, got NaT")
     return out

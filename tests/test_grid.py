@@ -87,7 +87,7 @@ def test_arcs_into_rank_shapes() -> None:
     for k in range(g.n_ranks + 1):
         lon0, lat0, lon1, lat1, src, valid = g.arcs(k)
         assert lon0.shape == lat1.shape == src.shape == valid.shape
-    with pytest.raises(IndexError):
+    with pytest.raises(GridError, match=r"rank index must be a whole number in \[0, 5\] \(got 6\)"):
         g.arcs(g.n_ranks + 1)
 
 

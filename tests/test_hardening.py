@@ -322,7 +322,8 @@ def _route(scenario: str, *extra: str) -> list[str]:
     return ["route", scenario, *SMALL, *extra]
 
 
-#: (builder of the arguments, a fragment the one-line message must hold); the first 11 are the issue's cases.
+#: (builder of the arguments, a fragment the one-line message must hold); the first 11 are the issue's cases, the
+#: others (62) our own.
 MISTAKES = {
     "toml 5000 nested arrays": (
         lambda t: ["route", _scenario(t, "x = " + "[" * 5000 + "]" * 5000 + "\n")],
@@ -426,7 +427,185 @@ MISTAKES = {
         lambda t: _route(_scenario(t, BASE.replace('"2018-06-01T00:00:00Z"', '"0001-01-01T00:00:00+05:00"'))),
         "out of range",
     ),
+    # --- our own, round 3: failure models
+    "failure model criterion on an unknown quantity": (
+        lambda t: _route(str(EXAMPLE), "--failure-model", _model(t, MODEL.replace('"hs_m"', '"wind_gust"'))),
+        "criteria[0] (WH): 'quantity' must be one of ['hs_m'",
+    ),
+    "failure model probability = 1.5 in a criterion": (
+        lambda t: _route(
+            str(EXAMPLE), "--failure-model", _model(t, MODEL.replace("= 4.0", "= 4.0\nprobability = 1.5"))
+        ),
+        "criteria[0] (WH): unknown key 'probability'",
+    ),
+    "failure model two criteria on one node": (
+        lambda t: _route(str(EXAMPLE), "--failure-model", _model(t, MODEL.replace('node = "WD"', 'node = "WH"'))),
+        "criteria[1] (WH): node 'WH' is set by two criteria",
+    ),
+    "failure model exposure_h = -1": (
+        lambda t: _route(
+            str(EXAMPLE), "--failure-model", _model(t, MODEL.replace("exposure_h = 4.4", "exposure_h = -1"))
+        ),
+        "'exposure_h' must be a finite number of hours > 0",
+    ),
+    "failure model threshold = nan": (
+        lambda t: _route(str(EXAMPLE), "--failure-model", _model(t, MODEL.replace("= 4.0", "= nan"))),
+        "criteria[0] (WH): 'threshold' must be a finite number (got nan)",
+    ),
+    "failure model an empty file": (
+        lambda t: _route(str(EXAMPLE), "--failure-model", _model(t, "")),
+        "m.toml: missing key 'network'",
+    ),
+    # polars
+    "polar negative speed": (
+        lambda t: _route(_polar(t, POL.replace("\t5\t6", "\t-5\t6"))),
+        "b.pol', line 3: column 3: expected a boat speed >= 0 [kn], found '-5'",
+    ),
+    "polar TWA 190": (
+        lambda t: _route(_polar(t, POL.replace("180\t", "190\t"))),
+        "line 4: column 1: expected a TWA in [0, 180] [deg], found '190'",
+    ),
+    "polar an empty file": (lambda t: _route(_polar(t, "")), "b.pol', line 1: expected a header row"),
+    "polar a header alone": (lambda t: _route(_polar(t, "TWA\\TWS\t0\t10\n")), "expected at least 2 TWA rows"),
+    "polar speed nan": (
+        lambda t: _route(_polar(t, POL.replace("\t5\t6", "\tnan\t6"))),
+        "line 3: column 3: expected a finite number (speed [kn]), found 'nan'",
+    ),
+    "polar unknown name": (
+        lambda t: _route(_scenario(t, BASE.replace('"maribot_vane"', '"nosuch"'))),
+        "unknown polar 'nosuch': expected one of the built-in polars",
+    ),
+    # zones
+    "zone a Point": (
+        lambda t: _route(_with_zone(t, "z.geojson", {"type": "Point", "coordinates": [0, 0]})),
+        "expected GeoJSON type FeatureCollection, Feature, Polygon or MultiPolygon (got 'Point')",
+    ),
+    "zone an empty FeatureCollection": (
+        lambda t: _route(_with_zone(t, "z.geojson", {"type": "FeatureCollection", "features": []})),
+        "FeatureCollection has no features",
+    ),
+    "zone latitude 95": (
+        lambda t: _route(
+            _with_zone(t, "z.geojson", {"type": "Polygon", "coordinates": [[[0, 0], [1, 95], [1, 0], [0, 0]]]})
+        ),
+        "lat in [-90, 90] [deg] (got [1, 95])",
+    ),
+    "zone file missing": (lambda t: _route(_with_zone(t, "nosuch.geojson")), "nosuch.geojson: zone file not found"),
+    # command-line values
+    "--apf 1.5": (lambda t: _route(str(EXAMPLE), "--apf", "1.5"), "--apf must be a probability in [0, 1] (got 1.5)"),
+    "--apf -0.1": (lambda t: _route(str(EXAMPLE), "--apf", "-0.1"), "--apf must be a probability in [0, 1] (got -0.1)"),
+    "--apf nan": (lambda t: _route(str(EXAMPLE), "--apf", "nan"), "--apf must be a probability in [0, 1] (got nan)"),
+    "--n-ranks 0": (lambda t: _route(str(EXAMPLE), "--n-ranks", "0"), "--n-ranks must be >= 1 (got 0)"),
+    "--n-ranks 1e9": (lambda t: _route(str(EXAMPLE), "--n-ranks", "1000000000"), "--n-ranks must be at most 100000"),
+    "--max-memory 1x": (lambda t: _route(str(EXAMPLE), "--max-memory", "1x"), "--max-memory must be a memory size"),
+    "--max-deviation 95": (
+        lambda t: _route(str(EXAMPLE), "--max-deviation", "95"),
+        "max_deviation_deg must be in (0, 90) [deg] (got 95.0)",
+    ),
+    "--aspect 0 on the square layout": (lambda t: _route(str(EXAMPLE), "--aspect", "0"), "aspect (rank spacing"),
+    "--departures repeated": (
+        lambda t: _route(str(EXAMPLE), "--departures", "2018-06-01T00:00Z,2018-06-02T00:00Z,2018-06-01T00:00Z"),
+        "--departures lists 2018-06-01T00:00:00Z more than once",
+    ),
+    "--out a file": (
+        lambda t: ((t / "f").write_text("x"), _route(str(EXAMPLE), "--out", str(t / "f")))[1],
+        "f is a file, not a folder",
+    ),
+    "--out under a file": (
+        lambda t: ((t / "f").write_text("x"), _route(str(EXAMPLE), "--out", str(t / "f" / "sub")))[1],
+        "f/sub: ",
+    ),
+    "gci --phi with nan": (lambda t: ["gci", "--h", "1,2,4", "--phi", "1,nan,3"], "--phi must be finite (got nan"),
+    # scenarios
+    "start equal to finish": (
+        lambda t: _route(_scenario(t, BASE.replace("finish = [-60.0, 17.5]", "finish = [-12.0, 45.0]"))),
+        "[route].start [-12.0, 45.0] and [route].finish [-12.0, 45.0] are the same point",
+    ),
+    "waypoint equal to start": (
+        lambda t: _route(
+            _scenario(t, BASE.replace("finish = [-60.0, 17.5]", "finish = [-60.0, 17.5]\nwaypoints = [[-12.0, 45.0]]"))
+        ),
+        "[route].start [-12.0, 45.0] and [route].waypoints[0] [-12.0, 45.0] are the same point",
+    ),
+    "start latitude 95": (
+        lambda t: _route(_scenario(t, BASE.replace("start = [-12.0, 45.0]", "start = [-12.0, 95.0]"))),
+        "[route].start latitude must be in [-90, 90] [deg] (got 95)",
+    ),
+    "start a place name": (
+        lambda t: _route(_scenario(t, BASE.replace("start = [-12.0, 45.0]", 'start = "Brest"'))),
+        "[route].start must be [lon, lat] in degrees (got 'Brest')",
+    ),
+    "departure 'tomorrow'": (
+        lambda t: _route(_scenario(t, BASE.replace('"2018-06-01T00:00:00Z"', '"tomorrow"'))),
+        "[route].departure must be an ISO 8601 time",
+    ),
+    "an unknown table": (
+        lambda t: _route(_scenario(t, BASE + "\n[boat2]\nx = 1\n")),
+        "unknown table [boat2]",
+    ),
+    "tws_kn a string": (
+        lambda t: _route(_scenario(t, BASE.replace("tws_kn = 15.0", 'tws_kn = "15"'))),
+        "[weather].tws_kn must be a number",
+    ),
+    "patch lon reversed": (
+        lambda t: _route(_scenario(t, BASE.replace("lon = [-45.0, -35.0]", "lon = [-35.0, -45.0]"))),
+        "[weather].patch[0].lon must satisfy -180 <= min < max <= 180",
+    ),
+    "scenario path in unicode, missing": (
+        lambda t: ["route", str(t / "Ünïcødé ✈ route.toml")],
+        "Ünïcødé ✈ route.toml: scenario file not found",
+    ),
+    "scenario of every byte": (
+        lambda t: ((t / "s.toml").write_bytes(bytes(range(256))), ["route", str(t / "s.toml")])[1],
+        "not UTF-8 text: byte 0x80 at offset 128",
+    ),
+    "weather file with a repeated time": (
+        lambda t: _route(_wind_scenario(t, repeat_time=True)),
+        "variable 'u10' has repeated times",
+    ),
+    "weather file missing": (
+        lambda t: _route(_scenario(t, BASE.split("[weather]")[0] + '[weather]\nkind = "file"\npaths = ["no.nc"]\n')),
+        "no.nc' does not exist",
+    ),
 }
+
+MODEL = (ROOT / "failure_models" / "dickson2018.toml").read_text()
+POL = "TWA\\TWS\t0\t10\t20\n0\t0\t0\t0\n90\t0\t5\t6\n180\t0\t4\t5\n"
+
+
+def _model(tmp: Path, text: str) -> str:
+    """A failure model file ``m.toml`` (beside a copy of the shipped network) holding ``text``."""
+    (tmp / "dickson2018.bif").write_bytes((ROOT / "failure_models" / "dickson2018.bif").read_bytes())
+    (tmp / "m.toml").write_text(text)
+    return str(tmp / "m.toml")
+
+
+def _polar(tmp: Path, text: str) -> str:
+    """A scenario whose polar is the file ``b.pol`` holding ``text``."""
+    (tmp / "b.pol").write_text(text)
+    return _scenario(tmp, BASE.replace('"maribot_vane"', '"b.pol"'))
+
+
+def _wind_file(path: Path, *, lat: list[float], lon: list[float], repeat_time: bool = False) -> None:
+    """A NetCDF wind file (10 m u = 5, v = 5 m/s, from the south-west) over the control course at three times."""
+    import numpy as np
+    import xarray as xr
+
+    time = np.datetime64("2018-05-31T00:00", "ns") + np.arange(3) * np.timedelta64(30, "D")
+    if repeat_time:
+        time[1] = time[0]
+    dims, w = ("time", "latitude", "longitude"), np.full((3, len(lat), len(lon)), 5.0, np.float32)
+    xr.Dataset(
+        {"u10": (dims, w, {"units": "m s-1"}), "v10": (dims, w, {"units": "m s-1"})},
+        coords={"time": time, "latitude": lat, "longitude": lon},
+    ).to_netcdf(path)
+
+
+def _wind_scenario(tmp: Path, *, lat: list[float] | None = None, lon: list[float] | None = None, **kw) -> str:
+    _wind_file(tmp / "w.nc", lat=lat or [10.0, 30.0, 50.0], lon=lon or [-70.0, -40.0, -10.0], **kw)
+    return _scenario(
+        tmp, BASE.split("[weather]")[0] + '[weather]\nkind = "file"\npaths = ["w.nc"]\n\n[failure]\nmodel = "none"\n'
+    )
 
 
 @pytest.mark.parametrize("case", list(MISTAKES))
@@ -516,3 +695,154 @@ def test_an_output_folder_of_the_wrong_type_is_an_output_error(path: object) -> 
 
     with pytest.raises(OutputError, match=r"--out must be a folder name \(str or pathlib.Path\)"):
         check_out_dir(path)  # type: ignore[arg-type]
+
+
+# --------------------------------------------------------------------------------------------------
+# CF valid_range / valid_min / valid_max: values outside are missing, like declared fill values
+# --------------------------------------------------------------------------------------------------
+
+T0 = "2018-06-01T00:00"
+GRID_LON, GRID_LAT = [-20.0, -19.0, -18.0, -17.0], [40.0, 41.0, 42.0]
+
+
+def _waves(hs: list[list[list[float]]], attrs: dict, encoding: dict | None = None, *, path: Path) -> Path:
+    """A NetCDF file with ``swh`` [m] (and a steady 5 m/s wind) on (time, latitude, longitude), written by xarray;
+    ``hs`` (one time) is stored at two times 6 h apart (one time would make steady weather, with a warning)."""
+    import numpy as np
+    import xarray as xr
+
+    hs = [*hs, *hs]
+    time = np.datetime64(T0, "ns") + np.arange(len(hs)) * np.timedelta64(6, "h")
+    dims, wind = ("time", "latitude", "longitude"), np.full((2, 3, 4), 5.0, np.float32)
+    ds = xr.Dataset(
+        {
+            "swh": (dims, np.asarray(hs, np.float32), {"units": "m", **attrs}),
+            "u10": (dims, wind, {"units": "m s-1"}),
+            "v10": (dims, wind, {"units": "m s-1"}),
+        },
+        coords={"time": time, "latitude": GRID_LAT, "longitude": GRID_LON},
+    )
+    ds.to_netcdf(path, encoding={"swh": encoding or {"_FillValue": None}})
+    return path
+
+
+def _raw(path: Path) -> list:
+    """The variable as stored, without any masking or unpacking (netCDF4 with auto mask and scale off)."""
+    import netCDF4
+
+    with netCDF4.Dataset(path) as nc:
+        nc.set_auto_maskandscale(False)
+        return nc["swh"][:].tolist()
+
+
+def _hs_grid(w) -> list:
+    import numpy as np
+
+    lon, lat = np.meshgrid(GRID_LON, GRID_LAT)
+    return w.sample(lon, lat, np.datetime64(T0)).hs_m.tolist()
+
+
+@pytest.mark.parametrize(
+    ("attrs", "missing"),
+    [
+        # 25 m is a plausible wave height (RANGES allows 0..30 m): only the declared range makes it missing
+        ({"valid_range": [0.0, 20.0]}, {(0, 1), (2, 3)}),
+        ({"valid_min": 0.5}, {(2, 3), (1, 0)}),
+        ({"valid_max": 20.0}, None),  # -1 m is inside this declared range: the plausibility check refuses it
+        ({"valid_min": 0.5, "valid_max": 20.0}, {(0, 1), (2, 3), (1, 0)}),
+        ({"valid_range": [0.0, 30.0], "valid_min": 5.0}, {(2, 3)}),  # valid_range wins over valid_min
+    ],
+)
+def test_values_outside_the_cf_valid_range_are_missing(attrs: dict, missing: set | None, tmp_path: Path) -> None:
+    import math
+    import warnings
+
+    from pyroute_rel.errors import WeatherError
+    from pyroute_rel.weather.readers import open_weather
+
+    hs = [[[2.0, 25.0, 3.0, 4.0], [0.25, 1.0, 2.0, 3.0], [1.0, 2.0, 3.0, -1.0]]]
+    path = _waves(hs, attrs, path=tmp_path / "w.nc")
+    assert _raw(path) == [*hs, *hs]  # the file holds the values unmasked
+    if missing is None:
+        with pytest.raises(WeatherError, match=r"variable 'swh': 2 values outside the plausible range .*e\.g\. -1 "):
+            open_weather(path)
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # missing by declaration: no warning, no error (-1 m would be refused)
+        w = open_weather(path)
+    got = _hs_grid(w)
+    for iy in range(3):
+        for ix in range(4):
+            if (iy, ix) in missing:
+                assert math.isnan(got[iy][ix]), (iy, ix)
+            else:
+                assert got[iy][ix] == hs[0][iy][ix], (iy, ix)
+
+
+def test_a_packed_variable_has_its_valid_range_in_packed_units(tmp_path: Path) -> None:
+    # CF 2.5.1 / 8.1: for a packed variable valid_range is in the packed type: [0, 2000] * 0.01 m = [0, 20] m
+    import math
+
+    import numpy as np
+
+    from pyroute_rel.weather.readers import open_weather
+
+    hs = [[[2.0, 25.0, 3.0, 4.0], [0.5, 1.0, 2.0, 3.0], [1.0, 2.0, 19.99, 20.01]]]
+    enc = {"dtype": "int16", "scale_factor": 0.01, "_FillValue": np.int16(-32767)}
+    path = _waves(hs, {"valid_range": np.array([0, 2000], np.int16)}, enc, path=tmp_path / "p.nc")
+    assert _raw(path)[0][0][1] == 2500 and _raw(path)[0][2][3] == 2001  # stored packed
+    got = _hs_grid(open_weather(path))
+    assert math.isnan(got[0][1]) and math.isnan(got[2][3])
+    assert got[2][2] == pytest.approx(19.99, abs=1e-5) and got[0][0] == pytest.approx(2.0, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("attrs", "needle"),
+    [
+        ({"valid_range": [0.0, 1.0, 2.0]}, "valid_range must be two numbers"),
+        ({"valid_range": [20.0, 0.0]}, "min 20 > max 0"),
+        ({"valid_min": "low"}, "valid_min attribute that is not a number"),
+    ],
+)
+def test_a_malformed_valid_range_is_a_weather_error(attrs: dict, needle: str, tmp_path: Path) -> None:
+    from pyroute_rel.errors import WeatherError
+    from pyroute_rel.weather.readers import open_weather
+
+    path = _waves([[[1.0] * 4] * 3], attrs, path=tmp_path / "w.nc")
+    with pytest.raises(WeatherError, match=f"variable 'swh'.*{needle}"):
+        open_weather(path)
+
+
+# --------------------------------------------------------------------------------------------------
+# odd but valid inputs: accepted, and the same as their plain form
+# --------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("lat", "lon"),
+    [
+        ([50.0, 30.0, 10.0], None),  # latitude descending (as ERA5 stores it)
+        (None, [290.0, 320.0, 350.0]),  # longitude 0..360 (as GFS stores it)
+        ([50.0, 30.0, 10.0], [350.0, 320.0, 290.0]),  # both, and longitude descending too
+    ],
+)
+def test_weather_files_laid_out_differently_route_alike(
+    lat: list[float] | None, lon: list[float] | None, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "plain").mkdir()
+    (tmp_path / "odd").mkdir()
+    plain = _wind_scenario(tmp_path / "plain")
+    odd = _wind_scenario(tmp_path / "odd", lat=lat, lon=lon)
+    times = []
+    for scenario in (plain, odd):
+        code, out, err = run([*_route(scenario), "--json"], capsys)
+        assert code == 0, err
+        times.append(json.loads(out)["voyage_time_h"])
+    assert times[1] == times[0]
+
+
+def test_departures_out_of_order_are_routed_in_the_order_given(capsys: pytest.CaptureFixture[str]) -> None:
+    given = ["2018-06-03T00:00:00Z", "2018-06-01T00:00:00Z", "2018-06-02T00:00:00Z"]
+    code, out, err = run([*_route(str(EXAMPLE)), "--departures", ",".join(given), "--json"], capsys)
+    assert code == 0, err
+    assert [row["departure"] for row in json.loads(out)["departures"]] == given

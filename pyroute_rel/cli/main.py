@@ -295,6 +295,9 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
         raise ScenarioError(
             f"--departures needs at least one ISO 8601 UTC time, comma-separated (got {args.departures!r})"
         )
+    repeated = sorted({str(t) for t in times if times.count(t) > 1})
+    if repeated:
+        raise ScenarioError(f"--departures lists {repeated[0]}Z more than once (each departure is routed once)")
     grids = scenario.leg_grids()  # one set of grids: arc geometry and obstacle masks are computed once
     rows = []
     bar = progress_bar(len(times), enabled=not args.quiet, desc="departures", unit="departure")

@@ -53,6 +53,10 @@ class Avoid:
         margin = self.margin_km
         if isinstance(margin, bool) or not isinstance(margin, numbers.Real) or not 0.0 <= float(margin) <= 200.0:
             raise ScenarioError(f"Avoid.margin_km must be a number of km in [0, 200] (got {margin!r})")
+        if not isinstance(self.resolution, str):
+            raise ScenarioError(
+                f"Avoid.resolution must be a string such as 'intermediate' (got {self.resolution!r:.60})"
+            )
         if self.resolution != "intermediate":
             from .land import RESOLUTIONS
 

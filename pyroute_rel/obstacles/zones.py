@@ -14,7 +14,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from ..errors import ScenarioError, brief
+from ..errors import ScenarioError, brief, check_path
 from ..files import brief_path, read_regular_bytes
 from .areas import area_index, as_arcs, blocked_flat, checked_samples
 
@@ -165,8 +165,10 @@ def load_zones(paths: PathLike | Iterable[PathLike], *, base_dir: PathLike | Non
     """
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
-    if not isinstance(paths, Iterable):
+    if not isinstance(paths, Iterable) or isinstance(paths, bytes | Mapping):
         raise ScenarioError(f"zone files must be a path or a list of paths (got {brief(paths)})")
+    if base_dir is not None:
+        check_path(base_dir, "base_dir", ScenarioError)
     paths = list(paths)
     for p in paths:  # every one before any file is read
         if not isinstance(p, (str, os.PathLike)):

@@ -27,7 +27,10 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Conditions", "WeatherSource", "FIELDS", "RANGES", "Range"]
+from ..errors import WeatherError, check_numbers
+from ..times import to_datetime64
+
+__all__ = ["Conditions", "WeatherSource", "FIELDS", "RANGES", "Range", "sample_points"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -241,3 +244,28 @@ class WeatherSource(Protocol):
             Arrays of the prepared points' shape.
         """
         ...
+
+
+def sample_points(
+    lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.datetime64]]:
+    """The arguments of :meth:`WeatherSource.sample` checked: longitudes and latitudes [deg] as float arrays (NaN
+    is a missing point, an infinity or a non-number is a :class:`~pyroute_rel.errors.WeatherError`), times as
+    ``datetime64[ns]`` (``datetime64`` values, ``datetime`` objects or ISO 8601 strings; numbers are refused, as
+    their unit is unknown), broadcast together.
+    """
+    lon = check_numbers(lon_deg, "lon_deg", WeatherError, unit="deg")
+    lat = check_numbers(lat_deg, "lat_deg", WeatherError, unit="deg")
+    t = time if isinstance(time, np.ndarray) else np.asarray(time) if not isinstance(time, (dict, set)) else None
+    if t is None or t.dtype.kind not in "MUSO":
+        raise WeatherError(f"time must be datetime64 values or ISO 8601 strings, UTC (got {type(time).__name__})")
+    if t.dtype.kind != "M":
+        t = np.asarray(np.vectorize(lambda v: to_datetime64(v, "time"), otypes=["datetime64[ns]"])(t))
+    t = t.astype("datetime64[ns]")
+    try:
+        shape = np.broadcast_shapes(lon.shape, lat.shape, t.shape)
+    except ValueError:
+        raise WeatherError(
+            f"lon_deg, lat_deg and time must broadcast together (got shapes {lon.shape}, {lat.shape}, {t.shape})"
+        ) from None
+    return np.broadcast_to(lon, shape), np.broadcast_to(lat, shape), np.broadcast_to(t, shape)

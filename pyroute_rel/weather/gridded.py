@@ -30,10 +30,10 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import WeatherCoverageError, WeatherError, WeatherWarning
+from ..errors import WeatherCoverageError, WeatherError, WeatherWarning, brief, check_numbers
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
-from .base import RANGES, Conditions
+from .base import RANGES, Conditions, sample_points
 
 if TYPE_CHECKING:
     pass
@@ -368,9 +368,14 @@ class GriddedWeather:
     """
 
     def __init__(self, fields: Iterable[WeatherField], *, out_of_range: str = "error"):
-        if out_of_range not in OUT_OF_RANGE:
-            raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {out_of_range!r})")
+        if not isinstance(out_of_range, str) or out_of_range not in OUT_OF_RANGE:
+            raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {brief(out_of_range)})")
+        if isinstance(fields, (str, bytes, Mapping)) or not isinstance(fields, Iterable):
+            raise WeatherError(f"fields must be a list of WeatherField objects (got {brief(fields)})")
         fields = list(fields)
+        for f in fields:
+            if not isinstance(f, WeatherField):
+                raise WeatherError(f"fields must be WeatherField objects (got {brief(f)}, a {type(f).__name__})")
         names = [f.name for f in fields]
         for k, f in enumerate(fields):
             if not isinstance(f, WeatherField):
@@ -582,7 +587,10 @@ class GriddedWeather:
         lat_range : (south, north) [deg].
         time_range : (first, last) time needed (``datetime64``, UTC).
         """
-        lo, hi = float(lon_range[0]), float(lon_range[1])
+        lon_range, lat_range = (_pair(r, name) for r, name in ((lon_range, "lon_range"), (lat_range, "lat_range")))
+        if not isinstance(time_range, (list, tuple, np.ndarray)) or len(time_range) != 2:
+            raise WeatherError(f"time_range must be a pair (first, last) of times (got {brief(time_range)})")
+        lo, hi = lon_range
         if hi < lo:
             hi += 360.0
         t0, t1 = (to_datetime64(t, "time_range") for t in time_range)
@@ -603,6 +611,14 @@ class GriddedWeather:
                     f"lon [{lon_range[0]:g}, {lon_range[1]:g}], lat [{lat_range[0]:g}, {lat_range[1]:g}] [deg], "
                     f"time {iso_minute(t0)} .. {iso_minute(t1)} ({' and '.join(short)} not covered)"
                 )
+
+
+def _pair(value: Any, name: str) -> tuple[float, float]:
+    """A (low, high) pair of finite numbers [deg], or WeatherError naming ``name``."""
+    pair = check_numbers(value, name, WeatherError, missing=False, unit="deg")
+    if pair.shape != (2,):
+        raise WeatherError(f"{name} must be a pair of numbers [deg] (got {brief(value)})")
+    return float(pair[0]), float(pair[1])
 
 
 def _check_field(f: WeatherField) -> None:
@@ -648,8 +664,8 @@ def check_plausible(f: WeatherField, *, out_of_range: str = "error") -> WeatherF
     weather file 'waves.nc' variable 'swh': 1 value outside the plausible range
     [0, 30] m of significant wave height (e.g. -5 at lon 0, lat 51, any time)
     """
-    if out_of_range not in OUT_OF_RANGE:
-        raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {out_of_range!r})")
+    if not isinstance(out_of_range, str) or out_of_range not in OUT_OF_RANGE:
+        raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {brief(out_of_range)})")
     rng = RANGES[f.name]
     values = np.asarray(f.values)
     if values.size == 0 or values.dtype.kind not in "fiu":
@@ -683,14 +699,9 @@ def check_plausible(f: WeatherField, *, out_of_range: str = "error") -> WeatherF
 def _points(
     lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike
 ) -> tuple[tuple[int, ...], FloatArray, FloatArray, npt.NDArray[np.datetime64]]:
-    lon = np.asarray(lon_deg, dtype=np.float64)
-    lat = np.asarray(lat_deg, dtype=np.float64)
-    t = np.asarray(time)
-    if t.dtype.kind != "M":
-        t = np.asarray(np.vectorize(lambda v: to_datetime64(v, "time"), otypes=["datetime64[ns]"])(t))
-    t = t.astype("datetime64[ns]")
-    shape = np.broadcast_shapes(lon.shape, lat.shape, t.shape)
-    flat = [np.broadcast_to(a, shape).ravel() for a in (lon, lat, t)]
+    lon, lat, t = sample_points(lon_deg, lat_deg, time)
+    shape = lon.shape
+    flat = [a.ravel() for a in (lon, lat, t)]
     return shape, flat[0], flat[1], flat[2]
 
 

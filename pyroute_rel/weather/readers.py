@@ -15,8 +15,9 @@ means m/s, degrees, m or s by the field's kind; a unit not recognised for the ki
 Wind speed and direction files are stored as (u, v). A file without time is steady, and so are files whose fields
 each have a single time (an analysis, or one forecast step downloaded alone; a warning says so); with several
 times, the data cover the times they hold. Every value is checked against its plausible range
-(:data:`~pyroute_rel.weather.base.RANGES`): declared fill values are missing (NaN), undeclared ones (9.97e36, 1e20)
-are out of range, refused or (``out_of_range="missing"``) made missing.
+(:data:`~pyroute_rel.weather.base.RANGES`): declared fill values and values outside a declared CF ``valid_range``
+(``valid_min``, ``valid_max``) are missing (NaN), undeclared fill values (9.97e36, 1e20) are out of range, refused
+or (``out_of_range="missing"``) made missing.
 
 References
 ----------
@@ -38,7 +39,15 @@ import numpy as np
 import numpy.typing as npt
 import xarray as xr
 
-from ..errors import ScenarioError, WeatherCoverageError, WeatherError, WeatherWarning, brief
+from ..errors import (
+    ScenarioError,
+    WeatherCoverageError,
+    WeatherError,
+    WeatherWarning,
+    brief,
+    check_instance,
+    check_numbers,
+)
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
 from .gridded import OUT_OF_RANGE, GriddedWeather, PreparedPoints, WeatherField, check_plausible
@@ -166,7 +175,8 @@ def open_weather(
     """Read NetCDF/GRIB weather files into a :class:`GriddedWeather`.
 
     Files are opened lazily (dask chunks for NetCDF) and only the box and time window are read.
-    Declared fill values (``_FillValue``, ``missing_value``) are missing (NaN), never data. When every field read
+    Declared fill values (``_FillValue``, ``missing_value``) and values outside the CF ``valid_range`` (or
+    ``valid_min`` / ``valid_max``, in packed units when packed) are missing (NaN), never data. When every field read
     has a single time (an analysis, or one step of a forecast downloaded alone), the weather is steady: it is used
     at all times, ``steady`` is True, and a :class:`~pyroute_rel.errors.WeatherWarning` says so once.
 
@@ -254,6 +264,8 @@ def weather_from_dataset(
     >>> round(float(c.tws_kn), 4), float(c.twd_deg), sorted(w.fields)
     (1.9438, 270.0, ['twd_deg', 'tws_kn'])
     """
+    check_instance(ds, xr.Dataset, "ds", WeatherError, expected="an xarray.Dataset")
+    check_instance(source, str, "source", WeatherError)
     return GriddedWeather(
         read_fields(
             [(source, [ds])],
@@ -418,26 +430,9 @@ def read_fields(
     Options as for :func:`open_weather`; ``margin_deg`` defaults to :data:`BBOX_MARGIN_DEG`. Fields that each have
     a single time come back without time (steady), with a :class:`~pyroute_rel.errors.WeatherWarning`.
     """
-    if out_of_range not in OUT_OF_RANGE:
-        raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {brief(out_of_range)})")
-    margin_deg = BBOX_MARGIN_DEG if margin_deg is None else margin_deg
-    variables = dict(variables or {})
-    for key, name in variables.items():
-        if key not in VARIABLES:
-            raise WeatherError(f"variables: field must be one of {list(VARIABLES)} (got {key!r})")
-        if not any(name in ds.data_vars for _, dss in files for ds in dss):
-            where = ", ".join(f"'{s}'" for s, _ in files)
-            raise WeatherError(f"variables[{key!r}] = {name!r}: no such variable in {where}")
-    box = _check_bbox(bbox)
-    window = None
-    if time_window is not None:
-        if isinstance(time_window, str) or len(time_window) != 2:
-            raise WeatherError(f"time_window must be a pair (first, last) (got {time_window!r})")
-        window = (to_datetime64(time_window[0], "time_window"), to_datetime64(time_window[1], "time_window"))
-        if window[1] < window[0]:
-            raise WeatherError(f"time_window must have first <= last (got {time_window!r})")
-    if not np.isfinite(margin_deg) or margin_deg < 0:
-        raise WeatherError(f"margin_deg must be a finite number >= 0 [deg] (got {margin_deg!r})")
+    variables, box, window, margin_deg = _check_options(
+        files, variables, bbox, time_window, member, margin_deg, out_of_range
+    )
     parts: dict[str, list[WeatherField]] = {}
     dropped: dict[str, list[str]] = {}
     used_member = False
@@ -475,6 +470,46 @@ def read_fields(
                 f"other ({v if u in merged else u}) was not found; name it with variables={{...}}"
             )
     return _steady_if_single_time(list(merged.values()))
+
+
+def _check_options(
+    files: list[tuple[str, list[xr.Dataset]]],
+    variables: Any,
+    bbox: Any,
+    time_window: Any,
+    member: Any,
+    margin_deg: Any,
+    out_of_range: Any,
+) -> tuple[dict[str, str], tuple[float, float, float, float] | None, tuple[np.datetime64, np.datetime64] | None, float]:
+    """The options of :func:`read_fields` checked -> (variables, box, time window, margin [deg])."""
+    if not isinstance(out_of_range, str) or out_of_range not in OUT_OF_RANGE:
+        raise WeatherError(f"out_of_range must be one of {list(OUT_OF_RANGE)} (got {brief(out_of_range)})")
+    margin_deg = BBOX_MARGIN_DEG if margin_deg is None else margin_deg
+    margin = check_numbers(margin_deg, "margin_deg", WeatherError, missing=False, unit="deg")
+    if margin.shape != () or margin < 0:
+        raise WeatherError(f"margin_deg must be a finite number >= 0 [deg] (got {brief(margin_deg)})")
+    if variables is not None:
+        check_instance(variables, Mapping, "variables", WeatherError, expected='a dict {field: "file variable"}')
+    if member is not None and (isinstance(member, bool) or not isinstance(member, (int, np.integer)) or member < 0):
+        raise WeatherError(f"member must be an integer >= 0 (got {brief(member)})")
+    variables = dict(variables or {})
+    for key, name in variables.items():
+        if not isinstance(name, str):
+            raise WeatherError(f"variables[{brief(key)}] must be the name of a file variable (got {brief(name)})")
+        if key not in VARIABLES:
+            raise WeatherError(f"variables: field must be one of {list(VARIABLES)} (got {key!r})")
+        if not any(name in ds.data_vars for _, dss in files for ds in dss):
+            where = ", ".join(f"'{s}'" for s, _ in files)
+            raise WeatherError(f"variables[{key!r}] = {name!r}: no such variable in {where}")
+    box = _check_bbox(bbox)
+    window = None
+    if time_window is not None:
+        if not isinstance(time_window, (list, tuple, np.ndarray)) or len(time_window) != 2:
+            raise WeatherError(f"time_window must be a pair (first, last) (got {brief(time_window)})")
+        window = (to_datetime64(time_window[0], "time_window"), to_datetime64(time_window[1], "time_window"))
+        if window[1] < window[0]:
+            raise WeatherError(f"time_window must have first <= last (got {brief(time_window)})")
+    return variables, box, window, float(margin)
 
 
 def _steady_if_single_time(fields: list[WeatherField]) -> list[WeatherField]:
@@ -556,6 +591,7 @@ def _extract(
     """Cut one variable to the box and window, load it, convert units, check its values -> (field or None, had
     members). A variable with a single time is kept whatever the window (it may be steady weather)."""
     where = f"weather file '{source}' variable '{var}'"
+    valid = _valid_range(da, where)  # before any selection: attributes and encoding as the file has them
     kinds = {d: _dim_kind(da, d) for d in da.dims}
     da, had_members = _drop_extra_dims(da, kinds, member, where)
     lon_dim, lat_dim, time_dims = ([d for d in da.dims if kinds[d] == kind] for kind in ("lon", "lat", "time"))
@@ -586,6 +622,9 @@ def _extract(
     values = _load(da, (tdim, lat_dim_, lon_dim_), (t_index, lat_plan[0], lon_plan[0]), where)
     if times is not None and np.isnat(times).any():
         raise WeatherError(f"{where} has missing (NaT) times")
+    if valid is not None:  # outside the declared valid range: missing, like a declared fill value
+        lo, hi = np.float64(valid[0]), np.float64(valid[1])
+        values = np.where((values < lo) | (values > hi), np.float32(np.nan), values).astype(np.float32, copy=False)
     values = _convert_units(values, da.attrs, name, where)
     field = WeatherField(name, values, lon_plan[1], lat_plan[1], times, source, var, lon_plan[2])
     field = check_plausible(field, out_of_range=out_of_range)
@@ -593,6 +632,45 @@ def _extract(
     if not np.isfinite(values).any():
         raise WeatherError(f"{where} is all NaN{' inside the requested box and time window' if box or window else ''}")
     return replace(field, values=values), had_members
+
+
+def _valid_range(da: xr.DataArray, where: str) -> tuple[float, float] | None:
+    """The CF ``valid_range`` (or ``valid_min`` / ``valid_max``) of a variable in its unpacked units, or None.
+
+    As the CF conventions (section 2.5.1) and the netCDF user guide say, these bounds are in the packed data's units
+    when the variable is packed (``scale_factor`` / ``add_offset``, which xarray moved to ``encoding`` when it
+    unpacked the values); ``valid_range`` wins over ``valid_min`` / ``valid_max``. Values outside are missing.
+    """
+
+    def number(key: str, value: Any) -> float:
+        try:
+            x = float(value)
+        except (TypeError, ValueError):
+            x = float("nan")
+        if np.isnan(x):
+            raise WeatherError(f"{where} has a {key} attribute that is not a number (got {brief(value)})")
+        return x
+
+    attrs = da.attrs
+    if "valid_range" in attrs:
+        pair = np.atleast_1d(np.asarray(attrs["valid_range"], dtype=object)).ravel()
+        if pair.size != 2:
+            raise WeatherError(
+                f"{where}: valid_range must be two numbers [min, max] (got {brief(attrs['valid_range'])})"
+            )
+        lo, hi = number("valid_range", pair[0]), number("valid_range", pair[1])
+    elif "valid_min" in attrs or "valid_max" in attrs:
+        lo = number("valid_min", attrs["valid_min"]) if "valid_min" in attrs else -np.inf
+        hi = number("valid_max", attrs["valid_max"]) if "valid_max" in attrs else np.inf
+    else:
+        return None
+    if lo > hi:
+        raise WeatherError(f"{where}: the valid range has min {lo:g} > max {hi:g}")
+    packing = da.encoding  # unpacked by xarray; packing attributes still in attrs mean values are still packed
+    scale = number("scale_factor", packing.get("scale_factor", 1.0)) if "scale_factor" not in attrs else 1.0
+    offset = number("add_offset", packing.get("add_offset", 0.0)) if "add_offset" not in attrs else 0.0
+    lo, hi = lo * scale + offset, hi * scale + offset
+    return (min(lo, hi), max(lo, hi))
 
 
 def _drop_extra_dims(
@@ -843,7 +921,7 @@ def _check_bbox(bbox: Sequence[float] | None) -> tuple[float, float, float, floa
     try:
         west, south, east, north = (float(v) for v in bbox)
     except (TypeError, ValueError):
-        raise WeatherError(f"bbox must be (west, south, east, north) [deg] (got {bbox!r})") from None
+        raise WeatherError(f"bbox must be (west, south, east, north) [deg] (got {brief(bbox)})") from None
     if not all(np.isfinite((west, south, east, north))) or not -90.0 <= south <= north <= 90.0:
         raise WeatherError(f"bbox must be finite (west, south, east, north) with south <= north [deg] (got {bbox!r})")
     if east < west:

@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ScenarioError, brief
-from .base import FIELDS, Conditions
+from ..errors import ScenarioError, WeatherError, brief
+from .base import FIELDS, Conditions, sample_points
 
 __all__ = ["Patch", "PreparedUniform", "UniformWeather"]
 
@@ -42,6 +42,8 @@ class Patch:
     name: str = ""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise ScenarioError(f"Patch.name must be a string (got {brief(self.name)})")
         where = f"Patch {self.name!r}" if self.name else "Patch"
         object.__setattr__(self, "lon", _range(self.lon, f"{where}.lon", -180.0, 180.0))
         object.__setattr__(self, "lat", _range(self.lat, f"{where}.lat", -90.0, 90.0))
@@ -144,8 +146,13 @@ class UniformWeather:
         lat_deg : Latitudes [deg].
         time : Times (``datetime64``, UTC); only their shape counts (broadcast with the points).
         """
-        lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
-        shape = np.broadcast_shapes(lon.shape, np.shape(time))
+        lon, lat, _ = sample_points(lon_deg, lat_deg, np.datetime64(0, "s"))  # time is ignored, but for its shape
+        try:
+            shape = np.broadcast_shapes(lon.shape, np.shape(time))
+        except ValueError:
+            raise WeatherError(
+                f"time must broadcast with the points (got shapes {np.shape(time)}, {lon.shape})"
+            ) from None
         lon = np.broadcast_to(lon, shape)
         lat = np.broadcast_to(lat, shape)
         out = {name: np.full(shape, float(getattr(self, name))) for name in FIELDS}
