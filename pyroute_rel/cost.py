@@ -41,6 +41,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .crab import steer
+from .crossings import arc_extremes
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
@@ -172,12 +173,16 @@ class ArcGeometry:
     lon_deg, lat_deg : Sample points (sub-segment midpoints) [deg], shape (..., samples).
     course_deg : Great-circle course at each sample point [deg], shape (..., samples).
     seg_nm : Length of each sub-segment [nm], shape (..., 1).
+    a_xyz, b_xyz : Unit vectors of the arcs' ends, shape (..., 3) (broadcast to the block), or None: then the arcs
+        are judged at their samples only, not on every piece they cross (:mod:`pyroute_rel.crossings`).
     """
 
     lon_deg: FloatArray
     lat_deg: FloatArray
     course_deg: FloatArray
     seg_nm: FloatArray
+    a_xyz: FloatArray | None = None
+    b_xyz: FloatArray | None = None
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -233,6 +238,8 @@ def geometry_from_xyz(
             lat_deg=np.concatenate([g.lat_deg for g in parts]),
             course_deg=np.concatenate([g.course_deg for g in parts]),
             seg_nm=np.concatenate([g.seg_nm for g in parts]),
+            a_xyz=a,
+            b_xyz=b,
         )
     # component by component: numpy's reductions over a last axis of 3 cost more than the arithmetic
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
@@ -264,7 +271,7 @@ def geometry_from_xyz(
     course = geodesy.bearing_deg(x * by - y * bx, rho2 * bz - z * (x * bx + y * by))
     lon = np.degrees(np.arctan2(y, x))
     lat = np.degrees(np.arcsin(np.clip(z, -1.0, 1.0)))  # asin is twice as fast as atan2 here
-    return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm)
+    return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm, a_xyz=a, b_xyz=b)
 
 
 def _midpoint(
@@ -383,7 +390,53 @@ def geometry_costs(
             elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
         dt, p_f, reason, fired = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
-    return _arc_totals(dt, p_f, reason, fired)
+    costs = _arc_totals(dt, p_f, reason, fired)
+    if options.failure is not None and geom.a_xyz is not None and geom.b_xyz is not None:
+        costs = _judge_pieces(geom, np.asarray(t0_h, dtype=float), costs, options)
+    return costs
+
+
+def _judge_pieces(geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options: _CostOptions) -> ArcCosts:
+    """``costs`` with each arc still allowed judged on every piece it crosses (:func:`~pyroute_rel.crossings.
+    arc_extremes`): its p_f is the largest met anywhere along it, and it is forbidden where that exceeds apf."""
+    model = options.failure
+    assert model is not None and geom.a_xyz is not None and geom.b_xyz is not None
+    shape = geom.shape
+    time_h = np.broadcast_to(costs.time_h, shape)
+    p_f = np.broadcast_to(costs.p_f, shape)
+    # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more
+    todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
+    if not todo.any():
+        return costs
+    pick = np.nonzero(todo)
+    a = np.broadcast_to(geom.a_xyz, shape + (3,))[pick]
+    b = np.broadcast_to(geom.b_xyz, shape + (3,))[pick]
+    ext = arc_extremes(
+        a,
+        b,
+        np.broadcast_to(t0_h, shape)[pick],
+        time_h[pick],
+        departure=options.departure,
+        weather=options.weather,
+        polar=options.polar,
+        failure=model,
+        apf=options.apf,
+        beyond=options.beyond,
+        speed_factor=None if options.wave_loss is None else options.wave_loss.factor,
+    )
+    new_p = p_f.copy()
+    new_p[pick] = np.maximum(p_f[pick], ext.p_f)
+    over = np.zeros(shape, dtype=bool)
+    over[pick] = ext.p_f > options.apf
+    if not over.any():
+        return ArcCosts(time_h=costs.time_h, p_f=new_p, reason=costs.reason, fired_bits=costs.fired_bits)
+    reason = np.broadcast_to(costs.reason, shape).copy()
+    reason[over] |= np.uint8(REASONS["failure"])
+    bits = np.broadcast_to(costs.bits(), shape).copy()
+    more = np.zeros(shape, dtype=np.uint32)
+    more[pick] = ext.fired_bits
+    bits |= np.where(over, more, 0).astype(np.uint32)
+    return ArcCosts(time_h=np.where(over, np.inf, time_h), p_f=new_p, reason=reason, fired_bits=bits)
 
 
 @dataclass(frozen=True)
@@ -409,6 +462,8 @@ def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n:
             lat_deg=geom.lat_deg[rows],
             course_deg=geom.course_deg[rows],
             seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm,
+            a_xyz=None if geom.a_xyz is None else np.broadcast_to(geom.a_xyz, geom.shape + (3,))[rows],
+            b_xyz=None if geom.b_xyz is None else np.broadcast_to(geom.b_xyz, geom.shape + (3,))[rows],
         )
         o = options
         return geometry_costs(

@@ -759,8 +759,8 @@ def _costs_of(problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray, pick: 
     shape = pick.shape
     sub = ArcGeometry(
         *(
-            np.broadcast_to(a, shape + (a.shape[-1],))[pick]
-            for a in (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm)
+            None if a is None else np.broadcast_to(a, shape + (a.shape[-1],))[pick]
+            for a in (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, geom.a_xyz, geom.b_xyz)
         )
     )
     c = problem.geometry_costs(sub, np.broadcast_to(t0, shape)[pick])

@@ -27,7 +27,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Conditions", "WeatherSource", "FIELDS", "RANGES", "Range"]
+__all__ = ["Boundaries", "Conditions", "WeatherSource", "FIELDS", "RANGES", "Range"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -130,6 +130,27 @@ class Conditions:
     def has_current(self) -> bool:
         """True when any current is non-zero."""
         return bool(np.any(self.current_u_ms) or np.any(self.current_v_ms))
+
+
+
+@dataclass(frozen=True)
+class Boundaries:
+    """Where a weather source's conditions can change abruptly or bend.
+
+    Attributes
+    ----------
+    lon_deg : Meridians [deg], sorted.
+    lat_deg : Parallels [deg], sorted.
+    boxes : ``(n, 4)`` rows ``(lon_min, lon_max, lat_min, lat_max)`` [deg] outside which conditions do not change
+        (None: anywhere).
+    continuous : True when fields are continuous across the lines (interpolated grids), False when they jump there
+        (patches).
+    """
+
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    boxes: FloatArray | None = None
+    continuous: bool = True
 
 
 @runtime_checkable
