@@ -41,7 +41,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .crab import steer
-from .crossings import arc_extremes
+from .crossings import arc_extremes, needs_pieces
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
@@ -404,8 +404,20 @@ def _judge_pieces(geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options:
     shape = geom.shape
     time_h = np.broadcast_to(costs.time_h, shape)
     p_f = np.broadcast_to(costs.p_f, shape)
-    # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more
+    # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more; an arc
+    # far from any change of conditions and of criteria is judged by its samples
     todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
+    near = needs_pieces(
+        geom.lon_deg,
+        geom.lat_deg,
+        geom.course_deg,
+        geom.seg_nm,
+        weather=options.weather,
+        failure=model,
+        departure=options.departure,
+    )
+    if near is not None:
+        todo &= near
     if not todo.any():
         return costs
     pick = np.nonzero(todo)

@@ -49,10 +49,11 @@ from . import geodesy
 from .crab import steer
 from .failure import QUANTITY_FIELDS, FailureModel
 from .polar import Polar
+from .units import KM_PER_NM
 from .times import hours_after
 from .weather.base import Boundaries, Conditions, WeatherSource
 
-__all__ = ["Boundaries", "NUDGE", "ArcExtremes", "arc_extremes", "split_fractions"]
+__all__ = ["Boundaries", "NUDGE", "ArcExtremes", "arc_extremes", "needs_pieces", "split_fractions"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -273,6 +274,12 @@ def _ranges(values: FloatArray, relative: bool) -> tuple[FloatArray, FloatArray]
         ref = values[..., :1]
         unwrapped = ref + (values - ref + 180.0) % 360.0 - 180.0
         lo, hi = np.nanmin(unwrapped, axis=-1), np.nanmax(unwrapped, axis=-1)
+    return _fold_range(lo, hi)
+
+
+def _fold_range(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Range in [0, 180] of an angle folded (:func:`~pyroute_rel.geodesy.fold_angle_deg`) as it sweeps
+    ``[lo, hi]`` [deg] (``hi - lo < 360``)."""
     m = lo % 360.0  # in [0, 360)
     h = m + (hi - lo)
     fm, fh = geodesy.fold_angle_deg(m), geodesy.fold_angle_deg(h)
@@ -325,6 +332,80 @@ def _box_max(
         if p > apf:
             bits |= np.where(ok, bits_flat[flat], 0).astype(np.uint32)
     return best, bits
+
+
+def _last_axis(op: Any, a: FloatArray) -> FloatArray:
+    """``op`` (``np.minimum``, ``np.maximum``) reduced over a short last axis one slice at a time (numpy reduces a
+    short last axis slowly)."""
+    out = np.array(a[..., 0], dtype=float)
+    for k in range(1, a.shape[-1]):
+        op(out, a[..., k], out=out)
+    return out
+
+
+def needs_pieces(
+    lon_deg: FloatArray,
+    lat_deg: FloatArray,
+    course_deg: FloatArray,
+    seg_nm: FloatArray,
+    *,
+    weather: WeatherSource,
+    failure: FailureModel,
+    departure: np.datetime64,
+) -> npt.NDArray[np.bool_] | None:
+    """Which arcs the cost function's samples cannot judge alone (None: all of them), from the samples.
+
+    Only for steady patch sources without current (:class:`Boundaries` with boxes, not continuous); elsewhere
+    None. An arc needs its pieces judged when it may reach a patch edge (every point of an arc is within half a
+    sub-segment of a sample) or when its course, which turns by at most ``|tan(lat)| / R`` per unit length along a
+    great circle, may carry a heading-dependent quantity across a bin edge of its criterion between the samples
+    and the arc's ends. Elsewhere the conditions are those of the samples all along the arc and every criterion
+    stays in one bin, so the samples' p_f is the arc's.
+
+    Parameters
+    ----------
+    lon_deg, lat_deg, course_deg : The samples (shape (..., samples)) [deg].
+    seg_nm : Sub-segment lengths [nm], broadcast to (..., 1).
+    weather, failure, departure : As for :func:`arc_extremes`.
+    """
+    bounds = getattr(weather, "boundaries", None)
+    if bounds is None or bounds.boxes is None or bounds.continuous or not weather.steady:
+        return None
+    half_deg = np.degrees(seg_nm[..., 0] * 0.5 * KM_PER_NM / geodesy.EARTH_RADIUS_KM) * 1.001 + 1e-9
+    la_lo = _last_axis(np.minimum, lat_deg) - half_deg
+    la_hi = _last_axis(np.maximum, lat_deg) + half_deg
+    coslat = np.cos(np.radians(np.minimum(np.maximum(np.abs(la_lo), np.abs(la_hi)), 89.0)))
+    lo_lo = _last_axis(np.minimum, lon_deg) - half_deg / coslat
+    lo_hi = _last_axis(np.maximum, lon_deg) + half_deg / coslat
+    near = (lo_hi - lo_lo) > 180.0  # across the antimeridian: judge it whole
+    for bx0, bx1, by0, by1 in bounds.boxes:
+        lat_in = (la_hi >= by0) & (la_lo <= by1)
+        lon_in = (lo_hi >= bx0) & (lo_lo <= bx1)
+        for x in (bx0, bx1):
+            near |= lat_in & (lo_lo <= x) & (lo_hi >= x)
+        for y in (by0, by1):
+            near |= lon_in & (la_lo <= y) & (la_hi >= y)
+    relative = [c for c in failure.criteria if QUANTITY_FIELDS[c.quantity][1]]
+    if not relative:
+        return near
+    cond = weather.sample(lon_deg[..., :1], lat_deg[..., :1], departure)
+    if cond.has_current:
+        return None
+    # the course's largest turn between a sample and an arc end [deg]
+    tan = np.tan(np.radians(np.minimum(np.maximum(np.abs(la_lo), np.abs(la_hi)), 89.0)))
+    turn = np.degrees(seg_nm[..., 0] * 0.5 * KM_PER_NM / geodesy.EARTH_RADIUS_KM * tan) * 1.01 + 1e-9
+    # every relative angle along the arc is within `margin` of its value at the first sample (the fold is
+    # 1-Lipschitz and the course is monotonic along the arc): its bin can change only near an edge
+    c0 = course_deg[..., 0]
+    margin = 2.0 * turn
+    for k in range(1, course_deg.shape[-1]):
+        margin = np.maximum(margin, np.abs((course_deg[..., k] - c0 + 180.0) % 360.0 - 180.0) + 2.0 * turn)
+    for c in relative:
+        field = np.asarray(getattr(cond, QUANTITY_FIELDS[c.quantity][0]), float)[..., 0]
+        q0 = geodesy.fold_angle_deg(field - c0)
+        for e in c.edges:
+            near |= np.abs(q0 - e) <= margin
+    return near
 
 
 def arc_extremes(
