@@ -402,8 +402,8 @@ def _judge_pieces(geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options:
     model = options.failure
     assert model is not None and geom.a_xyz is not None and geom.b_xyz is not None
     shape = geom.shape
-    time_h = np.broadcast_to(costs.time_h, shape)
-    p_f = np.broadcast_to(costs.p_f, shape)
+    time_h = np.broadcast_to(costs.time_h, shape).reshape(-1)
+    p_f = np.broadcast_to(costs.p_f, shape).reshape(-1)
     # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more; an arc
     # far from any change of conditions and of criteria is judged by its samples
     todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
@@ -417,16 +417,14 @@ def _judge_pieces(geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options:
         departure=options.departure,
     )
     if near is not None:
-        todo &= near
-    if not todo.any():
+        todo &= np.broadcast_to(near, shape).reshape(-1)
+    pick = np.flatnonzero(todo)
+    if not pick.size:
         return costs
-    pick = np.nonzero(todo)
-    a = np.broadcast_to(geom.a_xyz, shape + (3,))[pick]
-    b = np.broadcast_to(geom.b_xyz, shape + (3,))[pick]
     ext = arc_extremes(
-        a,
-        b,
-        np.broadcast_to(t0_h, shape)[pick],
+        np.broadcast_to(geom.a_xyz, shape + (3,)).reshape(-1, 3)[pick],
+        np.broadcast_to(geom.b_xyz, shape + (3,)).reshape(-1, 3)[pick],
+        np.broadcast_to(t0_h, shape).reshape(-1)[pick],
         time_h[pick],
         departure=options.departure,
         weather=options.weather,
@@ -438,17 +436,22 @@ def _judge_pieces(geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options:
     )
     new_p = p_f.copy()
     new_p[pick] = np.maximum(p_f[pick], ext.p_f)
-    over = np.zeros(shape, dtype=bool)
+    over = np.zeros(p_f.shape, dtype=bool)
     over[pick] = ext.p_f > options.apf
     if not over.any():
-        return ArcCosts(time_h=costs.time_h, p_f=new_p, reason=costs.reason, fired_bits=costs.fired_bits)
-    reason = np.broadcast_to(costs.reason, shape).copy()
+        return ArcCosts(time_h=costs.time_h, p_f=new_p.reshape(shape), reason=costs.reason, fired_bits=costs.fired_bits)
+    reason = np.broadcast_to(costs.reason, shape).reshape(-1).copy()
     reason[over] |= np.uint8(REASONS["failure"])
-    bits = np.broadcast_to(costs.bits(), shape).copy()
-    more = np.zeros(shape, dtype=np.uint32)
+    bits = np.broadcast_to(costs.bits(), shape).reshape(-1).copy()
+    more = np.zeros(p_f.shape, dtype=np.uint32)
     more[pick] = ext.fired_bits
     bits |= np.where(over, more, 0).astype(np.uint32)
-    return ArcCosts(time_h=np.where(over, np.inf, time_h), p_f=new_p, reason=reason, fired_bits=bits)
+    return ArcCosts(
+        time_h=np.where(over, np.inf, time_h).reshape(shape),
+        p_f=new_p.reshape(shape),
+        reason=reason.reshape(shape),
+        fired_bits=bits.reshape(shape),
+    )
 
 
 @dataclass(frozen=True)

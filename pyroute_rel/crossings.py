@@ -163,8 +163,9 @@ def split_fractions(a_xyz: FloatArray, b_xyz: FloatArray, bounds: Boundaries | N
         paral = _lines_in(np.asarray(bounds.lat_deg, float), la_lo, la_hi, None)
         parts += [_meridian_crossings(a_xyz, u, omega, merid), _parallel_crossings(a_xyz, u, omega, paral)]
     parts.append(_parallel_crossings(a_xyz, u, omega, np.zeros((omega.size, 1))))
-    s = np.concatenate(parts, axis=1)
-    return np.sort(s, axis=1)
+    s = np.sort(np.concatenate(parts, axis=1), axis=1)  # NaN last
+    width = int(np.isfinite(s).sum(axis=1).max()) if s.size else 0
+    return s[:, :width]
 
 
 def _meridian_crossings(a: FloatArray, u: FloatArray, omega: FloatArray, lon_deg: FloatArray) -> FloatArray:

@@ -33,7 +33,7 @@ import numpy.typing as npt
 from ..errors import WeatherCoverageError, WeatherError, WeatherWarning
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
-from .base import RANGES, Conditions
+from .base import RANGES, Boundaries, Conditions
 
 if TYPE_CHECKING:
     pass
@@ -415,6 +415,14 @@ class GriddedWeather:
         if "current_u_ms" in self._info and "current_v_ms" in self._info:
             out.update(("current_u_ms", "current_v_ms"))
         return frozenset(out)
+
+    @functools.cached_property
+    def boundaries(self) -> Boundaries:
+        """The grid lines of every field (meridians and parallels [deg]): fields are bilinear within a cell and bend
+        across its edges. Used to judge arcs on every cell they cross (:mod:`pyroute_rel.crossings`)."""
+        lons = np.unique(np.concatenate([np.asarray(b.lon, dtype=float) for b in self._blocks]))
+        lats = np.unique(np.concatenate([np.asarray(b.lat, dtype=float) for b in self._blocks]))
+        return Boundaries(lons, lats, None, continuous=True)
 
     @property
     def field_info(self) -> Mapping[str, WeatherField]:
