@@ -267,15 +267,13 @@ def _quantities(judge: _Judge, lon: FloatArray, lat: FloatArray, course: FloatAr
 
 
 def _ranges(values: FloatArray, relative: bool) -> tuple[FloatArray, FloatArray]:
-    """Range of a quantity over each piece from its values at the piece's points (last axis; NaN ignored): a
-    relative angle is unwrapped about the first point, then folded into [0, 180]."""
-    with np.errstate(invalid="ignore"):
-        if not relative:
-            return np.nanmin(values, axis=-1), np.nanmax(values, axis=-1)
-        ref = values[..., :1]
-        unwrapped = ref + (values - ref + 180.0) % 360.0 - 180.0
-        lo, hi = np.nanmin(unwrapped, axis=-1), np.nanmax(unwrapped, axis=-1)
-    return _fold_range(lo, hi)
+    """Range of a quantity over each piece from its values at the piece's points (last axis; NaN ignored, NaN where
+    all are): a relative angle is unwrapped about the middle point, then folded into [0, 180]."""
+    if not relative:
+        return _last_axis(np.fmin, values), _last_axis(np.fmax, values)
+    ref = values[..., 1:2]
+    unwrapped = ref + (values - ref + 180.0) % 360.0 - 180.0
+    return _fold_range(_last_axis(np.fmin, unwrapped), _last_axis(np.fmax, unwrapped))
 
 
 def _fold_range(lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
