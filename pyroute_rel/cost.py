@@ -412,6 +412,8 @@ def _judge_pieces(geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options:
         geom.lat_deg,
         geom.course_deg,
         geom.seg_nm,
+        np.broadcast_to(t0_h, shape),
+        np.broadcast_to(costs.time_h, shape),
         weather=options.weather,
         failure=model,
         departure=options.departure,

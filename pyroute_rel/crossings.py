@@ -347,35 +347,58 @@ def needs_pieces(
     lat_deg: FloatArray,
     course_deg: FloatArray,
     seg_nm: FloatArray,
+    t0_h: FloatArray,
+    time_h: FloatArray,
     *,
     weather: WeatherSource,
     failure: FailureModel,
     departure: np.datetime64,
 ) -> npt.NDArray[np.bool_] | None:
-    """Which arcs the cost function's samples cannot judge alone (None: all of them), from the samples.
+    """Which arcs the cost function's samples cannot judge alone (None: any of them may need it), from the samples.
 
-    Only for steady patch sources without current (:class:`Boundaries` with boxes, not continuous); elsewhere
-    None. An arc needs its pieces judged when it may reach a patch edge (every point of an arc is within half a
-    sub-segment of a sample) or when its course, which turns by at most ``|tan(lat)| / R`` per unit length along a
-    great circle, may carry a heading-dependent quantity across a bin edge of its criterion between the samples
-    and the arc's ends. Elsewhere the conditions are those of the samples all along the arc and every criterion
-    stays in one bin, so the samples' p_f is the arc's.
+    Every point of an arc is within half a sub-segment of a sample, and the course along a great circle turns by at
+    most ``|tan(lat)| / R`` per unit length. With patches (steady, no current) an arc needs its pieces judged when
+    it may reach a patch edge, or when its course may carry a heading-dependent quantity across a bin edge of its
+    criterion; elsewhere the samples' conditions hold all along it and every criterion stays in one bin. With a
+    gridded source, when some quantity at some sample is closer to a bin edge than the field can change within that
+    distance and time (:meth:`~pyroute_rel.weather.GriddedWeather.variation`; the arc's whole sailing time bounds
+    the time), plus the course's turn for a heading-dependent one. Other sources, and currents (the heading is then
+    not the course): None.
 
     Parameters
     ----------
     lon_deg, lat_deg, course_deg : The samples (shape (..., samples)) [deg].
     seg_nm : Sub-segment lengths [nm], broadcast to (..., 1).
+    t0_h, time_h : Departure [h after ``departure``] and sailing time [h] of each arc (shape (...)).
     weather, failure, departure : As for :func:`arc_extremes`.
     """
     bounds = getattr(weather, "boundaries", None)
-    if bounds is None or bounds.boxes is None or bounds.continuous or not weather.steady:
+    if bounds is None:
         return None
     half_deg = np.degrees(seg_nm[..., 0] * 0.5 * KM_PER_NM / geodesy.EARTH_RADIUS_KM) * 1.001 + 1e-9
     la_lo = _last_axis(np.minimum, lat_deg) - half_deg
     la_hi = _last_axis(np.maximum, lat_deg) + half_deg
-    coslat = np.cos(np.radians(np.minimum(np.maximum(np.abs(la_lo), np.abs(la_hi)), 89.0)))
-    lo_lo = _last_axis(np.minimum, lon_deg) - half_deg / coslat
-    lo_hi = _last_axis(np.maximum, lon_deg) + half_deg / coslat
+    big = np.minimum(np.maximum(np.abs(la_lo), np.abs(la_hi)), 89.0)
+    # every relative angle along the arc is within `margin` of its value at the first sample plus its field's
+    # change (the fold is 1-Lipschitz; the course is monotonic along the arc)
+    turn = np.degrees(half_deg * np.radians(1.0) * np.tan(np.radians(big))) * 1.01 + 1e-9
+    c0 = course_deg[..., 0]
+    margin = 2.0 * turn
+    for k in range(1, course_deg.shape[-1]):
+        margin = np.maximum(margin, np.abs((course_deg[..., k] - c0 + 180.0) % 360.0 - 180.0) + 2.0 * turn)
+    if bounds.continuous:
+        variation = getattr(weather, "variation", None)
+        if variation is None:
+            return None
+        span = (half_deg / np.cos(np.radians(big)), half_deg, np.zeros(()) if weather.steady else time_h)
+        cond = _sample_cond(weather, lon_deg, lat_deg, t0_h, time_h, departure)
+        if cond is None:
+            return None
+        return _near_bin_edges(cond, course_deg, margin, failure, variation, span)
+    if bounds.boxes is None or not weather.steady:
+        return None
+    lo_lo = _last_axis(np.minimum, lon_deg) - half_deg / np.cos(np.radians(big))
+    lo_hi = _last_axis(np.maximum, lon_deg) + half_deg / np.cos(np.radians(big))
     near = (lo_hi - lo_lo) > 180.0  # across the antimeridian: judge it whole
     for bx0, bx1, by0, by1 in bounds.boxes:
         lat_in = (la_hi >= by0) & (la_lo <= by1)
@@ -387,23 +410,59 @@ def needs_pieces(
     relative = [c for c in failure.criteria if QUANTITY_FIELDS[c.quantity][1]]
     if not relative:
         return near
-    cond = weather.sample(lon_deg[..., :1], lat_deg[..., :1], departure)
+    cond = weather.sample(lon_deg[..., :1], lat_deg[..., :1], departure)  # uniform away from the edges
     if cond.has_current:
         return None
-    # the course's largest turn between a sample and an arc end [deg]
-    tan = np.tan(np.radians(np.minimum(np.maximum(np.abs(la_lo), np.abs(la_hi)), 89.0)))
-    turn = np.degrees(seg_nm[..., 0] * 0.5 * KM_PER_NM / geodesy.EARTH_RADIUS_KM * tan) * 1.01 + 1e-9
-    # every relative angle along the arc is within `margin` of its value at the first sample (the fold is
-    # 1-Lipschitz and the course is monotonic along the arc): its bin can change only near an edge
-    c0 = course_deg[..., 0]
-    margin = 2.0 * turn
-    for k in range(1, course_deg.shape[-1]):
-        margin = np.maximum(margin, np.abs((course_deg[..., k] - c0 + 180.0) % 360.0 - 180.0) + 2.0 * turn)
     for c in relative:
-        field = np.asarray(getattr(cond, QUANTITY_FIELDS[c.quantity][0]), float)[..., 0]
-        q0 = geodesy.fold_angle_deg(field - c0)
+        q0 = geodesy.fold_angle_deg(np.asarray(getattr(cond, QUANTITY_FIELDS[c.quantity][0]), float)[..., 0] - c0)
         for e in c.edges:
             near |= np.abs(q0 - e) <= margin
+    return near
+
+
+def _sample_cond(
+    weather: WeatherSource,
+    lon_deg: FloatArray,
+    lat_deg: FloatArray,
+    t0_h: FloatArray,
+    time_h: FloatArray,
+    departure: np.datetime64,
+) -> Conditions | None:
+    """The weather at the samples (at the arc's departure plus their share of its time; None with a current)."""
+    if weather.steady:
+        cond = weather.sample(lon_deg, lat_deg, departure)
+    else:
+        n = lon_deg.shape[-1]
+        frac = (np.arange(n) + 0.5) / n
+        dt = np.where(np.isfinite(time_h), time_h, 0.0)
+        cond = weather.sample(lon_deg, lat_deg, hours_after(departure, t0_h[..., None] + frac * dt[..., None]))
+    return None if cond.has_current else cond
+
+
+def _near_bin_edges(
+    cond: Conditions,
+    course_deg: FloatArray,
+    margin: FloatArray,
+    failure: FailureModel,
+    variation: Any,
+    span: tuple[Any, Any, Any],
+) -> npt.NDArray[np.bool_] | None:
+    """Arcs with a quantity at a sample within its possible change (``variation(field)`` over ``span``: longitude,
+    latitude [deg] and time [h] differences; plus ``margin`` [deg] for a heading-dependent one) of a bin edge."""
+    near = np.zeros(course_deg.shape[:-1], dtype=bool)
+    for c in failure.criteria:
+        field, relative = QUANTITY_FIELDS[c.quantity]
+        v = variation(field)
+        if v is None:
+            return None
+        change = v.fixed + v.per_lon * span[0] + v.per_lat * span[1] + v.per_h * span[2]
+        value = np.asarray(getattr(cond, field), dtype=float)
+        if relative:
+            value = geodesy.fold_angle_deg(value - course_deg)
+            change = change + margin
+        for e in c.edges:
+            for k in range(course_deg.shape[-1]):
+                near |= np.abs(value[..., k] - e) <= change
     return near
 
 

@@ -27,7 +27,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["Boundaries", "Conditions", "WeatherSource", "FIELDS", "RANGES", "Range"]
+__all__ = ["Boundaries", "Variation", "Conditions", "WeatherSource", "FIELDS", "RANGES", "Range"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -131,6 +131,18 @@ class Conditions:
         """True when any current is non-zero."""
         return bool(np.any(self.current_u_ms) or np.any(self.current_v_ms))
 
+
+
+@dataclass(frozen=True)
+class Variation:
+    """A bound on how much a field changes between two points: ``|f(p) - f(q)| <= fixed + per_lon * |dlon| +
+    per_lat * |dlat| + per_h * |dt|`` (longitude and latitude differences [deg], time [h]; a direction's change in
+    [deg]). Gridded sources give it (:meth:`~pyroute_rel.weather.GriddedWeather.variation`)."""
+
+    per_lon: float
+    per_lat: float
+    per_h: float
+    fixed: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ import numpy.typing as npt
 from ..errors import WeatherCoverageError, WeatherError, WeatherWarning
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
-from .base import RANGES, Boundaries, Conditions
+from .base import RANGES, Boundaries, Conditions, Variation
 
 if TYPE_CHECKING:
     pass
@@ -399,6 +399,7 @@ class GriddedWeather:
             groups.setdefault(key, []).append(f)
         self._blocks = [_Block(group) for group in groups.values()]
         self._steady = all(f.time is None for f in fields)
+        self._variations: dict[str, Variation | None] = {}
         _load_kernels()  # numba's first call in a process costs half a second: pay it with the file, not the route
 
     @property
@@ -423,6 +424,24 @@ class GriddedWeather:
         lons = np.unique(np.concatenate([np.asarray(b.lon, dtype=float) for b in self._blocks]))
         lats = np.unique(np.concatenate([np.asarray(b.lat, dtype=float) for b in self._blocks]))
         return Boundaries(lons, lats, None, continuous=True)
+
+    def variation(self, field: str) -> Variation | None:
+        """A bound on how much a :class:`~pyroute_rel.weather.Conditions` field changes between two points (None:
+        not in the data, or no bound).
+
+        A bilinear (in time, trilinear) interpolant's slope along each axis is a weighted mean of the differences
+        between neighbouring nodes, so ``hs_m`` and ``wave_period_s`` change by at most the largest neighbour
+        difference per grid step along each axis; ``tws_kn``, the length of the interpolated wind, by at most the
+        sum of its components'. A direction (``twd_deg``, ``wave_dir_deg``) interpolated from vectors stays within
+        the angular hull of its cell's corners (when they span less than 180 deg), so it changes by at most the
+        corners' spread (the sum of the largest angles between neighbours along each axis) per cell entered: four
+        (the cells of both points, and one more along each axis at worst) plus one per grid step travelled.
+        Computed once per field and cached.
+        """
+        cached = self._variations.get(field)
+        if cached is None and field not in self._variations:
+            cached = self._variations[field] = _variation(self._blocks, field)
+        return cached
 
     @property
     def field_info(self) -> Mapping[str, WeatherField]:
@@ -706,3 +725,63 @@ def _offsets(time: npt.NDArray[np.datetime64]) -> tuple[np.datetime64, FloatArra
     """Times (1-D ``datetime64[ns]``) as an origin and contiguous float seconds after it, as the kernels take them."""
     origin = time[0] if time.size else np.datetime64(0, "ns")
     return origin, np.ascontiguousarray((time - origin) / np.timedelta64(1, "s"), dtype=np.float64)
+
+
+#: Stored columns of the blocks behind each Conditions field whose variation can be bounded, and how: "scalar" (its
+#: neighbour differences), "length" (of a vector: the sum of its components'), "angle" (of a vector).
+_VARIATION_COLUMNS: dict[str, tuple[tuple[str, ...], str]] = {
+    "hs_m": (("hs_m",), "scalar"),
+    "wave_period_s": (("wave_period_s",), "scalar"),
+    "tws_kn": (("wind_u_ms", "wind_v_ms"), "length"),
+    "twd_deg": (("wind_u_ms", "wind_v_ms"), "angle"),
+    "wave_dir_deg": (("_wave_sin", "_wave_cos"), "angle"),
+}
+
+
+def _variation(blocks: list[_Block], field: str) -> Variation | None:
+    """:meth:`GriddedWeather.variation` computed from the blocks' data (see there)."""
+    spec = _VARIATION_COLUMNS.get(field)
+    if spec is None:
+        return None
+    names, kind = spec
+    block = next((b for b in blocks if all(n in b.names for n in names)), None)
+    if block is None:
+        return None
+    cols = [block.names.index(n) for n in names]
+    steps = [float(np.min(np.diff(block.lon))), float(np.min(np.diff(block.lat)))]
+    steps.append(float(np.min(np.diff(block.time_s))) / 3600.0 if block.time_s.size > 1 else np.inf)
+    # largest neighbour statistic along each axis of the data (lat, lon, time): axes 1, 0, 2
+    worst = [_neighbour_max(block.data, cols, axis, kind) for axis in (1, 0, 2)]
+    if kind == "angle":
+        spread = float(sum(worst))
+        if not spread < 90.0:
+            return None
+        return Variation(spread / steps[0], spread / steps[1], spread / steps[2], fixed=4.0 * spread)
+    scale = KN_PER_MS if kind == "length" else 1.0
+    return Variation(*(scale * w / s for w, s in zip(worst, steps, strict=True)))
+
+
+def _neighbour_max(data: npt.NDArray[np.float32], cols: list[int], axis: int, kind: str) -> float:
+    """Largest difference (sum over the columns, or angle between the vectors [deg]) between neighbours along
+    ``axis`` of ``data`` (lat, lon, time, column), in bands of latitude (no full-size temporaries); NaN ignored."""
+    n_lat = data.shape[0]
+    if data.shape[axis] < 2:
+        return 0.0
+    rows = max(2, (1 << 21) // max(1, data.shape[1] * data.shape[2]))
+    best = 0.0
+    for y0 in range(0, n_lat - (1 if axis == 0 else 0), rows - (1 if axis == 0 else 0)):
+        band = data[y0 : y0 + rows]
+        n = band.shape[axis]
+        a = [np.take(band[..., c], np.arange(n - 1), axis=axis).astype(float) for c in cols]
+        b = [np.take(band[..., c], np.arange(1, n), axis=axis).astype(float) for c in cols]
+        if kind == "angle":
+            dot = a[0] * b[0] + a[1] * b[1]
+            norm = np.sqrt((a[0] ** 2 + a[1] ** 2) * (b[0] ** 2 + b[1] ** 2))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                cos = np.where(norm > 0.0, dot / np.where(norm > 0.0, norm, 1.0), -1.0)
+            stat = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+        else:
+            stat = sum(np.abs(y - x) for x, y in zip(a, b, strict=True))
+        if np.isfinite(stat).any():
+            best = max(best, float(np.nanmax(stat)))
+    return best
