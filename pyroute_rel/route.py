@@ -283,7 +283,7 @@ class Route:
         """Probability of failure over the voyage, ``1 - exp(-sum of the legs' hazards)`` [-] (see the module
         notes): ``1 - prod(1 - p_fail_leg)``."""
         with np.errstate(divide="ignore"):  # a leg with p_fail_leg = 1: log1p(-1) = -inf, certain failure
-            return float(-np.expm1(np.sum(np.log1p(-self.legs.p_fail_leg))))
+            return float(0.0 - np.expm1(np.sum(np.log1p(-self.legs.p_fail_leg))))  # 0, not -0, with no hazard
 
     @property
     def touches_edge(self) -> bool:
