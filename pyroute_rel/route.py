@@ -317,7 +317,7 @@ class Route:
         >>> route = sc.route()
         >>> arcs = route.forbidden_arcs()
         >>> len(arcs), int(arcs.rank[0]), str(arcs.reason[0]), str(arcs.criteria[0]), str(arcs.departure[0])
-        (775, 6, 'failure', 'WH: hs_m >= 4 m', '2018-06-02T07:44:06')
+        (694, 6, 'failure', 'WH: hs_m >= 4 m', '2018-06-02T09:14:22')
         """
         parts = self.course_legs or (self,)
         offsets = [float((r.departure - self.departure) / np.timedelta64(1, "s")) / 3600.0 for r in parts]

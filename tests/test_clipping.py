@@ -266,3 +266,44 @@ def test_gridded_route_goes_round_a_single_cell_of_high_waves():
     p = MODEL.p_fail({"hs_m": _bilinear(glon, glat, ghs, lon, lat), "awd_deg": _awd(0.0, course)})
     assert _longest_run(p > 0.5) <= 1
     assert route.max_failure_probability == p.max()
+
+
+@pytest.mark.slow
+def test_forbidden_arcs_are_exactly_those_that_enter_the_patch():
+    """The library's forbidden arcs (the example of ``Route.forbidden_arcs``: one patch of 4.5 m waves at apf 0.5):
+    among the arcs leaving the nodes the DP reached, those forbidden by the failure model are exactly those whose
+    great circle, densified every 50 m, enters the patch."""
+    from pyroute_rel import scenario_from_mapping
+
+    box = (-17.0, -15.0, 41.0, 44.0)
+    sc = scenario_from_mapping(
+        {
+            "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0]},
+            "grid": {"n_ranks": 20},
+            "weather": {
+                "kind": "uniform",
+                "tws_kn": 15.0,
+                "twd_deg": 0.0,
+                "hs_m": 1.0,
+                "patch": [{"lon": list(box[:2]), "lat": list(box[2:]), "hs_m": 4.5}],
+            },
+            "avoid": {"land": False},
+            "failure": {"model": "dickson2018", "apf": 0.5},
+        }
+    )
+    route = sc.route()
+    table = route.forbidden_arcs()
+    failure = np.char.find(table.reason.astype(str), "failure") >= 0
+    listed = set(zip(table.rank[failure].tolist(), table.dst[failure].tolist(), table.src[failure].tolist()))
+    grid, arrival = route.grid, route.dp.arrival_h
+    entering = set()
+    for k in range(grid.n_ranks + 1):
+        lon0, lat0, lon1, lat1, src, valid = (np.asarray(a) for a in grid.arcs(k))
+        lon0, lat0, lon1, lat1, src = np.broadcast_arrays(lon0, lat0, lon1, lat1, src)
+        live = valid & (np.isfinite(arrival[k - 1][src]) if k > 0 else True)
+        for d, c in zip(*np.nonzero(live), strict=True):
+            lo, la, _ = _densify_leg(lon0[d, c], lat0[d, c], lon1[d, c], lat1[d, c], 0.05)
+            if np.any((lo >= box[0]) & (lo <= box[1]) & (la >= box[2]) & (la <= box[3])):
+                entering.add((k, int(d if k < grid.n_ranks else c), int(src[d, c])))
+    assert len(listed) > 100
+    assert listed == entering
