@@ -377,7 +377,7 @@ def geometry_costs(
     if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
         return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n)
     if steady:
-        dt, p_f, reason, fired = _sample_and_cost(geom, options, None, None)
+        dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
     else:
         # time-varying weather samples the same points at two sets of times: the source prepares them once; pass 1
         # times the sub-segments at the departure time (speeds only: the failure model decides nothing here),
@@ -389,16 +389,20 @@ def geometry_costs(
         for s in range(1, geom.samples):
             elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
-        dt, p_f, reason, fired = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
+        dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
     costs = _arc_totals(dt, p_f, reason, fired)
     if options.failure is not None and geom.a_xyz is not None and geom.b_xyz is not None:
-        costs = _judge_pieces(geom, np.asarray(t0_h, dtype=float), costs, options)
+        costs = _judge_pieces(geom, np.asarray(t0_h, dtype=float), costs, options, cond)
     return costs
 
 
-def _judge_pieces(geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options: _CostOptions) -> ArcCosts:
+def _judge_pieces(
+    geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options: _CostOptions, cond: Conditions
+) -> ArcCosts:
     """``costs`` with each arc still allowed judged on every piece it crosses (:func:`~pyroute_rel.crossings.
-    arc_extremes`): its p_f is the largest met anywhere along it, and it is forbidden where that exceeds apf."""
+    arc_extremes`): its p_f is the largest met anywhere along it, and it is forbidden where that exceeds apf.
+    ``cond``: the weather at the samples (which arcs need it is decided from them, :func:`~pyroute_rel.crossings.
+    needs_pieces`)."""
     model = options.failure
     assert model is not None and geom.a_xyz is not None and geom.b_xyz is not None
     shape = geom.shape
@@ -417,6 +421,7 @@ def _judge_pieces(geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options:
         weather=options.weather,
         failure=model,
         departure=options.departure,
+        cond=cond,
     )
     if near is not None:
         todo &= np.broadcast_to(near, shape).reshape(-1)
@@ -510,8 +515,8 @@ def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n:
 
 def _sample_and_cost(
     geom: ArcGeometry, options: _CostOptions, prepared: object | None, time_h: FloatArray | None, timing: bool = False
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any]:
-    """Per-sample time [h], p_f, reasons and fired criteria (:func:`_sample_costs`) with the weather sampled at
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any, Conditions]:
+    """Per-sample time [h], p_f, reasons and fired criteria (:func:`_sample_costs`), and the weather, sampled at
     ``time_h`` [h after departure] (None: at the departure); ``prepared``: the points from ``weather.prepare``
     (None: steady weather, sampled directly). ``timing``: pass 1, only the times are wanted (no failure model).
 
@@ -528,20 +533,23 @@ def _sample_and_cost(
 
             wind = sail_wind(cond.tws_kn, cond.twd_deg, geom.course_deg, geom.seg_nm, o.polar, beyond=o.beyond)
             if timing:
-                return wind[2], np.empty(0), np.empty(0, np.uint8), None
+                return wind[2], np.empty(0), np.empty(0, np.uint8), None, cond
     else:
         time = o.departure if time_h is None else hours_after(o.departure, time_h)
         cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
-    return _sample_costs(
+    return (
+        *_sample_costs(
+            cond,
+            geom.course_deg,
+            geom.seg_nm,
+            o.polar,
+            None if timing else o.failure,
+            o.apf,
+            o.beyond,
+            o.wave_loss,
+            wind=None if wind is None else wind[:2],
+        ),
         cond,
-        geom.course_deg,
-        geom.seg_nm,
-        o.polar,
-        None if timing else o.failure,
-        o.apf,
-        o.beyond,
-        o.wave_loss,
-        wind=None if wind is None else wind[:2],
     )
 
 

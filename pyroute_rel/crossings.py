@@ -353,6 +353,7 @@ def needs_pieces(
     weather: WeatherSource,
     failure: FailureModel,
     departure: np.datetime64,
+    cond: Conditions | None = None,
 ) -> npt.NDArray[np.bool_] | None:
     """Which arcs the cost function's samples cannot judge alone (None: any of them may need it), from the samples.
 
@@ -371,6 +372,7 @@ def needs_pieces(
     seg_nm : Sub-segment lengths [nm], broadcast to (..., 1).
     t0_h, time_h : Departure [h after ``departure``] and sailing time [h] of each arc (shape (...)).
     weather, failure, departure : As for :func:`arc_extremes`.
+    cond : The weather at the samples, if known (else sampled again).
     """
     bounds = getattr(weather, "boundaries", None)
     if bounds is None:
@@ -391,8 +393,9 @@ def needs_pieces(
         if variation is None:
             return None
         span = (half_deg / np.cos(np.radians(big)), half_deg, np.zeros(()) if weather.steady else time_h)
-        cond = _sample_cond(weather, lon_deg, lat_deg, t0_h, time_h, departure)
-        if cond is None:
+        if cond is None or cond.tws_kn.shape != lon_deg.shape:
+            cond = _sample_cond(weather, lon_deg, lat_deg, t0_h, time_h, departure)
+        if cond is None or cond.has_current:
             return None
         return _near_bin_edges(cond, course_deg, margin, failure, variation, span)
     if bounds.boxes is None or not weather.steady:

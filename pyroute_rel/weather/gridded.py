@@ -763,25 +763,51 @@ def _variation(blocks: list[_Block], field: str) -> Variation | None:
 
 def _neighbour_max(data: npt.NDArray[np.float32], cols: list[int], axis: int, kind: str) -> float:
     """Largest difference (sum over the columns, or angle between the vectors [deg]) between neighbours along
-    ``axis`` of ``data`` (lat, lon, time, column), in bands of latitude (no full-size temporaries); NaN ignored."""
-    n_lat = data.shape[0]
+    ``axis`` of ``data`` (lat, lon, time, column); NaN ignored. One compiled pass over the data."""
     if data.shape[axis] < 2:
         return 0.0
-    rows = max(2, (1 << 21) // max(1, data.shape[1] * data.shape[2]))
+    c0, c1 = cols[0], cols[-1]
+    if kind == "angle":
+        worst_cos = _neighbour_min_cos(data, c0, c1, axis)
+        return float(np.degrees(np.arccos(min(1.0, max(-1.0, worst_cos)))))
+    return float(_neighbour_max_diff(data, c0, c1 if len(cols) > 1 else -1, axis))
+
+
+@numba.njit(nogil=True, cache=True)
+def _neighbour_max_diff(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Largest |difference| of column c0 (plus that of c1 when >= 0) between neighbours along ``axis``."""
+    ny, nx, nt, _ = data.shape
+    dj, di, dt = (1, 0, 0) if axis == 0 else ((0, 1, 0) if axis == 1 else (0, 0, 1))
     best = 0.0
-    for y0 in range(0, n_lat - (1 if axis == 0 else 0), rows - (1 if axis == 0 else 0)):
-        band = data[y0 : y0 + rows]
-        n = band.shape[axis]
-        a = [np.take(band[..., c], np.arange(n - 1), axis=axis).astype(float) for c in cols]
-        b = [np.take(band[..., c], np.arange(1, n), axis=axis).astype(float) for c in cols]
-        if kind == "angle":
-            dot = a[0] * b[0] + a[1] * b[1]
-            norm = np.sqrt((a[0] ** 2 + a[1] ** 2) * (b[0] ** 2 + b[1] ** 2))
-            with np.errstate(invalid="ignore", divide="ignore"):
-                cos = np.where(norm > 0.0, dot / np.where(norm > 0.0, norm, 1.0), -1.0)
-            stat = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
-        else:
-            stat = sum(np.abs(y - x) for x, y in zip(a, b, strict=True))
-        if np.isfinite(stat).any():
-            best = max(best, float(np.nanmax(stat)))
+    for j in range(ny - dj):
+        for i in range(nx - di):
+            for t in range(nt - dt):
+                d = abs(np.float64(data[j + dj, i + di, t + dt, c0]) - data[j, i, t, c0])
+                if c1 >= 0:
+                    d += abs(np.float64(data[j + dj, i + di, t + dt, c1]) - data[j, i, t, c1])
+                if d > best:  # False for NaN
+                    best = d
     return best
+
+
+@numba.njit(nogil=True, cache=True)
+def _neighbour_min_cos(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Smallest cosine of the angle between the vectors (column c0, column c1) of neighbours along ``axis`` (-1
+    where one is zero)."""
+    ny, nx, nt, _ = data.shape
+    dj, di, dt = (1, 0, 0) if axis == 0 else ((0, 1, 0) if axis == 1 else (0, 0, 1))
+    worst = 1.0
+    for j in range(ny - dj):
+        for i in range(nx - di):
+            for t in range(nt - dt):
+                ax = np.float64(data[j, i, t, c0])
+                ay = np.float64(data[j, i, t, c1])
+                bx = np.float64(data[j + dj, i + di, t + dt, c0])
+                by = np.float64(data[j + dj, i + di, t + dt, c1])
+                norm = np.sqrt((ax * ax + ay * ay) * (bx * bx + by * by))
+                if norm != norm:
+                    continue
+                c = (ax * bx + ay * by) / norm if norm > 0.0 else -1.0
+                if c < worst:
+                    worst = c
+    return worst
