@@ -361,8 +361,13 @@ def geometry_costs(
     beyond: str = "clamp",
     wave_loss: WaveLoss | None = None,
     workers: int | None = None,
+    exact_p_f: bool = True,
 ) -> ArcCosts:
     """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid).
+
+    Arcs are judged on every piece they cross (:mod:`pyroute_rel.crossings`) when the geometry has their end
+    points. ``exact_p_f=False`` (the DP's choice) skips that where it cannot forbid anything (``apf`` at or above the
+    failure table's largest ``p_f``): the arcs' ``p_f`` is then their samples' largest; their times are the same.
 
     With time-varying weather, a large block is split along its first axis between ``workers`` threads (default
     :func:`~pyroute_rel.parallel.default_workers`): the compiled sampling kernels and numpy's ufuncs release the
@@ -372,7 +377,7 @@ def geometry_costs(
     shape = geom.shape
     steady = bool(weather.steady)
     n = default_workers() if workers is None else int(workers)
-    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss)
+    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
     if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
         return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n)
@@ -405,6 +410,8 @@ def _judge_pieces(
     needs_pieces`)."""
     model = options.failure
     assert model is not None and geom.a_xyz is not None and geom.b_xyz is not None
+    if not options.exact_p_f and options.apf >= float(np.max(model.p_flat)):
+        return costs  # nothing to forbid
     shape = geom.shape
     time_h = np.broadcast_to(costs.time_h, shape).reshape(-1)
     p_f = np.broadcast_to(costs.p_f, shape).reshape(-1)
@@ -472,6 +479,7 @@ class _CostOptions:
     apf: float
     beyond: str
     wave_loss: WaveLoss | None
+    exact_p_f: bool = True
 
 
 def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n: int) -> ArcCosts:
@@ -499,6 +507,7 @@ def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n:
             beyond=o.beyond,
             wave_loss=o.wave_loss,
             workers=1,
+            exact_p_f=o.exact_p_f,
         )
 
     done = thread_map(part, row_blocks(geom.shape[0], n), n)

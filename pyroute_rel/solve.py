@@ -245,8 +245,8 @@ class RoutingProblem:
         }
 
     def geometry_costs(self, geom: ArcGeometry, t0_h: Any) -> ArcCosts:
-        """Arc costs on precomputed geometry."""
-        return geometry_costs(geom, t0_h, **self._cost_options())
+        """Arc costs on precomputed geometry (the DP's: an arc's p_f is exact where it can forbid the arc)."""
+        return geometry_costs(geom, t0_h, **self._cost_options(), exact_p_f=False)
 
     def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
         """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`)."""
