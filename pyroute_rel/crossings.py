@@ -34,6 +34,11 @@ What this guarantees:
   parabola are sampled, exact for quantities monotonic or quadratic along the arc.
 
 Missing weather (NaN) is still judged at the cost function's samples only; the pieces add failure criteria.
+
+Cost: only the arcs that may need it are cut (:func:`needs_pieces`): with patches, those near a patch edge or whose
+heading may cross a criterion's bin edge; with a gridded source, those whose sampled quantities are closer to a bin
+edge than the field can change along the arc (:meth:`~pyroute_rel.weather.GriddedWeather.variation`). The others
+keep their samples' p_f, which is then exact (no bin changes along them).
 """
 
 from __future__ import annotations
@@ -49,8 +54,8 @@ from . import geodesy
 from .crab import steer
 from .failure import QUANTITY_FIELDS, FailureModel
 from .polar import Polar
-from .units import KM_PER_NM
 from .times import hours_after
+from .units import KM_PER_NM
 from .weather.base import Boundaries, Conditions, WeatherSource
 
 __all__ = ["Boundaries", "NUDGE", "ArcExtremes", "arc_extremes", "needs_pieces", "split_fractions"]
@@ -392,7 +397,8 @@ def needs_pieces(
         variation = getattr(weather, "variation", None)
         if variation is None:
             return None
-        span = (half_deg / np.cos(np.radians(big)), half_deg, np.zeros(()) if weather.steady else time_h)
+        dt = np.zeros(()) if weather.steady else np.where(np.isfinite(time_h), time_h, 0.0)  # forbidden: no time
+        span = (half_deg / np.cos(np.radians(big)), half_deg, dt)
         if cond is None or cond.tws_kn.shape != lon_deg.shape:
             cond = _sample_cond(weather, lon_deg, lat_deg, t0_h, time_h, departure)
         if cond is None or cond.has_current:

@@ -115,7 +115,11 @@ def _control_weather():
         hs_m=table["hs_m"],
         wave_dir_deg=table["wave_dir_deg"],
         patches=tuple(
-            Patch(lon=tuple(p["lon"]), lat=tuple(p["lat"]), values={k: v for k, v in p.items() if k.endswith(("_m", "_deg"))})
+            Patch(
+                lon=tuple(p["lon"]),
+                lat=tuple(p["lat"]),
+                values={k: v for k, v in p.items() if k.endswith(("_m", "_deg"))},
+            )
             for p in table["patch"]
         ),
     )
@@ -174,6 +178,12 @@ def test_control_routes_stay_out_of_forbidden_conditions(apf, case):
     p = MODEL.p_fail({"hs_m": hs, "awd_deg": _awd(wd, course)})
     assert _longest_run(p > apf) <= 1
     assert route.max_failure_probability == p.max()
+    # the exposure integral (1 km sub-arcs) meets no forbidden conditions either: at apf 0.5 no criterion may fire;
+    # at 0.95, head seas (WD) occur only in Area 1, inside Area 2's 4 m waves, where both fire (p_f 1)
+    hours = route.exposure_by_criterion_h
+    assert hours["WD: awd_deg < 60 deg"] == 0.0
+    if apf == 0.5:
+        assert hours["WH: hs_m >= 4 m"] == 0.0 and route.voyage_failure_probability == 0.0
 
 
 @pytest.mark.slow
@@ -294,7 +304,9 @@ def test_forbidden_arcs_are_exactly_those_that_enter_the_patch():
     route = sc.route()
     table = route.forbidden_arcs()
     failure = np.char.find(table.reason.astype(str), "failure") >= 0
-    listed = set(zip(table.rank[failure].tolist(), table.dst[failure].tolist(), table.src[failure].tolist()))
+    listed = set(
+        zip(table.rank[failure].tolist(), table.dst[failure].tolist(), table.src[failure].tolist(), strict=True)
+    )
     grid, arrival = route.grid, route.dp.arrival_h
     entering = set()
     for k in range(grid.n_ranks + 1):

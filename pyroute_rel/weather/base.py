@@ -132,7 +132,6 @@ class Conditions:
         return bool(np.any(self.current_u_ms) or np.any(self.current_v_ms))
 
 
-
 @dataclass(frozen=True)
 class Variation:
     """A bound on how much a field changes between two points: ``|f(p) - f(q)| <= fixed + per_lon * |dlon| +
