@@ -44,6 +44,7 @@ keep their samples' p_f, which is then exact (no bin changes along them).
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -385,10 +386,11 @@ def needs_pieces(
     half_deg = np.degrees(seg_nm[..., 0] * 0.5 * KM_PER_NM / geodesy.EARTH_RADIUS_KM) * 1.001 + 1e-9
     la_lo = _last_axis(np.minimum, lat_deg) - half_deg
     la_hi = _last_axis(np.maximum, lat_deg) + half_deg
-    big = np.minimum(np.maximum(np.abs(la_lo), np.abs(la_hi)), 89.0)
+    # the block's highest latitude [deg] (a bound for every arc: the course's turn, degrees of longitude per km)
+    big = min(max(float(np.max(np.abs(la_lo), initial=0.0)), float(np.max(np.abs(la_hi), initial=0.0))), 89.0)
     # every relative angle along the arc is within `margin` of its value at the first sample plus its field's
     # change (the fold is 1-Lipschitz; the course is monotonic along the arc)
-    turn = np.degrees(half_deg * np.radians(1.0) * np.tan(np.radians(big))) * 1.01 + 1e-9
+    turn = half_deg * (math.tan(math.radians(big)) * 1.01) + 1e-9
     c0 = course_deg[..., 0]
     margin = 2.0 * turn
     for k in range(1, course_deg.shape[-1]):
@@ -398,7 +400,7 @@ def needs_pieces(
         if variation is None:
             return None
         dt = np.zeros(()) if weather.steady else np.where(np.isfinite(time_h), time_h, 0.0)  # forbidden: no time
-        span = (half_deg / np.cos(np.radians(big)), half_deg, dt)
+        span = (half_deg / math.cos(math.radians(big)), half_deg, dt)
         if cond is None or cond.tws_kn.shape != lon_deg.shape:
             cond = _sample_cond(weather, lon_deg, lat_deg, t0_h, time_h, departure)
         if cond is None or cond.has_current:
@@ -406,20 +408,12 @@ def needs_pieces(
         return _near_bin_edges(cond, course_deg, margin, failure, variation, span)
     if bounds.boxes is None or not weather.steady:
         return None
-    lo_lo = _last_axis(np.minimum, lon_deg) - half_deg / np.cos(np.radians(big))
-    lo_hi = _last_axis(np.maximum, lon_deg) + half_deg / np.cos(np.radians(big))
-    near = (lo_hi - lo_lo) > 180.0  # across the antimeridian: judge it whole
-    for bx0, bx1, by0, by1 in bounds.boxes:
-        lat_in = (la_hi >= by0) & (la_lo <= by1)
-        lon_in = (lo_hi >= bx0) & (lo_lo <= bx1)
-        for x in (bx0, bx1):
-            near |= lat_in & (lo_lo <= x) & (lo_hi >= x)
-        for y in (by0, by1):
-            near |= lon_in & (la_lo <= y) & (la_hi >= y)
+    near = _near_edges(lon_deg, la_lo, la_hi, half_deg / math.cos(math.radians(big)), bounds.boxes)
     relative = [c for c in failure.criteria if QUANTITY_FIELDS[c.quantity][1]]
     if not relative:
         return near
-    cond = weather.sample(lon_deg[..., :1], lat_deg[..., :1], departure)  # uniform away from the edges
+    if cond is None or cond.tws_kn.shape != lon_deg.shape:
+        cond = weather.sample(lon_deg[..., :1], lat_deg[..., :1], departure)  # uniform away from the edges
     if cond.has_current:
         return None
     for c in relative:
@@ -427,6 +421,35 @@ def needs_pieces(
         for e in c.edges:
             near |= np.abs(q0 - e) <= margin
     return near
+
+
+def _near_edges(
+    lon_deg: FloatArray, la_lo: FloatArray, la_hi: FloatArray, lon_margin: FloatArray, boxes: FloatArray
+) -> npt.NDArray[np.bool_]:
+    """Arcs whose bounding box (latitudes ``[la_lo, la_hi]``, the samples' longitudes widened by ``lon_margin``)
+    meets an edge of a box (rows ``lon_min, lon_max, lat_min, lat_max`` [deg]); only the arcs within the boxes'
+    union are tested edge by edge."""
+    lo_lo = _last_axis(np.minimum, lon_deg) - lon_margin
+    lo_hi = _last_axis(np.maximum, lon_deg) + lon_margin
+    near = (lo_hi - lo_lo) > 180.0  # across the antimeridian: judge it whole
+    union = (la_hi >= boxes[:, 2].min()) & (la_lo <= boxes[:, 3].max())
+    union &= (lo_hi >= boxes[:, 0].min()) & (lo_lo <= boxes[:, 1].max())
+    pick = np.flatnonzero(union.reshape(-1))
+    if not pick.size:
+        return near
+    x0, x1 = lo_lo.reshape(-1)[pick], lo_hi.reshape(-1)[pick]
+    y0, y1 = la_lo.reshape(-1)[pick], la_hi.reshape(-1)[pick]
+    hit = np.zeros(pick.size, dtype=bool)
+    for bx0, bx1, by0, by1 in boxes:
+        lat_in = (y1 >= by0) & (y0 <= by1)
+        lon_in = (x1 >= bx0) & (x0 <= bx1)
+        for x in (bx0, bx1):
+            hit |= lat_in & (x0 <= x) & (x1 >= x)
+        for y in (by0, by1):
+            hit |= lon_in & (y0 <= y) & (y1 >= y)
+    flat = near.reshape(-1).copy()
+    flat[pick] |= hit
+    return flat.reshape(near.shape)
 
 
 def _sample_cond(
