@@ -81,7 +81,9 @@ class ArcCosts:
     Attributes
     ----------
     time_h : Time to sail the arc [h]; ``inf`` where forbidden.
-    p_f : Largest failure probability along the arc (0 without a failure model; NaN where weather is missing).
+    p_f : Largest failure probability along the arc, judged on every piece it crosses (:mod:`pyroute_rel.crossings`;
+        an arc its samples already forbid keeps their largest; 0 without a failure model; NaN where weather is
+        missing).
     reason : Bit flags of :data:`REASONS` (0 where the arc is allowed).
     fired_bits : With a failure model and some arc it forbids: bit ``c`` is set where criterion ``c`` of the
         model fired somewhere along the arc (read it where ``reason`` has the failure flag); None otherwise.
