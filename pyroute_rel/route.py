@@ -284,7 +284,7 @@ class Route:
         """Probability of failure over the voyage, ``1 - exp(-sum of the legs' hazards)`` [-] (see the module
         notes): ``1 - prod(1 - p_fail_leg)``."""
         with np.errstate(divide="ignore"):  # a leg with p_fail_leg = 1: log1p(-1) = -inf, certain failure
-            return float(-np.expm1(np.sum(np.log1p(-self.legs.p_fail_leg))))
+            return float(0.0 - np.expm1(np.sum(np.log1p(-self.legs.p_fail_leg))))  # 0, not -0, with no hazard
 
     @property
     def touches_edge(self) -> bool:
@@ -318,7 +318,7 @@ class Route:
         >>> route = sc.route()
         >>> arcs = route.forbidden_arcs()
         >>> len(arcs), int(arcs.rank[0]), str(arcs.reason[0]), str(arcs.criteria[0]), str(arcs.departure[0])
-        (775, 6, 'failure', 'WH: hs_m >= 4 m', '2018-06-02T07:44:06')
+        (694, 6, 'failure', 'WH: hs_m >= 4 m', '2018-06-02T09:14:22')
         """
         parts = self.course_legs or (self,)
         offsets = [float((r.departure - self.departure) / np.timedelta64(1, "s")) / 3600.0 for r in parts]

@@ -245,8 +245,8 @@ class RoutingProblem:
         }
 
     def geometry_costs(self, geom: ArcGeometry, t0_h: Any) -> ArcCosts:
-        """Arc costs on precomputed geometry."""
-        return geometry_costs(geom, t0_h, **self._cost_options())
+        """Arc costs on precomputed geometry (the DP's: an arc's p_f is exact where it can forbid the arc)."""
+        return geometry_costs(geom, t0_h, **self._cost_options(), exact_p_f=False)
 
     def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
         """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`)."""
@@ -759,8 +759,8 @@ def _costs_of(problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray, pick: 
     shape = pick.shape
     sub = ArcGeometry(
         *(
-            np.broadcast_to(a, shape + (a.shape[-1],))[pick]
-            for a in (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm)
+            None if a is None else np.broadcast_to(a, shape + (a.shape[-1],))[pick]
+            for a in (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, geom.a_xyz, geom.b_xyz)
         )
     )
     c = problem.geometry_costs(sub, np.broadcast_to(t0, shape)[pick])
