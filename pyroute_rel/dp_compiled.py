@@ -1,14 +1,15 @@
 """Compiled twin of one rank of the forward DP, for steady wind-only problems (issue 18).
 
 Where the arc costs need nothing but the wind (steady weather, no failure model, wave speed loss, current, obstacle
-mask, waiting, finish line or manoeuvre state), :func:`~pyroute_rel.solve.forward_dp` hands each rank to
-:func:`rank_step`: one compiled loop over the arcs into each node that does what the numpy path does operation for
-operation -- TWA, bilinear polar speed, time per sub-segment (the arithmetic of
-:func:`pyroute_rel.cost_compiled.sail_wind`), the arc's reason flags, pruning (each node's four arcs of smallest lower
-bound first, then every arc whose bound does not exceed the best of them, see ``RoutingProblem.prune``), the arrival
-and the earliest one -- without a temporary array per step. Its results are bit-identical to the numpy path's
-(arrival times, back-pointers, counts; property-tested); only the weather is still sampled in numpy, once per arc
-sample.
+mask, waiting or finish line), :func:`~pyroute_rel.solve.forward_dp` hands each rank to :func:`rank_step`: one
+compiled loop over the arcs into each node that does what the numpy path does operation for operation -- TWA,
+bilinear polar speed, time per sub-segment (the arithmetic of :func:`pyroute_rel.cost_compiled.sail_wind`), the
+arc's reason flags, pruning (each node's four arcs of smallest lower bound first, then every arc whose bound does
+not exceed the best of them, see ``RoutingProblem.prune``), the arrival from each source label with the time of a
+change of side (:mod:`pyroute_rel.manoeuvre`: labels (node, side), the plain DP being the case of one label) and
+the earliest arrival at each label -- without a temporary array per step. Its results are bit-identical to the
+numpy path's (arrival times, back-pointers, labels, counts; property-tested); only the weather (and each arc's side
+and manoeuvre time) is still computed in numpy, once per arc sample.
 
 Kernels take contiguous, writable float64 arrays (one compiled signature). numba is imported only by problems this
 path serves.
@@ -33,58 +34,72 @@ def rank_step(
     course_deg: FloatArray,
     seg_nm: FloatArray,
     t_src: FloatArray,
-    live: npt.NDArray[np.bool_],
     polar: Polar,
     *,
     beyond: str,
     bound_kn: float | None,
-) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.uint8], npt.NDArray[np.bool_]]:
-    """One rank of the DP: the earliest arrival at each node [h] and the arc it comes by.
+    from_sides: tuple[int, ...] = (-1,),
+    side: npt.NDArray[np.int8] | None = None,
+    change_h: FloatArray | None = None,
+) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], npt.NDArray[np.uint8], npt.NDArray[np.bool_]]:
+    """One rank of the DP: the earliest arrival at each label [h] and the arc and source label it comes by.
 
     Parameters
     ----------
     tws_kn, twd_deg : Wind speed [kn] and direction (from) [deg] at the arcs' samples, shape (nodes, arcs, samples).
     course_deg : Great-circle course at the samples [deg], same shape.
     seg_nm : Sub-segment length of each arc [nm], shape (nodes, arcs) (the geometry's ``seg_nm[..., 0]``).
-    t_src : Departure time of each arc [h] (ignored where not live), shape (nodes, arcs).
-    live : Arcs that exist and leave a reached node, shape (nodes, arcs).
+    t_src : Departure time of each arc from each source label [h], shape (nodes, arcs, source labels); ``inf``
+        where the arc does not exist or its source label is not reached.
     polar : Boat polar.
     beyond : Polar behaviour outside its table (``"clamp"`` or ``"forbid"``).
-    bound_kn : Fastest speed over ground possible [kn], to prune with (``RoutingProblem.prune``); None costs every
-        live arc.
+    bound_kn : Fastest speed over ground possible [kn], to prune with (``RoutingProblem.prune``; with side labels
+        each label's arcs are pruned against that label's best, which the numpy path does not do: it then costs
+        every arc, so ``arcs_evaluated`` differs, never the result); None costs every live arc.
+    from_sides : Side of each source label (-1: none, no manoeuvre is counted from it).
+    side, change_h : With side labels (:mod:`pyroute_rel.manoeuvre`), the side of each arc and the time a change of
+        side onto it costs [h], shape (nodes, arcs); None: one label per node.
 
     Returns
     -------
-    ``t_best`` [h] (inf where no arc arrives), ``j_best`` the arc index (first of equal ones; 0 where none), the
-    reason flags of each costed arc (:data:`~pyroute_rel.cost.REASONS`; 0 elsewhere) and which arcs were costed.
+    ``t_best`` [h] (inf where no arc arrives), ``j_best`` the arc index and ``c_best`` the source label (first arc,
+    then first source label, of equal ones; 0 where none), all of shape (nodes, labels); the reason flags of each
+    costed arc (:data:`~pyroute_rel.cost.REASONS`; 0 elsewhere) and which arcs were costed.
     """
-    shape = live.shape
+    n_dst, width = seg_nm.shape
+    n_out = 1 if side is None else 2
 
     def c(a: npt.ArrayLike) -> FloatArray:
         return np.require(a, np.float64, ("C", "W"))
 
     tables = [c(t).reshape(-1) for t in (polar.twa_deg, polar.tws_kn, polar.speed_kn)]
-    t_best = np.empty(shape[0])
-    j_best = np.empty(shape[0], dtype=np.intp)
-    reason = np.zeros(shape, dtype=np.uint8)
-    counted = np.zeros(shape, dtype=np.bool_)
+    t_best = np.empty((n_dst, n_out))
+    j_best = np.empty((n_dst, n_out), dtype=np.intp)
+    c_best = np.empty((n_dst, n_out), dtype=np.intp)
+    reason = np.zeros((n_dst, width), dtype=np.uint8)
+    counted = np.zeros((n_dst, width), dtype=np.bool_)
+    side_arr = np.zeros((n_dst, width), np.int8) if side is None else np.require(side, np.int8, ("C", "W"))
+    change = np.zeros((n_dst, width)) if change_h is None else c(change_h)
     _rank_kernel(  # type: ignore[call-arg]
         c(tws_kn),
         c(twd_deg),
         c(course_deg),
         c(seg_nm),
         c(t_src),
-        np.require(live, np.bool_, ("C", "W")),
         *tables,
         beyond == "forbid",
         MIN_SPEED_KN,
         -1.0 if bound_kn is None else float(bound_kn),
+        np.asarray(from_sides, dtype=np.int64),
+        side_arr,
+        change,
         t_best,
         j_best,
+        c_best,
         reason,
         counted,
     )
-    return t_best, j_best, reason, counted
+    return t_best, j_best, c_best, reason, counted
 
 
 @numba.njit(nogil=True, cache=True)
@@ -141,58 +156,106 @@ def _arc_time(tws, twd, course, seg, d, a, twa_tab, tws_tab, speed_tab, forbid, 
 
 
 @numba.njit(nogil=True, cache=True)
+def _arrival(t0, t, from_side, side, change):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Arrival over an arc left at ``t0`` taking ``t`` [h], in the numpy path's order of additions: a change of side
+    from a source label with a side adds ``change`` after the sailing time (inf where ``t0`` is)."""
+    if from_side < 0:
+        return t0 + t
+    return (t0 + t) + (change if side != from_side else 0.0)
+
+
+@numba.njit(nogil=True, cache=True)
 def _rank_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    tws, twd, course, seg, t_src, live, twa_tab, tws_tab, speed_tab, forbid, min_speed, bound, t_best, j_best, reason,
-    counted,
+    tws, twd, course, seg, t_src, twa_tab, tws_tab, speed_tab, forbid, min_speed, bound, from_sides, side, change,
+    t_best, j_best, c_best, reason, counted,
 ):  # fmt: skip
-    """Per node: prune (when ``bound`` > 0: the four arcs of smallest lower bound, then those whose bound does not
-    exceed the best of them), cost, and keep the first earliest arrival."""
-    n_dst, width = live.shape
-    samples = tws.shape[2]
-    lower = np.empty(width)
+    """Per node: prune (when ``bound`` > 0, for each label: the four arcs of smallest lower bound into it, then those
+    whose bound does not exceed the best arrival over them) or cost every live arc, and keep the first earliest
+    arrival at each label."""
+    n_dst, width = seg.shape
+    n_in = t_src.shape[2]
+    polar = (twa_tab, tws_tab, speed_tab, forbid, min_speed)
     times = np.empty(width)
+    live = np.empty(width, dtype=np.bool_)
     for d in range(n_dst):
+        for a in range(width):
+            live[a] = False
+            for c in range(n_in):
+                if np.isfinite(t_src[d, a, c]):
+                    live[a] = True
         if bound > 0.0:
-            for a in range(width):
-                lower[a] = t_src[d, a] + seg[d, a] * samples / bound if live[d, a] else np.inf
-            # the four smallest bounds among live arcs (ties: lowest index; the numpy path's argpartition may pick
-            # another of equal bounds, which changes which arcs are costed, never the result)
-            best_first = np.inf
-            for _ in range(4):
-                m = -1
-                for a in range(width):
-                    if live[d, a] and not counted[d, a] and (m < 0 or lower[a] < lower[m]):
-                        m = a
-                if m < 0:
-                    break
-                counted[d, m] = True
-                t, f = _arc_time(tws, twd, course, seg, d, m, twa_tab, tws_tab, speed_tab, forbid, min_speed)
-                reason[d, m] = f
-                times[m] = t
-                tot = t_src[d, m] + t
-                if tot < best_first:
-                    best_first = tot
-            for a in range(width):
-                if live[d, a] and not counted[d, a] and lower[a] <= best_first:
-                    counted[d, a] = True
-                    t, f = _arc_time(tws, twd, course, seg, d, a, twa_tab, tws_tab, speed_tab, forbid, min_speed)
-                    reason[d, a] = f
-                    times[a] = t
+            _prune_and_cost(tws, twd, course, seg, t_src, polar, bound, from_sides, side, change, d, live, times,
+                            reason, counted, t_best.shape[1])  # fmt: skip
         else:
             for a in range(width):
-                if live[d, a]:
+                if live[a]:
                     counted[d, a] = True
-                    t, f = _arc_time(tws, twd, course, seg, d, a, twa_tab, tws_tab, speed_tab, forbid, min_speed)
+                    t, f = _arc_time(tws, twd, course, seg, d, a, *polar)
                     reason[d, a] = f
                     times[a] = t
-        # the earliest arrival over the costed arcs, first of equal ones
-        bt = np.inf
-        bj = 0
+        _best_labels(t_src, from_sides, side, change, d, times, reason, counted, t_best, j_best, c_best)
+
+
+@numba.njit(nogil=True, cache=True)
+def _prune_and_cost(  # type: ignore[no-untyped-def]  # pragma: no cover
+    tws, twd, course, seg, t_src, polar, bound, from_sides, side, change, d, live, times, reason, counted, n_out
+):  # fmt: skip
+    """Node ``d``'s arcs that can still win, costed: per label (an arc's side is known before it is costed) the four
+    of smallest lower bound, then every one whose bound does not exceed the best arrival over those four (ties:
+    lowest index; the numpy path's argpartition may pick another of equal bounds, which changes which arcs are
+    costed, never the result)."""
+    width = seg.shape[1]
+    samples = tws.shape[2]
+    n_in = t_src.shape[2]
+    lower = np.full(width, np.inf)
+    for a in range(width):
+        for c in range(n_in):
+            if np.isfinite(t_src[d, a, c]):
+                lower[a] = min(lower[a], t_src[d, a, c] + seg[d, a] * samples / bound)
+    for s in range(n_out):
+        best_first = np.inf
+        for _ in range(4):
+            m = -1
+            for a in range(width):
+                mine = n_out == 1 or side[d, a] == s
+                if mine and live[a] and not counted[d, a] and (m < 0 or lower[a] < lower[m]):
+                    m = a
+            if m < 0:
+                break
+            counted[d, m] = True
+            t, f = _arc_time(tws, twd, course, seg, d, m, *polar)
+            reason[d, m] = f
+            times[m] = t
+            for c in range(n_in):
+                tot = _arrival(t_src[d, m, c], t, from_sides[c], side[d, m], change[d, m])
+                if f == 0 and tot < best_first:
+                    best_first = tot
         for a in range(width):
-            if counted[d, a] and reason[d, a] == 0:
-                tot = t_src[d, a] + times[a]
-                if tot < bt:
-                    bt = tot
-                    bj = a
-        t_best[d] = bt
-        j_best[d] = bj
+            mine = n_out == 1 or side[d, a] == s
+            if mine and live[a] and not counted[d, a] and lower[a] <= best_first:
+                counted[d, a] = True
+                t, f = _arc_time(tws, twd, course, seg, d, a, *polar)
+                reason[d, a] = f
+                times[a] = t
+
+
+@numba.njit(nogil=True, cache=True)
+def _best_labels(t_src, from_sides, side, change, d, times, reason, counted, t_best, j_best, c_best):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The earliest arrival at each label of node ``d``: source labels in order, arcs in order, first of equal
+    ones."""
+    width = times.size
+    n_out = t_best.shape[1]
+    for s in range(n_out):
+        t_best[d, s] = np.inf
+        j_best[d, s] = 0
+        c_best[d, s] = 0
+    for c in range(t_src.shape[2]):
+        for a in range(width):
+            t0 = t_src[d, a, c]
+            if counted[d, a] and reason[d, a] == 0 and np.isfinite(t0):
+                tot = _arrival(t0, times[a], from_sides[c], side[d, a], change[d, a])
+                s = side[d, a] if n_out == 2 else 0
+                if tot < t_best[d, s]:
+                    t_best[d, s] = tot
+                    j_best[d, s] = a
+                    c_best[d, s] = c

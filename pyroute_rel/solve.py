@@ -700,11 +700,12 @@ class _Pricing:
             and problem.wave_loss is None
             and problem.blocked is None
             and problem.time_step_h is None
-            and not problem.sides
             and not finish_line
             and cost_hook is None
             and problem.weather.max_current_ms == 0.0
         )
+        if compiled:  # the compiled step prunes side labels too (each label against its own best)
+            prune = bound is not None and bound > 0.0
         return cls(
             problem=problem, bound_kn=bound if prune else None, lazy=lazy, cost_hook=cost_hook, compiled=compiled
         )
@@ -858,7 +859,9 @@ def _rank_step(
     src, valid = grid.pattern(k)
     geom = grid_geometry(grid, k, problem.samples)
     if pricing.compiled:
-        return _compiled_step(problem, src, valid, geom, t_prev[:, 0], pricing.bound_kn, tally)
+        done = _compiled_step(problem, src, valid, geom, t_prev, prev_sides, pricing.bound_kn, tally)
+        if done is not None:
+            return done
     cols = []
     for c, from_side in enumerate(prev_sides):
         t_src = t_prev[:, c][src]
@@ -888,25 +891,32 @@ def _compiled_step(
     valid: BoolArray,
     geom: ArcGeometry,
     t_prev: FloatArray,
+    prev_sides: tuple[int, ...],
     bound_kn: float | None,
     tally: _Tally,
-) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], None]:
+) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], None] | None:
     """:func:`_rank_step` of a steady wind-only problem in one compiled loop (:func:`pyroute_rel.dp_compiled.
-    rank_step`): the weather sampled here, everything else there."""
+    rank_step`): the weather (and with side labels each arc's side and manoeuvre time) here, the rest there. None
+    when the weather turns out to have a current there (NaN included): the numpy path then costs the rank."""
     from .dp_compiled import rank_step
 
-    t_src = t_prev[src]
-    live = valid & np.isfinite(t_src)
+    t_src = np.where(valid[..., None], t_prev[src], np.inf)  # (nodes, arcs, source labels)
+    live = np.isfinite(t_src).any(axis=2)
     cond = problem.weather.sample(geom.lon_deg, geom.lat_deg, problem.departure)
+    if cond.has_current:
+        return None
+    side = change_h = None
+    if problem.sides:
+        side, change_h = _arc_sides(problem, geom, np.zeros(live.shape))
     seg = np.broadcast_to(geom.seg_nm[..., 0], live.shape)
     prune = bound_kn if bound_kn is not None and live.shape[1] > PRUNE_MIN_WIDTH else None
-    t_best, j_best, reason, counted = rank_step(
-        cond.tws_kn, cond.twd_deg, geom.course_deg, seg, np.where(live, t_src, 0.0), live, problem.polar,
-        beyond=problem.beyond, bound_kn=prune,
+    t_best, j_best, c_best, reason, counted = rank_step(
+        cond.tws_kn, cond.twd_deg, geom.course_deg, seg, t_src, problem.polar, beyond=problem.beyond,
+        bound_kn=prune, from_sides=prev_sides, side=side, change_h=change_h,
     )  # fmt: skip
     tally.add(live, counted, reason, None, None)
-    src_best = np.take_along_axis(src, j_best[:, None], axis=1)
-    return t_best[:, None], src_best, np.full(src_best.shape, -1, dtype=np.intp), None
+    src_best = np.take_along_axis(src, j_best, axis=1)
+    return t_best, src_best, np.asarray(prev_sides, dtype=np.intp)[c_best], None
 
 
 def _tally_columns(tally: _Tally, cols: list[tuple[Any, ...]], failure: FailureModel | None) -> None:

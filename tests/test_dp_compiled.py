@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 import pyroute_rel.solve as solve
 from pyroute_rel.grid import make_grid
+from pyroute_rel.manoeuvre import ManoeuvrePenalties
 from pyroute_rel.weather import UniformWeather
 from tests.test_properties import NaNBox
 from tests.test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weather
@@ -24,12 +25,20 @@ def both(grid, problem, monkeypatch: pytest.MonkeyPatch) -> tuple[solve.DPResult
     return compiled, numpy_path
 
 
-def assert_same(a: solve.DPResult, b: solve.DPResult) -> None:
+def assert_same(a: solve.DPResult, b: solve.DPResult, *, counts: bool = True) -> None:
+    """Equal results, bit for bit; ``counts``: and the same arcs costed and forbidden (not when pruning differs)."""
     np.testing.assert_array_equal(a.arrival_h, b.arrival_h)  # bit for bit (NaN-free: inf where unreachable)
     np.testing.assert_array_equal(a.back, b.back)
+    assert (a.labels is None) == (b.labels is None)
+    if a.labels is not None and b.labels is not None:
+        for name in ("arrival_h", "back", "from_side"):
+            np.testing.assert_array_equal(getattr(a.labels, name), getattr(b.labels, name))
+        assert (a.labels.finish_side, a.labels.finish_from) == (b.labels.finish_side, b.labels.finish_from)
     assert a.finish_h == b.finish_h or (np.isnan(a.finish_h) and np.isnan(b.finish_h))
     assert a.finish_back == b.finish_back and a.dead_rank == b.dead_rank
-    assert a.arcs_forbidden == b.arcs_forbidden and a.forbidden_by_reason == b.forbidden_by_reason
+    if counts:
+        assert a.arcs_evaluated == b.arcs_evaluated
+        assert a.arcs_forbidden == b.arcs_forbidden and a.forbidden_by_reason == b.forbidden_by_reason
 
 
 @settings(max_examples=25, deadline=None)
@@ -41,12 +50,14 @@ def assert_same(a: solve.DPResult, b: solve.DPResult) -> None:
     beyond=st.sampled_from(["clamp", "forbid"]),
     prune=st.booleans(),
     hole=st.booleans(),
+    sides=st.sampled_from([None, -1, 0, 1]),
 )
 def test_compiled_rank_step_equals_numpy(
-    seed: int, n_ranks: int, n_nodes: int, samples: int, beyond: str, prune: bool, hole: bool
+    seed: int, n_ranks: int, n_nodes: int, samples: int, beyond: str, prune: bool, hole: bool, sides: int | None
 ) -> None:
     """Random polars, winds with patches (calms, wind beyond the table, a NaN hole), square grids with and without
-    pruning: arrival times, back-pointers and forbidden counts are equal, bit for bit."""
+    pruning, with and without manoeuvre penalties (side labels; starting on either side or a given one): arrival
+    times, back-pointers, labels and forbidden counts are equal, bit for bit."""
     rng = np.random.default_rng(seed)
     weather = random_weather(rng)
     if hole:  # missing wind in a box: the arcs through it are forbidden for the weather
@@ -57,11 +68,14 @@ def test_compiled_rank_step_equals_numpy(
     problem = solve.RoutingProblem(
         departure=DEP, weather=weather, polar=random_polar(rng), samples=samples, beyond=beyond, prune=prune
     )
+    if sides is not None:
+        penalties = ManoeuvrePenalties(tack_s=[[0.0, float(rng.uniform(0, 2e4))], [20.0, float(rng.uniform(0, 2e4))]],
+                                       gybe_s=[[8.0, float(rng.uniform(1, 2e4))]])  # fmt: skip
+        problem = replace(problem, manoeuvres=penalties, initial_side=None if sides < 0 else sides)
     with pytest.MonkeyPatch.context() as mp:
         compiled, numpy_path = both(grid, problem, mp)
-    assert_same(compiled, numpy_path)
-    if not prune or n_nodes <= solve.PRUNE_MIN_WIDTH:  # the same arcs costed (with pruning, ties may pick others)
-        assert compiled.arcs_evaluated == numpy_path.arcs_evaluated
+    # the same arcs costed unless pruned (ties may pick others, and side labels are pruned by the compiled step only)
+    assert_same(compiled, numpy_path, counts=not prune or n_nodes <= solve.PRUNE_MIN_WIDTH)
 
 
 def test_compiled_step_serves_only_steady_wind_only_problems(monkeypatch: pytest.MonkeyPatch) -> None:
