@@ -30,24 +30,24 @@ res = forward_dp(grid, problem)  # warm: geometry cached, kernels compiled
 arcs = sum(grid.pattern(k)[1].sum() for k in range(grid.n_ranks + 1))
 # the kernel alone, every arc, the weather sampled beforehand (what the DP adds is sampling, gathers, bookkeeping)
 blocks = []
-t_prev = np.zeros(grid.start_points[0].size)
+t_prev = np.zeros((grid.start_points[0].size, 1))
+req = lambda a, t=np.float64: np.require(a, t, ("C", "W"))
 for k in range(grid.n_ranks + 1):
     src, valid = grid.pattern(k)
     g = grid_geometry(grid, k, 1)
     c = problem.weather.sample(g.lon_deg, g.lat_deg, problem.departure)
-    t_src = np.ascontiguousarray(np.where(valid, (res.arrival_h[k - 1] if k else t_prev)[src], np.inf)[..., None])
-    req = lambda a: np.require(a, np.float64, ("C", "W"))
-    blocks.append((req(c.tws_kn), req(c.twd_deg), req(g.course_deg), req(np.broadcast_to(g.seg_nm[..., 0], src.shape)),
-                   t_src))
-pol = [np.require(t, np.float64, ("C", "W")).reshape(-1) for t in (problem.polar.twa_deg, problem.polar.tws_kn,
-                                                                  problem.polar.speed_kn)]
+    blocks.append((req(c.tws_kn), req(c.twd_deg), req(g.course_deg), req(np.broadcast_to(g.seg_nm[..., 0], valid.shape)),
+                   req(t_prev), req(np.broadcast_to(src, valid.shape), np.intp), req(valid, np.bool_)))
+    if k < grid.n_ranks:
+        t_prev = req(res.arrival_h[k][:, None])
+pol = [req(t).reshape(-1) for t in (problem.polar.twa_deg, problem.polar.tws_kn, problem.polar.speed_kn)]
+zero = np.zeros(1)
 def kernel():
-    for tws, twd, course, seg, t_src in blocks:
+    for tws, twd, course, seg, tp, src, valid in blocks:
         n = seg.shape[0]
-        _rank_kernel(tws, twd, course, seg, t_src, *pol, False, 0.01, -1.0, np.array([-1]),
-                     np.zeros(seg.shape, np.int8), np.zeros(seg.shape), np.empty((n, 1)), np.empty((n, 1), np.intp),
-                     np.empty((n, 1), np.intp),
-                     np.zeros(seg.shape, np.uint8), np.zeros(seg.shape, np.bool_))
+        _rank_kernel(tws, twd, course, seg, tp, src, valid, *pol, False, 0.01, -1.0, np.array([-1]), zero, zero, zero,
+                     zero, np.empty((n, 1)), np.empty((n, 1), np.intp), np.empty((n, 1), np.intp),
+                     np.zeros(seg.shape, np.uint8), np.zeros(seg.shape, np.bool_), np.zeros(seg.shape, np.bool_))
 kernel()
 a, b, c = [], [], []
 for _ in range(repeats(5)):

@@ -21,11 +21,13 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
+from .manoeuvre import ManoeuvrePenalties
 from .polar import MIN_SPEED_KN, Polar
 
 __all__ = ["rank_step"]
 
 FloatArray = npt.NDArray[np.float64]
+BoolArray = npt.NDArray[np.bool_]
 
 
 def rank_step(
@@ -33,15 +35,18 @@ def rank_step(
     twd_deg: FloatArray,
     course_deg: FloatArray,
     seg_nm: FloatArray,
-    t_src: FloatArray,
+    t_prev: FloatArray,
+    src: npt.NDArray[np.intp],
+    valid: npt.NDArray[np.bool_],
     polar: Polar,
     *,
     beyond: str,
     bound_kn: float | None,
     from_sides: tuple[int, ...] = (-1,),
-    side: npt.NDArray[np.int8] | None = None,
-    change_h: FloatArray | None = None,
-) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], npt.NDArray[np.uint8], npt.NDArray[np.bool_]]:
+    penalties: ManoeuvrePenalties | None = None,
+) -> tuple[
+    FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], npt.NDArray[np.uint8], npt.NDArray[np.bool_], BoolArray
+]:
     """One rank of the DP: the earliest arrival at each label [h] and the arc and source label it comes by.
 
     Parameters
@@ -49,57 +54,64 @@ def rank_step(
     tws_kn, twd_deg : Wind speed [kn] and direction (from) [deg] at the arcs' samples, shape (nodes, arcs, samples).
     course_deg : Great-circle course at the samples [deg], same shape.
     seg_nm : Sub-segment length of each arc [nm], shape (nodes, arcs) (the geometry's ``seg_nm[..., 0]``).
-    t_src : Departure time of each arc from each source label [h], shape (nodes, arcs, source labels); ``inf``
-        where the arc does not exist or its source label is not reached.
+    t_prev : Arrival at each label of the previous rank [h] (inf: not reached), shape (source nodes, source labels).
+    src, valid : Source node of each arc and whether it exists, shape (nodes, arcs) (``grid.pattern(k)``).
     polar : Boat polar.
     beyond : Polar behaviour outside its table (``"clamp"`` or ``"forbid"``).
     bound_kn : Fastest speed over ground possible [kn], to prune with (``RoutingProblem.prune``; with side labels
         each label's arcs are pruned against that label's best, which the numpy path does not do: it then costs
         every arc, so ``arcs_evaluated`` differs, never the result); None costs every live arc.
     from_sides : Side of each source label (-1: none, no manoeuvre is counted from it).
-    side, change_h : With side labels (:mod:`pyroute_rel.manoeuvre`), the side of each arc and the time a change of
-        side onto it costs [h], shape (nodes, arcs); None: one label per node.
+    penalties : With side labels (:mod:`pyroute_rel.manoeuvre`), the time tacks and gybes cost: each arc's side,
+        manoeuvre and its time come from the wind at its first sample, as :func:`~pyroute_rel.manoeuvre.wind_side`,
+        :func:`~pyroute_rel.manoeuvre.manoeuvre_kind` and
+        :meth:`~pyroute_rel.manoeuvre.ManoeuvrePenalties.penalty_h` compute them (``numpy.interp``'s arithmetic).
+        None: one label per node.
 
     Returns
     -------
     ``t_best`` [h] (inf where no arc arrives), ``j_best`` the arc index and ``c_best`` the source label (first arc,
     then first source label, of equal ones; 0 where none), all of shape (nodes, labels); the reason flags of each
-    costed arc (:data:`~pyroute_rel.cost.REASONS`; 0 elsewhere) and which arcs were costed.
+    costed arc (:data:`~pyroute_rel.cost.REASONS`; 0 elsewhere), which arcs were costed and which were live (leave a
+    reached label).
     """
     n_dst, width = seg_nm.shape
-    n_out = 1 if side is None else 2
+    n_out = 1 if penalties is None else 2
 
     def c(a: npt.ArrayLike) -> FloatArray:
         return np.require(a, np.float64, ("C", "W"))
 
     tables = [c(t).reshape(-1) for t in (polar.twa_deg, polar.tws_kn, polar.speed_kn)]
+    p = penalties or ManoeuvrePenalties()
+    pen = [c(np.asarray(t, dtype=float)) for t in (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn, p.gybe_penalty_s)]
     t_best = np.empty((n_dst, n_out))
     j_best = np.empty((n_dst, n_out), dtype=np.intp)
     c_best = np.empty((n_dst, n_out), dtype=np.intp)
     reason = np.zeros((n_dst, width), dtype=np.uint8)
     counted = np.zeros((n_dst, width), dtype=np.bool_)
-    side_arr = np.zeros((n_dst, width), np.int8) if side is None else np.require(side, np.int8, ("C", "W"))
-    change = np.zeros((n_dst, width)) if change_h is None else c(change_h)
+    live = np.zeros((n_dst, width), dtype=np.bool_)
     _rank_kernel(  # type: ignore[call-arg]
         c(tws_kn),
         c(twd_deg),
         c(course_deg),
         c(seg_nm),
-        c(t_src),
+        c(t_prev),
+        np.require(src, np.intp, ("C", "W")),
+        np.require(valid, np.bool_, ("C", "W")),
         *tables,
         beyond == "forbid",
         MIN_SPEED_KN,
         -1.0 if bound_kn is None else float(bound_kn),
         np.asarray(from_sides, dtype=np.int64),
-        side_arr,
-        change,
+        *pen,
         t_best,
         j_best,
         c_best,
         reason,
         counted,
+        live,
     )
-    return t_best, j_best, c_best, reason, counted
+    return t_best, j_best, c_best, reason, counted, live
 
 
 @numba.njit(nogil=True, cache=True)
@@ -166,34 +178,77 @@ def _arrival(t0, t, from_side, side, change):  # type: ignore[no-untyped-def]  #
 
 @numba.njit(nogil=True, cache=True)
 def _rank_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    tws, twd, course, seg, t_src, twa_tab, tws_tab, speed_tab, forbid, min_speed, bound, from_sides, side, change,
-    t_best, j_best, c_best, reason, counted,
+    tws, twd, course, seg, t_prev, src, valid, twa_tab, tws_tab, speed_tab, forbid, min_speed, bound, from_sides,
+    tack_x, tack_y, gybe_x, gybe_y, t_best, j_best, c_best, reason, counted, live,
 ):  # fmt: skip
-    """Per node: prune (when ``bound`` > 0, for each label: the four arcs of smallest lower bound into it, then those
-    whose bound does not exceed the best arrival over them) or cost every live arc, and keep the first earliest
-    arrival at each label."""
+    """Per node: the arcs' departures from each source label, prune (when ``bound`` > 0, for each label: the four
+    arcs of smallest lower bound into it, then those whose bound does not exceed the best arrival over them) or cost
+    every live arc, and keep the first earliest arrival at each label."""
     n_dst, width = seg.shape
-    n_in = t_src.shape[2]
+    n_in = t_prev.shape[1]
     polar = (twa_tab, tws_tab, speed_tab, forbid, min_speed)
     times = np.empty(width)
-    live = np.empty(width, dtype=np.bool_)
+    t_src = np.empty((width, n_in))
+    side = np.zeros(width, dtype=np.int8)
+    change = np.zeros(width)
     for d in range(n_dst):
+        if t_best.shape[1] == 2:
+            _sides(tws, twd, course, tack_x, tack_y, gybe_x, gybe_y, d, side, change)
         for a in range(width):
-            live[a] = False
             for c in range(n_in):
-                if np.isfinite(t_src[d, a, c]):
-                    live[a] = True
+                t_src[a, c] = t_prev[src[d, a], c] if valid[d, a] else np.inf
+                if np.isfinite(t_src[a, c]):
+                    live[d, a] = True
         if bound > 0.0:
-            _prune_and_cost(tws, twd, course, seg, t_src, polar, bound, from_sides, side, change, d, live, times,
+            _prune_and_cost(tws, twd, course, seg, t_src, polar, bound, from_sides, side, change, d, live[d], times,
                             reason, counted, t_best.shape[1])  # fmt: skip
         else:
             for a in range(width):
-                if live[a]:
+                if live[d, a]:
                     counted[d, a] = True
                     t, f = _arc_time(tws, twd, course, seg, d, a, *polar)
                     reason[d, a] = f
                     times[a] = t
         _best_labels(t_src, from_sides, side, change, d, times, reason, counted, t_best, j_best, c_best)
+
+
+@numba.njit(nogil=True, cache=True)
+def _interp(x, xp, fp):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """``numpy.interp(x, xp, fp)`` for one finite ``x``, in numpy's arithmetic (constant beyond the ends)."""
+    n = xp.size
+    if n == 1 or x <= xp[0]:
+        return fp[0]
+    if x >= xp[n - 1]:
+        return fp[n - 1]
+    j = 0
+    while xp[j + 1] <= x:
+        j += 1
+    if xp[j] == x:
+        return fp[j]
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    out = slope * (x - xp[j]) + fp[j]
+    if out != out:
+        out = slope * (x - xp[j + 1]) + fp[j + 1]
+        if out != out and fp[j] == fp[j + 1]:
+            out = fp[j]
+    return out
+
+
+@numba.njit(nogil=True, cache=True)
+def _sides(tws, twd, course, tack_x, tack_y, gybe_x, gybe_y, d, side, change):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Side of each arc into node ``d`` and the time a change of side onto it costs [h], from the wind at its first
+    sample: :func:`~pyroute_rel.manoeuvre.wind_side`, :func:`~pyroute_rel.manoeuvre.manoeuvre_kind` and
+    :meth:`~pyroute_rel.manoeuvre.ManoeuvrePenalties.tables_h`, operation for operation."""
+    for a in range(side.size):
+        rel = np.mod(twd[d, a, 0] - course[d, a, 0], 360.0)
+        side[a] = 1 if rel < 180.0 or rel != rel else 0  # NaN: starboard
+        twa = min(rel, 360.0 - rel)
+        w = tws[d, a, 0]
+        w = w if np.isfinite(w) else 0.0
+        if twa < 90.0:
+            change[a] = _interp(w, tack_x, tack_y) / 3600.0
+        else:
+            change[a] = _interp(w, gybe_x, gybe_y) / 3600.0
 
 
 @numba.njit(nogil=True, cache=True)
@@ -206,18 +261,18 @@ def _prune_and_cost(  # type: ignore[no-untyped-def]  # pragma: no cover
     costed, never the result)."""
     width = seg.shape[1]
     samples = tws.shape[2]
-    n_in = t_src.shape[2]
+    n_in = t_src.shape[1]
     lower = np.full(width, np.inf)
     for a in range(width):
         for c in range(n_in):
-            if np.isfinite(t_src[d, a, c]):
-                lower[a] = min(lower[a], t_src[d, a, c] + seg[d, a] * samples / bound)
+            if np.isfinite(t_src[a, c]):
+                lower[a] = min(lower[a], t_src[a, c] + seg[d, a] * samples / bound)
     for s in range(n_out):
         best_first = np.inf
         for _ in range(4):
             m = -1
             for a in range(width):
-                mine = n_out == 1 or side[d, a] == s
+                mine = n_out == 1 or side[a] == s
                 if mine and live[a] and not counted[d, a] and (m < 0 or lower[a] < lower[m]):
                     m = a
             if m < 0:
@@ -227,11 +282,11 @@ def _prune_and_cost(  # type: ignore[no-untyped-def]  # pragma: no cover
             reason[d, m] = f
             times[m] = t
             for c in range(n_in):
-                tot = _arrival(t_src[d, m, c], t, from_sides[c], side[d, m], change[d, m])
+                tot = _arrival(t_src[m, c], t, from_sides[c], side[m], change[m])
                 if f == 0 and tot < best_first:
                     best_first = tot
         for a in range(width):
-            mine = n_out == 1 or side[d, a] == s
+            mine = n_out == 1 or side[a] == s
             if mine and live[a] and not counted[d, a] and lower[a] <= best_first:
                 counted[d, a] = True
                 t, f = _arc_time(tws, twd, course, seg, d, a, *polar)
@@ -249,12 +304,12 @@ def _best_labels(t_src, from_sides, side, change, d, times, reason, counted, t_b
         t_best[d, s] = np.inf
         j_best[d, s] = 0
         c_best[d, s] = 0
-    for c in range(t_src.shape[2]):
+    for c in range(t_src.shape[1]):
         for a in range(width):
-            t0 = t_src[d, a, c]
+            t0 = t_src[a, c]
             if counted[d, a] and reason[d, a] == 0 and np.isfinite(t0):
-                tot = _arrival(t0, times[a], from_sides[c], side[d, a], change[d, a])
-                s = side[d, a] if n_out == 2 else 0
+                tot = _arrival(t0, times[a], from_sides[c], side[a], change[a])
+                s = side[a] if n_out == 2 else 0
                 if tot < t_best[d, s]:
                     t_best[d, s] = tot
                     j_best[d, s] = a

@@ -129,11 +129,16 @@ class ManoeuvrePenalties:
         """Time lost [h] by manoeuvres of the given kinds (:data:`TACK`, :data:`GYBE`, or none: 0) in wind of
         ``tws_kn`` [kn] (NaN wind: 0, the arc is forbidden anyway)."""
         kind = np.asarray(kind)
+        tack, gybe = self.tables_h(tws_kn)
+        return np.asarray(np.where(kind == TACK, tack, np.where(kind == GYBE, gybe, 0.0)), dtype=float)
+
+    def tables_h(self, tws_kn: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
+        """Time a tack and a gybe would cost [h] in wind of ``tws_kn`` [kn] (NaN wind: 0)."""
         tws = np.asarray(tws_kn, dtype=float)
         safe = np.where(np.isfinite(tws), tws, 0.0)
         tack = np.interp(safe, self.tack_tws_kn, self.tack_penalty_s) / 3600.0
         gybe = np.interp(safe, self.gybe_tws_kn, self.gybe_penalty_s) / 3600.0
-        return np.asarray(np.where(kind == TACK, tack, np.where(kind == GYBE, gybe, 0.0)), dtype=float)
+        return np.asarray(tack, dtype=float), np.asarray(gybe, dtype=float)
 
     def describe(self) -> dict[str, list[list[float]]]:
         """The tables as ``{"tack_penalty_s": [[tws_kn, s], ...], "gybe_penalty_s": ...}`` (JSON)."""

@@ -900,19 +900,15 @@ def _compiled_step(
     when the weather turns out to have a current there (NaN included): the numpy path then costs the rank."""
     from .dp_compiled import rank_step
 
-    t_src = np.where(valid[..., None], t_prev[src], np.inf)  # (nodes, arcs, source labels)
-    live = np.isfinite(t_src).any(axis=2)
     cond = problem.weather.sample(geom.lon_deg, geom.lat_deg, problem.departure)
     if cond.has_current:
         return None
-    side = change_h = None
-    if problem.sides:
-        side, change_h = _arc_sides(problem, geom, np.zeros(live.shape))
-    seg = np.broadcast_to(geom.seg_nm[..., 0], live.shape)
-    prune = bound_kn if bound_kn is not None and live.shape[1] > PRUNE_MIN_WIDTH else None
-    t_best, j_best, c_best, reason, counted = rank_step(
-        cond.tws_kn, cond.twd_deg, geom.course_deg, seg, t_src, problem.polar, beyond=problem.beyond,
-        bound_kn=prune, from_sides=prev_sides, side=side, change_h=change_h,
+    seg = np.broadcast_to(geom.seg_nm[..., 0], valid.shape)
+    prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
+    t_best, j_best, c_best, reason, counted, live = rank_step(
+        cond.tws_kn, cond.twd_deg, geom.course_deg, seg, t_prev, np.broadcast_to(src, valid.shape), valid,
+        problem.polar, beyond=problem.beyond, bound_kn=prune, from_sides=prev_sides,
+        penalties=problem.manoeuvres if problem.sides else None,
     )  # fmt: skip
     tally.add(live, counted, reason, None, None)
     src_best = np.take_along_axis(src, j_best, axis=1)
