@@ -36,8 +36,9 @@ for k in range(grid.n_ranks + 1):
     src, valid = grid.pattern(k)
     g = grid_geometry(grid, k, 1)
     c = problem.weather.sample(g.lon_deg, g.lat_deg, problem.departure)
-    blocks.append((req(c.tws_kn), req(c.twd_deg), req(g.course_deg), req(np.broadcast_to(g.seg_nm[..., 0], valid.shape)),
-                   req(t_prev), req(np.broadcast_to(src, valid.shape), np.intp), req(valid, np.bool_)))
+    seg = req(np.broadcast_to(g.seg_nm[..., 0], valid.shape))
+    blocks.append((req(c.tws_kn), req(c.twd_deg), req(g.course_deg), seg, req(t_prev),
+                   req(np.broadcast_to(src, valid.shape), np.intp), req(valid, np.bool_)))
     if k < grid.n_ranks:
         t_prev = req(res.arrival_h[k][:, None])
 pol = [req(t).reshape(-1) for t in (problem.polar.twa_deg, problem.polar.tws_kn, problem.polar.speed_kn)]

@@ -58,6 +58,7 @@ _EXPORTS: dict[str, str] = {
     "route_on_grid": "route",
     "refine": "refine",
     "write_outputs": "outputs",
+    "ManoeuvrePenalties": "manoeuvre",
     # grid convergence
     "grid_convergence": "gci.numbers",
     "least_squares_convergence": "gci.numbers",
@@ -114,6 +115,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .failure import FailureModel, list_failure_models, load_failure_model
     from .gci.numbers import convergence_study, grid_convergence, least_squares_convergence
     from .grid import Grid, make_grid, plan_grid
+    from .manoeuvre import ManoeuvrePenalties
     from .obstacles.mask import Avoid
     from .obstacles.zones import load_zones
     from .outputs import write_outputs
