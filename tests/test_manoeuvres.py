@@ -3,8 +3,12 @@ equal the plain DP, bounds against the plain route re-timed, counts recomputed f
 
 from __future__ import annotations
 
+import csv
+import io
 import itertools
+import json
 from dataclasses import replace
+from pathlib import Path
 
 import networkx as nx
 import numpy as np
@@ -14,9 +18,11 @@ from pyroute_rel.cost import arc_costs, arc_geometry
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.grid import make_grid
 from pyroute_rel.manoeuvre import GYBE, PORT, STARBOARD, TACK, ManoeuvrePenalties, track_manoeuvres
+from pyroute_rel.plot import plot_route
 from pyroute_rel.route import route_on_grid
-from pyroute_rel.scenario import scenario_from_mapping
+from pyroute_rel.scenario import load_scenario, scenario_from_mapping
 from pyroute_rel.solve import RoutingProblem, forward_dp, leg_manoeuvres
+from tests.test_cli import run
 from tests.test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weather
 
 #: Tagliaferri (2015): a tack costs about 30 s at 5 m/s (9.72 kn) of wind and 20 s at 10 m/s (19.44 kn).
@@ -262,3 +268,33 @@ def test_tagliaferri_table_interpolates() -> None:
     got = p.penalty_h([TACK] * 4, [5.0, 9.72, 14.58, 40.0]) * 3600.0
     np.testing.assert_allclose(got, [30.0, 30.0, 25.0, 20.0], rtol=1e-12)
     assert not ManoeuvrePenalties().active and p.active
+
+
+@pytest.mark.slow
+def test_cli_summary_json_csv_and_map_report_the_manoeuvres(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The CLI's line, ``--json``'s ``manoeuvres``, the CSV columns and the map's markers all count the same
+    manoeuvres, those of the route's legs; a bad table is a one-line error, exit 2."""
+    scenario = tmp_path / "beat.toml"
+    scenario.write_text(
+        "[route]\nstart = [-12.0, 45.0]\nfinish = [-30.0, 35.0]\n[grid]\nn_ranks = 30\n[boat]\n"
+        "tack_penalty_s = [[9.72, 30.0], [19.44, 20.0]]\ngybe_penalty_s = [[0.0, 40.0]]\n"
+        '[weather]\nkind = "uniform"\ntws_kn = 15.0\ntwd_deg = 250.0\n[avoid]\nland = false\n',
+        encoding="utf-8",
+    )
+    code, out, _ = run(["route", str(scenario), "--quiet", "--json", "--out", str(tmp_path / "out")], capsys)
+    assert code == 0
+    m = json.loads(out)["manoeuvres"]
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "out" / "route.csv").read_text(encoding="utf-8"))))
+    kinds = [r["leg_manoeuvre"] for r in rows[:-1]]
+    assert m["tacks"] == kinds.count("tack") and m["gybes"] == kinds.count("gybe") and m["tacks"] >= 1
+    assert m["penalty_h"] == pytest.approx(sum(float(r["leg_manoeuvre_h"]) for r in rows[:-1]), rel=1e-5)
+    assert {r["leg_side"] for r in rows[:-1]} <= {"port", "starboard"} and rows[-1]["leg_side"] == ""
+    code, out, _ = run(["route", str(scenario), "--quiet"], capsys)
+    assert f"manoeuvres       {m['tacks']} tacks, {m['gybes']} gybes, costing {m['penalty_h'] * 3600:.0f} s" in out
+    sc = load_scenario(scenario)
+    fig = plot_route(sc.route())
+    marks = [ln for ln in fig.axes[0].get_lines() if str(ln.get_label()).startswith("tacks (")]
+    assert len(marks) == 1 and len(marks[0].get_xdata()) == m["tacks"]
+    scenario.write_text(scenario.read_text(encoding="utf-8").replace("[[0.0, 40.0]]", "[[0.0, -40.0]]"))
+    code, _, err = run(["route", str(scenario), "--quiet"], capsys)
+    assert code == 2 and "gybe_penalty_s" in err and len(err.strip().splitlines()) == 1
