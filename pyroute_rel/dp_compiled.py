@@ -190,18 +190,21 @@ def _rank_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     times = np.empty(width)
     t_src = np.empty((width, n_in))
     side = np.zeros(width, dtype=np.int8)
+    up = np.zeros(width, dtype=np.bool_)
     change = np.zeros(width)
+    pen = (tack_x, tack_y, gybe_x, gybe_y)
+    n_out = t_best.shape[1]
     for d in range(n_dst):
-        if t_best.shape[1] == 2:
-            _sides(tws, twd, course, tack_x, tack_y, gybe_x, gybe_y, d, side, change)
+        if n_out == 2:
+            _sides(twd, course, d, side, up)
         for a in range(width):
             for c in range(n_in):
                 t_src[a, c] = t_prev[src[d, a], c] if valid[d, a] else np.inf
                 if np.isfinite(t_src[a, c]):
                     live[d, a] = True
         if bound > 0.0:
-            _prune_and_cost(tws, twd, course, seg, t_src, polar, bound, from_sides, side, change, d, live[d], times,
-                            reason, counted, t_best.shape[1])  # fmt: skip
+            _prune_and_cost(tws, twd, course, seg, t_src, polar, bound, from_sides, side, up, pen, change, d, live[d],
+                            times, reason, counted, n_out)  # fmt: skip
         else:
             for a in range(width):
                 if live[d, a]:
@@ -209,6 +212,10 @@ def _rank_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                     t, f = _arc_time(tws, twd, course, seg, d, a, *polar)
                     reason[d, a] = f
                     times[a] = t
+        if n_out == 2:  # the manoeuvre's time, where an arc can be sailed
+            for a in range(width):
+                if counted[d, a] and reason[d, a] == 0:
+                    change[a] = _change(tws, d, a, up, *pen)
         _best_labels(t_src, from_sides, side, change, d, times, reason, counted, t_best, j_best, c_best)
 
 
@@ -235,25 +242,31 @@ def _interp(x, xp, fp):  # type: ignore[no-untyped-def]  # pragma: no cover
 
 
 @numba.njit(nogil=True, cache=True)
-def _sides(tws, twd, course, tack_x, tack_y, gybe_x, gybe_y, d, side, change):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Side of each arc into node ``d`` and the time a change of side onto it costs [h], from the wind at its first
-    sample: :func:`~pyroute_rel.manoeuvre.wind_side`, :func:`~pyroute_rel.manoeuvre.manoeuvre_kind` and
-    :meth:`~pyroute_rel.manoeuvre.ManoeuvrePenalties.tables_h`, operation for operation."""
+def _sides(twd, course, d, side, up):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Side of each arc into node ``d`` and whether a change of side onto it is a tack (upwind of the beam), from
+    the wind direction and course at its first sample: :func:`~pyroute_rel.manoeuvre.wind_side` and
+    :func:`~pyroute_rel.manoeuvre.manoeuvre_kind`, operation for operation."""
     for a in range(side.size):
         rel = np.mod(twd[d, a, 0] - course[d, a, 0], 360.0)
         side[a] = 1 if rel < 180.0 or rel != rel else 0  # NaN: starboard
-        twa = min(rel, 360.0 - rel)
-        w = tws[d, a, 0]
-        w = w if np.isfinite(w) else 0.0
-        if twa < 90.0:
-            change[a] = _interp(w, tack_x, tack_y) / 3600.0
-        else:
-            change[a] = _interp(w, gybe_x, gybe_y) / 3600.0
+        up[a] = min(rel, 360.0 - rel) < 90.0
+
+
+@numba.njit(nogil=True, cache=True)
+def _change(tws, d, a, up, tack_x, tack_y, gybe_x, gybe_y):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The time a change of side onto arc (d, a) costs [h]:
+    :meth:`~pyroute_rel.manoeuvre.ManoeuvrePenalties.tables_h` of the wind speed at its first sample."""
+    w = tws[d, a, 0]
+    w = w if np.isfinite(w) else 0.0
+    if up[a]:
+        return _interp(w, tack_x, tack_y) / 3600.0
+    return _interp(w, gybe_x, gybe_y) / 3600.0
 
 
 @numba.njit(nogil=True, cache=True)
 def _prune_and_cost(  # type: ignore[no-untyped-def]  # pragma: no cover
-    tws, twd, course, seg, t_src, polar, bound, from_sides, side, change, d, live, times, reason, counted, n_out
+    tws, twd, course, seg, t_src, polar, bound, from_sides, side, up, pen, change, d, live, times, reason, counted,
+    n_out,
 ):  # fmt: skip
     """Node ``d``'s arcs that can still win, costed: per label (an arc's side is known before it is costed) the four
     of smallest lower bound, then every one whose bound does not exceed the best arrival over those four (ties:
@@ -281,6 +294,8 @@ def _prune_and_cost(  # type: ignore[no-untyped-def]  # pragma: no cover
             t, f = _arc_time(tws, twd, course, seg, d, m, *polar)
             reason[d, m] = f
             times[m] = t
+            if n_out == 2:
+                change[m] = _change(tws, d, m, up, *pen)
             for c in range(n_in):
                 tot = _arrival(t_src[m, c], t, from_sides[c], side[m], change[m])
                 if f == 0 and tot < best_first:
