@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .cost import ArcGeometry
+from .cost import ArcGeometry, geometry_costs
 from .errors import LabelLimitError, NoFeasibleRouteError, ScenarioError
 from .exposure import arc_exposure, leg_exposure
 from .grid import Grid
@@ -339,8 +339,13 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
         time_all = np.where(live, costs.time_h, np.inf).ravel()
         arc = np.flatnonzero(np.isfinite(time_all))
         p_arc = np.broadcast_to(costs.p_f, src.shape).ravel()[arc]
-        hz = arc_exposure(problem, *(e[arc] for e in ends), np.zeros(arc.size), time_all[arc], p_arc).hazard
         time_arc = time_all[arc]
+        hz = np.zeros(arc.size)
+        some = np.flatnonzero(_largest_p_f(problem, geom, src.shape).ravel()[arc] > 0.0)  # the others: no hazard
+        if some.size:
+            hz[some] = arc_exposure(
+                problem, *(e[arc[some]] for e in ends), np.zeros(some.size), time_arc[some], p_arc[some]
+            ).hazard
     else:
         arc = np.flatnonzero(live.ravel())
     n_per = count[src.ravel()[arc]]
@@ -371,6 +376,30 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
         h=labels.h[parent[ok]] + hz,
         parent=parent[ok],
     )
+
+
+def _largest_p_f(problem: RoutingProblem, geom: ArcGeometry, shape: tuple[int, ...]) -> FloatArray:
+    """Steady weather: the largest ``p_f`` met anywhere along each arc of a rank (shape ``shape``), every piece it
+    crosses judged (:mod:`pyroute_rel.crossings`; a bound that may count a state the arc does not meet, never miss
+    one). Where it is 0 every sub-arc of the arc has ``p_f = 0`` and the arc adds no hazard, whatever its time: its
+    sub-arcs need not be resolved (:func:`~pyroute_rel.exposure.arc_exposure` would give exactly 0).
+    ``problem.geometry_costs`` judges the pieces only where ``apf`` can forbid an arc, so they are judged here."""
+    model = problem.failure
+    if model is None:
+        return np.zeros(shape)
+    costs = geometry_costs(
+        geom,
+        np.zeros(shape),
+        departure=problem.departure,
+        weather=problem.weather,
+        polar=problem.polar,
+        failure=model,
+        apf=float(problem.apf),
+        beyond=problem.beyond,
+        wave_loss=problem.wave_loss,
+        exact_p_f=True,
+    )
+    return np.asarray(np.broadcast_to(costs.p_f, shape), dtype=float)
 
 
 def _ramp(n_per: IntArray) -> IntArray:
