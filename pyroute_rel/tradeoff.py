@@ -410,27 +410,12 @@ def _ramp(n_per: IntArray) -> IntArray:
 
 
 def _reduce(c: _Candidates) -> _Labels:
-    """The non-dominated candidates at each node (of equal ones the first), sorted by node then time.
+    """The non-dominated candidates at each node (of equal ones the first), sorted by node then time: those whose
+    hazard is below every hazard before them at their node, sorted by (node, time, hazard, position)
+    (:func:`~pyroute_rel.front_compiled.nondominated`, one compiled pass)."""
+    from .front_compiled import nondominated  # numba: imported by the voyage front only
 
-    Sorted by (node, time, hazard), a candidate is kept when its hazard is below every hazard before it at its node:
-    a running minimum per node, done in one pass with integer keys (the hazard's rank, offset so that an earlier
-    node's keys are all larger than a later node's)."""
-    if c.node.size == 0:
-        return _Labels(c.node, c.t, c.h, c.parent)
-    by_h = np.argsort(c.h, kind="stable")
-    h_sorted = c.h[by_h]
-    h_rank = np.empty(c.h.size, dtype=np.int64)  # equal hazards share a rank
-    h_rank[by_h] = np.concatenate([[0], np.cumsum(h_sorted[1:] != h_sorted[:-1])])
-    by_t = by_h[np.argsort(c.t[by_h], kind="stable")]
-    order = by_t[np.argsort(c.node[by_t], kind="stable")]  # by node, time, hazard, then as given
-    node = c.node[order]
-    span = int(h_rank.max()) + 2
-    key = (int(node.max()) - node).astype(np.int64) * span + h_rank[order]
-    running = np.minimum.accumulate(key)
-    keep = np.ones(node.size, dtype=bool)
-    same = node[1:] == node[:-1]
-    keep[1:] = ~same | (key[1:] < running[:-1])
-    pick = order[keep]
+    pick = nondominated(c.node, c.t, c.h, int(c.node.max()) + 1 if c.node.size else 0)
     return _Labels(node=c.node[pick], t=c.t[pick], h=c.h[pick], parent=c.parent[pick])
 
 
