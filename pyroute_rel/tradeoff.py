@@ -56,8 +56,9 @@ import numpy as np
 import numpy.typing as npt
 
 from .cost import ArcGeometry, geometry_costs
+from .crossings import needs_pieces
 from .errors import LabelLimitError, NoFeasibleRouteError, ScenarioError
-from .exposure import arc_exposure, leg_exposure
+from .exposure import arc_exposure, hazard, leg_exposure
 from .grid import Grid
 from .progress import progress_bar
 from .route import Route, build_route, route_on_grid
@@ -340,12 +341,7 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
         arc = np.flatnonzero(np.isfinite(time_all))
         p_arc = np.broadcast_to(costs.p_f, src.shape).ravel()[arc]
         time_arc = time_all[arc]
-        hz = np.zeros(arc.size)
-        some = np.flatnonzero(_largest_p_f(problem, geom, src.shape).ravel()[arc] > 0.0)  # the others: no hazard
-        if some.size:
-            hz[some] = arc_exposure(
-                problem, *(e[arc[some]] for e in ends), np.zeros(some.size), time_arc[some], p_arc[some]
-            ).hazard
+        hz = _steady_hazards(problem, geom, src.shape, arc, [e[arc] for e in ends], time_arc, p_arc)
     else:
         arc = np.flatnonzero(live.ravel())
     n_per = count[src.ravel()[arc]]
@@ -378,18 +374,33 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
     )
 
 
-def _largest_p_f(problem: RoutingProblem, geom: ArcGeometry, shape: tuple[int, ...]) -> FloatArray:
-    """Steady weather: the largest ``p_f`` met anywhere along each arc of a rank (shape ``shape``), every piece it
-    crosses judged (:mod:`pyroute_rel.crossings`; a bound that may count a state the arc does not meet, never miss
-    one). Where it is 0 every sub-arc of the arc has ``p_f = 0`` and the arc adds no hazard, whatever its time: its
-    sub-arcs need not be resolved (:func:`~pyroute_rel.exposure.arc_exposure` would give exactly 0).
-    ``problem.geometry_costs`` judges the pieces only where ``apf`` can forbid an arc, so they are judged here."""
+def _steady_hazards(
+    problem: RoutingProblem,
+    geom: ArcGeometry,
+    shape: tuple[int, ...],
+    arc: IntArray,
+    ends: list[FloatArray],
+    time_h: FloatArray,
+    p_f: FloatArray,
+) -> FloatArray:
+    """Steady weather: the hazard of each sailable arc ``arc`` (flat indices into a rank's arcs of shape ``shape``;
+    ``ends`` their end points [deg], ``time_h`` their times [h], ``p_f`` their costed ``p_f``), as
+    :func:`~pyroute_rel.exposure.arc_exposure` gives it, resolving on 1 km sub-arcs only the arcs that need it.
+
+    An arc whose largest ``p_f`` (every piece it crosses judged, :mod:`pyroute_rel.crossings`: a bound that may count
+    a state the arc does not meet, never miss one) is 0 adds no hazard: every sub-arc's is 0. Among the others, an arc
+    that lies in one patch's conditions with every criterion in one bin all along (patches only; not
+    :func:`~pyroute_rel.crossings.needs_pieces`) meets the same ``p_f`` at every sub-arc's midpoint, so its hazard is
+    that ``p_f`` over its whole time: the sum of its sub-arcs' hazards but for rounding (their times add up to the
+    arc's). The rest are resolved on sub-arcs."""
+    hz = np.zeros(arc.size)
     model = problem.failure
     if model is None:
-        return np.zeros(shape)
+        return hz
+    t0 = np.zeros(shape)
     costs = geometry_costs(
         geom,
-        np.zeros(shape),
+        t0,
         departure=problem.departure,
         weather=problem.weather,
         polar=problem.polar,
@@ -399,7 +410,29 @@ def _largest_p_f(problem: RoutingProblem, geom: ArcGeometry, shape: tuple[int, .
         wave_loss=problem.wave_loss,
         exact_p_f=True,
     )
-    return np.asarray(np.broadcast_to(costs.p_f, shape), dtype=float)
+    p_max = np.broadcast_to(costs.p_f, shape).ravel()[arc]
+    some = p_max > 0.0  # the others: no hazard
+    bounds = getattr(problem.weather, "boundaries", None)
+    near = None
+    if bounds is not None and not bounds.continuous:  # patches: no missing weather, conditions constant per piece
+        time_all = np.broadcast_to(costs.time_h, shape)
+        near = needs_pieces(
+            geom.lon_deg,
+            geom.lat_deg,
+            geom.course_deg,
+            geom.seg_nm,
+            t0,
+            time_all,
+            weather=problem.weather,
+            failure=model,
+            departure=problem.departure,
+        )
+    whole = np.zeros(arc.size, dtype=bool) if near is None else some & ~np.broadcast_to(near, shape).ravel()[arc]
+    hz[whole] = hazard(p_max[whole], time_h[whole], model.exposure_h)
+    rest = np.flatnonzero(some & ~whole)
+    if rest.size:
+        hz[rest] = arc_exposure(problem, *(e[rest] for e in ends), np.zeros(rest.size), time_h[rest], p_f[rest]).hazard
+    return hz
 
 
 def _ramp(n_per: IntArray) -> IntArray:
