@@ -2,11 +2,11 @@
 
 :func:`~pyroute_rel.tradeoff.voyage_front` extends every label of a rank along every arc out of its node, then keeps
 at each node the candidates (arrival time, hazard) no other candidate there dominates. :func:`nondominated` does that
-in one compiled pass:
-the candidates are bucketed by node (a counting sort, stable), each node's are ordered by time (a stable sort), of a
-run of equal times only the first with the smallest hazard can be kept, and it is kept when its hazard is below every
-hazard kept before it at its node (a running minimum). The result is that of sorting all candidates by (node, time,
-hazard, position) and keeping the running minima, without sorting a million keys three times (tested against that).
+in one compiled pass: the candidates are bucketed by node (a counting sort, stable), each node's are ordered by time,
+of a run of equal times only the first given of the smallest hazard can be kept, and it is kept when its hazard is
+below every hazard kept before it at its node (a running minimum). The result is that of sorting all candidates by
+(node, time, hazard, position) and keeping the running minima, without sorting a million keys three times (tested
+against pairwise dominance).
 
 numba is imported only by the voyage front.
 """
@@ -71,16 +71,18 @@ def _nondominated(node, t, h, n_nodes):  # type: ignore[no-untyped-def]  # pragm
         if e == s:
             continue
         idx = order[s:e]
-        idx = idx[np.argsort(t[idx], kind="mergesort")]  # by time, then as given
+        tg = t[idx]
+        idx = idx[np.argsort(tg)]  # by time (ties are settled below, whatever their order here)
         m = 0
         first = True
         best = np.inf
-        while m < idx.size:  # a run of equal times: only its first smallest hazard may be kept
+        while m < idx.size:  # a run of equal times: only the first given of its smallest hazard may be kept
             pick = idx[m]
             m += 1
             while m < idx.size and t[idx[m]] == t[pick]:
-                if h[idx[m]] < h[pick]:
-                    pick = idx[m]
+                i = idx[m]
+                if h[i] < h[pick] or (h[i] == h[pick] and i < pick):
+                    pick = i
                 m += 1
             if first or h[pick] < best:
                 keep[n_keep] = pick
