@@ -29,7 +29,7 @@ When is it exact?
 
 The number of labels at a node can grow with the number of paths; :func:`voyage_front` refuses loudly
 (:class:`~pyroute_rel.errors.LabelLimitError`) when a node holds more than ``max_labels`` (default
-:data:`MAX_LABELS`, as commercial routers cap their labels per state) and reports the labels per node kept.
+:data:`MAX_LABELS`, 1024; commercial routers cap their labels per state at 512) and reports the labels per node kept.
 
 **Failure-mode sensitivity** (:func:`sensitivity`). For each criterion of the model: the hours it costs (the
 route at the user's ``apf`` minus the route with that criterion removed, :meth:`FailureModel.without
@@ -79,8 +79,11 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 
-#: Default cap on the non-dominated labels one node may hold in :func:`voyage_front` (``--max-labels``).
-MAX_LABELS = 512
+#: Default cap on the non-dominated labels one node may hold in :func:`voyage_front` (``--max-labels``). Commercial
+#: routers cap at 512 per state; the control course (``examples/microtransat_control.toml``) on its default grid needs
+#: 711 at one node (105 on average), so 512 would refuse the documented example: 1024 lets it run with room, and
+#: still bounds a rank's labels (nodes x 1024) to a few hundred thousand on default grids.
+MAX_LABELS = 1024
 
 
 @dataclass(frozen=True)
