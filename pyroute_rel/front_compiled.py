@@ -17,7 +17,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["nondominated"]
+__all__ = ["nondominated", "extend_steady"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -90,3 +90,89 @@ def _nondominated(node, t, h, n_nodes):  # type: ignore[no-untyped-def]  # pragm
                 best = h[pick]
                 first = False
     return keep[:n_keep]
+
+
+def extend_steady(
+    label_t: FloatArray,
+    label_h: FloatArray,
+    label_start: npt.NDArray[np.int64],
+    arc_start: npt.NDArray[np.int64],
+    arc_src: npt.NDArray[np.int64],
+    arc_t: FloatArray,
+    arc_h: FloatArray,
+) -> tuple[IntArray, FloatArray, FloatArray, IntArray]:
+    """Every label extended along every arc, then :func:`nondominated` at each destination node, in one pass without
+    the candidates laid out (steady weather: an arc adds the same time and hazard to every label it extends).
+
+    Parameters
+    ----------
+    label_t, label_h : The previous rank's labels, sorted by node: arrival [h] and hazard [-].
+    label_start : Where each source node's labels start in them (one more entry than source nodes).
+    arc_start : Where each destination node's arcs start (one more entry than destination nodes).
+    arc_src : Each arc's source node.
+    arc_t, arc_h : Each arc's time [h] and hazard [-].
+
+    Returns
+    -------
+    node, t, h, parent
+        The kept labels, sorted by node then time; ``parent`` the label each extends. The same as
+        :func:`nondominated` on the candidates laid out arc by arc, each arc's labels in order.
+    """
+    args = [np.ascontiguousarray(a, dtype=np.float64) for a in (label_t, label_h, arc_t, arc_h)]
+    starts = [np.ascontiguousarray(a, dtype=np.int64) for a in (label_start, arc_start, arc_src)]
+    node, t, h, parent = _extend_steady(args[0], args[1], starts[0], starts[1], starts[2], args[2], args[3])
+    return node.astype(np.intp), t, h, parent.astype(np.intp)
+
+
+@numba.njit(nogil=True, cache=True)
+def _extend_steady(label_t, label_h, label_start, arc_start, arc_src, arc_t, arc_h):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
+    n_dest = arc_start.size - 1
+    total = 0
+    for a in range(arc_src.size):
+        total += label_start[arc_src[a] + 1] - label_start[arc_src[a]]
+    out_node = np.empty(total, dtype=np.int64)
+    out_t = np.empty(total)
+    out_h = np.empty(total)
+    out_parent = np.empty(total, dtype=np.int64)
+    n_out = 0
+    biggest = 0
+    for j in range(n_dest):
+        n = 0
+        for a in range(arc_start[j], arc_start[j + 1]):
+            n += label_start[arc_src[a] + 1] - label_start[arc_src[a]]
+        biggest = max(biggest, n)
+    ct = np.empty(biggest)
+    ch = np.empty(biggest)
+    cp = np.empty(biggest, dtype=np.int64)
+    for j in range(n_dest):
+        n = 0
+        for a in range(arc_start[j], arc_start[j + 1]):  # the candidates into node j, arc by arc
+            s = arc_src[a]
+            for lab in range(label_start[s], label_start[s + 1]):
+                ct[n] = label_t[lab] + arc_t[a]
+                ch[n] = label_h[lab] + arc_h[a]
+                cp[n] = lab
+                n += 1
+        if n == 0:
+            continue
+        idx = np.argsort(ct[:n])  # by time (ties are settled below, whatever their order here)
+        m = 0
+        first = True
+        best = np.inf
+        while m < n:  # a run of equal times: only the first given of its smallest hazard may be kept
+            pick = idx[m]
+            m += 1
+            while m < n and ct[idx[m]] == ct[pick]:
+                i = idx[m]
+                if ch[i] < ch[pick] or (ch[i] == ch[pick] and i < pick):
+                    pick = i
+                m += 1
+            if first or ch[pick] < best:
+                out_node[n_out] = j
+                out_t[n_out] = ct[pick]
+                out_h[n_out] = ch[pick]
+                out_parent[n_out] = cp[pick]
+                n_out += 1
+                best = ch[pick]
+                first = False
+    return out_node[:n_out], out_t[:n_out], out_h[:n_out], out_parent[:n_out]

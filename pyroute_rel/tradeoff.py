@@ -268,7 +268,7 @@ def voyage_front(grid: Grid, problem: RoutingProblem, *, max_labels: int = MAX_L
     try:
         for k in range(grid.n_ranks + 1):
             cand = _extend(grid, problem, k, labels)
-            labels = _reduce(cand)
+            labels = cand if isinstance(cand, _Labels) else _reduce(cand)
             per_node = np.bincount(labels.node) if labels.node.size else np.zeros(0, dtype=np.intp)
             per_node = per_node[per_node > 0]
             if per_node.size and per_node.max() > max_labels:
@@ -324,9 +324,11 @@ def _check_voyage_problem(grid: Grid, problem: RoutingProblem, max_labels: int) 
         raise ScenarioError("the voyage front does not model exclusion zones with time windows (--front bottleneck)")
 
 
-def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Candidates:
+def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Candidates | _Labels:
     """Every label of the previous rank extended along every sailable arc into rank ``k``: with steady weather each
-    arc is costed once; otherwise each (label, arc) pair at the label's arrival time."""
+    arc is costed once and the non-dominated labels are kept as they are made
+    (:func:`~pyroute_rel.front_compiled.extend_steady`); otherwise each (label, arc) pair is costed at the label's
+    arrival time and the candidates are returned (:func:`_reduce` keeps the non-dominated ones)."""
     src, valid = grid.pattern(k)
     width = src.shape[1]
     n_src = grid.start_points[0].size if k == 0 else grid.n_nodes
@@ -345,18 +347,22 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
         p_arc = np.broadcast_to(costs.p_f, src.shape).ravel()[arc]
         time_arc = time_all[arc]
         hz = _steady_hazards(problem, geom, src.shape, arc, [e[arc] for e in ends], time_arc, p_arc)
-    else:
-        arc = np.flatnonzero(live.ravel())
+        from .front_compiled import extend_steady  # numba: imported by the voyage front only
+
+        node, t, h, parent = extend_steady(
+            labels.t,
+            labels.h,
+            np.concatenate([offset, [labels.node.size]]),
+            np.searchsorted(arc // width, np.arange(src.shape[0] + 1)),
+            src.ravel()[arc],
+            time_arc,
+            hz,
+        )
+        return _Labels(node=node, t=t, h=h, parent=parent)
+    arc = np.flatnonzero(live.ravel())
     n_per = count[src.ravel()[arc]]
     pair = np.repeat(np.arange(arc.size), n_per)  # (label, arc) pairs: the arc of each
     parent = offset[src.ravel()[arc]][pair] + _ramp(n_per)
-    if steady:
-        return _Candidates(
-            node=arc[pair] // width,
-            t=labels.t[parent] + time_arc[pair],
-            h=labels.h[parent] + hz[pair],
-            parent=parent,
-        )
     c_arc, t0 = arc[pair], labels.t[parent]
     sub = ArcGeometry(
         *(
