@@ -16,7 +16,11 @@ that of a bi-objective shortest-path problem. It is found by label setting in ra
 keeps the labels (arrival time, accumulated hazard) no other label at that node dominates; a label is extended along
 every arc out of its node, and the labels arriving at a node are reduced to the non-dominated ones. An arc's hazard
 is :func:`~pyroute_rel.exposure.arc_exposure`'s, the figure a routed voyage reports, so a front point's
-voyage failure probability is that of its route (tested). Arcs with ``p_f > apf`` stay forbidden.
+voyage failure probability is that of its route (tested). Arcs with ``p_f > apf`` stay forbidden. With steady
+weather only the arcs that need it are resolved on 1 km sub-arcs: an arc that meets no ``p_f > 0`` anywhere adds 0,
+and one inside a single patch's conditions with every criterion in one bin adds its ``p_f`` over its whole time (the
+same to rounding; ``_steady_hazards``), and each rank's labels are extended and reduced in one compiled pass
+(:mod:`pyroute_rel.front_compiled`).
 
 When is it exact?
     With steady weather, always: arc times and hazards do not depend on the departure, and a dominated label's
