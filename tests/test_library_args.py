@@ -28,6 +28,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import pyroute_rel as pr
+from pyroute_rel import tradeoff
 from pyroute_rel.errors import (
     ConvergenceError,
     FailureModelError,
@@ -483,7 +484,7 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
     "load_zones base_dir 5": (lambda: pr.load_zones([], base_dir=5), ScenarioError, ("base_dir must be",)),
     "load_zones None": (lambda: pr.load_zones(None), ScenarioError, ("zone files must be",)),
     # ---- tracks, evaluation, Monte Carlo, ensembles (modules of other branches: what they refuse well already)
-    "Track None": (lambda: pr.Track(None, None), pr.TrackError, ("two or more points",)),
+    "Track None": (lambda: pr.Track(None, None), pr.TrackError, ("Track.lon_deg must be", "got None")),
     "Track NaN": (lambda: pr.Track([0.0, NAN], [0.0, 1.0]), pr.TrackError, ("finite numbers",)),
     "Track shapes": (lambda: pr.Track([0.0, 1.0, 2.0], [0.0, 1.0]), pr.TrackError, ("two or more points",)),
     "read_track missing": (lambda: pr.read_track("/nonexistent/t.csv"), pr.TrackError, ("track file not found",)),
@@ -508,6 +509,232 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
         lambda: pr.route_ensemble("/nonexistent/s.toml", risk="x"),
         ScenarioError,
         ("--risk must be",),
+    ),
+    "Track lon 'x'": (lambda: pr.Track("x", [1.0]), pr.TrackError, ("Track.lon_deg must be a number", "'x', a str")),
+    "Track lat a dict": (lambda: pr.Track([0.0, 1.0], {}), pr.TrackError, ("Track.lat_deg must be",)),
+    "Track lat complex": (lambda: pr.Track([0.0, 1.0], [1j, 0.0]), pr.TrackError, ("Track.lat_deg must be",)),
+    "Track time 'x'": (lambda: pr.Track([0.0, 1.0], [0.0, 1.0], time="x"), pr.TrackError, ("Track.time must be",)),
+    "Track time 10**30": (
+        lambda: pr.Track([0.0, 1.0], [0.0, 1.0], time=[10**30, 0]),
+        pr.TrackError,
+        ("Track.time must be UTC times",),
+    ),
+    "Track time an object": (
+        lambda: pr.Track([0.0, 1.0], [0.0, 1.0], time=object()),
+        pr.TrackError,
+        ("Track.time must be",),
+    ),
+    "read_track None": (lambda: pr.read_track(None), pr.TrackError, ("track file must be a file name", "got None")),
+    "read_track 5": (lambda: pr.read_track(5), pr.TrackError, ("track file must be a file name", "got 5, an int")),
+    "read_track ''": (lambda: pr.read_track(""), pr.TrackError, ("an empty name",)),
+    "evaluate_track track 'x'": (
+        lambda: pr.evaluate_track(scenario(), "x"),
+        pr.TrackError,
+        ("a track must be a Track or an (N, 2) array", "'x'"),
+    ),
+    "evaluate_track track of words": (
+        lambda: pr.evaluate_track(scenario(), [["a", "b"], ["c", "d"]]),
+        pr.TrackError,
+        ("track must be a number or numbers [deg]",),
+    ),
+    "evaluate_track track with inf": (
+        lambda: pr.evaluate_track(scenario(), [[-12.0, 45.0], [INF, 40.0]]),
+        pr.TrackError,
+        ("finite",),
+    ),
+    "evaluate_track scenario 5": (
+        lambda: pr.evaluate_track(5, [[-12.0, 45.0], [-20.0, 40.0]]),
+        ScenarioError,
+        ("expected a Scenario", "int"),
+    ),
+    "evaluate_track samples 0": (
+        lambda: pr.evaluate_track(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], samples=0),
+        ScenarioError,
+        ("samples_per_arc must be",),
+    ),
+    "evaluate_track weather 'x'": (
+        lambda: pr.evaluate_track(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], weather="x"),
+        ScenarioError,
+        ("RoutingProblem.weather must be",),
+    ),
+    "MonteCarloSettings sigma0 True": (
+        lambda: pr.MonteCarloSettings(sigma0_ms=True),
+        ScenarioError,
+        ("sigma0_ms must be a finite number",),
+    ),
+    "MonteCarloSettings tau 'x'": (lambda: pr.MonteCarloSettings(tau_h="x"), ScenarioError, ("tau_h must be > 0",)),
+    "MonteCarloSettings spread 'x'": (
+        lambda: pr.MonteCarloSettings(spread_ms="x"),
+        ScenarioError,
+        ("spread_ms must be a number or numbers [m/s]",),
+    ),
+    "MonteCarloSettings spread NaN": (
+        lambda: pr.MonteCarloSettings(spread_ms=[1.0, NAN]),
+        ScenarioError,
+        ("spread_ms", "finite", "index 1"),
+    ),
+    "MonteCarloSettings spread negative": (
+        lambda: pr.MonteCarloSettings(spread_ms=[1.0, -1.0]),
+        ScenarioError,
+        ("spread_ms must be one value >= 0 per leg",),
+    ),
+    "MonteCarloSettings spread 2-D": (
+        lambda: pr.MonteCarloSettings(spread_ms=np.ones((2, 2))),
+        ScenarioError,
+        ("spread_ms must be one value >= 0 per leg",),
+    ),
+    "monte_carlo seed 'x'": (
+        lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, seed="x"),
+        ScenarioError,
+        ("seed must be a whole number >= 0 or None", "'x'"),
+    ),
+    "monte_carlo seed -1": (
+        lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, seed=-1),
+        ScenarioError,
+        ("seed must be",),
+    ),
+    "monte_carlo seed 1.5": (
+        lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, seed=1.5),
+        ScenarioError,
+        ("seed must be",),
+    ),
+    "monte_carlo settings 5": (
+        lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, settings=5),
+        ScenarioError,
+        ("settings must be a MonteCarloSettings", "got 5, an int"),
+    ),
+    "monte_carlo settings {}": (  # was taken as "no settings" (falsy)
+        lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, settings={}),
+        ScenarioError,
+        ("settings must be a MonteCarloSettings",),
+    ),
+    "monte_carlo problem 0": (  # was taken as "no problem" (falsy)
+        lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, problem=0),
+        ScenarioError,
+        ("problem must be a RoutingProblem or None",),
+    ),
+    "monte_carlo scenario None": (
+        lambda: public("monte_carlo")(None, [[-12.0, 45.0], [-20.0, 40.0]], runs=2),
+        ScenarioError,
+        ("scenario must be a Scenario", "got None"),
+    ),
+    "monte_carlo runs 10**30": (
+        lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=10**30),
+        ScenarioError,
+        ("runs must be at most",),
+    ),
+    "monte_carlo track 'x'": (
+        lambda: public("monte_carlo")(scenario(), "x", runs=2),
+        pr.TrackError,
+        ("a track must be",),
+    ),
+    "route_ensemble None": (lambda: pr.route_ensemble(None), ScenarioError, ("scenario must be a file name",)),
+    "route_ensemble path 5": (lambda: pr.route_ensemble(5), ScenarioError, ("scenario must be a file name",)),
+    "route_ensemble member_files 5": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", member_files=5),
+        ScenarioError,
+        ("member_files must be a list of file names",),
+    ),
+    "route_ensemble member_files [None]": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", member_files=[None]),
+        ScenarioError,
+        ("member_files item must be a file name",),
+    ),
+    "route_ensemble members 'x'": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", members="x"),
+        ScenarioError,
+        ("members must be a list of ints",),
+    ),
+    "route_ensemble members [1.5]": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", members=[1.5]),
+        ScenarioError,
+        ("members must be whole numbers",),
+    ),
+    "route_ensemble workers 0": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", workers=0),
+        ScenarioError,
+        ("workers must be a whole number >= 1",),
+    ),
+    "route_ensemble workers 'x'": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", workers="x"),
+        ScenarioError,
+        ("workers must be",),
+    ),
+    "route_ensemble mean_field None": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", mean_field=None),
+        ScenarioError,
+        ("mean_field must be True or False",),
+    ),
+    "route_ensemble options []": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", options=[]),
+        ScenarioError,
+        ("options must be a dict",),
+    ),
+    "route_ensemble risk 5": (
+        lambda: pr.route_ensemble("/nonexistent/s.toml", risk=5),
+        ScenarioError,
+        ("risk must be a Risk",),
+    ),
+    # ---- trade-off fronts (pyroute_rel.tradeoff, not exported at the top level)
+    "tradeoff.bottleneck_front grid None": (
+        lambda: tradeoff.bottleneck_front(None, route().problem),
+        ScenarioError,
+        ("grid must be a Grid", "got None"),
+    ),
+    "tradeoff.bottleneck_front problem 'x'": (
+        lambda: tradeoff.bottleneck_front(route().grid, "x"),
+        ScenarioError,
+        ("problem must be a RoutingProblem", "'x', a str"),
+    ),
+    "tradeoff.bottleneck_front progress 'yes'": (
+        lambda: tradeoff.bottleneck_front(route().grid, route().problem, progress="yes"),
+        ScenarioError,
+        ("progress must be True or False",),
+    ),
+    "tradeoff.voyage_front grid 5": (
+        lambda: tradeoff.voyage_front(5, route().problem),
+        ScenarioError,
+        ("grid must be a Grid",),
+    ),
+    "tradeoff.voyage_front problem None": (
+        lambda: tradeoff.voyage_front(route().grid, None),
+        ScenarioError,
+        ("problem must be a RoutingProblem",),
+    ),
+    "tradeoff.voyage_front max_labels 0": (
+        lambda: tradeoff.voyage_front(route().grid, route().problem, max_labels=0),
+        ScenarioError,
+        ("max_labels (--max-labels) must be a whole number >= 1", "got 0"),
+    ),
+    "tradeoff.voyage_front max_labels -1": (
+        lambda: tradeoff.voyage_front(route().grid, route().problem, max_labels=-1),
+        ScenarioError,
+        ("max_labels",),
+    ),
+    "tradeoff.voyage_front max_labels 'a'": (
+        lambda: tradeoff.voyage_front(route().grid, route().problem, max_labels="a"),
+        ScenarioError,
+        ("max_labels", "'a'"),
+    ),
+    "tradeoff.voyage_front max_labels True": (
+        lambda: tradeoff.voyage_front(route().grid, route().problem, max_labels=True),
+        ScenarioError,
+        ("max_labels",),
+    ),
+    "tradeoff.sensitivity problem None": (
+        lambda: tradeoff.sensitivity(route().grid, None),
+        ScenarioError,
+        ("problem must be a RoutingProblem",),
+    ),
+    "tradeoff.sensitivity grid 'x'": (
+        lambda: tradeoff.sensitivity("x", route().problem),
+        ScenarioError,
+        ("grid must be a Grid",),
+    ),
+    "tradeoff.sensitivity route 5": (
+        lambda: tradeoff.sensitivity(route().grid, route().problem, route=5),
+        ScenarioError,
+        ("route must be a Route",),
     ),
     # ---- grid convergence
     "grid_convergence None": (lambda: pr.grid_convergence(None, None), ConvergenceError, ()),
@@ -546,7 +773,7 @@ NO_ARGUMENTS = {"__version__", "list_failure_models"}
 RESULTS = {"Route", "Legs", "ForbiddenArcs", "Conditions", "Grid", "FailureModel", "Scenario", "WeatherSource"}
 RESULTS |= {"EnsembleResult", "Evaluation"}
 #: In modules another branch owns (solve.py; evaluate.py, ensemble.py): known open, see RAW_ELSEWHERE
-OPEN = {"RoutingProblem", "forward_dp", "read_track", "route_ensemble"}
+OPEN = {"RoutingProblem", "forward_dp"}
 
 
 def _public_callables() -> list[str]:
@@ -594,14 +821,6 @@ RAW_ELSEWHERE: dict[str, Callable[[], Any]] = {
     "forward_dp cost_hook 'x'": lambda: pr.forward_dp(route().grid, route().problem, cost_hook="x"),
     "RoutingProblem departure 10**30": lambda: pr.RoutingProblem(10**30, scenario().weather, polar()),
     "RoutingProblem.costs lon0 'x'": lambda: route().problem.costs("x", 0.0, 1.0, 0.0, 0.0),
-    "Track lon 'x'": lambda: pr.Track("x", [1.0]),
-    "read_track None": lambda: pr.read_track(None),
-    "evaluate_track track 'x'": lambda: pr.evaluate_track(scenario(), "x"),
-    "monte_carlo seed 'x'": lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, seed="x"),
-    "monte_carlo settings 5": lambda: public("monte_carlo")(
-        scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, settings=5
-    ),
-    "route_ensemble None": lambda: pr.route_ensemble(None),
 }
 
 
