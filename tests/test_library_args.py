@@ -920,3 +920,26 @@ def test_boat_speed_refuses_anything_that_is_not_numbers(value: object) -> None:
     for twa, tws in ((value, 10.0), (90.0, value)):
         with pytest.raises(PolarError, match=r"(twa_deg|tws_kn) must be"):
             pr.boat_speed_kn(polar(), twa, tws)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.one_of(
+        st.none(),
+        st.text(max_size=5),
+        st.booleans(),
+        st.complex_numbers(allow_nan=False, allow_infinity=False).filter(lambda z: z.imag != 0),
+        st.dictionaries(st.text(max_size=2), st.integers(), max_size=2),
+        st.lists(st.one_of(st.none(), st.text(max_size=2)), min_size=2, max_size=3),
+    ),
+    st.booleans(),
+)
+def test_a_track_refuses_anything_that_is_not_numbers(value: object, as_lat: bool) -> None:
+    # Track, evaluate_track and monte_carlo take the same points: a TrackError naming the coordinate, never a raw error
+    good = [0.0, 1.0]
+    with pytest.raises(pr.TrackError, match=r"Track\.(lon|lat)_deg must be a number"):
+        pr.Track(good, value) if as_lat else pr.Track(value, good)
+    with pytest.raises(pr.TrackError, match=r"a track must be|track must be a number"):
+        # (a bool inside a list of numbers is the number numpy makes of it: only a bool on its own is refused)
+        nested = as_lat and not isinstance(value, bool)
+        pr.evaluate_track(scenario(), [[-12.0, 45.0], [value, 40.0]] if nested else value)
