@@ -108,6 +108,18 @@ print(json.dumps({{"seconds": cold, "warm_dp_seconds": t, "arcs": res.arcs_evalu
 """)
 
 case(
+    "no_clipping_square_81_apf0.95",
+    None,
+    "issue 16 item 2: the paper's square 81 x 81 grid at apf 0.95, arcs judged on every piece they cross (route "
+    "time, and the voyage against the independent reference router's 778.852 h)",
+)(f"""
+sc = load_scenario({str(EXAMPLE)!r}).with_options(apf=0.95, layout="square", n_ranks=81, n_nodes=81)
+t, route = best_of(lambda: sc.route())
+print(json.dumps({{"seconds": t, "voyage_h": route.voyage_time_h, "reference_h": 778.852,
+                  "error_pct": 100 * (route.voyage_time_h / 778.852 - 1), "peak_rss_mb": rss_mb()}}))
+""")
+
+case(
     "refine_default_route",
     None,
     "default route of the example at apf 1 refined in five corridors (--refine 5): extra time and voyage gain",

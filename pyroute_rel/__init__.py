@@ -66,6 +66,7 @@ _EXPORTS: dict[str, str] = {
     "EnsembleResult": "ensemble",
     "monte_carlo": "monte_carlo",
     "MonteCarloSettings": "monte_carlo",
+    "ManoeuvrePenalties": "manoeuvre",
     # grid convergence
     "grid_convergence": "gci.numbers",
     "least_squares_convergence": "gci.numbers",
@@ -126,6 +127,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .failure import FailureModel, list_failure_models, load_failure_model
     from .gci.numbers import convergence_study, grid_convergence, least_squares_convergence
     from .grid import Grid, make_grid, plan_grid
+    from .manoeuvre import ManoeuvrePenalties
     from .monte_carlo import MonteCarloSettings, monte_carlo
     from .obstacles.mask import Avoid
     from .obstacles.zones import load_zones

@@ -7,6 +7,7 @@ A scenario has these tables (unknown tables or keys are refused with the file an
                spacing_km, aspect, half_width_km, max_deviation_deg, samples_per_arc = 1 | sample_km = 25,
                refine = 0
     [boat]     polar = "maribot_vane" | "path/to/file.pol"   beyond = "clamp" | "forbid"
+               tack_penalty_s = [[tws_kn, s], ...]  gybe_penalty_s = [[tws_kn, s], ...]  (default: none)
     [weather]  kind = "uniform" (tws_kn, twd_deg, hs_m, wave_dir_deg, ... and [[weather.patch]] boxes)
                kind = "file"    (paths = [...], see pyroute_rel.weather.readers)
                (more kinds: :func:`register_weather_kind`)
@@ -35,6 +36,7 @@ from .cost import WaveLoss
 from .errors import ScenarioError, brief, check_flag, show
 from .geodesy import along_track_km, crossing_fraction, distance_km, intermediate_point
 from .grid import DEFAULT_N_RANKS, LAYOUTS
+from .manoeuvre import ManoeuvrePenalties
 from .obstacles.mask import Avoid
 from .polar import BEYOND_MODES, get_polar
 from .weather import UniformWeather, WeatherSource
@@ -213,6 +215,12 @@ def _wave_loss(raw: Any, where: str) -> WaveLoss:
         raise ScenarioError(f"{where}: {exc} (got {raw!r})") from None
 
 
+def _penalty_table(raw: Any, where: str) -> Any:
+    kind = where.rsplit(".", 1)[-1].split("_", 1)[0]
+    ManoeuvrePenalties(**{f"{kind}_s": raw}, where=where.rsplit(".", 1)[0])  # checked here, kept as read
+    return raw
+
+
 # --- the schema ------------------------------------------------------------------------------------------------
 
 
@@ -293,6 +301,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "polar": Key("built-in name or polar file", _polar_name, "maribot_vane"),
         "beyond": Key(f"one of {list(BEYOND_MODES)}", one_of(BEYOND_MODES), "clamp"),
         "wave_speed_loss": Key("[[hs_m, factor], ...]: polar speed x factor(Hs), linear, from Hs = 0", _wave_loss),
+        "tack_penalty_s": Key("[[tws_kn, s], ...]: time a tack costs, linear in the wind speed", _penalty_table),
+        "gybe_penalty_s": Key("[[tws_kn, s], ...]: time a gybe costs, linear in the wind speed", _penalty_table),
     },
     "weather": {},  # validated by the weather kind
     "failure": {
@@ -486,6 +496,7 @@ def parse_boat(raw: Mapping[str, Any], base_dir: Path) -> dict[str, Any]:
         "polar": get_polar(values["polar"], base_dir=base_dir),
         "wave_loss": values["wave_speed_loss"],
         "beyond": values["beyond"],
+        "manoeuvres": ManoeuvrePenalties(tack_s=values["tack_penalty_s"], gybe_s=values["gybe_penalty_s"]),
     }
 
 

@@ -41,6 +41,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .crab import steer
+from .crossings import arc_extremes, needs_pieces
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
@@ -80,7 +81,9 @@ class ArcCosts:
     Attributes
     ----------
     time_h : Time to sail the arc [h]; ``inf`` where forbidden.
-    p_f : Largest failure probability along the arc (0 without a failure model; NaN where weather is missing).
+    p_f : Largest failure probability along the arc, judged on every piece it crosses (:mod:`pyroute_rel.crossings`;
+        an arc its samples already forbid keeps their largest; 0 without a failure model; NaN where weather is
+        missing).
     reason : Bit flags of :data:`REASONS` (0 where the arc is allowed).
     fired_bits : With a failure model and some arc it forbids: bit ``c`` is set where criterion ``c`` of the
         model fired somewhere along the arc (read it where ``reason`` has the failure flag); None otherwise.
@@ -172,12 +175,16 @@ class ArcGeometry:
     lon_deg, lat_deg : Sample points (sub-segment midpoints) [deg], shape (..., samples).
     course_deg : Great-circle course at each sample point [deg], shape (..., samples).
     seg_nm : Length of each sub-segment [nm], shape (..., 1).
+    a_xyz, b_xyz : Unit vectors of the arcs' ends, shape (..., 3) (broadcast to the block), or None: then the arcs
+        are judged at their samples only, not on every piece they cross (:mod:`pyroute_rel.crossings`).
     """
 
     lon_deg: FloatArray
     lat_deg: FloatArray
     course_deg: FloatArray
     seg_nm: FloatArray
+    a_xyz: FloatArray | None = None
+    b_xyz: FloatArray | None = None
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -233,6 +240,8 @@ def geometry_from_xyz(
             lat_deg=np.concatenate([g.lat_deg for g in parts]),
             course_deg=np.concatenate([g.course_deg for g in parts]),
             seg_nm=np.concatenate([g.seg_nm for g in parts]),
+            a_xyz=a,
+            b_xyz=b,
         )
     # component by component: numpy's reductions over a last axis of 3 cost more than the arithmetic
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
@@ -264,7 +273,7 @@ def geometry_from_xyz(
     course = geodesy.bearing_deg(x * by - y * bx, rho2 * bz - z * (x * bx + y * by))
     lon = np.degrees(np.arctan2(y, x))
     lat = np.degrees(np.arcsin(np.clip(z, -1.0, 1.0)))  # asin is twice as fast as atan2 here
-    return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm)
+    return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm, a_xyz=a, b_xyz=b)
 
 
 def _midpoint(
@@ -354,8 +363,13 @@ def geometry_costs(
     beyond: str = "clamp",
     wave_loss: WaveLoss | None = None,
     workers: int | None = None,
+    exact_p_f: bool = True,
 ) -> ArcCosts:
     """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid).
+
+    Arcs are judged on every piece they cross (:mod:`pyroute_rel.crossings`) when the geometry has their end
+    points. ``exact_p_f=False`` (the DP's choice) skips that where it cannot forbid anything (``apf`` at or above the
+    failure table's largest ``p_f``): the arcs' ``p_f`` is then their samples' largest; their times are the same.
 
     With time-varying weather, a large block is split along its first axis between ``workers`` threads (default
     :func:`~pyroute_rel.parallel.default_workers`): the compiled sampling kernels and numpy's ufuncs release the
@@ -365,12 +379,12 @@ def geometry_costs(
     shape = geom.shape
     steady = bool(weather.steady)
     n = default_workers() if workers is None else int(workers)
-    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss)
+    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
     if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
         return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n)
     if steady:
-        dt, p_f, reason, fired = _sample_and_cost(geom, options, None, None)
+        dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
     else:
         # time-varying weather samples the same points at two sets of times: the source prepares them once; pass 1
         # times the sub-segments at the departure time (speeds only: the failure model decides nothing here),
@@ -382,8 +396,78 @@ def geometry_costs(
         for s in range(1, geom.samples):
             elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
-        dt, p_f, reason, fired = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
-    return _arc_totals(dt, p_f, reason, fired)
+        dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
+    costs = _arc_totals(dt, p_f, reason, fired)
+    if options.failure is not None and geom.a_xyz is not None and geom.b_xyz is not None:
+        costs = _judge_pieces(geom, np.asarray(t0_h, dtype=float), costs, options, cond)
+    return costs
+
+
+def _judge_pieces(
+    geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options: _CostOptions, cond: Conditions
+) -> ArcCosts:
+    """``costs`` with each arc still allowed judged on every piece it crosses (:func:`~pyroute_rel.crossings.
+    arc_extremes`): its p_f is the largest met anywhere along it, and it is forbidden where that exceeds apf.
+    ``cond``: the weather at the samples (which arcs need it is decided from them, :func:`~pyroute_rel.crossings.
+    needs_pieces`)."""
+    model = options.failure
+    assert model is not None and geom.a_xyz is not None and geom.b_xyz is not None
+    if not options.exact_p_f and options.apf >= float(np.max(model.p_flat)):
+        return costs  # nothing to forbid
+    shape = geom.shape
+    time_h = np.broadcast_to(costs.time_h, shape).reshape(-1)
+    p_f = np.broadcast_to(costs.p_f, shape).reshape(-1)
+    # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more; an arc
+    # far from any change of conditions and of criteria is judged by its samples
+    todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
+    near = needs_pieces(
+        geom.lon_deg,
+        geom.lat_deg,
+        geom.course_deg,
+        geom.seg_nm,
+        np.broadcast_to(t0_h, shape),
+        np.broadcast_to(costs.time_h, shape),
+        weather=options.weather,
+        failure=model,
+        departure=options.departure,
+        cond=cond,
+    )
+    if near is not None:
+        todo &= np.broadcast_to(near, shape).reshape(-1)
+    pick = np.flatnonzero(todo)
+    if not pick.size:
+        return costs
+    ext = arc_extremes(
+        np.broadcast_to(geom.a_xyz, shape + (3,)).reshape(-1, 3)[pick],
+        np.broadcast_to(geom.b_xyz, shape + (3,)).reshape(-1, 3)[pick],
+        np.broadcast_to(t0_h, shape).reshape(-1)[pick],
+        time_h[pick],
+        departure=options.departure,
+        weather=options.weather,
+        polar=options.polar,
+        failure=model,
+        apf=options.apf,
+        beyond=options.beyond,
+        speed_factor=None if options.wave_loss is None else options.wave_loss.factor,
+    )
+    new_p = p_f.copy()
+    new_p[pick] = np.maximum(p_f[pick], ext.p_f)
+    over = np.zeros(p_f.shape, dtype=bool)
+    over[pick] = ext.p_f > options.apf
+    if not over.any():
+        return ArcCosts(time_h=costs.time_h, p_f=new_p.reshape(shape), reason=costs.reason, fired_bits=costs.fired_bits)
+    reason = np.broadcast_to(costs.reason, shape).reshape(-1).copy()
+    reason[over] |= np.uint8(REASONS["failure"])
+    bits = np.broadcast_to(costs.bits(), shape).reshape(-1).copy()
+    more = np.zeros(p_f.shape, dtype=np.uint32)
+    more[pick] = ext.fired_bits
+    bits |= np.where(over, more, 0).astype(np.uint32)
+    return ArcCosts(
+        time_h=np.where(over, np.inf, time_h).reshape(shape),
+        p_f=new_p.reshape(shape),
+        reason=reason.reshape(shape),
+        fired_bits=bits.reshape(shape),
+    )
 
 
 @dataclass(frozen=True)
@@ -397,6 +481,7 @@ class _CostOptions:
     apf: float
     beyond: str
     wave_loss: WaveLoss | None
+    exact_p_f: bool = True
 
 
 def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n: int) -> ArcCosts:
@@ -409,6 +494,8 @@ def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n:
             lat_deg=geom.lat_deg[rows],
             course_deg=geom.course_deg[rows],
             seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm,
+            a_xyz=None if geom.a_xyz is None else np.broadcast_to(geom.a_xyz, geom.shape + (3,))[rows],
+            b_xyz=None if geom.b_xyz is None else np.broadcast_to(geom.b_xyz, geom.shape + (3,))[rows],
         )
         o = options
         return geometry_costs(
@@ -422,6 +509,7 @@ def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n:
             beyond=o.beyond,
             wave_loss=o.wave_loss,
             workers=1,
+            exact_p_f=o.exact_p_f,
         )
 
     done = thread_map(part, row_blocks(geom.shape[0], n), n)
@@ -438,8 +526,8 @@ def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n:
 
 def _sample_and_cost(
     geom: ArcGeometry, options: _CostOptions, prepared: object | None, time_h: FloatArray | None, timing: bool = False
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any]:
-    """Per-sample time [h], p_f, reasons and fired criteria (:func:`_sample_costs`) with the weather sampled at
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any, Conditions]:
+    """Per-sample time [h], p_f, reasons and fired criteria (:func:`_sample_costs`), and the weather, sampled at
     ``time_h`` [h after departure] (None: at the departure); ``prepared``: the points from ``weather.prepare``
     (None: steady weather, sampled directly). ``timing``: pass 1, only the times are wanted (no failure model).
 
@@ -456,20 +544,23 @@ def _sample_and_cost(
 
             wind = sail_wind(cond.tws_kn, cond.twd_deg, geom.course_deg, geom.seg_nm, o.polar, beyond=o.beyond)
             if timing:
-                return wind[2], np.empty(0), np.empty(0, np.uint8), None
+                return wind[2], np.empty(0), np.empty(0, np.uint8), None, cond
     else:
         time = o.departure if time_h is None else hours_after(o.departure, time_h)
         cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
-    return _sample_costs(
+    return (
+        *_sample_costs(
+            cond,
+            geom.course_deg,
+            geom.seg_nm,
+            o.polar,
+            None if timing else o.failure,
+            o.apf,
+            o.beyond,
+            o.wave_loss,
+            wind=None if wind is None else wind[:2],
+        ),
         cond,
-        geom.course_deg,
-        geom.seg_nm,
-        o.polar,
-        None if timing else o.failure,
-        o.apf,
-        o.beyond,
-        o.wave_loss,
-        wind=None if wind is None else wind[:2],
     )
 
 

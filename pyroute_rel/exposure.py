@@ -82,7 +82,7 @@ def failure_probability(total_hazard: npt.ArrayLike) -> FloatArray:
     >>> float(failure_probability(float(hazard(0.2, 10.0, 5.0))))  # two exposures at 0.2: 1 - 0.8 ** 2
     0.36
     """
-    return np.asarray(-np.expm1(-np.asarray(total_hazard, dtype=float)), dtype=float)
+    return np.asarray(0.0 - np.expm1(-np.asarray(total_hazard, dtype=float)), dtype=float)  # 0, not -0, at no hazard
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ import numpy.typing as npt
 from . import geodesy
 from .errors import OutputError, brief, check_flag, check_instance
 from .files import check_out_dir, write_together
+from .manoeuvre import KIND_NAMES, SIDE_NAMES
 from .route import LEG_FIELDS, Route
 from .times import iso_utc
 from .units import KN_PER_MS
@@ -247,9 +248,20 @@ def to_csv(route: Route) -> str:
     times = route.time
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["index", "lon_deg", "lat_deg", "time_utc", "elapsed_h", *(f"leg_{k}" for k in LEG_FIELDS)])
+    w.writerow(
+        [
+            "index",
+            "lon_deg",
+            "lat_deg",
+            "time_utc",
+            "elapsed_h",
+            *(f"leg_{k}" for k in LEG_FIELDS),
+            *(f"leg_{k}" for k in MANOEUVRE_FIELDS),
+        ]
+    )
     for i in range(len(route.lon_deg)):
         legs = [_fmt(route.legs[k][i]) if i < len(route.lon_deg) - 1 else "" for k in LEG_FIELDS]
+        legs += _manoeuvre_cells(route, i)
         w.writerow(
             [
                 i,
@@ -261,6 +273,19 @@ def to_csv(route: Route) -> str:
             ]
         )
     return buf.getvalue()
+
+
+#: The CSV's manoeuvre columns (:mod:`pyroute_rel.manoeuvre`): the leg's side of the wind (``port``,
+#: ``starboard``), the manoeuvre at its start (``tack``, ``gybe`` or empty) and the time it cost [h].
+MANOEUVRE_FIELDS = ("side", "manoeuvre", "manoeuvre_h")
+
+
+def _manoeuvre_cells(route: Route, i: int) -> list[str]:
+    """The manoeuvre columns of the leg leaving track point ``i`` (empty after the last point)."""
+    m = route.manoeuvres
+    if m is None or i >= m.side.size:
+        return ["", "", ""]
+    return [SIDE_NAMES[int(m.side[i])], KIND_NAMES[int(m.kind[i])], _fmt(m.penalty_h[i])]
 
 
 def _split_at_antimeridian(lon: FloatArray, lat: FloatArray) -> list[list[list[float]]]:

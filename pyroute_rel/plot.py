@@ -324,6 +324,31 @@ def _draw_tracks(ax: Axes, routes: Sequence[Route], labels: Sequence[str], view:
         )
 
 
+# --- manoeuvres (issue 21): one marker per tack or gybe, at the start of the leg it puts the craft on --------------
+def _draw_manoeuvres(ax: Axes, routes: Sequence[Route], view: Any) -> None:
+    """Tacks (open diamonds) and gybes (open circles) along each route's track, counted in the legend."""
+    for i, route in enumerate(routes):
+        m = route.manoeuvres
+        if m is None:
+            continue
+        for kind, name, marker in ((1, "tacks", "D"), (2, "gybes", "o")):
+            at = np.flatnonzero(m.kind == kind)
+            if at.size:
+                ax.plot(
+                    view(route.lon_deg[at]),
+                    route.lat_deg[at],
+                    ls="none",
+                    marker=marker,
+                    mfc="none",
+                    ms=5,
+                    color=_COLOURS[i % len(_COLOURS)],
+                    label=f"{name} ({at.size})",
+                )
+
+
+# --- end of manoeuvres -----------------------------------------------------------------------------------------
+
+
 def _draw_marks(ax: Axes, routes: Sequence[Route], grids: Sequence[Grid], view: Any) -> None:
     """Start and finish lines (distinct styles), the start, the finish and the waypoints."""
     first, last = grids[0], grids[-1]
@@ -451,6 +476,7 @@ def plot_routes(
         _draw_patches(ax, weather, view)
     labels = list(labels) if labels is not None else [f"route {i + 1}" for i in range(len(routes))]
     _draw_tracks(ax, routes, labels, view)
+    _draw_manoeuvres(ax, routes, view)
     _draw_marks(ax, routes, grids, view)
     _frame(ax, limits)
     ax.grid(True, lw=0.3)

@@ -24,7 +24,8 @@ from . import geodesy
 from .cost import REASONS, ArcCosts, arc_quantities
 from .errors import NoFeasibleRouteError, ScenarioError, check_flag, check_instance
 from .exposure import LegExposure, leg_exposure
-from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, grid_geometry, leg_costs
+from .manoeuvre import TrackManoeuvres
+from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, grid_geometry, leg_manoeuvres
 from .times import hours_after, iso_utc
 
 if TYPE_CHECKING:
@@ -221,6 +222,8 @@ class Route:
     grid_track : For a refined route, the track on the grid routed on before refinement (None otherwise).
     exposure_by_criterion_h : Hours sailed where each criterion of the failure model fires, by the criterion's
         description (e.g. ``"WH: hs_m >= 4 m"``) [h]; empty without a failure model.
+    manoeuvres : Side of the wind of each leg, the tack or gybe at its start and the time it cost
+        (:class:`~pyroute_rel.manoeuvre.TrackManoeuvres`; penalties zero unless the boat has them).
     """
 
     lon_deg: FloatArray
@@ -237,6 +240,7 @@ class Route:
     course_legs: tuple[Route, ...] = ()
     grid_track: GridTrack | None = None
     exposure_by_criterion_h: dict[str, float] = field(default_factory=dict)
+    manoeuvres: TrackManoeuvres | None = None
 
     @property
     def weather(self) -> WeatherSource:
@@ -284,7 +288,7 @@ class Route:
         """Probability of failure over the voyage, ``1 - exp(-sum of the legs' hazards)`` [-] (see the module
         notes): ``1 - prod(1 - p_fail_leg)``."""
         with np.errstate(divide="ignore"):  # a leg with p_fail_leg = 1: log1p(-1) = -inf, certain failure
-            return float(-np.expm1(np.sum(np.log1p(-self.legs.p_fail_leg))))
+            return float(0.0 - np.expm1(np.sum(np.log1p(-self.legs.p_fail_leg))))  # 0, not -0, with no hazard
 
     @property
     def touches_edge(self) -> bool:
@@ -318,7 +322,7 @@ class Route:
         >>> route = sc.route()
         >>> arcs = route.forbidden_arcs()
         >>> len(arcs), int(arcs.rank[0]), str(arcs.reason[0]), str(arcs.criteria[0]), str(arcs.departure[0])
-        (775, 6, 'failure', 'WH: hs_m >= 4 m', '2018-06-02T07:44:06')
+        (694, 6, 'failure', 'WH: hs_m >= 4 m', '2018-06-02T09:14:22')
         """
         parts = self.course_legs or (self,)
         offsets = [float((r.departure - self.departure) / np.timedelta64(1, "s")) / 3600.0 for r in parts]
@@ -368,6 +372,9 @@ class Route:
             "max_failure_probability": self.max_failure_probability,
             "voyage_failure_probability": self.voyage_failure_probability,
             "exposure_by_criterion_h": dict(self.exposure_by_criterion_h),
+            "manoeuvres": {"tacks": 0, "gybes": 0, "penalty_h": 0.0}
+            if self.manoeuvres is None
+            else self.manoeuvres.summary(),
             **self.meta,
             "track": [
                 {"lon": float(lo), "lat": float(la), "time": iso_utc(t), "p_f": float(p)}
@@ -414,7 +421,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
     nodes = result.path()
     waits = result.waits()
     lon, lat = result.points(grid)
-    elapsed, costs = leg_costs(problem, lon, lat, waits)
+    elapsed, costs, manoeuvres = leg_manoeuvres(problem, lon, lat, waits)
     legs, exposure = track_legs(problem, lon, lat, elapsed, waits, costs)
     meta: dict[str, Any] = {
         "apf": float(problem.apf),
@@ -435,6 +442,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         problem=problem,
         meta=meta,
         exposure_by_criterion_h={k: float(v.sum()) for k, v in exposure.criterion_h.items()},
+        manoeuvres=manoeuvres,
     )
 
 
@@ -549,6 +557,19 @@ def join_routes(routes: list[Route]) -> Route:
             for r0 in routes
             for k in r0.exposure_by_criterion_h
         },
+        manoeuvres=_joined_manoeuvres(routes),
+    )
+
+
+def _joined_manoeuvres(routes: list[Route]) -> TrackManoeuvres | None:
+    """The manoeuvres of a course's legs one after the other (each leg started on the side the last ended on)."""
+    parts = [r.manoeuvres for r in routes]
+    if any(m is None for m in parts):
+        return None
+    return TrackManoeuvres(
+        side=np.concatenate([m.side for m in parts if m is not None]),
+        kind=np.concatenate([m.kind for m in parts if m is not None]),
+        penalty_h=np.concatenate([m.penalty_h for m in parts if m is not None]),
     )
 
 

@@ -29,6 +29,7 @@ from .errors import (
 from .files import brief_path, read_regular_bytes
 from .geodesy import distance_km
 from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid
+from .manoeuvre import ManoeuvrePenalties
 from .obstacles.mask import Avoid, check_points, obstacle_mask
 from .obstacles.zones import zones_outside
 from .route import GridTrack, Route, build_route, join_routes, route_on_grid
@@ -72,6 +73,8 @@ class Scenario:
         (None: the grid's defaults; see :func:`~pyroute_rel.grid.plan_grid`); spacing in [km], angle in [deg].
     samples_per_arc, sample_km : Weather samples per arc, or their largest spacing along arcs [km] (None: 25 km).
     polar, beyond, wave_loss : The boat: its polar, what to do outside its table, its speed loss in waves.
+    manoeuvres : The time its tacks and gybes cost (:class:`~pyroute_rel.manoeuvre.ManoeuvrePenalties`; None or
+        zero: free, the route of the plain DP).
     weather : The weather source.
     failure_model, apf : The failure model's name or file (None: none) and the acceptable probability of failure.
     base_dir : Folder that relative paths start from.
@@ -114,6 +117,7 @@ class Scenario:
     refine: int = 0
     sample_km: float | None = None
     notes: tuple[str, ...] = ()
+    manoeuvres: ManoeuvrePenalties | None = None
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's, with the command-line option named).
@@ -236,6 +240,7 @@ class Scenario:
             max_wait_h=self.max_wait_h,
             wave_loss=self.wave_loss,
             prune=self.prune,
+            manoeuvres=self.manoeuvres,
         )
 
     def route(self, *, progress: bool = False, grids: list[Grid] | None = None) -> Route:
@@ -298,6 +303,9 @@ class Scenario:
             lats = [*s_lat, grid.finish[1]]
             self.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)), (departure, departure))
             leg_problem = replace(self.problem(failure=failure, grid=grid), departure=departure)
+            last = routes[-1].manoeuvres if routes else None
+            if last is not None and last.side.size and leg_problem.sides:  # a leg starts on the side the last ended on
+                leg_problem = replace(leg_problem, initial_side=int(last.side[-1]))
             leg = route_on_grid(grid, leg_problem, progress=progress)
             if self.refine:
                 leg = self._refined(leg, leg_problem)

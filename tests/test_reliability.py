@@ -185,7 +185,7 @@ def test_apf_semantics_are_unchanged(tmp_path: Path) -> None:
 
 
 def test_files_carry_the_new_fields(tmp_path: Path) -> None:
-    """CSV and GeoJSON only gain fields: ``leg_p_fail_leg`` (last CSV column) and the voyage's exposure."""
+    """CSV and GeoJSON only gain fields: ``leg_p_fail_leg`` (before the manoeuvre columns) and the voyage's exposure."""
     import csv
     import io
 
@@ -193,8 +193,8 @@ def test_files_carry_the_new_fields(tmp_path: Path) -> None:
 
     route = straight(write_model(tmp_path), 12, patch_lon=[-13.0, -7.0])
     rows = list(csv.reader(io.StringIO(to_csv(route))))
-    assert rows[0][-2:] == ["leg_p_f", "leg_p_fail_leg"]
-    np.testing.assert_allclose([float(r[-1]) for r in rows[1:-1]], route.legs.p_fail_leg, rtol=1e-5, atol=1e-12)
+    assert rows[0][-5:] == ["leg_p_f", "leg_p_fail_leg", "leg_side", "leg_manoeuvre", "leg_manoeuvre_h"]
+    np.testing.assert_allclose([float(r[-4]) for r in rows[1:-1]], route.legs.p_fail_leg, rtol=1e-5, atol=1e-12)
     doc = to_geojson(route)
     line = doc["features"][0]["properties"]
     assert line["voyage_failure_probability"] == route.voyage_failure_probability

@@ -80,6 +80,7 @@ def test_summary_is_json_of_plain_values_and_the_objects_are_attributes(routed: 
         "max_failure_probability",
         "voyage_failure_probability",
         "exposure_by_criterion_h",
+        "manoeuvres",
         "apf",
         "failure_model",
         "failure_exposure_h",

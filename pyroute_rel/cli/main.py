@@ -378,6 +378,8 @@ def _route_text(
         *_refine_lines(s.get("refine")),
         f"failure model    {s.get('failure_model') or 'none'} (apf {s.get('apf', 1.0):g}): max leg p_f "
         f"{route.max_failure_probability:.3f}, voyage p_f {route.voyage_failure_probability:.3f}",
+        f"manoeuvres       {s['manoeuvres']['tacks']} tacks, {s['manoeuvres']['gybes']} gybes, costing "
+        f"{s['manoeuvres']['penalty_h'] * 3600.0:.0f} s",
         f"runtime          {elapsed:.2f} s (loading the scenario and its weather, routing)",
     ]
     if out:

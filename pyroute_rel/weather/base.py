@@ -30,7 +30,7 @@ import numpy.typing as npt
 from ..errors import WeatherError, check_numbers
 from ..times import to_datetime64
 
-__all__ = ["Conditions", "WeatherSource", "FIELDS", "RANGES", "Range", "sample_points"]
+__all__ = ["Boundaries", "Variation", "Conditions", "WeatherSource", "FIELDS", "RANGES", "Range", "sample_points"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -133,6 +133,38 @@ class Conditions:
     def has_current(self) -> bool:
         """True when any current is non-zero."""
         return bool(np.any(self.current_u_ms) or np.any(self.current_v_ms))
+
+
+@dataclass(frozen=True)
+class Variation:
+    """A bound on how much a field changes between two points: ``|f(p) - f(q)| <= fixed + per_lon * |dlon| +
+    per_lat * |dlat| + per_h * |dt|`` (longitude and latitude differences [deg], time [h]; a direction's change in
+    [deg]). Gridded sources give it (:meth:`~pyroute_rel.weather.GriddedWeather.variation`)."""
+
+    per_lon: float
+    per_lat: float
+    per_h: float
+    fixed: float = 0.0
+
+
+@dataclass(frozen=True)
+class Boundaries:
+    """Where a weather source's conditions can change abruptly or bend.
+
+    Attributes
+    ----------
+    lon_deg : Meridians [deg], sorted.
+    lat_deg : Parallels [deg], sorted.
+    boxes : ``(n, 4)`` rows ``(lon_min, lon_max, lat_min, lat_max)`` [deg] outside which conditions do not change
+        (None: anywhere).
+    continuous : True when fields are continuous across the lines (interpolated grids), False when they jump there
+        (patches).
+    """
+
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    boxes: FloatArray | None = None
+    continuous: bool = True
 
 
 @runtime_checkable

@@ -33,7 +33,7 @@ import numpy.typing as npt
 from ..errors import WeatherCoverageError, WeatherError, WeatherWarning, brief, check_numbers
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
-from .base import RANGES, Conditions, sample_points
+from .base import RANGES, Boundaries, Conditions, Variation, sample_points
 
 if TYPE_CHECKING:
     pass
@@ -404,6 +404,7 @@ class GriddedWeather:
             groups.setdefault(key, []).append(f)
         self._blocks = [_Block(group) for group in groups.values()]
         self._steady = all(f.time is None for f in fields)
+        self._variations: dict[str, Variation | None] = {}
         _load_kernels()  # numba's first call in a process costs half a second: pay it with the file, not the route
 
     @property
@@ -420,6 +421,32 @@ class GriddedWeather:
         if "current_u_ms" in self._info and "current_v_ms" in self._info:
             out.update(("current_u_ms", "current_v_ms"))
         return frozenset(out)
+
+    @functools.cached_property
+    def boundaries(self) -> Boundaries:
+        """The grid lines of every field (meridians and parallels [deg]): fields are bilinear within a cell and bend
+        across its edges. Used to judge arcs on every cell they cross (:mod:`pyroute_rel.crossings`)."""
+        lons = np.unique(np.concatenate([np.asarray(b.lon, dtype=float) for b in self._blocks]))
+        lats = np.unique(np.concatenate([np.asarray(b.lat, dtype=float) for b in self._blocks]))
+        return Boundaries(lons, lats, None, continuous=True)
+
+    def variation(self, field: str) -> Variation | None:
+        """A bound on how much a :class:`~pyroute_rel.weather.Conditions` field changes between two points (None:
+        not in the data, or no bound).
+
+        A bilinear (in time, trilinear) interpolant's slope along each axis is a weighted mean of the differences
+        between neighbouring nodes, so ``hs_m`` and ``wave_period_s`` change by at most the largest neighbour
+        difference per grid step along each axis; ``tws_kn``, the length of the interpolated wind, by at most the
+        sum of its components'. A direction (``twd_deg``, ``wave_dir_deg``) interpolated from vectors stays within
+        the angular hull of its cell's corners (when they span less than 180 deg), so it changes by at most the
+        corners' spread (the sum of the largest angles between neighbours along each axis) per cell entered: four
+        (the cells of both points, and one more along each axis at worst) plus one per grid step travelled.
+        Computed once per field and cached.
+        """
+        cached = self._variations.get(field)
+        if cached is None and field not in self._variations:
+            cached = self._variations[field] = _variation(self._blocks, field)
+        return cached
 
     @property
     def field_info(self) -> Mapping[str, WeatherField]:
@@ -709,3 +736,89 @@ def _offsets(time: npt.NDArray[np.datetime64]) -> tuple[np.datetime64, FloatArra
     """Times (1-D ``datetime64[ns]``) as an origin and contiguous float seconds after it, as the kernels take them."""
     origin = time[0] if time.size else np.datetime64(0, "ns")
     return origin, np.ascontiguousarray((time - origin) / np.timedelta64(1, "s"), dtype=np.float64)
+
+
+#: Stored columns of the blocks behind each Conditions field whose variation can be bounded, and how: "scalar" (its
+#: neighbour differences), "length" (of a vector: the sum of its components'), "angle" (of a vector).
+_VARIATION_COLUMNS: dict[str, tuple[tuple[str, ...], str]] = {
+    "hs_m": (("hs_m",), "scalar"),
+    "wave_period_s": (("wave_period_s",), "scalar"),
+    "tws_kn": (("wind_u_ms", "wind_v_ms"), "length"),
+    "twd_deg": (("wind_u_ms", "wind_v_ms"), "angle"),
+    "wave_dir_deg": (("_wave_sin", "_wave_cos"), "angle"),
+}
+
+
+def _variation(blocks: list[_Block], field: str) -> Variation | None:
+    """:meth:`GriddedWeather.variation` computed from the blocks' data (see there)."""
+    spec = _VARIATION_COLUMNS.get(field)
+    if spec is None:
+        return None
+    names, kind = spec
+    block = next((b for b in blocks if all(n in b.names for n in names)), None)
+    if block is None:
+        return None
+    cols = [block.names.index(n) for n in names]
+    steps = [float(np.min(np.diff(block.lon))), float(np.min(np.diff(block.lat)))]
+    steps.append(float(np.min(np.diff(block.time_s))) / 3600.0 if block.time_s.size > 1 else np.inf)
+    # largest neighbour statistic along each axis of the data (lat, lon, time): axes 1, 0, 2
+    worst = [_neighbour_max(block.data, cols, axis, kind) for axis in (1, 0, 2)]
+    if kind == "angle":
+        spread = float(sum(worst))
+        if not spread < 90.0:
+            return None
+        return Variation(spread / steps[0], spread / steps[1], spread / steps[2], fixed=4.0 * spread)
+    scale = KN_PER_MS if kind == "length" else 1.0
+    return Variation(*(scale * w / s for w, s in zip(worst, steps, strict=True)))
+
+
+def _neighbour_max(data: npt.NDArray[np.float32], cols: list[int], axis: int, kind: str) -> float:
+    """Largest difference (sum over the columns, or angle between the vectors [deg]) between neighbours along
+    ``axis`` of ``data`` (lat, lon, time, column); NaN ignored. One compiled pass over the data."""
+    if data.shape[axis] < 2:
+        return 0.0
+    c0, c1 = cols[0], cols[-1]
+    if kind == "angle":
+        worst_cos = _neighbour_min_cos(data, c0, c1, axis)
+        return float(np.degrees(np.arccos(min(1.0, max(-1.0, worst_cos)))))
+    return float(_neighbour_max_diff(data, c0, c1 if len(cols) > 1 else -1, axis))
+
+
+@numba.njit(nogil=True, cache=True)
+def _neighbour_max_diff(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Largest |difference| of column c0 (plus that of c1 when >= 0) between neighbours along ``axis``."""
+    ny, nx, nt, _ = data.shape
+    dj, di, dt = (1, 0, 0) if axis == 0 else ((0, 1, 0) if axis == 1 else (0, 0, 1))
+    best = 0.0
+    for j in range(ny - dj):
+        for i in range(nx - di):
+            for t in range(nt - dt):
+                d = abs(np.float64(data[j + dj, i + di, t + dt, c0]) - data[j, i, t, c0])
+                if c1 >= 0:
+                    d += abs(np.float64(data[j + dj, i + di, t + dt, c1]) - data[j, i, t, c1])
+                if d > best:  # False for NaN
+                    best = d
+    return best
+
+
+@numba.njit(nogil=True, cache=True)
+def _neighbour_min_cos(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Smallest cosine of the angle between the vectors (column c0, column c1) of neighbours along ``axis`` (-1
+    where one is zero)."""
+    ny, nx, nt, _ = data.shape
+    dj, di, dt = (1, 0, 0) if axis == 0 else ((0, 1, 0) if axis == 1 else (0, 0, 1))
+    worst = 1.0
+    for j in range(ny - dj):
+        for i in range(nx - di):
+            for t in range(nt - dt):
+                ax = np.float64(data[j, i, t, c0])
+                ay = np.float64(data[j, i, t, c1])
+                bx = np.float64(data[j + dj, i + di, t + dt, c0])
+                by = np.float64(data[j + dj, i + di, t + dt, c1])
+                norm = np.sqrt((ax * ax + ay * ay) * (bx * bx + by * by))
+                if norm != norm:
+                    continue
+                c = (ax * bx + ay * by) / norm if norm > 0.0 else -1.0
+                if c < worst:
+                    worst = c
+    return worst

@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ScenarioError, WeatherError, brief
-from .base import FIELDS, Conditions, sample_points
+from .base import FIELDS, Boundaries, Conditions, sample_points
 
 __all__ = ["Patch", "PreparedUniform", "UniformWeather"]
 
@@ -129,6 +129,17 @@ class UniformWeather:
     def fields(self) -> frozenset[str]:
         """Every field of :class:`~pyroute_rel.weather.base.Conditions` (all are defined everywhere)."""
         return frozenset(FIELDS)
+
+    @property
+    def boundaries(self) -> Boundaries | None:
+        """Where conditions change: the patches' edges (meridians and parallels) within their boxes (None without
+        patches). Used to judge arcs on every patch they cross (:mod:`pyroute_rel.crossings`)."""
+        if not self.patches:
+            return None
+        lons = sorted({v for p in self.patches for v in p.lon})
+        lats = sorted({v for p in self.patches for v in p.lat})
+        boxes = np.array([[p.lon[0], p.lon[1], p.lat[0], p.lat[1]] for p in self.patches], dtype=float)
+        return Boundaries(np.array(lons, float), np.array(lats, float), boxes, continuous=False)
 
     @property
     def max_current_ms(self) -> float:

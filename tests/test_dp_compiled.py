@@ -1,0 +1,90 @@
+"""The compiled rank step (pyroute_rel.dp_compiled) is bit-identical to the numpy path of the DP (issue 18)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import pyroute_rel.solve as solve
+from pyroute_rel.grid import make_grid
+from pyroute_rel.manoeuvre import ManoeuvrePenalties
+from pyroute_rel.weather import UniformWeather
+from tests.test_properties import NaNBox
+from tests.test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weather
+
+
+def both(grid, problem, monkeypatch: pytest.MonkeyPatch) -> tuple[solve.DPResult, solve.DPResult]:
+    compiled = solve.forward_dp(grid, problem)
+    monkeypatch.setattr(solve, "COMPILED_RANK_STEP", False)
+    numpy_path = solve.forward_dp(grid, problem)
+    monkeypatch.setattr(solve, "COMPILED_RANK_STEP", True)
+    return compiled, numpy_path
+
+
+def assert_same(a: solve.DPResult, b: solve.DPResult, *, counts: bool = True) -> None:
+    """Equal results, bit for bit; ``counts``: and the same arcs costed and forbidden (not when pruning differs)."""
+    np.testing.assert_array_equal(a.arrival_h, b.arrival_h)  # bit for bit (NaN-free: inf where unreachable)
+    np.testing.assert_array_equal(a.back, b.back)
+    assert (a.labels is None) == (b.labels is None)
+    if a.labels is not None and b.labels is not None:
+        for name in ("arrival_h", "back", "from_side"):
+            np.testing.assert_array_equal(getattr(a.labels, name), getattr(b.labels, name))
+        assert (a.labels.finish_side, a.labels.finish_from) == (b.labels.finish_side, b.labels.finish_from)
+    assert a.finish_h == b.finish_h or (np.isnan(a.finish_h) and np.isnan(b.finish_h))
+    assert a.finish_back == b.finish_back and a.dead_rank == b.dead_rank
+    if counts:
+        assert a.arcs_evaluated == b.arcs_evaluated
+        assert a.arcs_forbidden == b.arcs_forbidden and a.forbidden_by_reason == b.forbidden_by_reason
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n_ranks=st.integers(1, 12),
+    n_nodes=st.sampled_from([1, 3, 9, 40, 47]),
+    samples=st.integers(1, 4),
+    beyond=st.sampled_from(["clamp", "forbid"]),
+    prune=st.booleans(),
+    hole=st.booleans(),
+    sides=st.sampled_from([None, -1, 0, 1]),
+)
+def test_compiled_rank_step_equals_numpy(
+    seed: int, n_ranks: int, n_nodes: int, samples: int, beyond: str, prune: bool, hole: bool, sides: int | None
+) -> None:
+    """Random polars, winds with patches (calms, wind beyond the table, a NaN hole), square grids with and without
+    pruning, with and without manoeuvre penalties (side labels; starting on either side or a given one): arrival
+    times, back-pointers, labels and forbidden counts are equal, bit for bit."""
+    rng = np.random.default_rng(seed)
+    weather = random_weather(rng)
+    if hole:  # missing wind in a box: the arcs through it are forbidden for the weather
+        weather = NaNBox(
+            base=weather, lon=(-40.0, -30.0), lat=(25.0, 40.0), nan_fields=("tws_kn", "twd_deg")[: seed % 2 + 1]
+        )
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=n_ranks, n_nodes=n_nodes, spacing_km=float(rng.uniform(20, 150)))
+    problem = solve.RoutingProblem(
+        departure=DEP, weather=weather, polar=random_polar(rng), samples=samples, beyond=beyond, prune=prune
+    )
+    if sides is not None:
+        penalties = ManoeuvrePenalties(tack_s=[[0.0, float(rng.uniform(0, 2e4))], [20.0, float(rng.uniform(0, 2e4))]],
+                                       gybe_s=[[8.0, float(rng.uniform(1, 2e4))]])  # fmt: skip
+        problem = replace(problem, manoeuvres=penalties, initial_side=None if sides < 0 else sides)
+    with pytest.MonkeyPatch.context() as mp:
+        compiled, numpy_path = both(grid, problem, mp)
+    # the same arcs costed unless pruned (ties may pick others, and side labels are pruned by the compiled step only)
+    assert_same(compiled, numpy_path, counts=not prune or n_nodes <= solve.PRUNE_MIN_WIDTH)
+
+
+def test_compiled_step_serves_only_steady_wind_only_problems(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a current the numpy path runs (the compiled step knows wind only); the results agree anyway."""
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=6, n_nodes=9)
+    rng = np.random.default_rng(3)
+    problem = solve.RoutingProblem(departure=DEP, weather=random_weather(rng), polar=random_polar(rng))
+    assert solve._Pricing.of(problem, None, finish_line=False).compiled
+    flowing = replace(problem, weather=UniformWeather(tws_kn=12.0, twd_deg=10.0, current_u_ms=0.3))
+    assert not solve._Pricing.of(flowing, None, finish_line=False).compiled
+    a, b = both(grid, flowing, monkeypatch)
+    assert_same(a, b)
