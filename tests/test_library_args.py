@@ -10,6 +10,8 @@ accepted, an independent computation (JSON parsed strictly, the numbers given).
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import functools
 import inspect
 import json
@@ -100,6 +102,21 @@ def gridded() -> pr.GriddedWeather:
 
 def _builder(table, *, base_dir, bbox, departure):  # a weather builder of the right form
     return pr.UniformWeather(tws_kn=5.0, twd_deg=0.0)
+
+
+class _MaskOf:
+    """An obstacle mask (pyroute_rel.solve.ArcMask) of the given grid that blocks nothing."""
+
+    def __init__(self, grid: pr.Grid) -> None:
+        self.grid, self.timed = grid, False
+
+    def __call__(self, k: int, times: Any) -> np.ndarray:
+        return np.zeros(self.grid.arcs(k)[4].shape, dtype=bool)
+
+    known = hits = __call__
+
+    def learn(self, k: int, select: Any = None) -> None:
+        return None
 
 
 #: id -> (the call, the domain error it must raise, fragments the one-line message must hold)
@@ -255,6 +272,129 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
         lambda: pr.forward_dp(route().grid, route().problem, progress=np.array([])),
         ScenarioError,
         ("progress must be True or False",),
+    ),
+    "forward_dp grid None": (
+        lambda: pr.forward_dp(None, route().problem),
+        ScenarioError,
+        ("grid must be a Grid", "got None"),
+    ),
+    "forward_dp grid a list": (lambda: pr.forward_dp([], route().problem), ScenarioError, ("grid must be a Grid",)),
+    "forward_dp problem 'x'": (
+        lambda: pr.forward_dp(route().grid, "x"),
+        ScenarioError,
+        ("problem must be a RoutingProblem", "'x', a str"),
+    ),
+    "forward_dp cost_hook 'x'": (
+        lambda: pr.forward_dp(route().grid, route().problem, cost_hook="x"),
+        ScenarioError,
+        ("cost_hook must be a function", "'x', a str"),
+    ),
+    "forward_dp mask of another grid": (
+        lambda: pr.forward_dp(
+            copy.copy(route().grid), dataclasses.replace(route().problem, blocked=_MaskOf(route().grid))
+        ),
+        ScenarioError,
+        ("obstacle mask was built for another grid",),
+    ),
+    "RoutingProblem departure 10**30": (
+        lambda: pr.RoutingProblem(10**30, scenario().weather, polar()),
+        ScenarioError,
+        ("departure must be a UTC time", "1000000000000000000000000000000"),
+    ),
+    "RoutingProblem departure year 10**12": (
+        lambda: pr.RoutingProblem("1000000000000-01-01", scenario().weather, polar()),
+        ScenarioError,
+        ("departure must be a UTC time in the years 1 to 9999",),
+    ),
+    "RoutingProblem departure complex": (
+        lambda: pr.RoutingProblem(1j, scenario().weather, polar()),
+        ScenarioError,
+        ("departure must be a UTC time", "1j"),
+    ),
+    "RoutingProblem weather None": (
+        lambda: pr.RoutingProblem(T0, None, polar()),
+        ScenarioError,
+        ("RoutingProblem.weather must be a weather source",),
+    ),
+    "RoutingProblem polar 'maribot_vane'": (
+        lambda: pr.RoutingProblem(T0, scenario().weather, "maribot_vane"),
+        ScenarioError,
+        ("RoutingProblem.polar must be a Polar",),
+    ),
+    "RoutingProblem failure 'dickson2018'": (
+        lambda: pr.RoutingProblem(T0, scenario().weather, polar(), failure="dickson2018"),
+        ScenarioError,
+        ("RoutingProblem.failure must be a FailureModel",),
+    ),
+    "RoutingProblem blocked True": (
+        lambda: pr.RoutingProblem(T0, scenario().weather, polar(), blocked=True),
+        ScenarioError,
+        ("RoutingProblem.blocked must be",),
+    ),
+    "RoutingProblem prune None": (
+        lambda: pr.RoutingProblem(T0, scenario().weather, polar(), prune=None),
+        ScenarioError,
+        ("RoutingProblem.prune must be True or False",),
+    ),
+    "RoutingProblem apf True": (
+        lambda: pr.RoutingProblem(T0, scenario().weather, polar(), apf=True),
+        ScenarioError,
+        ("apf must be a probability",),
+    ),
+    "RoutingProblem time_step_h True": (
+        lambda: pr.RoutingProblem(T0, scenario().weather, polar(), time_step_h=True),
+        ScenarioError,
+        ("time_step_h must be in (0, 48]",),
+    ),
+    "RoutingProblem.costs lon0 'x'": (
+        lambda: route().problem.costs("x", 0.0, 1.0, 0.0, 0.0),
+        ScenarioError,
+        ("RoutingProblem.costs lon0 must be a number", "[deg]"),
+    ),
+    "RoutingProblem.costs lat1 None": (
+        lambda: route().problem.costs(0.0, 0.0, 1.0, None, 0.0),
+        ScenarioError,
+        ("RoutingProblem.costs lat1 must be", "got None"),
+    ),
+    "RoutingProblem.costs lon1 inf": (
+        lambda: route().problem.costs(0.0, 0.0, INF, 0.0, 0.0),
+        ScenarioError,
+        ("RoutingProblem.costs lon1", "finite (NaN for missing)"),
+    ),
+    "RoutingProblem.costs t0_h True": (
+        lambda: route().problem.costs(0.0, 0.0, 1.0, 0.0, True),
+        ScenarioError,
+        ("RoutingProblem.costs t0_h must be", "[h]"),
+    ),
+    "RoutingProblem.costs t0_h a wrong shape": (
+        lambda: route().problem.costs(0.0, 0.0, 1.0, 0.0, np.ones((2, 2))),
+        ScenarioError,
+        ("must broadcast together", "(2, 2)"),
+    ),
+    "ManoeuvrePenalties tack 'x'": (
+        lambda: pr.ManoeuvrePenalties(tack_s="x"),
+        ScenarioError,
+        ("[boat].tack_penalty_s must be a list of [tws_kn, seconds] pairs",),
+    ),
+    "ManoeuvrePenalties gybe NaN": (
+        lambda: pr.ManoeuvrePenalties(gybe_s=[[5.0, NAN]]),
+        ScenarioError,
+        ("[boat].gybe_penalty_s must hold finite numbers",),
+    ),
+    "ManoeuvrePenalties tack negative": (
+        lambda: pr.ManoeuvrePenalties(tack_s=[[5.0, -1.0]]),
+        ScenarioError,
+        ("penalties must be in [0, 86400] [s]",),
+    ),
+    "ManoeuvrePenalties wind decreasing": (
+        lambda: pr.ManoeuvrePenalties(tack_s=[[10.0, 1.0], [5.0, 1.0]]),
+        ScenarioError,
+        ("wind speeds must be >= 0 [kn] and increase",),
+    ),
+    "ManoeuvrePenalties where 5": (
+        lambda: pr.ManoeuvrePenalties(where=5),
+        ScenarioError,
+        ("ManoeuvrePenalties where must be a str",),
     ),
     # ---- failure models
     "load_failure_model None": (lambda: pr.load_failure_model(None), FailureModelError, ("by name or path",)),
@@ -772,8 +912,6 @@ NO_ARGUMENTS = {"__version__", "list_failure_models"}
 #: Results the library builds and hands out (their constructors are not an entry point); a Protocol
 RESULTS = {"Route", "Legs", "ForbiddenArcs", "Conditions", "Grid", "FailureModel", "Scenario", "WeatherSource"}
 RESULTS |= {"EnsembleResult", "Evaluation"}
-#: In modules another branch owns (solve.py; evaluate.py, ensemble.py): known open, see RAW_ELSEWHERE
-OPEN = {"RoutingProblem", "forward_dp"}
 
 
 def _public_callables() -> list[str]:
@@ -788,7 +926,7 @@ def _public_callables() -> list[str]:
 def test_every_public_callable_is_called_with_bad_arguments() -> None:
     assert len(pr.__all__) >= 48
     covered = {case.split(" ")[0].split(".")[0] for case in CASES}
-    assert set(_public_callables()) - RESULTS - OPEN - covered == set()
+    assert set(_public_callables()) - RESULTS - covered == set()
     # and the results' methods that take user values are covered too
     assert {"Scenario", "Grid", "FailureModel"} <= {case.split(".")[0] for case in CASES}
 
@@ -807,29 +945,10 @@ def test_none_for_every_required_argument_is_a_domain_error(name: str, tmp_path:
     if not required:  # Avoid(): every argument has a default
         assert isinstance(obj(), obj)
         return
-    if name in OPEN:
-        pytest.xfail(f"{name} is in a module another branch owns (not edited here)")
     with pytest.raises(PyrouteError) as info:
         obj(**required)
     assert "\n" not in str(info.value)
     assert list(tmp_path.iterdir()) == []
-
-
-#: Raw exceptions found in modules other branches own (solve.py, evaluate.py, monte_carlo.py, ensemble.py)
-RAW_ELSEWHERE: dict[str, Callable[[], Any]] = {
-    "forward_dp grid None": lambda: pr.forward_dp(None, route().problem),
-    "forward_dp cost_hook 'x'": lambda: pr.forward_dp(route().grid, route().problem, cost_hook="x"),
-    "RoutingProblem departure 10**30": lambda: pr.RoutingProblem(10**30, scenario().weather, polar()),
-    "RoutingProblem.costs lon0 'x'": lambda: route().problem.costs("x", 0.0, 1.0, 0.0, 0.0),
-}
-
-
-@pytest.mark.parametrize("case", list(RAW_ELSEWHERE))
-@pytest.mark.xfail(strict=True, raises=(TypeError, ValueError, AttributeError, OverflowError), reason="other owner")
-def test_raw_exceptions_left_in_modules_of_other_branches(case: str, tmp_path: Path, monkeypatch) -> None:
-    monkeypatch.chdir(tmp_path)
-    with pytest.raises(PyrouteError):
-        RAW_ELSEWHERE[case]()
 
 
 @pytest.mark.parametrize("name", ["refine", "monte_carlo"])
