@@ -20,6 +20,7 @@ from typing import Any
 from .. import __version__
 from ..errors import PyrouteError, PyrouteWarning, ScenarioError
 from .gci import NEGATIVE_NUMBERS, add_gci_parser
+from .sweep import add_sweep_parser
 
 __all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
@@ -96,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.set_defaults(func=_cmd_failure)
 
     add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
+    add_sweep_parser(sub, _add_common, _csv_floats)
     return parser
 
 

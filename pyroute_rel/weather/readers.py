@@ -41,6 +41,7 @@ import xarray as xr
 from ..errors import ScenarioError, WeatherCoverageError, WeatherError, WeatherWarning, brief
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
+from . import cache
 from .gridded import OUT_OF_RANGE, GriddedWeather, PreparedPoints, WeatherField, check_plausible
 
 __all__ = [
@@ -54,6 +55,7 @@ __all__ = [
     "read_fields",
     "weather_from_dataset",
     "weather_from_mapping",
+    "count_members",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -313,9 +315,37 @@ def weather_from_mapping(
         )
     base = Path(base_dir)
     paths = [p if p.is_absolute() else base / p for p in (Path(s).expanduser() for s in raw)]
+    if cache.enabled():  # a sweep's process: read every time once, keep it for the next runs (weather.cache)
+        key = ("file", cache.file_stamps(paths), tuple(sorted((variables or {}).items())), member, out_of_range)
+        key += (None if bbox is None else tuple(float(b) for b in bbox),)
+        return cache.cached(
+            key,
+            lambda: open_weather(paths, variables=variables, bbox=bbox, member=member, out_of_range=out_of_range),
+            nbytes=lambda w: w.nbytes,
+        )
     return open_weather(
         paths, variables=variables, bbox=bbox, time_window=time_window, member=member, out_of_range=out_of_range
     )
+
+
+def count_members(paths: Sequence[str | os.PathLike[str]]) -> int | None:
+    """The number of ensemble members of weather files (the largest ensemble dimension, e.g. ERA5's ``number``),
+    or None when no file has one: what ``member`` may range over.
+
+    Raises
+    ------
+    WeatherError
+        A file is missing or not a NetCDF or GRIB file.
+    """
+    sizes = []
+    for p in paths:
+        datasets = _open_file(Path(p))
+        try:
+            sizes += [int(n) for ds in datasets for d, n in ds.sizes.items() if str(d).lower() in _MEMBER_NAMES]
+        finally:
+            for ds in datasets:
+                ds.close()
+    return max(sizes) if sizes else None
 
 
 # ----------------------------------------------------------------------------------------------- reading
