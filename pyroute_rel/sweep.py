@@ -625,14 +625,14 @@ def _processes(todo: Sequence[tuple[str, Run]], workers: int) -> Iterator[dict[s
                 yield _internal_row(futures[fut][1], futures[fut][0], exc)
 
 
-def _dask_client(scheduler: str | None, workers: int | None) -> Any:
+def _dask_client(scheduler: str | None, workers: int | None, timeout_s: float) -> Any:
     try:
         from distributed import Client, LocalCluster
     except ImportError as exc:  # pragma: no cover - a dependency
         raise SweepError(f"the dask engine needs distributed: pip install distributed ({exc})") from None
     if scheduler is not None:
         try:
-            return Client(scheduler, timeout="10s", set_as_default=False)
+            return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
             raise SweepError(f"--scheduler {scheduler}: cannot reach the dask scheduler ({_one_line(exc)})") from None
     cluster = LocalCluster(
@@ -646,11 +646,11 @@ def _dask_client(scheduler: str | None, workers: int | None) -> Any:
 
 
 def _dask(
-    todo: Sequence[tuple[str, Run]], scheduler: str | None, workers: int | None, retries: int
+    todo: Sequence[tuple[str, Run]], scheduler: str | None, workers: int | None, retries: int, timeout_s: float
 ) -> Iterator[dict[str, Any]]:
     from distributed import as_completed
 
-    client = _dask_client(scheduler, workers)
+    client = _dask_client(scheduler, workers, timeout_s)
     try:
         futures = {
             client.submit(run_one, run, key, key=f"pyroute-rel-run-{key}", pure=False, retries=retries): (key, run)
@@ -669,16 +669,22 @@ def _dask(
 
 
 def _engine_rows(
-    engine: str, todo: Sequence[tuple[str, Run]], *, workers: int | None, scheduler: str | None, retries: int
+    engine: str,
+    todo: Sequence[tuple[str, Run]],
+    *,
+    workers: int | None,
+    scheduler: str | None,
+    retries: int,
+    timeout_s: float,
 ) -> Iterator[dict[str, Any]]:
     if engine == "inline":
         return _inline(todo)
     if engine == "processes":
         return _processes(todo, workers or 2)
-    return _dask(todo, scheduler, workers, retries)
+    return _dask(todo, scheduler, workers, retries, timeout_s)
 
 
-def _check_engine(engine: str, workers: int | None, scheduler: str | None, retries: int) -> None:
+def _check_engine(engine: str, workers: int | None, scheduler: str | None, retries: int, batch: int) -> None:
     if engine not in ENGINES:
         raise SweepError(f"engine must be one of {', '.join(ENGINES)} (got {brief(engine)})")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
@@ -687,6 +693,8 @@ def _check_engine(engine: str, workers: int | None, scheduler: str | None, retri
         raise SweepError(f"--scheduler needs the dask engine (got engine {engine!r})")
     if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
         raise SweepError(f"--retries must be a whole number >= 0 (got {brief(retries)})")
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise SweepError(f"--batch must be a whole number >= 1 (got {brief(batch)})")
 
 
 def run_sweep(
@@ -701,6 +709,7 @@ def run_sweep(
     log: Callable[[str], object] | None = None,
     batch: int = 32,
     flush_s: float = 5.0,
+    connect_timeout_s: float = 10.0,
 ) -> pa.Table:
     """Route every run; the tidy table, one row per run in the order given (:data:`COLUMNS`).
 
@@ -715,6 +724,8 @@ def run_sweep(
     retries : How often dask runs a task again after an unexpected failure (a user error is never retried).
     progress : Show a progress bar (runs done, failed, rate) on stderr.
     log : Called with one line of news, e.g. ``"12 done, 228 to run"``.
+    batch, flush_s : A part file is written every ``batch`` finished runs, or ``flush_s`` [s] after the last one.
+    connect_timeout_s : How long to try reaching ``scheduler`` [s].
 
     Returns
     -------
@@ -729,7 +740,7 @@ def run_sweep(
     """
     from .progress import progress_bar
 
-    _check_engine(engine, workers, scheduler, retries)
+    _check_engine(engine, workers, scheduler, retries, batch)
     keyed = [(run_key(r), r) for r in runs]
     store = _Store(Path(out), batch=batch, flush_s=flush_s) if out is not None else None
     done = {r["key"]: r for r in read_runs(out).to_pylist()} if out is not None else {}
@@ -739,7 +750,13 @@ def run_sweep(
     bar = progress_bar(len(todo), enabled=progress, desc="sweep", unit="run")
     failed = 0
     try:
-        for row in _engine_rows(engine, todo, workers=workers, scheduler=scheduler, retries=retries) if todo else ():
+        for row in (
+            _engine_rows(
+                engine, todo, workers=workers, scheduler=scheduler, retries=retries, timeout_s=connect_timeout_s
+            )
+            if todo
+            else ()
+        ):
             if store is not None:
                 store.add(row)
             done[row["key"]] = row

@@ -68,6 +68,16 @@ def add_sweep_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], N
     s.add_argument("--workers", type=int, help="worker processes (a dask LocalCluster unless --engine processes)")
     s.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="address of a running dask scheduler")
     s.add_argument("--retries", type=int, default=2, help="dask runs a failed task again this often (default 2)")
+    s.add_argument(
+        "--batch",
+        type=int,
+        default=32,
+        help="with --out, write a part file every this many finished runs (or every 5 s): a killed sweep loses at "
+        "most the runs of its last batch (default 32)",
+    )
+    s.add_argument(
+        "--connect-timeout", type=float, default=10.0, help="how long to try reaching --scheduler [s] (default 10)"
+    )
     s.add_argument("--json", action="store_true", help='print {"runs": [one object per run]} instead of a table')
     add_common(s)
     s.set_defaults(func=_cmd_sweep)
@@ -123,6 +133,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         out=args.out,
         retries=args.retries,
+        batch=args.batch,
+        connect_timeout_s=args.connect_timeout,
         progress=not args.quiet,
         log=None if args.quiet else lambda line: print(f"pyroute-rel: {line}", file=sys.stderr),
     )
@@ -167,7 +179,7 @@ def _table_text(rows: list[dict[str, Any]]) -> str:
         if r["status"] == "ok":
             line += (
                 f" {'ok':<9}{r['voyage_time_h']:>11.2f} {r['arrival']:<21}{r['max_failure_probability']:>8.3f}"
-                f"{r['voyage_failure_probability']:>9.3f}"
+                f"{r['voyage_failure_probability'] + 0.0:>9.3f}"
             )
         else:
             line += f" {r['status']:<9} {r['message']}"

@@ -61,13 +61,13 @@ def sweep_figure(rows: Sequence[Mapping[str, Any]], *, title: str | None = None)
     rows : The sweep's rows (``run_sweep(...).to_pylist()``); rows without a departure are left out.
     title : The figure's title (default: the number of runs).
     """
-    import matplotlib.dates  # noqa: F401  (registers the datetime64 axis converter)
+    from matplotlib.dates import date2num
     from matplotlib.figure import Figure
 
     rows = [r for r in rows if r.get("departure")]
     ok = [r for r in rows if r["status"] == "ok"]
     bad = [r for r in rows if r["status"] != "ok"]
-    fig = Figure(figsize=(9.0, 6.0), layout="constrained")
+    fig = Figure(figsize=(9.0, 6.0))
     ax_t, ax_p = fig.subplots(2, 1, sharex=True)
     groups = series(ok)
     if len(groups) <= MAX_LINES:
@@ -88,16 +88,18 @@ def sweep_figure(rows: Sequence[Mapping[str, Any]], *, title: str | None = None)
         ax_t.lines[-1].set_label(f"no route ({len(bad)} run{'s' if len(bad) != 1 else ''})")
         ax_t.lines[-1].set_clip_on(False)
         for t, n in zip(when, count, strict=True):
-            ax_t.annotate(str(n), (t, 0.0), xycoords=ax_t.get_xaxis_transform(), xytext=(0, 8),
+            ax_t.annotate(str(n), (date2num(t), 0.0), xycoords=ax_t.get_xaxis_transform(), xytext=(0, 8),
                           textcoords="offset points", ha="center", color="tab:red", fontsize=8)  # fmt: skip
     ax_t.set_ylabel("voyage time [h]")
     ax_p.set_ylabel("voyage failure probability [-]")
     ax_p.set_xlabel("departure (UTC)")
+    ax_p.set_ylim(-0.03, 1.03)
     for ax in (ax_t, ax_p):
         ax.grid(True, alpha=0.3)
     if any(line.get_label() and not line.get_label().startswith("_") for line in ax_t.lines):
         ax_t.legend(fontsize=8, loc="best")
     fig.autofmt_xdate()
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.93, bottom=0.14, hspace=0.08)
     fig.suptitle(title or f"sweep of {len(rows)} runs: {len(ok)} routed, {len(bad)} without a route")
     return fig
 
