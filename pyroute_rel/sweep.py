@@ -656,7 +656,7 @@ def _dask(
             client.submit(run_one, run, key, key=f"pyroute-rel-run-{key}", pure=False, retries=retries): (key, run)
             for key, run in todo
         }
-        for fut in as_completed(futures):
+        for fut in as_completed(futures, loop=client.loop):
             try:
                 yield fut.result()
             except Exception as exc:  # failed retries + 1 times (or its workers died): recorded, not in the files

@@ -42,6 +42,14 @@ def ensemble(tmp_path_factory) -> Path:
     return _make_ensemble().write_ensemble(folder, n_ranks=12, members=3, step_deg=2.0, step_h=12, days=40)
 
 
+@pytest.fixture(scope="module")
+def uninterrupted(ensemble, tmp_path_factory):
+    """The sweep of :data:`BODY`, run inline without interruption: (its spec file, its output folder, its table)."""
+    folder = tmp_path_factory.mktemp("uninterrupted")
+    spec_path = _spec(folder, ensemble, BODY)
+    return spec_path, folder / "out", run_sweep(load_sweep(spec_path).runs, out=folder / "out")
+
+
 def _spec(folder: Path, scenario: Path, body: str, name: str = "spec.toml") -> Path:
     path = folder / name
     path.write_text(f'[sweep]\nscenario = "{scenario}"\n{body}\n', encoding="utf-8")
@@ -54,12 +62,12 @@ members = "all"
 apf = [1.0, 0.02]"""
 
 
-def _edited(scenario: Path, row: dict, folder: Path) -> Path:
+def _edited(scenario: Path, row: dict) -> Path:
     """The scenario file with the row's departure and member written in by text (independently of the sweep)."""
     text = scenario.read_text(encoding="utf-8")
     text = text.replace('departure = "2018-06-01T00:00:00Z"', f'departure = "{row["departure"]}"')
     text = text.replace("member = 0", f"member = {row['member']}")
-    path = folder / f"edited_{row['key']}.toml"
+    path = scenario.parent / f"edited_{row['key']}.toml"  # beside it: its weather file is named relative to it
     path.write_text(text, encoding="utf-8")
     return path
 
@@ -69,32 +77,33 @@ def _comparable(table) -> list[dict]:
 
 
 @pytest.mark.slow
-def test_each_row_equals_the_same_single_route(ensemble, tmp_path, capsys) -> None:
-    spec = load_sweep(_spec(tmp_path, ensemble, BODY))
+def test_each_row_equals_the_same_single_route(ensemble, uninterrupted, capsys) -> None:
+    spec_path, out, table = uninterrupted
+    spec = load_sweep(spec_path)
     assert len(spec.runs) == 12 and {r.member for r in spec.runs} == {0, 1, 2}
-    table = run_sweep(spec.runs, out=tmp_path / "out")
     rows = table.to_pylist()
     assert [r["key"] for r in rows] == [run_key(r) for r in spec.runs]
     statuses = {r["status"] for r in rows}
     assert statuses == {"ok", "no_route"}, statuses  # the storm blocks some runs at apf 0.02
     for row in rows:
-        code = main(["route", str(_edited(ensemble, row, tmp_path)), "--apf", str(row["apf"]), "--json", "--quiet"])
+        code = main(["route", str(_edited(ensemble, row)), "--apf", str(row["apf"]), "--json", "--quiet"])
         out, err = capsys.readouterr()
         if row["status"] == "no_route":
             assert code == 2 and err.strip() == f"pyroute-rel: error: {row['message']}"
             assert row["track"] is None and row["voyage_time_h"] is None
             continue
+        assert code == 0, err
         single = json.loads(out)
-        assert code == 0 and row["departure"] == single["departure"] and row["arrival"] == single["arrival"]
+        assert row["departure"] == single["departure"] and row["arrival"] == single["arrival"]
         assert abs(row["voyage_time_h"] - single["voyage_time_h"]) <= 1e-9
         assert row["distance_nm"] == pytest.approx(single["distance_nm"], rel=1e-12)
         assert row["max_failure_probability"] == pytest.approx(single["max_failure_probability"], abs=1e-12)
         assert row["voyage_failure_probability"] == pytest.approx(single["voyage_failure_probability"], abs=1e-12)
         assert row["arcs"] == single["arcs"]["evaluated"]
-        track = json.loads((tmp_path / "out" / row["track"]).read_text())
+        track = json.loads((out / row["track"]).read_text())
         assert track["geometry"]["coordinates"] == [[p["lon"], p["lat"]] for p in single["track"]]
         assert track["properties"]["time"] == [p["time"] for p in single["track"]]
-    on_disk = pq.read_table(tmp_path / "out" / "runs.parquet")  # the dataset folder, read as one table
+    on_disk = pq.read_table(out / "runs.parquet")  # the dataset folder, read as one table
     assert _comparable(on_disk) == _comparable(table)
 
 
@@ -123,18 +132,18 @@ def _parts(out: Path) -> list[Path]:
 
 
 @pytest.mark.slow
-def test_a_killed_sweep_resumes_to_the_uninterrupted_table(ensemble, tmp_path, monkeypatch, capsys) -> None:
+def test_a_killed_sweep_resumes_to_the_uninterrupted_table(ensemble, uninterrupted, tmp_path, monkeypatch, capsys):
     spec_path = _spec(tmp_path, ensemble, BODY)
     out = tmp_path / "killed"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--out", str(out), "--batch", "1"]
-    proc = subprocess.Popen([*cmd, "--quiet"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    deadline = time.monotonic() + 60
-    while len(_parts(out)) < 3 and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    assert proc.returncode == -signal.SIGKILL, proc.stderr.read()
+    with subprocess.Popen([*cmd, "--quiet"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) as proc:
+        deadline = time.monotonic() + 60
+        while len(_parts(out)) < 3 and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        assert proc.returncode == -signal.SIGKILL, proc.stderr.read()
     kept = read_runs(out).to_pylist()
     assert 3 <= len(kept) < 12
     computed: list[str] = []
@@ -145,9 +154,8 @@ def test_a_killed_sweep_resumes_to_the_uninterrupted_table(ensemble, tmp_path, m
     assert main(["sweep", str(spec_path), "--out", str(out)]) == 0
     err = capsys.readouterr().err
     assert f"{len(kept)} done, {12 - len(kept)} to run" in err
-    assert sorted(computed) == sorted({r["key"] for r in load_sweep(spec_path).runs} - {r["key"] for r in kept})
-    whole = run_sweep(load_sweep(spec_path).runs, out=tmp_path / "whole")
-    assert _comparable(read_runs(out)) == _comparable(whole)
+    assert sorted(computed) == sorted({run_key(r) for r in load_sweep(spec_path).runs} - {r["key"] for r in kept})
+    assert _comparable(read_runs(out)) == _comparable(uninterrupted[2])
     assert main(["sweep", str(spec_path), "--out", str(out), "--json"]) == 0  # all done: nothing to route
     captured = capsys.readouterr()
     assert "12 done, 0 to run" in captured.err and len(json.loads(captured.out)["runs"]) == 12
@@ -160,7 +168,7 @@ def _free_port() -> int:
 
 
 @pytest.mark.slow
-def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(ensemble, tmp_path) -> None:
+def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(ensemble, uninterrupted, tmp_path):
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_THREADS": "1"}
@@ -188,6 +196,7 @@ def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(
         deadline = time.monotonic() + 90
         while len(_parts(out)) < 2 and sweep.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)
+        assert sweep.poll() is None and len(_parts(out)) < 12  # mid-sweep
         procs[1].send_signal(signal.SIGKILL)  # a worker dies mid-sweep: its runs go to the other one
         stdout, stderr = sweep.communicate(timeout=120)
         assert sweep.returncode == 0, stderr
@@ -197,8 +206,7 @@ def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(
             p.wait()
     rows = json.loads(stdout)["runs"]
     assert len(rows) == 12 and not any(r["message"].startswith("internal error") for r in rows)
-    inline = run_sweep(load_sweep(spec_path).runs, out=tmp_path / "inline")
-    assert _comparable(read_runs(out)) == _comparable(inline)
+    assert _comparable(read_runs(out)) == _comparable(uninterrupted[2])
 
 
 @pytest.mark.parametrize(
