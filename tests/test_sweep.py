@@ -281,3 +281,12 @@ def test_a_departure_range_spans_its_ends() -> None:
     hours = [(np.datetime64(t.rstrip("Z")) - np.datetime64("2018-06-01T00:00")) / np.timedelta64(1, "h") for t in got]
     assert hours == [0.0, 2.5, 5.0, 7.5, 10.0]
     assert departure_range("2018-06-01T00:00Z", "2018-06-01T01:00Z", 2.0) == ["2018-06-01T00:00:00Z"]
+
+
+@pytest.mark.slow
+def test_a_process_pool_gives_the_inline_rows(ensemble) -> None:
+    runs = [Run(str(ensemble), departure="2018-06-02T00:00:00Z", member=m, grid=(("n_ranks", 8),)) for m in (0, 2)]
+    inline = run_sweep(runs)
+    pooled = run_sweep(runs, engine="processes", workers=2)
+    assert _comparable(pooled) == _comparable(inline)
+    assert inline.column("status").to_pylist() == ["ok", "ok"]
