@@ -126,6 +126,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         from ..files import check_out_dir
 
         check_out_dir(args.out)
+    if args.plot and not Path(args.plot).resolve().parent.is_dir():
+        raise SweepError(f"--plot {args.plot}: its folder does not exist")
     result = run_sweep(
         runs,
         engine=_engine(args),
