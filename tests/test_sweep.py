@@ -290,3 +290,28 @@ def test_a_process_pool_gives_the_inline_rows(ensemble) -> None:
     pooled = run_sweep(runs, engine="processes", workers=2)
     assert _comparable(pooled) == _comparable(inline)
     assert inline.column("status").to_pylist() == ["ok", "ok"]
+
+
+def test_many_series_are_drawn_as_the_members_medians() -> None:
+    """With more series than lines, each apf's line holds each departure's median over the members."""
+    from pyroute_rel.figures.sweep import MAX_LINES, sweep_figure
+
+    rng = np.random.default_rng(3)
+    rows = [
+        {"departure": f"2018-06-0{d + 1}T00:00:00Z", "status": "ok", "member": m, "apf": apf, "failure_model": None,
+         "polar": None, "grid": "{}", "options": "{}", "voyage_time_h": float(rng.uniform(700, 800)),
+         "voyage_failure_probability": float(rng.uniform(0, 1))}
+        for m in range(5) for apf in (1.0, 0.5) for d in range(3)
+    ]  # fmt: skip
+    assert 10 > MAX_LINES
+    top = sweep_figure(rows).axes[0]
+    medians = [ln for ln in top.lines if ln.get_linestyle() == "-"]
+    assert [ln.get_label() for ln in medians] == ["apf 1.0: median per departure", "apf 0.5: median per departure"]
+    for ln, apf in zip(medians, (1.0, 0.5), strict=True):
+        expected = [
+            np.median(
+                [r["voyage_time_h"] for r in rows if r["apf"] == apf and r["departure"].startswith(f"2018-06-0{d}")]
+            )
+            for d in (1, 2, 3)
+        ]
+        assert list(ln.get_ydata()) == expected

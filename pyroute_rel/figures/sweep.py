@@ -49,11 +49,23 @@ def _times(rows: Sequence[Mapping[str, Any]]) -> np.ndarray:
     return np.array([str(r["departure"]).rstrip("Z") for r in rows], dtype="datetime64[s]")
 
 
+def _spread(ax_t: Any, ax_p: Any, rows: Sequence[Mapping[str, Any]], color: str, label: str) -> None:
+    """Each run as a dot and each departure's median as a line, on both panels."""
+    x = _times(rows)
+    days = np.unique(x)
+    for ax, col in ((ax_t, "voyage_time_h"), (ax_p, "voyage_failure_probability")):
+        values = np.array([r[col] for r in rows], dtype=float)
+        ax.plot(x, values, ".", color=color, ms=3, alpha=0.5)
+        med = [float(np.median(values[x == d])) for d in days]
+        ax.plot(days, med, "o-", color=color, ms=4, label=f"{label + ': ' if label else ''}median per departure")
+
+
 def sweep_figure(rows: Sequence[Mapping[str, Any]], *, title: str | None = None) -> Figure:
     """Voyage time [h] (top) and voyage failure probability (bottom) against departure.
 
     Each series of routed runs (:func:`series`) is a line when there are at most :data:`MAX_LINES`; with more,
-    each run is a dot and a line joins each departure's median. Departures where some run found no route (status
+    each run is a dot and a line joins each departure's median over the members (over all runs when the other
+    settings still make more than :data:`MAX_LINES` series). Departures where some run found no route (status
     ``no_route`` or ``error``) are red crosses along the bottom of the top panel, labelled with their count.
 
     Parameters
@@ -70,18 +82,17 @@ def sweep_figure(rows: Sequence[Mapping[str, Any]], *, title: str | None = None)
     fig = Figure(figsize=(9.0, 6.0))
     ax_t, ax_p = fig.subplots(2, 1, sharex=True)
     groups = series(ok)
+    pooled = series([{**r, "member": None} for r in ok])  # members pooled: their spread as dots
     if len(groups) <= MAX_LINES:
         for label, g in groups.items():
             x = _times(g)
             ax_t.plot(x, [r["voyage_time_h"] for r in g], "o-", ms=4, label=label or None)
             ax_p.plot(x, [r["voyage_failure_probability"] for r in g], "o-", ms=4, label=label or None)
-    elif ok:
-        x = _times(ok)
-        for ax, col in ((ax_t, "voyage_time_h"), (ax_p, "voyage_failure_probability")):
-            ax.plot(x, [r[col] for r in ok], ".", color="0.6", ms=3, label=f"each run ({len(ok)})")
-            days = np.unique(x)
-            med = [np.median([r[col] for r, t in zip(ok, x, strict=True) if t == d]) for d in days]
-            ax.plot(days, med, "o-", color="k", ms=4, label="median")
+    else:
+        if len(pooled) > MAX_LINES:
+            pooled = {"": ok}
+        for i, (label, g) in enumerate(pooled.items()):
+            _spread(ax_t, ax_p, g, f"C{i}", label)
     if bad:
         when, count = np.unique(_times(bad), return_counts=True)
         ax_t.plot(when, np.zeros(when.size), "x", color="tab:red", ms=9, mew=2, transform=ax_t.get_xaxis_transform())
