@@ -262,9 +262,10 @@ def _file_or_name(name: str, base: Path) -> str:
 def sweep_from_mapping(table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<sweep>") -> SweepSpec:
     """Validate a sweep specification given as mappings (the parsed TOML): see :func:`load_sweep`."""
     try:
-        return _sweep_from_mapping(table, Path(base_dir))
+        spec = _sweep_from_mapping(table, Path(base_dir))
     except PyrouteError as exc:
         raise SweepError(f"{source}: {exc}") from None
+    return SweepSpec(source=source, runs=spec.runs, base_dir=spec.base_dir)
 
 
 def _sweep_from_mapping(table: Mapping[str, Any], base: Path) -> SweepSpec:
@@ -562,14 +563,14 @@ class _Store:
 
     def __init__(self, out: Path, *, batch: int, flush_s: float):
         self.out, self.batch, self.flush_s = out, batch, flush_s
-        (out / RUNS_DIR).mkdir(parents=True, exist_ok=True)
-        (out / TRACKS_DIR).mkdir(exist_ok=True)
         self.pending: list[dict[str, Any]] = []
         self.last = time.monotonic()
 
     def add(self, row: dict[str, Any]) -> None:
         if row.get("_internal"):
             return  # not recorded: a re-run tries it again
+        (self.out / RUNS_DIR).mkdir(parents=True, exist_ok=True)  # on the first result: nothing before
+        (self.out / TRACKS_DIR).mkdir(exist_ok=True)
         if row.get("_track") is not None:
             name = f"{TRACKS_DIR}/{row['key']}.geojson"
             atomic_write_text(self.out / name, _track_geojson(row))
