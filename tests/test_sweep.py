@@ -87,13 +87,13 @@ def test_each_row_equals_the_same_single_route(ensemble, uninterrupted, capsys) 
     assert statuses == {"ok", "no_route"}, statuses  # the storm blocks some runs at apf 0.02
     for row in rows:
         code = main(["route", str(_edited(ensemble, row)), "--apf", str(row["apf"]), "--json", "--quiet"])
-        out, err = capsys.readouterr()
+        printed, err = capsys.readouterr()
         if row["status"] == "no_route":
             assert code == 2 and err.strip() == f"pyroute-rel: error: {row['message']}"
             assert row["track"] is None and row["voyage_time_h"] is None
             continue
         assert code == 0, err
-        single = json.loads(out)
+        single = json.loads(printed)
         assert row["departure"] == single["departure"] and row["arrival"] == single["arrival"]
         assert abs(row["voyage_time_h"] - single["voyage_time_h"]) <= 1e-9
         assert row["distance_nm"] == pytest.approx(single["distance_nm"], rel=1e-12)
