@@ -34,10 +34,7 @@ def main() -> None:
     for apf, r in routes.items():
         print(f"apf {apf:g}: {r.voyage_time_h:.1f} h, max leg p_f {r.max_failure_probability:.2f}")
 
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from pyroute_rel.plot import new_figure  # matplotlib's object API on an Agg canvas (no pyplot)
 
     r1 = routes[1.0]
     t_mid = r1.departure + np.timedelta64(int(r1.voyage_time_h * 1800), "s")
@@ -45,7 +42,8 @@ def main() -> None:
     lat = np.linspace(8.0, 52.0, 89)
     glon, glat = np.meshgrid(lon, lat)
     cond = base.weather.sample(glon, glat, np.datetime64(t_mid, "ms"))
-    fig, ax = plt.subplots(figsize=(10, 6.5), dpi=110)
+    fig = new_figure(figsize=(10, 6.5), dpi=110)
+    ax = fig.add_subplot()
     pc = ax.pcolormesh(glon, glat, cond.tws_kn, cmap="viridis", shading="auto")
     fig.colorbar(pc, ax=ax, shrink=0.75, label=f"true wind speed [kn] at {str(t_mid)[:13]} UTC")
     step = 6

@@ -61,7 +61,7 @@ def main() -> None:
         routes,
         labels=[f"apf {r['apf']:g}" for r in rows],
         weather=base.weather,
-        failure=routes[0].failure,
+        shade=1,  # the failure model against the apf 0.95 route's headings: Area 1 forbidden, Area 2 allowed
         coast=False,
         title=f"Dickson et al. (2018) section 3.2, {g.n_ranks} ranks x {g.n_nodes} nodes ({args.layout})",
         path=out / f"paper_routes_{args.layout}.png",

@@ -50,7 +50,7 @@ def main() -> None:
         labels.append(name)
 
     g = routes[0].grid
-    # no failure shading: it is drawn for the heading towards the grid's finish, which misleads south of it
+    # the failure model's classes for the race route's headings and apf; the lines, the zone and the patches named
     fig = plot_routes(
         routes,
         labels=labels,
@@ -59,21 +59,6 @@ def main() -> None:
         title=f"Microtransat East->West: land + {race.avoid.margin_km:g} km margin, exclusion zone "
         f"({g.n_ranks} ranks x {g.n_nodes} nodes)",
     )
-    ax = fig.axes[0]
-    from matplotlib.patches import Patch
-
-    for (a, b), what in ((race.start_line, "start line"), (race.finish_line, "finish line")):
-        ax.plot([a[0], b[0]], [a[1], b[1]], color="k", lw=2.5, solid_capstyle="butt", label=what)
-    ax.plot(routes[0].lon_deg[0], routes[0].lat_deg[0], "o", color="tab:blue", ms=5, label="race start (on the line)")
-    handles, names = ax.get_legend_handles_labels()
-    names = [{"start": "grid start (line midpoint)", "finish": "grid finish (aim point)"}.get(n, n) for n in names]
-    for zone in race.avoid.zones:
-        handles.append(Patch(color="tab:purple", alpha=0.25, label=f"zone: {zone.name}"))
-        names.append(f"zone: {zone.name}")
-    ax.legend(handles, names, fontsize=7, loc="upper left", framealpha=0.9)
-    ax.set_xlim(-68.0, -4.0)
-    ax.set_ylim(8.0, 55.0)
-    fig.tight_layout()
     fig.savefig(out / "real_course.png")
     print(f"wrote {out / 'real_course.png'}")
 

@@ -60,6 +60,14 @@ _EXPORTS: dict[str, str] = {
     "write_outputs": "outputs",
     "load_sweep": "sweep",
     "run_sweep": "sweep",
+    "read_track": "evaluate",
+    "evaluate_track": "evaluate",
+    "Track": "evaluate",
+    "Evaluation": "evaluate",
+    "route_ensemble": "ensemble",
+    "EnsembleResult": "ensemble",
+    "monte_carlo": "monte_carlo",
+    "MonteCarloSettings": "monte_carlo",
     # grid convergence
     "grid_convergence": "gci.numbers",
     "least_squares_convergence": "gci.numbers",
@@ -77,6 +85,7 @@ _EXPORTS: dict[str, str] = {
     "OutputError": "errors",
     "CoordinateError": "errors",
     "MemoryBudgetError": "errors",
+    "TrackError": "errors",
     "PyrouteWarning": "errors",
 }
 
@@ -98,6 +107,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use
     from .config import register_weather_kind
+    from .ensemble import EnsembleResult, route_ensemble
     from .errors import (
         ConvergenceError,
         CoordinateError,
@@ -110,12 +120,15 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
         PyrouteError,
         PyrouteWarning,
         ScenarioError,
+        TrackError,
         WeatherCoverageError,
         WeatherError,
     )
+    from .evaluate import Evaluation, Track, evaluate_track, read_track
     from .failure import FailureModel, list_failure_models, load_failure_model
     from .gci.numbers import convergence_study, grid_convergence, least_squares_convergence
     from .grid import Grid, make_grid, plan_grid
+    from .monte_carlo import MonteCarloSettings, monte_carlo
     from .obstacles.mask import Avoid
     from .obstacles.zones import load_zones
     from .outputs import write_outputs

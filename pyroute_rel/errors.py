@@ -19,9 +19,11 @@ __all__ = [
     "GridError",
     "ConvergenceError",
     "NoFeasibleRouteError",
+    "LabelLimitError",
     "OutputError",
     "CoordinateError",
     "MemoryBudgetError",
+    "TrackError",
     "PyrouteWarning",
     "PolarWarning",
     "CacheWarning",
@@ -94,6 +96,15 @@ class CoordinateError(PyrouteError, ValueError):
 
 class MemoryBudgetError(PyrouteError, MemoryError):
     """A route would need more memory than the budget allows (:mod:`pyroute_rel.memory`); refused before allocating."""
+
+
+class LabelLimitError(PyrouteError, RuntimeError):
+    """A multi-objective search kept more non-dominated labels at a node than its cap allows
+    (:func:`pyroute_rel.tradeoff.voyage_front`, ``--max-labels``); refused rather than run on unbounded."""
+
+
+class TrackError(PyrouteError, ValueError):
+    """A track file (GPX, GeoJSON, CSV) cannot be read as a track: no line in it, a bad coordinate or time."""
 
 
 class PyrouteWarning(UserWarning):

@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from .solve import RoutingProblem
     from .weather import Conditions
 
-__all__ = ["EXPOSURE_STEP_KM", "LegExposure", "hazard", "failure_probability", "leg_exposure"]
+__all__ = ["EXPOSURE_STEP_KM", "LegExposure", "hazard", "failure_probability", "leg_exposure", "arc_exposure"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -133,43 +133,168 @@ def leg_exposure(
         Zero hazards and no criteria without a failure model.
     """
     lon, lat = np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float)
+    return arc_exposure(problem, lon[:-1], lat[:-1], lon[1:], lat[1:], start_h, time_h, p_f, step_km=step_km)
+
+
+def arc_exposure(
+    problem: RoutingProblem,
+    lon0_deg: npt.ArrayLike,
+    lat0_deg: npt.ArrayLike,
+    lon1_deg: npt.ArrayLike,
+    lat1_deg: npt.ArrayLike,
+    start_h: npt.ArrayLike,
+    time_h: npt.ArrayLike,
+    p_f: npt.ArrayLike,
+    *,
+    step_km: float = EXPOSURE_STEP_KM,
+) -> LegExposure:
+    """Hazard and hours per criterion of separate arcs, each from ``(lon0, lat0)`` to ``(lon1, lat1)`` [deg] (1-D
+    arrays of one value per arc); the other arguments as in :func:`leg_exposure`, one value per arc.
+
+    :func:`leg_exposure` is this function on a track's consecutive legs. With steady weather the sub-arcs are timed
+    only on the arcs where some sub-arc meets a ``p_f > 0`` or fires a criterion (elsewhere the hazard and hours are
+    0 whatever the times): the same figures, without timing arcs that cannot add to them.
+    """
     t_leg = np.asarray(time_h, dtype=float)
     model = problem.failure
     if model is None:
         return LegExposure(hazard=np.zeros(t_leg.size), criterion_h={})
     if not step_km > 0:
         raise ValueError(f"step_km must be > 0 [km] (got {step_km!r})")
+    a0, b0, a1, b1 = (np.asarray(x, dtype=float) for x in (lon0_deg, lat0_deg, lon1_deg, lat1_deg))
+    start_leg = np.asarray(start_h, dtype=float)
+    p_leg = np.asarray(p_f, dtype=float)
+    if problem.weather.steady:  # time the sub-arcs only of the arcs that meet some hazard or criterion
+        keep = _exposed(problem, a0, b0, a1, b1, step_km)
+        if not keep.all():
+            n, out = keep.size, LegExposure(np.zeros(0), {c.describe(): np.zeros(0) for c in model.criteria})
+            if keep.any():
+                sel = (a0[keep], b0[keep], a1[keep], b1[keep], start_leg[keep], t_leg[keep], p_leg[keep])
+                out = _sub_arc_exposure(problem, *sel, step_km)
+            return LegExposure(
+                hazard=_spread(out.hazard, keep, n),
+                criterion_h={k: _spread(v, keep, n) for k, v in out.criterion_h.items()},
+            )
+    return _sub_arc_exposure(problem, a0, b0, a1, b1, start_leg, t_leg, p_leg, step_km)
+
+
+@dataclass(frozen=True)
+class _SubArcs:
+    """Arcs (end points ``a0, b0 -> a1, b1`` [deg]) cut into sub-arcs of at most ``step_km``: each sub-arc's arc
+    ``leg`` and its fractions ``f0, f1`` along it; ``first`` the first sub-arc of each arc."""
+
+    a0: FloatArray
+    b0: FloatArray
+    a1: FloatArray
+    b1: FloatArray
+    leg: npt.NDArray[np.intp]
+    first: npt.NDArray[np.intp]
+    f0: FloatArray
+    f1: FloatArray
+
+    @classmethod
+    def cut(cls, a0: FloatArray, b0: FloatArray, a1: FloatArray, b1: FloatArray, step_km: float) -> _SubArcs:
+        per_leg = np.maximum(1, np.ceil(geodesy.distance_km(a0, b0, a1, b1) / step_km)).astype(np.intp)
+        leg = np.repeat(np.arange(a0.size), per_leg)
+        first = np.concatenate([[0], np.cumsum(per_leg)[:-1]]).astype(np.intp)
+        j = np.arange(leg.size) - first[leg]
+        return cls(a0, b0, a1, b1, leg, first, j / per_leg[leg], (j + 1) / per_leg[leg])
+
+    def ends(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """The sub-arcs' end points [deg] (the arcs' own end points exactly at their ends)."""
+        leg = self.leg
+        a, b, c, d = self.a0[leg], self.b0[leg], self.a1[leg], self.b1[leg]
+        lon0, lat0 = self.along(self.f0)
+        lon1, lat1 = self.along(self.f1)
+        start, last = self.f0 == 0.0, self.f1 == 1.0
+        return np.where(start, a, lon0), np.where(start, b, lat0), np.where(last, c, lon1), np.where(last, d, lat1)
+
+    def along(self, fraction: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Points [deg] at ``fraction`` (one per sub-arc) along each sub-arc's arc. The arcs' sub-arcs are laid out
+        in rows (padded with NaN) so that each arc's end points are converted once, when the padding is small; the
+        points are the same either way."""
+        n_arcs, leg = self.a0.size, self.leg
+        width = int(np.max(np.bincount(leg, minlength=n_arcs))) if leg.size else 0
+        if n_arcs * width > 2 * leg.size:  # arcs of very different lengths: one point at a time
+            return geodesy.intermediate_point(self.a0[leg], self.b0[leg], self.a1[leg], self.b1[leg], fraction)
+        col = np.arange(leg.size) - self.first[leg]
+        rows = np.full((n_arcs, width), np.nan)
+        rows[leg, col] = fraction
+        ends = (x[:, None] for x in (self.a0, self.b0, self.a1, self.b1))
+        lon, lat = geodesy.intermediate_point(*ends, rows)
+        return lon[leg, col], lat[leg, col]
+
+    def conditions(
+        self, problem: RoutingProblem, t_mid_h: npt.ArrayLike, *, any_fired: bool = False
+    ) -> tuple[FloatArray, npt.NDArray[np.bool_] | None, npt.NDArray[np.bool_]]:
+        """``p_f`` at each sub-arc's midpoint (half-way between its fractions along the arc) for the heading steered
+        there to hold the arc's great circle, at ``t_mid_h`` [h] (NaN where the weather is missing), where it is
+        unknown, and which criteria fire (shape ``(n_criteria, n_sub_arcs)``; with ``any_fired``, whether any does,
+        shape ``(1, n_sub_arcs)``, from the table's bit sets, where the evidence is known)."""
+        model = problem.failure
+        assert model is not None
+        leg = self.leg
+        c, d = self.a1[leg], self.b1[leg]
+        mlon, mlat = self.along(0.5 * (self.f0 + self.f1))
+        course = geodesy.initial_bearing_deg(mlon, mlat, c, d)
+        cond = problem.weather_at(mlon, mlat, t_mid_h)
+        q = arc_quantities(cond, _heading(problem, cond, course), model.quantities)
+        index, unknown = model.evidence_index(q)  # the cost function's gather (p_fail would also check ranges)
+        if any_fired:
+            return model.p_flat[index], unknown, (model.fired_bits_flat[index] != 0).reshape(1, -1)
+        return model.p_flat[index], unknown, np.asarray(model.fired(q)).reshape(len(model.criteria), -1)
+
+
+def _exposed(
+    problem: RoutingProblem, a0: FloatArray, b0: FloatArray, a1: FloatArray, b1: FloatArray, step_km: float
+) -> npt.NDArray[np.bool_]:
+    """Steady weather: the arcs where some sub-arc's midpoint has ``p_f > 0``, unknown weather or a criterion
+    fired (the others add no hazard and no hours whatever their times)."""
+    sub = _SubArcs.cut(a0, b0, a1, b1, step_km)
+    p, unknown, fired = sub.conditions(problem, 0.0, any_fired=True)
+    hit = (p > 0.0) | fired[0]
+    if unknown is not None:
+        hit |= unknown
+    return np.asarray(np.bincount(sub.leg, weights=hit, minlength=a0.size) > 0, dtype=bool)
+
+
+def _spread(values: FloatArray, keep: npt.NDArray[np.bool_], n: int) -> FloatArray:
+    """``values`` of the kept arcs laid out on all ``n`` arcs (0 elsewhere)."""
+    out = np.zeros(n)
+    out[keep] = values
+    return out
+
+
+def _sub_arc_exposure(
+    problem: RoutingProblem,
+    a0: FloatArray,
+    b0: FloatArray,
+    a1: FloatArray,
+    b1: FloatArray,
+    start_leg: FloatArray,
+    t_leg: FloatArray,
+    p_leg: FloatArray,
+    step_km: float,
+) -> LegExposure:
+    """:func:`arc_exposure` on every arc: each cut into sub-arcs, timed, and its hazard and hours summed."""
+    model = problem.failure
+    assert model is not None
     n_legs = t_leg.size
-    d_km = geodesy.distance_km(lon[:-1], lat[:-1], lon[1:], lat[1:])
-    per_leg = np.maximum(1, np.ceil(d_km / step_km)).astype(np.intp)
-    leg = np.repeat(np.arange(n_legs), per_leg)
-    first = np.concatenate([[0], np.cumsum(per_leg)[:-1]])
-    j = np.arange(leg.size) - first[leg]
-    f0, f1 = j / per_leg[leg], (j + 1) / per_leg[leg]
-    a, b, c, d = lon[leg], lat[leg], lon[leg + 1], lat[leg + 1]
-    lon0, lat0 = geodesy.intermediate_point(a, b, c, d, f0)
-    lon1, lat1 = geodesy.intermediate_point(a, b, c, d, f1)
-    lon0, lat0 = np.where(j == 0, a, lon0), np.where(j == 0, b, lat0)  # the legs' own end points, exactly
-    last = j == per_leg[leg] - 1
-    lon1, lat1 = np.where(last, c, lon1), np.where(last, d, lat1)
+    sub = _SubArcs.cut(a0, b0, a1, b1, step_km)
+    leg, f0, f1 = sub.leg, sub.f0, sub.f1
     timing = replace(problem, samples=1, apf=1.0)  # times only: the failure model forbids nothing here
-    start = np.asarray(start_h, dtype=float)[leg]
+    start = start_leg[leg]
     share = (f1 - f0) * t_leg[leg]  # the leg's time shared by length, a first guess (and where a sub-arc has none)
     t0 = start + f0 * t_leg[leg]
-    dt = _scaled(timing.costs(lon0, lat0, lon1, lat1, t0).time_h, share, leg, t_leg)
+    ends = sub.ends()
+    dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
     if not problem.weather.steady:  # again, each sub-arc leaving when the craft gets there
-        before = np.cumsum(dt) - dt  # time sailed before each sub-arc, from the track's first point
-        t0 = start + before - before[first][leg]
-        dt = _scaled(timing.costs(lon0, lat0, lon1, lat1, t0).time_h, share, leg, t_leg)
-    mlon, mlat = geodesy.intermediate_point(lon0, lat0, lon1, lat1, 0.5)
-    course = geodesy.initial_bearing_deg(mlon, mlat, lon1, lat1)
-    cond = problem.weather_at(mlon, mlat, t0 + 0.5 * dt)
-    q = arc_quantities(cond, _heading(problem, cond, course), model.quantities)
-    index, unknown = model.evidence_index(q)  # the cost function's gather (p_fail would also check ranges)
-    p = model.p_flat[index]
+        before = np.cumsum(dt) - dt  # time sailed before each sub-arc, from the first arc's start
+        t0 = start + before - before[sub.first][leg]
+        dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
+    p, unknown, fired = sub.conditions(problem, t0 + 0.5 * dt)
     if unknown is not None:  # missing weather at a sub-arc's midpoint: the leg's p_f as the router costed it
-        p = np.where(unknown, np.asarray(p_f, dtype=float)[leg], p)
-    fired = np.asarray(model.fired(q))
+        p = np.where(unknown, p_leg[leg], p)
     h = hazard(p, dt, model.exposure_h)
     return LegExposure(
         hazard=np.asarray(np.bincount(leg, weights=h, minlength=n_legs), float),  # hazards >= 0: a sum with inf is inf

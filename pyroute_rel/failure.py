@@ -32,6 +32,7 @@ Proc. International Robotic Sailing Conference 2018, section 2.1, Figure 1, Tabl
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import importlib.metadata
@@ -394,6 +395,31 @@ class FailureModel:
             f = self._fired_lut(c)[i]
             out.append(f & ~np.isnan(x) if c.if_missing == "nan" else f)
         return np.stack(out)
+
+    def without(self, node: str) -> FailureModel:
+        """The model with one criterion removed: its evidence node always in its first nominal state (observed,
+        unobserved or its quantity missing), so it never raises ``p_f``; the criterion is kept, so :meth:`fired`
+        still says where its quantity crosses the limit.
+
+        >>> m = load_failure_model("dickson2018").without("WD")
+        >>> m.p_fail({"hs_m": [1.0, 4.0, 1.0], "awd_deg": [90.0, 90.0, 10.0]}).tolist()
+        [0.0, 0.9, 0.0]
+        """
+        names = [c.node for c in self.criteria]
+        if node not in names:
+            raise FailureModelError(f"failure model '{self.name}' has no criterion {node!r} (it has {names})")
+        axis = names.index(node)
+        c = self.criteria[axis]
+        keep = c.states.index(c.nominal[0])
+        slots = np.array([i if s in c.nominal else keep for i, s in enumerate(c.states)] + [keep])
+        gone = dataclasses.replace(c, if_missing=c.nominal[0])  # a missing quantity is no longer unknown evidence
+        return dataclasses.replace(
+            self,
+            name=f"{self.name} without {node}",
+            criteria=(*self.criteria[:axis], gone, *self.criteria[axis + 1 :]),
+            table=np.take(self.table, slots[:-1], axis=axis),
+            _full=np.take(self._full, slots, axis=axis),
+        )
 
     def evidence_states(self) -> Iterator[dict[str, str]]:
         """Every combination of evidence states, in the table's (C) order.

@@ -240,9 +240,9 @@ def _members(raw: Any, where: str, scenario: Path) -> list[int | None]:
     paths = weather.get("paths") if isinstance(weather, Mapping) and weather.get("kind") == "file" else None
     if not isinstance(paths, list) or not all(isinstance(p, str) for p in paths):
         raise SweepError(f'{where} = "all" needs a scenario whose [weather] is kind = "file" with paths')
-    from .weather.readers import count_members
+    from .weather.readers import ensemble_size
 
-    n = count_members([_resolve(p, scenario.parent) for p in paths])
+    n = ensemble_size([_resolve(p, scenario.parent) for p in paths])
     if n is None:
         raise SweepError(f'{where} = "all": the weather files of {brief_path(scenario)} have no ensemble dimension')
     return list(range(n))

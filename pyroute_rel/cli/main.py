@@ -19,8 +19,11 @@ from typing import Any
 
 from .. import __version__
 from ..errors import PyrouteError, PyrouteWarning, ScenarioError
+from .ensemble import add_ensemble_parser
+from .evaluate import add_evaluate_parser
 from .gci import NEGATIVE_NUMBERS, add_gci_parser
 from .sweep import add_sweep_parser
+from .tradeoff import add_tradeoff_parser
 
 __all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
@@ -98,6 +101,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
     add_sweep_parser(sub, _add_common, _csv_floats)
+    add_tradeoff_parser(sub, _add_common)
+    add_evaluate_parser(sub, _add_common)
+    add_ensemble_parser(sub, _add_common)
     return parser
 
 
