@@ -58,6 +58,8 @@ _EXPORTS: dict[str, str] = {
     "route_on_grid": "route",
     "refine": "refine",
     "write_outputs": "outputs",
+    "load_sweep": "sweep",
+    "run_sweep": "sweep",
     "read_track": "evaluate",
     "evaluate_track": "evaluate",
     "Track": "evaluate",
@@ -137,6 +139,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .route import ForbiddenArcs, Legs, Route, route_on_grid
     from .scenario import Scenario, load_scenario, scenario_from_mapping
     from .solve import RoutingProblem, forward_dp
+    from .sweep import load_sweep, run_sweep
     from .weather.base import Conditions, WeatherSource
     from .weather.gridded import GriddedWeather
     from .weather.readers import open_weather, weather_from_dataset

@@ -51,6 +51,7 @@ SCENARIO_MAX_DEPTH = 16
 __all__ = [
     "Scenario",
     "load_scenario",
+    "read_scenario_table",
     "scenario_from_mapping",
     "parse_departure",
     "nesting_depth",
@@ -390,6 +391,16 @@ def load_scenario(path: str | Path) -> Scenario:
 
     Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file and the field for any problem.
     """
+    table = read_scenario_table(path)
+    return scenario_from_mapping(table, base_dir=Path(path).parent, source=str(path))
+
+
+def read_scenario_table(path: str | Path) -> dict[str, Any]:
+    """A scenario file's TOML tables, not yet validated (:func:`scenario_from_mapping` does that): for code that
+    changes a setting in the file's own terms before validating (:mod:`pyroute_rel.sweep`).
+
+    Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file when it cannot be read as TOML.
+    """
     if not isinstance(path, (str, Path)):
         raise ScenarioError(f"a scenario path must be a str or pathlib.Path (got {brief(path)})")
     p = Path(path)
@@ -418,7 +429,7 @@ def load_scenario(path: str | Path) -> Scenario:
             f"{brief_path(p)}: arrays or tables nested {depth} levels deep (a scenario needs at most "
             f"{SCENARIO_MAX_DEPTH})"
         )
-    return scenario_from_mapping(table, base_dir=p.parent, source=str(p))
+    return table
 
 
 def nesting_depth(value: Any) -> int:
