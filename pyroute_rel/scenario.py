@@ -22,6 +22,7 @@ from .geodesy import distance_km
 from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid
 from .obstacles.mask import Avoid, check_points, obstacle_mask
 from .obstacles.zones import zones_outside
+from .planners.settings import PlannerSettings
 from .route import GridTrack, Route, build_route, join_routes, route_on_grid
 from .solve import RoutingProblem
 
@@ -74,6 +75,8 @@ class Scenario:
     refine : Corridor refinements of the track (0 = none).
     notes : What reading the scenario assumed, one line each, for the user to see (e.g. a departure without a
         time zone read as UTC); the command line prints them on stderr.
+    planner : The ``[planner]`` table: which planner routes the scenario and its settings
+        (:mod:`pyroute_rel.planners`; :meth:`route` is always the DP).
     """
 
     source: str
@@ -105,6 +108,7 @@ class Scenario:
     refine: int = 0
     sample_km: float | None = None
     notes: tuple[str, ...] = ()
+    planner: PlannerSettings = field(default_factory=PlannerSettings)
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's, with the command-line option named).
