@@ -18,6 +18,7 @@ defaults.
     rollout_h = 0.0      # rollout horizon [h] (0: until arrival or the time limit)
     max_voyage_h = 0.0   # give up after this long [h] (0: 3 x the great circle at the polar's mean speed)
     graph = false        # true: search the rank digraph's arcs instead of headings (for checks against the DP)
+    final = "visits"     # sail the most visited action ("best": the one with the best reward below it)
 
     [planner.qlearning]  # Jing et al. (2021): tabular Q-learning
     space = "graph"      # "graph": states = rank-digraph nodes, actions = arcs; "cells": 8-neighbour grid of cells
@@ -137,6 +138,8 @@ class MCTSSettings:
         distance at the polar's mean speed.
     graph : Search the scenario's rank digraph (actions = its arcs) instead of headings: the same tree search on
         the DP's graph, for checks against the DP.
+    final : The action sailed after a decision's search: ``"visits"`` the most visited (published) or ``"best"``
+        the one below which the best reward was found (exact once the tree holds every path).
     """
 
     iterations: int = 15_000
@@ -149,6 +152,7 @@ class MCTSSettings:
     rollout_h: float = 0.0
     max_voyage_h: float = 0.0
     graph: bool = False
+    final: str = "visits"
 
     def __post_init__(self) -> None:
         _check(
@@ -165,6 +169,7 @@ class MCTSSettings:
                 "rollout_h": ("float", 0.0, 100_000.0),
                 "max_voyage_h": ("float", 0.0, 100_000.0),
                 "graph": ("bool",),
+                "final": ("choice", ("visits", "best")),
             },
         )
         if self.nogo_min_deg >= self.nogo_max_deg:
