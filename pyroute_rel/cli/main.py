@@ -20,6 +20,7 @@ from typing import Any
 from .. import __version__
 from ..errors import PyrouteError, PyrouteWarning, ScenarioError
 from .gci import NEGATIVE_NUMBERS, add_gci_parser
+from .planners import add_compare_parser
 
 __all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
@@ -96,6 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     f.set_defaults(func=_cmd_failure)
 
     add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
+    add_compare_parser(sub, _add_common)
     return parser
 
 
@@ -175,6 +177,12 @@ def _add_route_parser(sub: Any) -> None:
     )
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument(
+        "--planner",
+        choices=("dp", "mcts", "qlearning", "dqn"),
+        help="who plans the track: dp (default, the exact DP), mcts, qlearning or dqn (overrides [planner].kind; "
+        "the evaluator re-times their tracks; --out then writes summary.json and track.csv)",
+    )
+    r.add_argument(
         "--out",
         help="folder for route.geojson, route.gpx (the track with times and speeds, and a route of its turning "
         "points for chart plotters such as OpenCPN), route.csv, summary.json, forbidden.geojson (the arcs the "
@@ -233,6 +241,10 @@ def _route(args: argparse.Namespace) -> int:
         refine=args.refine,
         sample_km=args.sample_km,
     )
+    if (args.planner or scenario.planner.kind) != "dp":
+        from .planners import route_with_planner
+
+        return route_with_planner(scenario, args, t0)
     if args.out is not None:  # '' too: refused, not read as "no --out"
         from ..files import check_out_dir, check_targets
         from ..outputs import OUTPUT_FILES

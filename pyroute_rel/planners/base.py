@@ -185,6 +185,27 @@ class PlanningProblem:
         with np.errstate(divide="ignore"):
             return np.where(np.isfinite(legs.time_h), d / np.asarray(legs.time_h), 0.0)
 
+    def headings_step(
+        self, lon: float, lat: float, t_h: float, headings_deg: FloatArray, step_h: float, *, weather: Any = None
+    ) -> tuple[FloatArray, FloatArray, FloatArray, SailedLegs]:
+        """Sail each heading for ``step_h`` at the speed over ground on it at the step's start, and the leg straight
+        to the finish: the headings' true wind angles [deg], end points [deg] and the legs (:meth:`sail`; the last
+        leg is the one to the finish)."""
+        problem = self.problem if weather is None else replace(self.problem, weather=weather)
+        cond = problem.weather_at(lon, lat, t_h)
+        twa = geodesy.angle_diff_deg(np.asarray(cond.twd_deg, dtype=float), headings_deg)
+        if cond.has_current:
+            v = self.speed_kn(lon, lat, headings_deg, t_h, weather=weather)
+        else:  # the boat's speed through the water at the step's start: the polar, slowed in waves
+            v = np.nan_to_num(problem.polar.speed(twa, np.asarray(cond.tws_kn, dtype=float), beyond=problem.beyond))
+            if problem.wave_loss is not None:
+                v = v * problem.wave_loss.factor(cond.hs_m)
+        v = np.where(v > 0, v, 0.0)
+        lon1, lat1 = geodesy.destination_point(lon, lat, headings_deg, np.maximum(v, 1e-6) * step_h * KM_PER_NM)
+        legs = self.sail(lon, lat, np.append(lon1, self.finish[0]), np.append(lat1, self.finish[1]), t_h, weather=weather)
+        ok = legs.ok & np.append(v > 0, True)
+        return twa, lon1, lat1, SailedLegs(np.where(ok, legs.time_h, np.inf), legs.p_f, ok)
+
     def sail(
         self,
         lon0: npt.ArrayLike,

@@ -97,25 +97,12 @@ class _HeadingSim:
         p, s = self.p, self.s
         if state.done:
             return Moves((), ())
-        problem = p.problem if weather is None else _with_weather(p.problem, weather)
-        cond = problem.weather_at(state.lon, state.lat, state.t_h)
-        twa = geodesy.angle_diff_deg(np.asarray(cond.twd_deg, dtype=float), self.headings)
-        if cond.has_current:
-            v = p.speed_kn(state.lon, state.lat, self.headings, state.t_h, weather=weather)
-        else:  # the boat's speed through the water at the step's start: the polar, slowed in waves
-            v = np.nan_to_num(problem.polar.speed(twa, np.asarray(cond.tws_kn, dtype=float), beyond=problem.beyond))
-            if problem.wave_loss is not None:
-                v = v * problem.wave_loss.factor(cond.hs_m)
-        idx = np.flatnonzero((twa >= s.nogo_min_deg) & (twa <= s.nogo_max_deg) & (v > 0))
-        lon1, lat1 = geodesy.destination_point(state.lon, state.lat, self.headings[idx], v[idx] * s.step_h * KM_PER_NM)
-        lon1 = np.append(lon1, p.finish[0])
-        lat1 = np.append(lat1, p.finish[1])
-        legs = p.sail(state.lon, state.lat, lon1, lat1, state.t_h, weather=weather)
+        twa, lon1, lat1, legs = p.headings_step(state.lon, state.lat, state.t_h, self.headings, s.step_h, weather=weather)
         if legs.ok[-1] and legs.time_h[-1] <= s.step_h:  # the finish is in reach: sail straight to it
             return Moves((self.finish_action,), (State(*p.finish, state.t_h + float(legs.time_h[-1]), -1, True),))
-        ok = np.flatnonzero(legs.ok[:-1])
+        ok = np.flatnonzero(legs.ok[:-1] & (twa >= s.nogo_min_deg) & (twa <= s.nogo_max_deg))
         return Moves(
-            tuple(int(idx[i]) for i in ok),
+            tuple(int(i) for i in ok),
             tuple(State(float(lon1[i]), float(lat1[i]), state.t_h + float(legs.time_h[i])) for i in ok),
         )
 
@@ -169,12 +156,6 @@ class _GraphSim:
 
 def _ends(tab: TabularProblem, actions: npt.NDArray[np.intp]) -> tuple[FloatArray, FloatArray]:
     return tab.lon_deg[tab.target[actions]], tab.lat_deg[tab.target[actions]]
-
-
-def _with_weather(problem: Any, weather: Any) -> Any:
-    from dataclasses import replace
-
-    return replace(problem, weather=weather)
 
 
 @dataclass

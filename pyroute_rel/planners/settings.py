@@ -44,6 +44,7 @@ defaults.
     turn_deg = 22.5      # actions: turn by -turn, keep, +turn (pi/8 in the paper)
     nogo_min_deg = 45.0
     model = ""           # file to save the trained network to (and read it from when it exists); "" = keep none
+    departure_spread_h = 72.0   # training voyages depart up to this long after the scenario's departure [h]
 
 This module knows nothing of routing: it reads and checks values, so the scenario reader can use it.
 
@@ -239,6 +240,8 @@ class DQNSettings:
     turn_deg : The actions turn by ``-turn_deg``, 0 or ``+turn_deg`` (pi/8 = 22.5 deg in the paper) [deg].
     nogo_min_deg : Headings closer to the wind are not sailed (45 deg in the paper) [deg].
     model : File the trained network is saved to (``.npz``) and read from when it exists; ``""``: none.
+    departure_spread_h : Training voyages depart at random times up to this long after the scenario's departure
+        [h].
     """
 
     episodes: int = 200
@@ -255,6 +258,7 @@ class DQNSettings:
     turn_deg: float = 22.5
     nogo_min_deg: float = 45.0
     model: str = ""
+    departure_spread_h: float = 72.0
 
     def __post_init__(self) -> None:
         _check(
@@ -274,6 +278,7 @@ class DQNSettings:
                 "turn_deg": ("float", 0.0, 180.0, True),
                 "nogo_min_deg": ("float", 0.0, 180.0),
                 "model": ("str",),
+                "departure_spread_h": ("float", 0.0, 100_000.0),
             },
         )
         hidden = self.hidden
