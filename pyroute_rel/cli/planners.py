@@ -79,13 +79,13 @@ def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> in
     voyage = summary["voyage_time_h"]
     lines = [
         f"planner          {kind} ({'reached the finish' if planned.reached else 'did NOT reach the finish'})",
-        f"voyage time      {voyage:.2f} h (re-timed by the evaluator; the planner's own: "
-        f"{planned.voyage_time_h:.2f} h)"
+        f"voyage time      {voyage:.2f} h (re-timed by the evaluator; the planner's own: {planned.voyage_time_h:.2f} h)"
         if voyage is not None
         else "voyage time      none (a leg cannot be sailed)",
         f"distance         {ev.distance_nm:.1f} nm",
         f"feasible         {summary['feasible']}" + (f" ({summary['reason']})" if summary["reason"] else ""),
-        f"failure          max leg p_f {ev.max_failure_probability:.3f}, voyage p_f {ev.voyage_failure_probability:.3f}",
+        f"failure          max leg p_f {ev.max_failure_probability:.3f}, "
+        f"voyage p_f {ev.voyage_failure_probability:.3f}",
         f"work             {_work(st)}",
         f"runtime          {elapsed:.2f} s",
     ]
@@ -97,7 +97,9 @@ def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> in
 
 def _work(stats: dict[str, Any]) -> str:
     keys = ("iterations", "decisions", "episodes", "training_s", "states", "actions", "arcs_evaluated")
-    return ", ".join(f"{k} {stats[k]:.3g}" if isinstance(stats[k], float) else f"{k} {stats[k]}" for k in keys if k in stats)
+    return ", ".join(
+        f"{k} {stats[k]:.3g}" if isinstance(stats[k], float) else f"{k} {stats[k]}" for k in keys if k in stats
+    )
 
 
 def add_compare_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], None]) -> None:

@@ -202,7 +202,9 @@ class PlanningProblem:
                 v = v * problem.wave_loss.factor(cond.hs_m)
         v = np.where(v > 0, v, 0.0)
         lon1, lat1 = geodesy.destination_point(lon, lat, headings_deg, np.maximum(v, 1e-6) * step_h * KM_PER_NM)
-        legs = self.sail(lon, lat, np.append(lon1, self.finish[0]), np.append(lat1, self.finish[1]), t_h, weather=weather)
+        legs = self.sail(
+            lon, lat, np.append(lon1, self.finish[0]), np.append(lat1, self.finish[1]), t_h, weather=weather
+        )
         ok = legs.ok & np.append(v > 0, True)
         return twa, lon1, lat1, SailedLegs(np.where(ok, legs.time_h, np.inf), legs.p_f, ok)
 

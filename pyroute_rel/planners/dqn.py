@@ -115,9 +115,7 @@ class QNetwork:
             if str(data["settings"]) != _settings_key(settings):
                 return None
             n = sum(1 for k in data.files if k.startswith("coef_"))
-            return cls(
-                tuple(data[f"coef_{i}"] for i in range(n)), tuple(data[f"intercept_{i}"] for i in range(n))
-            )
+            return cls(tuple(data[f"coef_{i}"] for i in range(n)), tuple(data[f"intercept_{i}"] for i in range(n)))
 
 
 def _settings_key(settings: DQNSettings) -> str:
@@ -181,7 +179,7 @@ class _Env:
 
 def features(env: Any, c: Any) -> FloatArray:
     """The network's input for a craft: the wind image then the craft's state (see the module notes)."""
-    s, p = env.s, env.p
+    p = env.p
     lon, lat = geodesy.destination_point(c.lon, c.lat, 90.0, env.east_km)
     lon, lat = geodesy.destination_point(lon, lat, 0.0, env.north_km)
     cond = env.rp.weather_at(lon, lat, c.t_h)
@@ -261,9 +259,7 @@ def _new_learner(s: DQNSettings, n_features: int, rng: np.random.Generator, seed
     try:
         from sklearn.neural_network import MLPRegressor
     except ImportError:
-        raise ScenarioError(
-            "the dqn planner needs scikit-learn: pip install 'pyroute_rel[planners]'"
-        ) from None
+        raise ScenarioError("the dqn planner needs scikit-learn: pip install 'pyroute_rel[planners]'") from None
     mlp = MLPRegressor(hidden_layer_sizes=s.hidden, learning_rate_init=s.learning_rate, random_state=seed)
     mlp.partial_fit(np.zeros((1, n_features)), np.zeros((1, N_ACTIONS)))  # initialise the weights
     return _Learner(s, rng, mlp, copy.deepcopy(mlp), _Replay(s.replay, n_features))
@@ -303,7 +299,9 @@ def _episode(env: _Env, learner: _Learner, eps: float) -> bool:
     return c.done
 
 
-def train(problem: PlanningProblem, s: DQNSettings, seed: int, *, progress: bool = False) -> tuple[QNetwork, dict[str, Any]]:
+def train(
+    problem: PlanningProblem, s: DQNSettings, seed: int, *, progress: bool = False
+) -> tuple[QNetwork, dict[str, Any]]:
     """Train the Q-network on the problem's weather: ``episodes`` voyages from random departures and members."""
     rng = np.random.default_rng(seed)
     members: list[Any] = list(problem.members) or [None]
@@ -312,9 +310,12 @@ def train(problem: PlanningProblem, s: DQNSettings, seed: int, *, progress: bool
     learner = _new_learner(s, 2 * s.image_cells**2 + N_STATE, rng, seed)
     bar = progress_bar(s.episodes, enabled=progress, desc="dqn training", unit="voyage")
     arrived = skipped = 0
-    for episode in range(s.episodes):
+    for _ in range(s.episodes):
         offset = float(rng.uniform(0.0, s.departure_spread_h)) if s.departure_spread_h else 0.0
-        shifted = replace(problem, problem=replace(problem.problem, departure=problem.departure + np.timedelta64(int(offset * 3600), "s")))
+        shifted = replace(
+            problem,
+            problem=replace(problem.problem, departure=problem.departure + np.timedelta64(int(offset * 3600), "s")),
+        )
         env = _Env(shifted, s, members[int(rng.integers(len(members)))], time_max)
         try:
             arrived += _episode(env, learner, s.epsilon)

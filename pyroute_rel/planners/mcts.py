@@ -97,7 +97,9 @@ class _HeadingSim:
         p, s = self.p, self.s
         if state.done:
             return Moves((), ())
-        twa, lon1, lat1, legs = p.headings_step(state.lon, state.lat, state.t_h, self.headings, s.step_h, weather=weather)
+        twa, lon1, lat1, legs = p.headings_step(
+            state.lon, state.lat, state.t_h, self.headings, s.step_h, weather=weather
+        )
         if legs.ok[-1] and legs.time_h[-1] <= s.step_h:  # the finish is in reach: sail straight to it
             return Moves((self.finish_action,), (State(*p.finish, state.t_h + float(legs.time_h[-1]), -1, True),))
         ok = np.flatnonzero(legs.ok[:-1] & (twa >= s.nogo_min_deg) & (twa <= s.nogo_max_deg))
@@ -288,7 +290,8 @@ class MCTSPlanner:
             tried = [a for a in moves.actions if a in root.children]
             if not tried:
                 break
-            a = max(tried, key=(lambda b: root.children[b].best) if s.final == "best" else (lambda b: root.children[b].n))
+            score = {b: root.children[b].best if s.final == "best" else root.children[b].n for b in tried}
+            a = max(tried, key=score.__getitem__)
             state = moves.get(a)  # type: ignore[assignment]
             track.append(state)
             decisions += 1

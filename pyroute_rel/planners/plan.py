@@ -51,7 +51,8 @@ def plan(
     --------
     >>> from pyroute_rel import scenario_from_mapping
     >>> sc = scenario_from_mapping({
-    ...     "route": {"start": [-12.0, 45.0], "finish": [-14.0, 43.0]}, "grid": {"layout": "square", "n_ranks": 6, "n_nodes": 7},
+    ...     "route": {"start": [-12.0, 45.0], "finish": [-14.0, 43.0]},
+    ...     "grid": {"layout": "square", "n_ranks": 6, "n_nodes": 7},
     ...     "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0}, "avoid": {"land": False},
     ...     "planner": {"kind": "qlearning", "qlearning": {"episodes": 300, "gamma": 1.0}}})
     >>> track = plan(sc)

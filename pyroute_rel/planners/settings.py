@@ -319,7 +319,9 @@ class PlannerSettings:
         _whole(self.seed, "[planner].seed", 0, 2**32 - 1)
         for name, cls in (("mcts", MCTSSettings), ("qlearning", QLearningSettings), ("dqn", DQNSettings)):
             if not isinstance(getattr(self, name), cls):
-                raise ScenarioError(f"PlannerSettings.{name} must be a {cls.__name__} (got {brief(getattr(self, name))})")
+                raise ScenarioError(
+                    f"PlannerSettings.{name} must be a {cls.__name__} (got {brief(getattr(self, name))})"
+                )
 
 
 _TABLES = {"mcts": MCTSSettings, "qlearning": QLearningSettings, "dqn": DQNSettings}
@@ -346,8 +348,6 @@ def parse_planner(raw: Any) -> PlannerSettings:
         known = [f.name for f in fields(cls)]
         for key in sub:
             if key not in known:
-                raise ScenarioError(
-                    f"[planner.{name}]: unknown key '{show(key)}' (expected one of {', '.join(known)})"
-                )
+                raise ScenarioError(f"[planner.{name}]: unknown key '{show(key)}' (expected one of {', '.join(known)})")
         parts[name] = cls(**dict(sub))
     return PlannerSettings(kind=raw.get("kind", "dp"), seed=raw.get("seed", 0), **parts)
