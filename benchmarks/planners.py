@@ -10,9 +10,9 @@ time, the gap to the DP on the scenario's grid and to the DP refined in two corr
 and is feasible, runtime and training time, work done (MCTS iterations, training voyages, arcs costed) and the
 track's mean and largest distance from the DP's.
 
-The planners' settings here are cut down from the published ones so that the whole comparison runs in about half an
-hour on two shared cores (stated in :data:`SETTINGS`): the published 15 000 MCTS iterations per 1 h decision would
-take days in Python on a 700 h voyage. ``--quick`` runs the control course at apf 0.5 only, with smaller settings
+The planners' settings here are cut down from the published ones so that the comparison runs in about ten minutes
+per course on a free core (stated in :data:`SETTINGS`): the published 15 000 MCTS iterations per 1 h decision
+would take days in Python on a 700 h voyage. ``--quick`` runs the control course at apf 0.5 only, with smaller settings
 still. Timings are machine-dependent; the first line times fixed workloads (``machine ...``,
 ``benchmarks/run.py``'s calibration) so runs can be compared.
 """
@@ -39,14 +39,14 @@ from pyroute_rel.planners.settings import parse_planner  # noqa: E402
 #: The planner runs of every course: (label, kind, [planner] table).
 SETTINGS = {
     "full": [
-        ("mcts", "mcts", {"mcts": {"iterations": 30, "step_h": 12.0, "rollout_h": 72.0}}),
+        ("mcts", "mcts", {"mcts": {"iterations": 20, "step_h": 24.0, "rollout_h": 72.0}}),
         ("qlearning (graph)", "qlearning", {"qlearning": {"episodes": 3000, "gamma": 1.0}}),
         (
             "qlearning (cells)",
             "qlearning",
-            {"qlearning": {"space": "cells", "cell_nm": 60.0, "cells_across": 21, "gamma": 1.0}},
+            {"qlearning": {"space": "cells", "cell_nm": 90.0, "cells_across": 15, "gamma": 1.0}},
         ),
-        ("dqn", "dqn", {"dqn": {"episodes": 40, "step_h": 12.0}}),
+        ("dqn", "dqn", {"dqn": {"episodes": 20, "step_h": 24.0}}),
     ],
     "quick": [
         ("mcts", "mcts", {"mcts": {"iterations": 10, "step_h": 24.0, "rollout_h": 48.0}}),
