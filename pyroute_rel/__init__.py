@@ -58,6 +58,10 @@ _EXPORTS: dict[str, str] = {
     "route_on_grid": "route",
     "refine": "refine",
     "write_outputs": "outputs",
+    "read_track": "evaluate",
+    "evaluate_track": "evaluate",
+    "Track": "evaluate",
+    "Evaluation": "evaluate",
     "plan": "planners.plan",
     "PlannedTrack": "planners.base",
     "PlannerSettings": "planners.settings",
@@ -79,6 +83,7 @@ _EXPORTS: dict[str, str] = {
     "OutputError": "errors",
     "CoordinateError": "errors",
     "MemoryBudgetError": "errors",
+    "TrackError": "errors",
     "PyrouteWarning": "errors",
 }
 
@@ -112,9 +117,11 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
         PyrouteError,
         PyrouteWarning,
         ScenarioError,
+        TrackError,
         WeatherCoverageError,
         WeatherError,
     )
+    from .evaluate import Evaluation, Track, evaluate_track, read_track
     from .failure import FailureModel, list_failure_models, load_failure_model
     from .gci.numbers import convergence_study, grid_convergence, least_squares_convergence
     from .grid import Grid, make_grid, plan_grid

@@ -22,6 +22,7 @@ __all__ = [
     "OutputError",
     "CoordinateError",
     "MemoryBudgetError",
+    "TrackError",
     "PyrouteWarning",
     "PolarWarning",
     "CacheWarning",
@@ -94,6 +95,10 @@ class CoordinateError(PyrouteError, ValueError):
 
 class MemoryBudgetError(PyrouteError, MemoryError):
     """A route would need more memory than the budget allows (:mod:`pyroute_rel.memory`); refused before allocating."""
+
+
+class TrackError(PyrouteError, ValueError):
+    """A track file (GPX, GeoJSON, CSV) cannot be read as a track: no line in it, a bad coordinate or time."""
 
 
 class PyrouteWarning(UserWarning):

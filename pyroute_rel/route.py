@@ -21,9 +21,9 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .cost import REASONS, arc_quantities
+from .cost import REASONS, ArcCosts, arc_quantities
 from .errors import NoFeasibleRouteError
-from .exposure import leg_exposure
+from .exposure import LegExposure, leg_exposure
 from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, grid_geometry, leg_costs
 from .times import hours_after, iso_utc
 
@@ -43,6 +43,7 @@ __all__ = [
     "route_on_grid",
     "forbidden_on_grid",
     "LEG_FIELDS",
+    "track_legs",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -407,6 +408,54 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
     waits = result.waits()
     lon, lat = result.points(grid)
     elapsed, costs = leg_costs(problem, lon, lat, waits)
+    legs, exposure = track_legs(problem, lon, lat, elapsed, waits, costs)
+    meta: dict[str, Any] = {
+        "apf": float(problem.apf),
+        "failure_model": None if problem.failure is None else problem.failure.name,
+        "failure_exposure_h": None if problem.failure is None else problem.failure.exposure_h,
+        "polar": problem.polar.name,
+        "samples_per_arc": problem.samples,
+    }
+    return Route(
+        lon_deg=lon,
+        lat_deg=lat,
+        elapsed_h=elapsed,
+        departure=np.datetime64(problem.departure).astype("datetime64[s]"),  # type: ignore[arg-type]
+        legs=legs,
+        nodes=nodes,
+        grid=grid,
+        dp=result,
+        problem=problem,
+        meta=meta,
+        exposure_by_criterion_h={k: float(v.sum()) for k, v in exposure.criterion_h.items()},
+    )
+
+
+def track_legs(
+    problem: RoutingProblem,
+    lon_deg: FloatArray,
+    lat_deg: FloatArray,
+    elapsed_h: FloatArray,
+    waits_h: FloatArray,
+    costs: ArcCosts,
+) -> tuple[Legs, LegExposure]:
+    """Per-leg conditions and exposure of a timed track, every leg sailable (finite time).
+
+    Parameters
+    ----------
+    problem : The routing problem the legs were costed in.
+    lon_deg, lat_deg : Track points [deg] (one more than legs).
+    elapsed_h : Time at each point [h after ``problem.departure``] (:func:`~pyroute_rel.solve.leg_costs`).
+    waits_h : Wait before each leg [h].
+    costs : The legs' costs (:func:`~pyroute_rel.solve.leg_costs`).
+
+    Returns
+    -------
+    The legs (conditions at each leg's midpoint and mid-time, see :class:`Legs`) and their exposure
+    (:func:`~pyroute_rel.exposure.leg_exposure`).
+    """
+    lon, lat, elapsed = (np.asarray(a, dtype=float) for a in (lon_deg, lat_deg, elapsed_h))
+    waits = np.asarray(waits_h, dtype=float)
     dist = geodesy.distance_nm(lon[:-1], lat[:-1], lon[1:], lat[1:])
     mlon, mlat = geodesy.intermediate_point(lon[:-1], lat[:-1], lon[1:], lat[1:], 0.5)
     course = geodesy.initial_bearing_deg(mlon, mlat, lon[1:], lat[1:])
@@ -440,26 +489,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         wait_h=waits,
         p_fail_leg=exposure.p_fail_leg,
     )
-    meta: dict[str, Any] = {
-        "apf": float(problem.apf),
-        "failure_model": None if problem.failure is None else problem.failure.name,
-        "failure_exposure_h": None if problem.failure is None else problem.failure.exposure_h,
-        "polar": problem.polar.name,
-        "samples_per_arc": problem.samples,
-    }
-    return Route(
-        lon_deg=lon,
-        lat_deg=lat,
-        elapsed_h=elapsed,
-        departure=np.datetime64(problem.departure).astype("datetime64[s]"),  # type: ignore[arg-type]
-        legs=legs,
-        nodes=nodes,
-        grid=grid,
-        dp=result,
-        problem=problem,
-        meta=meta,
-        exposure_by_criterion_h={k: float(v.sum()) for k, v in exposure.criterion_h.items()},
-    )
+    return legs, exposure
 
 
 def join_routes(routes: list[Route]) -> Route:

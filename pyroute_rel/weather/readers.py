@@ -54,6 +54,7 @@ __all__ = [
     "read_fields",
     "weather_from_dataset",
     "weather_from_mapping",
+    "ensemble_size",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -158,7 +159,7 @@ def open_weather(
     variables: Mapping[str, str] | None = None,
     bbox: Sequence[float] | None = None,
     time_window: Sequence[Any] | None = None,
-    member: int | None = None,
+    member: int | str | None = None,
     margin_deg: float = BBOX_MARGIN_DEG,
     out_of_range: str = "error",
 ) -> GriddedWeather:
@@ -180,8 +181,9 @@ def open_weather(
     time_window : ``(first, last)`` time to read (``datetime64``, ``datetime`` or ISO 8601 string, UTC),
         plus the bracketing time steps. Default: all times.
     member : Ensemble member, as the position along the ``number`` (or ``realization``) dimension
-        (equal to the member number for ERA5 and GEFS). Required when a file holds several members:
-        an ensemble is never reduced silently.
+        (equal to the member number for ERA5 and GEFS), or ``"mean"`` for the ensemble mean (each stored
+        variable averaged over the members: wind as its u and v components, the usual layout). Required when a
+        file holds several members: an ensemble is never reduced silently.
     margin_deg : Margin around ``bbox`` [deg].
     out_of_range : ``"error"`` (default): a value outside its plausible range
         (:data:`~pyroute_rel.weather.base.RANGES`; an undeclared fill value, a negative wave height) is an error
@@ -231,7 +233,7 @@ def weather_from_dataset(
     variables: Mapping[str, str] | None = None,
     bbox: Sequence[float] | None = None,
     time_window: Sequence[Any] | None = None,
-    member: int | None = None,
+    member: int | str | None = None,
     margin_deg: float = BBOX_MARGIN_DEG,
     source: str = "<dataset>",
     out_of_range: str = "error",
@@ -303,8 +305,12 @@ def weather_from_mapping(
         for key in (k for k in variables if k not in VARIABLES):
             raise ScenarioError(f"{where}.variables: unknown field {key!r} (expected one of {', '.join(VARIABLES)})")
     member = table.get("member")
-    if member is not None and (isinstance(member, bool) or not isinstance(member, int) or member < 0):
-        raise ScenarioError(f"{where}.member must be an integer >= 0 (got {member!r})")
+    if (
+        member is not None
+        and member != "mean"
+        and (isinstance(member, bool) or not isinstance(member, int) or member < 0)
+    ):
+        raise ScenarioError(f'{where}.member must be an integer >= 0 or "mean" (got {member!r})')
     out_of_range = table.get("out_of_range", "error")
     if not isinstance(out_of_range, str) or out_of_range not in OUT_OF_RANGE:
         raise ScenarioError(
@@ -316,6 +322,34 @@ def weather_from_mapping(
     return open_weather(
         paths, variables=variables, bbox=bbox, time_window=time_window, member=member, out_of_range=out_of_range
     )
+
+
+def ensemble_size(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]) -> int | None:
+    """Number of ensemble members in weather files: the size of their member dimension (``number``,
+    ``realization``, ``member``, ...), None when no file has one.
+
+    Raises
+    ------
+    WeatherError
+        A file is unreadable, or two files hold different numbers of members.
+    """
+    if isinstance(paths, str | os.PathLike):
+        paths = [paths]
+    sizes: dict[int, str] = {}
+    for p in paths:
+        for ds in _open_file(Path(p)):
+            try:
+                for dim, n in ds.sizes.items():
+                    if str(dim).lower() in _MEMBER_NAMES:
+                        sizes.setdefault(int(n), str(p))
+            finally:
+                ds.close()
+    if len(sizes) > 1:
+        raise WeatherError(
+            "weather files hold different numbers of ensemble members: "
+            + ", ".join(f"{n} in '{p}'" for n, p in sizes.items())
+        )
+    return next(iter(sizes), None)
 
 
 # ----------------------------------------------------------------------------------------------- reading
@@ -375,7 +409,7 @@ def read_fields(
     variables: Mapping[str, str] | None = None,
     bbox: Sequence[float] | None = None,
     time_window: Sequence[Any] | None = None,
-    member: int | None = None,
+    member: int | str | None = None,
     margin_deg: float | None = None,
     out_of_range: str = "error",
 ) -> list[WeatherField]:
@@ -515,7 +549,7 @@ def _extract(
     var: str,
     box: tuple[float, float, float, float] | None,
     window: tuple[np.datetime64, np.datetime64] | None,
-    member: int | None,
+    member: int | str | None,
     margin: float,
     out_of_range: str = "error",
 ) -> tuple[WeatherField | None, bool]:
@@ -562,7 +596,7 @@ def _extract(
 
 
 def _drop_extra_dims(
-    da: xr.DataArray, kinds: Mapping[Hashable, str], member: int | None, where: str
+    da: xr.DataArray, kinds: Mapping[Hashable, str], member: int | str | None, where: str
 ) -> tuple[xr.DataArray, bool]:
     """Pick the ensemble member, the shallowest depth and ERA5's merged ``expver``; refuse other dimensions of more
     than one value -> (the variable on lon, lat and time only, whether it had members)."""
@@ -575,6 +609,9 @@ def _drop_extra_dims(
                 raise WeatherError(
                     f"{where} has {n} ensemble members (dimension '{dim}'); choose one with member=<0..{n - 1}>"
                 )
+            if member == "mean":
+                da = da.astype(np.float64).mean(dim, keep_attrs=True)
+                continue
             index = 0 if member is None else member
             if not 0 <= index < n:
                 raise WeatherError(f"{where}: member must be in [0, {n - 1}] (got {member})")

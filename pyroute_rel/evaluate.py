@@ -1,0 +1,699 @@
+"""Evaluate any track: sail a given line (a GPX track, a GeoJSON line, a CSV of points) in a scenario's weather.
+
+The track's points are joined by great-circle legs, sailed one after the other from the departure, each leg costed
+exactly as the router costs an arc (:func:`~pyroute_rel.cost.arc_costs` through the scenario's
+:class:`~pyroute_rel.solve.RoutingProblem`: the same weather samples per leg, the same polar, currents and wave loss)
+and described as a routed track's legs are (:func:`~pyroute_rel.route.track_legs`: conditions at each leg's
+midpoint, failure probability, exposure). Re-timing a routed track therefore gives the route's own figures.
+
+Unlike the router, the evaluation does not refuse a leg: it reports why a leg would have been forbidden.
+
+- A leg whose conditions have ``p_f > apf`` somewhere (``"p_f"``), that touches land or the coastal margin
+  (``"land"``) or an exclusion zone active when it is sailed (``"zone"``) is still sailed and timed; the track is
+  not ``feasible``.
+- A leg the craft cannot sail at all stops the voyage there (its time and every later time are ``inf``): the polar
+  gives no speed (``"no_speed"``), the current makes the course impossible to hold (``"current"``), or the weather
+  is missing, e.g. beyond the data's last time (``"weather"``).
+
+``reason`` names the first leg's problem; :attr:`Evaluation.leg_reasons` lists each leg's.
+
+Times in a track file are not imposed: the first one is the departure (unless given), the others are ignored, and
+the craft sails each leg as fast as the weather lets it, without waiting.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from . import geodesy
+from .cost import REASONS, ArcCosts
+from .errors import ScenarioError, TrackError, brief
+from .files import brief_path, read_regular_bytes
+from .route import Legs, track_legs
+from .times import iso_utc
+
+if TYPE_CHECKING:
+    from .scenario import Scenario
+    from .solve import RoutingProblem
+    from .weather import WeatherSource
+
+__all__ = [
+    "Track",
+    "Evaluation",
+    "Sailed",
+    "read_track",
+    "as_track",
+    "evaluate_track",
+    "evaluation_problem",
+    "sail_tracks",
+    "BLOCK_REASONS",
+    "TRACK_MAX_BYTES",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Largest track file read [bytes]: 100 MB, a million GPX points.
+TRACK_MAX_BYTES = 100_000_000
+
+#: Why a leg is blocked, in the order a leg's first reason is named: what stops the craft, then what forbids it.
+BLOCK_REASONS = ("no_speed", "current", "weather", "land", "zone", "p_f")
+
+_STOPS = {"no_speed": REASONS["polar"], "current": REASONS["current"], "weather": REASONS["weather"]}
+_LON_NAMES = ("lon", "lon_deg", "longitude", "long", "x")
+_LAT_NAMES = ("lat", "lat_deg", "latitude", "y")
+_TIME_NAMES = ("time", "time_utc", "timestamp", "datetime", "date")
+
+
+@dataclass(frozen=True)
+class Track:
+    """A line to sail: points [deg] and, optionally, a time at each point.
+
+    Attributes
+    ----------
+    lon_deg, lat_deg : Points [deg], at least two.
+    time : UTC time at each point (``datetime64[s]``), or None.
+    """
+
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    time: npt.NDArray[np.datetime64] | None = None
+
+    def __post_init__(self) -> None:
+        lon = np.asarray(self.lon_deg, dtype=float)
+        lat = np.asarray(self.lat_deg, dtype=float)
+        if lon.ndim != 1 or lon.shape != lat.shape or lon.size < 2:
+            raise TrackError(f"a track needs two or more points, as 1-D lon and lat arrays (got {lon.shape})")
+        if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
+            raise TrackError("a track's coordinates must be finite numbers [deg]")
+        if np.any(np.abs(lat) > 90.0) or np.any(np.abs(lon) > 360.0):
+            i = int(np.flatnonzero((np.abs(lat) > 90.0) | (np.abs(lon) > 360.0))[0])
+            raise TrackError(
+                f"track point {i} is off the globe (lon {lon[i]:g}, lat {lat[i]:g}): expected lon, lat [deg]"
+            )
+        object.__setattr__(self, "lon_deg", lon)
+        object.__setattr__(self, "lat_deg", lat)
+        if self.time is not None:
+            t = np.asarray(self.time).astype("datetime64[s]")
+            if t.shape != lon.shape or np.isnat(t).any():
+                raise TrackError(f"a track's times must be one UTC time per point ({lon.size}) (got {t.shape})")
+            object.__setattr__(self, "time", t)
+
+    @property
+    def points(self) -> FloatArray:
+        """The points as an (N, 2) array of lon, lat [deg]."""
+        return np.column_stack([self.lon_deg, self.lat_deg])
+
+
+def as_track(track: Track | npt.ArrayLike) -> Track:
+    """A :class:`Track` from a Track or an (N, 2) array of lon, lat [deg]."""
+    if isinstance(track, Track):
+        return track
+    arr = np.asarray(track, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise TrackError(f"a track must be a Track or an (N, 2) array of lon, lat [deg] (got shape {arr.shape})")
+    return Track(arr[:, 0], arr[:, 1])
+
+
+# ------------------------------------------------------------------------------------------------ reading
+
+
+def read_track(path: str | Path) -> Track:
+    """Read a track: a GPX track or route, a GeoJSON LineString, or a CSV of lon, lat[, time].
+
+    The format follows the file's suffix (``.gpx``; ``.geojson`` or ``.json``; ``.csv`` or ``.txt``), else its first
+    character. A GPX file gives its first track (all segments, in order), else its first route; a GeoJSON file a
+    LineString, a Feature holding one, or a FeatureCollection with exactly one line feature (other features, such as
+    the points :func:`~pyroute_rel.outputs.to_geojson` writes, are ignored; a MultiLineString split at the
+    antimeridian is joined again); a CSV file the columns named ``lon``/``lat``/``time`` (or ``lon_deg``,
+    ``longitude``, ``time_utc``, ...) after a header, or lon, lat[, time] in that order without one.
+
+    Raises
+    ------
+    TrackError
+        One line naming the file and what is wrong (no line in it, a bad number or time).
+    """
+    p = Path(path)
+    label = brief_path(p)
+    data = read_regular_bytes(p, limit_bytes=TRACK_MAX_BYTES, error=TrackError, label=label, what="track file")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise TrackError(f"{label}: track file is not UTF-8 text (expected GPX, GeoJSON or CSV)") from None
+    suffix = p.suffix.lower()
+    head = text.lstrip()[:1]
+    try:
+        if suffix == ".gpx" or (suffix not in (".geojson", ".json", ".csv", ".txt") and head == "<"):
+            return _gpx_track(text)
+        if suffix in (".geojson", ".json") or (suffix not in (".csv", ".txt") and head in "{["):
+            return _geojson_track(text)
+        return _csv_track(text)
+    except TrackError as exc:
+        raise TrackError(f"{label}: {exc}") from None
+
+
+def _gpx_track(text: str) -> Track:
+    import gpxpy
+    import gpxpy.gpx
+
+    try:
+        gpx = gpxpy.parse(text)
+    except (gpxpy.gpx.GPXException, ValueError) as exc:
+        raise TrackError(f"not a readable GPX file ({' '.join(str(exc).split())[:200]})") from None
+    points: list[Any] = []
+    if gpx.tracks:
+        points = [pt for seg in gpx.tracks[0].segments for pt in seg.points]
+    if not points and gpx.routes:
+        points = list(gpx.routes[0].points)
+    if len(points) < 2:
+        raise TrackError("GPX file has no track or route of two or more points")
+    times = None
+    if all(pt.time is not None for pt in points):
+        times = np.array([_utc64(pt.time) for pt in points], dtype="datetime64[s]")
+    return Track(
+        np.array([pt.longitude for pt in points], dtype=float),
+        np.array([pt.latitude for pt in points], dtype=float),
+        times,
+    )
+
+
+def _utc64(t: Any) -> np.datetime64:
+    if t.tzinfo is not None:
+        import datetime as dt
+
+        t = t.astimezone(dt.UTC).replace(tzinfo=None)
+    return np.datetime64(t, "s")
+
+
+def _geojson_track(text: str) -> Track:
+    try:
+        doc = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise TrackError(f"not valid JSON ({exc})") from None
+    lines = _lines(doc)
+    if len(lines) != 1:
+        raise TrackError(
+            f"GeoJSON must hold one LineString (or a Feature or FeatureCollection with one) (found {len(lines)})"
+        )
+    geometry, props = lines[0]
+    coords = geometry.get("coordinates")
+    if geometry.get("type") == "MultiLineString":
+        coords = _join_parts(coords)
+    try:
+        arr = np.array([[float(c[0]), float(c[1])] for c in coords], dtype=float)
+    except (TypeError, ValueError, IndexError):
+        raise TrackError("GeoJSON line coordinates must be [lon, lat] pairs of numbers") from None
+    times = props.get("times") or props.get("coordTimes") if isinstance(props, dict) else None
+    t = None
+    if isinstance(times, list) and len(times) == len(arr):
+        t = np.array([_parse_time(v, f"time {i}") for i, v in enumerate(times)], dtype="datetime64[s]")
+    return Track(arr[:, 0], arr[:, 1], t) if len(arr) >= 2 else Track(arr[:, 0], arr[:, 1])
+
+
+def _lines(doc: Any) -> list[tuple[dict[str, Any], Any]]:
+    """(geometry, properties) of every LineString or MultiLineString in a GeoJSON object."""
+    if not isinstance(doc, dict):
+        return []
+    kind = doc.get("type")
+    if kind in ("LineString", "MultiLineString"):
+        return [(doc, {})]
+    if kind == "Feature" and isinstance(doc.get("geometry"), dict):
+        return [(g, doc.get("properties") or {}) for g, _ in _lines(doc["geometry"])]
+    if kind == "FeatureCollection" and isinstance(doc.get("features"), list):
+        return [item for f in doc["features"] for item in _lines(f)]
+    return []
+
+
+def _join_parts(parts: Any) -> list[Any]:
+    """The parts of a MultiLineString joined: where one part ends on +-180 and the next starts on the other side at
+    the same latitude (a track split at the antimeridian), both crossing points are dropped."""
+    if not isinstance(parts, list) or not parts:
+        raise TrackError("GeoJSON MultiLineString coordinates must be a list of lines")
+    out = list(parts[0])
+    for part in parts[1:]:
+        part = list(part)
+        try:
+            crossing = abs(float(out[-1][0])) == 180.0 and float(part[0][0]) == -float(out[-1][0])
+            crossing = crossing and float(part[0][1]) == float(out[-1][1])
+        except (TypeError, ValueError, IndexError):
+            raise TrackError("GeoJSON line coordinates must be [lon, lat] pairs of numbers") from None
+        out = out[:-1] + part[1:] if crossing else out + part
+    return out
+
+
+def _parse_time(value: Any, where: str) -> np.datetime64:
+    try:
+        text = str(value).strip().removesuffix("Z").removesuffix("+00:00")
+        t = np.datetime64(text, "s")
+    except ValueError:
+        raise TrackError(f"{where}: expected an ISO 8601 UTC time (got {brief(value)})") from None
+    if np.isnat(t):
+        raise TrackError(f"{where}: expected an ISO 8601 UTC time (got {brief(value)})")
+    return t
+
+
+def _csv_track(text: str) -> Track:
+    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r) and not r[0].startswith("#")]
+    if not rows:
+        raise TrackError("CSV file has no rows (expected lon, lat[, time] per line)")
+    header = [c.strip().lower() for c in rows[0]]
+    first_line = 1
+    if any(_is_word(c) for c in header[:2]):  # a header names the columns; data start with two numbers
+        cols = [_column(header, names) for names in (_LON_NAMES, _LAT_NAMES, _TIME_NAMES)]
+        if cols[0] is None or cols[1] is None:
+            raise TrackError(f"CSV header needs lon and lat columns (got {', '.join(header)})")
+        rows, first_line = rows[1:], 2
+    else:
+        cols = [0, 1, 2 if len(header) > 2 else None]
+    lon, lat, times = [], [], []
+    for n, row in enumerate(rows, start=first_line):
+        try:
+            lon.append(float(row[cols[0]]))  # type: ignore[index]
+            lat.append(float(row[cols[1]]))  # type: ignore[index]
+        except (ValueError, IndexError):
+            raise TrackError(f"CSV row {n}: expected numbers for lon and lat (got {brief(row)})") from None
+        if cols[2] is not None:
+            times.append(_parse_time(row[cols[2]] if cols[2] < len(row) else "", f"CSV row {n}"))
+    if len(lon) < 2:
+        raise TrackError(f"CSV file has {len(lon)} point(s) (a track needs two or more)")
+    return Track(np.array(lon), np.array(lat), np.array(times, dtype="datetime64[s]") if times else None)
+
+
+def _is_word(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return bool(cell)
+    return False
+
+
+def _column(header: Sequence[str], names: Sequence[str]) -> int | None:
+    return next((i for i, c in enumerate(header) if c in names), None)
+
+
+# ------------------------------------------------------------------------------------------------ sailing
+
+
+@dataclass(frozen=True)
+class Sailed:
+    """A track sailed leg after leg (:func:`sail_tracks`): the raw figures, before the legs are described.
+
+    Attributes
+    ----------
+    lon_deg, lat_deg : The track's points [deg].
+    elapsed_h : Time at each point [h after the departure]; ``inf`` from the first leg the craft cannot sail.
+    costs : Each leg's :class:`~pyroute_rel.cost.ArcCosts` (``time_h`` ``inf`` where it cannot be sailed, ``p_f``
+        and ``reason`` NaN and 0 after it).
+    land, zone : Which legs touch land (or the coastal margin) and an exclusion zone active when they are sailed.
+    apf : The acceptable probability of failure the legs' ``p_f`` is held to.
+    """
+
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    elapsed_h: FloatArray
+    costs: ArcCosts
+    land: npt.NDArray[np.bool_]
+    zone: npt.NDArray[np.bool_]
+    apf: float
+
+    @property
+    def voyage_time_h(self) -> float:
+        """Time to the last point [h] (``inf`` when a leg cannot be sailed)."""
+        return float(self.elapsed_h[-1])
+
+    @property
+    def max_p_f(self) -> float:
+        """Largest leg ``p_f`` of the legs sailed (0 when none has one)."""
+        p = self.costs.p_f[np.isfinite(self.costs.p_f)]
+        return float(p.max()) if p.size else 0.0
+
+    def leg_reasons(self) -> list[tuple[str, ...]]:
+        """Why each leg is blocked, names of :data:`BLOCK_REASONS` (empty where it is not)."""
+        out = []
+        with np.errstate(invalid="ignore"):
+            over = self.costs.p_f > self.apf
+        for i in range(self.costs.time_h.size):
+            r = int(self.costs.reason[i])
+            names = [n for n, bit in _STOPS.items() if r & bit]
+            if self.land[i]:
+                names.append("land")
+            if self.zone[i]:
+                names.append("zone")
+            if over[i]:
+                names.append("p_f")
+            out.append(tuple(n for n in BLOCK_REASONS if n in names))
+        return out
+
+    @property
+    def feasible(self) -> bool:
+        """True when no leg is blocked."""
+        return math.isfinite(self.voyage_time_h) and not any(self.leg_reasons())
+
+
+def evaluation_problem(
+    scenario: Scenario,
+    *,
+    departure: Any = None,
+    apf: float | None = None,
+    samples: int | None = None,
+    weather: WeatherSource | None = None,
+) -> RoutingProblem:
+    """The routing problem a track is sailed in: the scenario's (on its grid: the same weather samples per leg as its
+    route), without obstacle mask (legs are tested against land and zones one by one).
+
+    Parameters
+    ----------
+    scenario : The scenario.
+    departure : Departure time (UTC; default the scenario's).
+    apf : Acceptable probability of failure (default the scenario's).
+    samples : Weather samples per leg (default: as the scenario's route samples its arcs).
+    weather : Weather source (default the scenario's).
+    """
+    problem = scenario.problem(blocked=None)
+    changes: dict[str, Any] = {}
+    if departure is not None:
+        from .scenario import parse_departure
+
+        changes["departure"] = (
+            np.datetime64(departure, "s") if isinstance(departure, np.datetime64) else parse_departure(departure)
+        )
+    if apf is not None:
+        changes["apf"] = apf
+    if samples is not None:
+        changes["samples"] = samples
+    if weather is not None:
+        changes["weather"] = weather
+    return replace(problem, **changes) if changes else problem
+
+
+def sail_tracks(
+    problem: RoutingProblem,
+    tracks: Sequence[Track | npt.ArrayLike],
+    *,
+    avoid: Any = None,
+) -> list[Sailed]:
+    """Sail tracks leg after leg in a problem's weather, vectorised over the tracks (the k-th legs of every track
+    are costed together).
+
+    Each leg is costed as :func:`~pyroute_rel.solve.leg_costs` costs a route's legs (the same call, the same departure
+    times), with ``apf = 1`` so that no leg is refused for its ``p_f``; a leg the craft cannot sail stops its track.
+
+    Parameters
+    ----------
+    problem : Weather, polar, failure model, samples per leg, departure; its ``apf`` is the bound reported against.
+    tracks : Tracks (:class:`Track` or (N, 2) arrays of lon, lat [deg]).
+    avoid : Land and zones to test the legs against (:class:`~pyroute_rel.obstacles.mask.Avoid`), or None.
+
+    Returns
+    -------
+    list of Sailed
+        One per track, in order.
+    """
+    tr = [as_track(t) for t in tracks]
+    timing = replace(problem, apf=1.0, blocked=None)
+    n_legs = np.array([t.lon_deg.size - 1 for t in tr])
+    width = int(n_legs.max()) if len(tr) else 0
+    lon, lat = np.full((len(tr), width + 1), np.nan), np.full((len(tr), width + 1), np.nan)
+    for i, t in enumerate(tr):
+        lon[i, : t.lon_deg.size], lat[i, : t.lat_deg.size] = t.lon_deg, t.lat_deg
+    has = np.arange(width)[None, :] < n_legs[:, None]
+    elapsed = np.where(np.arange(width + 1)[None, :] <= n_legs[:, None], 0.0, np.nan)
+    time_h = np.full((len(tr), width), np.nan)
+    p_f = np.full((len(tr), width), np.nan)
+    reason = np.zeros((len(tr), width), dtype=np.uint8)
+    if problem.weather.steady and problem.time_step_h is None:
+        a, b, c_, d = lon[:, :-1][has], lat[:, :-1][has], lon[:, 1:][has], lat[:, 1:][has]
+        c = timing.costs(a, b, c_, d, np.zeros(int(has.sum())))
+        time_h[has], p_f[has], reason[has] = c.time_h, c.p_f, c.reason
+        elapsed[:, 1:] = np.where(has, np.cumsum(np.where(has, time_h, 0.0), axis=1), np.nan)
+    else:
+        for k in range(width):
+            go = has[:, k] & np.isfinite(elapsed[:, k])
+            if not go.any():
+                continue
+            t0 = elapsed[go, k]
+            c = timing.costs(lon[go, k], lat[go, k], lon[go, k + 1], lat[go, k + 1], t0)
+            time_h[go, k], p_f[go, k], reason[go, k] = c.time_h, c.p_f, c.reason
+            elapsed[go, k + 1] = timing.arrive(t0 + c.time_h)
+            elapsed[has[:, k] & ~go, k + 1] = np.inf
+    land, zone = _obstacles(problem, avoid, lon, lat, elapsed, has)
+    out = []
+    for i, t in enumerate(tr):
+        n = int(n_legs[i])
+        e = elapsed[i, : n + 1].copy()
+        costs = ArcCosts(time_h=time_h[i, :n].copy(), p_f=p_f[i, :n].copy(), reason=reason[i, :n].copy())
+        hit_land, hit_zone = land[i, :n].copy(), zone[i, :n].copy()
+        stop = np.flatnonzero(~np.isfinite(e))
+        if stop.size:  # the legs after the one that cannot be sailed are not sailed
+            e[stop[0] :] = np.inf
+            costs.time_h[stop[0] :], costs.p_f[stop[0] :], costs.reason[stop[0] :] = np.nan, np.nan, 0
+            hit_land[stop[0] :], hit_zone[stop[0] :] = False, False
+        out.append(Sailed(t.lon_deg, t.lat_deg, e, costs, hit_land, hit_zone, float(problem.apf)))
+    return out
+
+
+def _obstacles(
+    problem: RoutingProblem, avoid: Any, lon: FloatArray, lat: FloatArray, elapsed: FloatArray, has: Any
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Which legs touch land and which an exclusion zone active at the leg's departure (as the router's mask)."""
+    land = np.zeros(has.shape, dtype=bool)
+    zone = np.zeros(has.shape, dtype=bool)
+    if avoid is None or not has.any():
+        return land, zone
+    a, b, c, d = lon[:, :-1][has], lat[:, :-1][has], lon[:, 1:][has], lat[:, 1:][has]
+    if avoid.land:
+        from .obstacles.land import arcs_on_land
+
+        land[has] = arcs_on_land(a, b, c, d, margin_km=avoid.margin_km, resolution=avoid.resolution)
+    if avoid.zones:
+        from .obstacles.zones import arcs_blocked_by_zones
+        from .times import hours_after
+
+        t0 = elapsed[:, :-1][has]
+        when = hours_after(problem.departure, np.where(np.isfinite(t0), t0, 0.0))
+        zone[has] = arcs_blocked_by_zones(a, b, c, d, avoid.zones, when)
+    return land, zone
+
+
+# ------------------------------------------------------------------------------------------------ evaluation
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """A track sailed in a scenario's weather (:func:`evaluate_track`).
+
+    Attributes
+    ----------
+    legs : Per-leg conditions, the columns of :attr:`pyroute_rel.route.Route.legs` (NaN after a leg that cannot be
+        sailed; that leg's ``time_h`` is ``inf``).
+    track : The points, (N, 2) lon, lat [deg].
+    time : UTC time at each point (NaT from the first leg that cannot be sailed).
+    elapsed_h : Time at each point [h after the departure] (``inf`` likewise).
+    departure : Departure time (UTC).
+    voyage_time_h : Time to the last point [h] (``inf`` when a leg cannot be sailed).
+    distance_nm : Great-circle length of the track [nm].
+    arrival : Arrival time (UTC; NaT when a leg cannot be sailed).
+    max_failure_probability : Largest leg ``p_f`` of the legs sailed.
+    voyage_failure_probability : Probability of failure over the legs sailed (as :attr:`Route.voyage_failure_probability
+        <pyroute_rel.route.Route.voyage_failure_probability>`).
+    feasible : True when the router could have sailed every leg: no ``p_f > apf``, land, zone, or leg that cannot be
+        sailed.
+    reason : None, or why the first blocked leg is blocked: one of :data:`BLOCK_REASONS`.
+    blocked_leg : Index of that leg, or None.
+    leg_reasons : Why each leg is blocked (a tuple of :data:`BLOCK_REASONS` names per leg, empty where it is not).
+    exposure_by_criterion_h : Hours sailed where each criterion of the failure model fires [h].
+    meta : Settings for the summary (apf, failure model, polar, samples per leg, scenario).
+    """
+
+    legs: Legs
+    track: FloatArray
+    time: npt.NDArray[np.datetime64]
+    elapsed_h: FloatArray
+    departure: np.datetime64
+    feasible: bool
+    reason: str | None
+    blocked_leg: int | None
+    leg_reasons: tuple[tuple[str, ...], ...]
+    exposure_by_criterion_h: dict[str, float] = field(default_factory=dict)
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def voyage_time_h(self) -> float:
+        """Time to the last point [h] (``inf`` when a leg cannot be sailed)."""
+        return float(self.elapsed_h[-1])
+
+    @property
+    def distance_nm(self) -> float:
+        """Great-circle length of the track [nm]."""
+        return float(self.legs.distance_nm.sum())
+
+    @property
+    def arrival(self) -> np.datetime64:
+        """Arrival time (UTC; NaT when a leg cannot be sailed)."""
+        return self.time[-1]
+
+    @property
+    def max_failure_probability(self) -> float:
+        """Largest leg ``p_f`` of the legs sailed (0 when none)."""
+        p = self.legs.p_f[np.isfinite(self.legs.p_f)]
+        return float(p.max()) if p.size else 0.0
+
+    @property
+    def voyage_failure_probability(self) -> float:
+        """Probability of failure over the legs sailed, ``1 - prod(1 - p_fail_leg)`` [-]."""
+        p = self.legs.p_fail_leg[np.isfinite(self.legs.p_fail_leg)]
+        with np.errstate(divide="ignore"):
+            return float(-np.expm1(np.sum(np.log1p(-p))))
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON of ``pyroute-rel evaluate --json``: the keys of :meth:`Route.summary
+        <pyroute_rel.route.Route.summary>` that apply to a track (no grid, no arcs), plus ``feasible``, ``reason``,
+        ``blocked_leg`` and each leg's reasons in the track's points."""
+        p_point = np.concatenate([[0.0], self.legs.p_f])
+        reasons = [(), *self.leg_reasons]
+        return {
+            "voyage_time_h": _finite(self.voyage_time_h),
+            "distance_nm": self.distance_nm,
+            "departure": iso_utc(self.departure),
+            "arrival": None if np.isnat(self.arrival) else iso_utc(self.arrival),
+            "feasible": self.feasible,
+            "reason": self.reason,
+            "blocked_leg": self.blocked_leg,
+            "max_failure_probability": self.max_failure_probability,
+            "voyage_failure_probability": self.voyage_failure_probability,
+            "exposure_by_criterion_h": dict(self.exposure_by_criterion_h),
+            **self.meta,
+            "track": [
+                {
+                    "lon": float(lo),
+                    "lat": float(la),
+                    "time": None if np.isnat(t) else iso_utc(t),
+                    "p_f": _finite(p),
+                    "blocked": list(r),
+                }
+                for lo, la, t, p, r in zip(self.track[:, 0], self.track[:, 1], self.time, p_point, reasons, strict=True)
+            ],
+        }
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def evaluate_track(
+    scenario: Scenario | str | Path,
+    track: Track | npt.ArrayLike,
+    *,
+    departure: Any = None,
+    member: int | None = None,
+    apf: float | None = None,
+    weather: WeatherSource | None = None,
+    samples: int | None = None,
+) -> Evaluation:
+    """Sail a track in a scenario's weather with its polar, failure model, land and zones (see the module notes).
+
+    Parameters
+    ----------
+    scenario : The scenario (:func:`~pyroute_rel.scenario.load_scenario`), or its file.
+    track : A :class:`Track` (:func:`read_track`) or an (N, 2) array of lon, lat [deg].
+    departure : Departure time (UTC; default: the track's first time, else the scenario's departure).
+    member : Sail in this ensemble member's weather (:func:`pyroute_rel.members.member_scenario`: the scenario's file
+        read with ``[weather] member = k``).
+    apf : Acceptable probability of failure the legs are held to (default the scenario's).
+    weather : Sail in this weather source instead of the scenario's.
+    samples : Weather samples per leg (default: as the scenario's route samples its arcs).
+
+    Returns
+    -------
+    Evaluation
+
+    Examples
+    --------
+    >>> from pyroute_rel import scenario_from_mapping
+    >>> sc = scenario_from_mapping({
+    ...     "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0], "departure": "2018-06-01T00:00:00Z"},
+    ...     "grid": {"n_ranks": 20}, "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+    ...     "avoid": {"land": False}, "failure": {"model": "dickson2018", "apf": 0.5}})
+    >>> route = sc.route()
+    >>> ev = evaluate_track(sc, np.column_stack([route.lon_deg, route.lat_deg]))
+    >>> abs(ev.voyage_time_h - route.voyage_time_h) < 1e-9, ev.feasible, ev.reason
+    (True, True, None)
+    """
+    trk = as_track(track)
+    if member is not None:
+        from .members import member_scenario
+
+        scenario = member_scenario(scenario, member)
+    elif isinstance(scenario, str | Path):
+        from .scenario import load_scenario
+
+        scenario = load_scenario(scenario)
+    _check_scenario(scenario)
+    if departure is None and trk.time is not None:
+        departure = trk.time[0]
+    problem = evaluation_problem(scenario, departure=departure, apf=apf, samples=samples, weather=weather)
+    sailed = sail_tracks(problem, [trk], avoid=scenario.avoid)[0]
+    return describe(problem, sailed, meta={"scenario": scenario.source, "land": scenario.avoid.land})
+
+
+def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | None = None) -> Evaluation:
+    """The :class:`Evaluation` of a sailed track: its legs described as a routed track's
+    (:func:`~pyroute_rel.route.track_legs`) up to the first leg that cannot be sailed."""
+    lon, lat, e = sailed.lon_deg, sailed.lat_deg, sailed.elapsed_h
+    n = lon.size - 1
+    finite = np.isfinite(e)
+    k = n if finite.all() else int(np.flatnonzero(~finite)[0]) - 1  # legs sailed in full
+    cols = {name: np.full(n, np.nan) for name in Legs.__dataclass_fields__}
+    cols["distance_nm"] = geodesy.distance_nm(lon[:-1], lat[:-1], lon[1:], lat[1:])
+    cols["wait_h"] = np.zeros(n)
+    exposure: dict[str, float] = {}
+    if k > 0:
+        part = ArcCosts(time_h=sailed.costs.time_h[:k], p_f=sailed.costs.p_f[:k], reason=sailed.costs.reason[:k])
+        legs, exp = track_legs(problem, lon[: k + 1], lat[: k + 1], e[: k + 1], np.zeros(k), part)
+        for name in cols:
+            cols[name][:k] = legs[name]
+        exposure = {c: float(v.sum()) for c, v in exp.criterion_h.items()}
+    if k < n:  # the leg that cannot be sailed
+        cols["time_h"][k] = np.inf
+        cols["p_f"][k] = sailed.costs.p_f[k]
+    reasons = sailed.leg_reasons()
+    blocked = next((i for i, r in enumerate(reasons) if r), None)
+    start = np.datetime64(problem.departure, "s")
+    seconds = np.round(np.where(finite, e, 0.0) * 3600.0).astype("timedelta64[s]")
+    times = np.where(finite, start + seconds, np.datetime64("NaT", "s"))
+    return Evaluation(
+        legs=Legs(**cols),
+        track=np.column_stack([lon, lat]),
+        time=times.astype("datetime64[s]"),
+        elapsed_h=e,
+        departure=start,
+        feasible=blocked is None,
+        reason=None if blocked is None else reasons[blocked][0],
+        blocked_leg=blocked,
+        leg_reasons=tuple(reasons),
+        exposure_by_criterion_h=exposure,
+        meta={
+            "apf": float(problem.apf),
+            "failure_model": None if problem.failure is None else problem.failure.name,
+            "failure_exposure_h": None if problem.failure is None else problem.failure.exposure_h,
+            "polar": problem.polar.name,
+            "samples_per_arc": problem.samples,
+            **(meta or {}),
+        },
+    )
+
+
+def _check_scenario(scenario: Any) -> None:
+    from .scenario import Scenario
+
+    if not isinstance(scenario, Scenario):
+        raise ScenarioError(f"expected a Scenario (pyroute_rel.load_scenario) (got {type(scenario).__name__})")

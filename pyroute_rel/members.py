@@ -1,0 +1,127 @@
+"""Ensemble members of a scenario's weather: one scenario per member, and one on the ensemble mean.
+
+A scenario whose ``[weather]`` files hold an ensemble dimension (``number`` in ERA5 and ECMWF ENS, ``realization``,
+``member``: :func:`~pyroute_rel.weather.readers.ensemble_size`) routes one member with ``[weather] member = k``, or
+the ensemble mean with ``member = "mean"``. Members may also be separate files, one per member (``member_files``):
+member ``k`` then reads ``[weather].paths`` with its first file replaced by ``member_files[k]`` (wind in the member
+files; waves or currents, if any, from the other files, common to all members).
+
+Each member's weather is read exactly as ``pyroute-rel route`` reads it with ``[weather] member = k`` (the
+scenario's TOML read again with that key), so that a member's route is that route.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from .errors import ScenarioError
+from .files import brief_path, read_regular_bytes
+from .scenario import SCENARIO_MAX_BYTES, Scenario, scenario_from_mapping
+
+__all__ = ["scenario_table", "member_count", "member_scenario", "mean_scenario"]
+
+
+def scenario_table(path: str | Path) -> dict[str, Any]:
+    """A scenario file's TOML tables, unvalidated (:func:`~pyroute_rel.scenario.load_scenario` validates them)."""
+    p = Path(path)
+    data = read_regular_bytes(
+        p, limit_bytes=SCENARIO_MAX_BYTES, error=ScenarioError, label=brief_path(p), what="scenario file"
+    )
+    try:
+        return tomllib.loads(data.decode("utf-8-sig"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ScenarioError(f"{brief_path(p)}: not a valid TOML scenario file ({' '.join(str(exc).split())})") from None
+
+
+def _source(scenario: Scenario | str | Path) -> tuple[dict[str, Any], Path, str]:
+    """(tables, base folder, name) of a scenario file, or of the file a Scenario was read from."""
+    if isinstance(scenario, Scenario):
+        path = Path(scenario.source)
+        if not path.is_file():
+            raise ScenarioError(
+                f"{scenario.source}: ensemble members are read from the scenario's file (this scenario was built in "
+                "code: write it to a TOML file)"
+            )
+    else:
+        path = Path(scenario)
+    return scenario_table(path), path.parent, str(path)
+
+
+def _weather_table(tables: Mapping[str, Any], name: str) -> dict[str, Any]:
+    weather = tables.get("weather")
+    if not isinstance(weather, Mapping) or weather.get("kind") != "file":
+        raise ScenarioError(
+            f'{name}: an ensemble needs [weather] kind = "file" (files with a member dimension, or member files)'
+        )
+    if not isinstance(weather.get("paths"), list) or not weather["paths"]:
+        raise ScenarioError(f"{name}: [weather].paths must be a non-empty array of file names")
+    return dict(weather)
+
+
+def member_count(scenario: Scenario | str | Path, *, member_files: Sequence[str | Path] | None = None) -> int:
+    """How many members a scenario's ensemble has: ``len(member_files)``, else the size of the member dimension of
+    its ``[weather]`` files.
+
+    Raises
+    ------
+    ScenarioError
+        The weather is not read from files, or no file has a member dimension.
+    """
+    if member_files is not None:
+        if not member_files:
+            raise ScenarioError("member files: expected one weather file per member (got none)")
+        return len(member_files)
+    from .weather.readers import ensemble_size
+
+    tables, base, name = _source(scenario)
+    weather = _weather_table(tables, name)
+    paths = [q if q.is_absolute() else base / q for q in (Path(str(s)).expanduser() for s in weather["paths"])]
+    n = ensemble_size(paths)
+    if n is None:
+        raise ScenarioError(
+            f"{name}: no [weather] file has an ensemble dimension (number, realization, member); give one file per "
+            "member instead"
+        )
+    return n
+
+
+def member_scenario(
+    scenario: Scenario | str | Path,
+    member: int | str,
+    *,
+    member_files: Sequence[str | Path] | None = None,
+) -> Scenario:
+    """The scenario in the weather of one ensemble member (``"mean"``: the ensemble mean).
+
+    Parameters
+    ----------
+    scenario : The scenario file, or a Scenario read from one (its other settings, e.g. options changed with
+        :meth:`~pyroute_rel.scenario.Scenario.with_options`, are kept).
+    member : Member index from 0, or ``"mean"``.
+    member_files : One weather file per member (see the module notes); None: the member dimension of the files.
+    """
+    tables, base, name = _source(scenario)
+    weather = _weather_table(tables, name)
+    if member_files is not None:
+        if member == "mean":
+            raise ScenarioError("the ensemble mean of member files is not supported: route each member")
+        if isinstance(member, bool) or not isinstance(member, int) or not 0 <= member < len(member_files):
+            raise ScenarioError(f"member must be in [0, {len(member_files) - 1}] (got {member!r})")
+        weather["paths"] = [str(Path(member_files[member]).resolve()), *list(weather["paths"])[1:]]
+        weather.pop("member", None)
+    else:
+        weather["member"] = member
+    tables["weather"] = weather
+    other = scenario_from_mapping(tables, base_dir=base, source=name)
+    if isinstance(scenario, Scenario):
+        return replace(scenario, weather=other.weather)
+    return other
+
+
+def mean_scenario(scenario: Scenario | str | Path) -> Scenario:
+    """The scenario on the ensemble-mean weather (``[weather] member = "mean"``)."""
+    return member_scenario(scenario, "mean")
