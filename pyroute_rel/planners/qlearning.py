@@ -213,6 +213,12 @@ def _action_times(tab: TabularProblem, lo: int, hi: int, t_h: float) -> FloatArr
     return tab.cost(np.arange(lo, hi), t_h)
 
 
+def _best(q: FloatArray, times: FloatArray) -> float:
+    """The best Q-value among the actions that may be taken now (``-DEAD_END_H`` at a dead end)."""
+    allowed = np.isfinite(times)
+    return float(q[allowed].max()) if allowed.any() else -DEAD_END_H
+
+
 def train_q(
     tab: TabularProblem,
     settings: QLearningSettings,
@@ -221,78 +227,75 @@ def train_q(
     progress: bool = False,
     checkpoints: int = 0,
 ) -> tuple[FloatArray, list[tuple[int, float]]]:
-    """One-step Q-learning with an epsilon-greedy policy (see the module notes).
+    """One-step Q-learning with an epsilon-greedy policy over the actions that may be taken (see the module notes).
+
+    An action forbidden at the time a state is reached (its time is ``inf``) is neither taken nor counted in the
+    next state's value; a state with none is a dead end, worth ``-DEAD_END_H``.
 
     Returns
     -------
-    The Q-table (one value per action, ``-inf`` for forbidden actions) and, with ``checkpoints`` > 0, the greedy
-    route's time after evenly spaced episodes: ``[(episode, time_h), ...]`` (``inf`` while it fails to arrive).
+    The Q-table (one value per action) and, with ``checkpoints`` > 0, the greedy route's time after evenly spaced
+    episodes: ``[(episode, time_h), ...]`` (``inf`` while it fails to arrive).
     """
     q = np.zeros(tab.target.size)
     alpha, gamma, eps = settings.alpha, settings.gamma, settings.epsilon
-    max_steps = tab.n_states
     marks = set(np.linspace(1, settings.episodes, checkpoints).round().astype(int).tolist()) if checkpoints else set()
     history: list[tuple[int, float]] = []
     bar = progress_bar(settings.episodes, enabled=progress, desc="q-learning", unit="episode")
     for episode in range(1, settings.episodes + 1):
         s, t = tab.start, 0.0
-        for _ in range(max_steps):
-            lo, hi = int(tab.ptr[s]), int(tab.ptr[s + 1])
-            times = _action_times(tab, lo, hi, t)
+        lo, hi = int(tab.ptr[s]), int(tab.ptr[s + 1])
+        times = _action_times(tab, lo, hi, t)
+        for _ in range(tab.n_states):
             allowed = np.flatnonzero(np.isfinite(times))
-            q[lo:hi][~np.isfinite(times)] = -np.inf
             if allowed.size == 0:
-                break  # a dead end: its actions are -inf, which the update into it sees
+                break  # a dead end
             if rng.random() < eps:
                 i = int(allowed[rng.integers(allowed.size)])
             else:
                 vals = q[lo:hi][allowed]
                 i = int(allowed[rng.choice(np.flatnonzero(vals == vals.max()))])
-            a = lo + i
+            a, t1 = lo + i, t + float(times[i])
             nxt = int(tab.target[a])
-            if nxt == tab.goal:
-                future = 0.0
-            else:
-                nlo, nhi = int(tab.ptr[nxt]), int(tab.ptr[nxt + 1])
-                future = float(q[nlo:nhi].max()) if nhi > nlo else -np.inf
-                future = -DEAD_END_H if not np.isfinite(future) else future
+            nlo, nhi = int(tab.ptr[nxt]), int(tab.ptr[nxt + 1])
+            ntimes = _action_times(tab, nlo, nhi, t1) if nxt != tab.goal else np.zeros(0)
+            future = 0.0 if nxt == tab.goal else _best(q[nlo:nhi], ntimes)
             q[a] += alpha * (-float(times[i]) + gamma * future - q[a])
-            s, t = nxt, t + float(times[i])
+            s, t, lo, hi, times = nxt, t1, nlo, nhi, ntimes
             if s == tab.goal:
                 break
         if episode in marks:
-            history.append((episode, _greedy_time(tab, q)))
+            history.append((episode, _greedy(tab, q)[2]))
         bar.update(1)
     bar.close()
     return q, history
 
 
-def greedy_path(tab: TabularProblem, q: FloatArray) -> tuple[IntArray, bool]:
-    """States visited by the greedy policy from the start (stops at the finish, a dead end or a loop)."""
-    path, seen, s = [tab.start], {tab.start}, tab.start
+def _greedy(tab: TabularProblem, q: FloatArray) -> tuple[IntArray, bool, float]:
+    """The greedy policy from the start over the actions that may be taken: states visited, whether it reached the
+    finish (it stops at a dead end or a loop), and its time in the tabular problem's costs [h] (inf unless it
+    arrived)."""
+    path, seen, s, t = [tab.start], {tab.start}, tab.start, 0.0
     while s != tab.goal:
         lo, hi = int(tab.ptr[s]), int(tab.ptr[s + 1])
-        if hi == lo or not np.isfinite(q[lo:hi]).any():
-            return np.asarray(path, dtype=np.intp), False
-        s = int(tab.target[lo + int(np.argmax(q[lo:hi]))])
+        times = _action_times(tab, lo, hi, t)
+        allowed = np.isfinite(times)
+        if not allowed.any():
+            return np.asarray(path, dtype=np.intp), False, float("inf")
+        i = int(np.argmax(np.where(allowed, q[lo:hi], -np.inf)))
+        s, t = int(tab.target[lo + i]), t + float(times[i])
         if s in seen:
-            return np.asarray(path, dtype=np.intp), False
+            return np.asarray(path, dtype=np.intp), False, float("inf")
         path.append(s)
         seen.add(s)
-    return np.asarray(path, dtype=np.intp), True
+    return np.asarray(path, dtype=np.intp), True, t
 
 
-def _greedy_time(tab: TabularProblem, q: FloatArray) -> float:
-    """The greedy route's time in the tabular problem's own costs [h] (inf when it does not arrive)."""
-    path, reached = greedy_path(tab, q)
-    if not reached:
-        return float("inf")
-    t = 0.0
-    for s, nxt in zip(path[:-1], path[1:], strict=True):
-        lo, hi = int(tab.ptr[s]), int(tab.ptr[s + 1])
-        i = lo + int(np.flatnonzero(tab.target[lo:hi] == nxt)[0])
-        t += float(_action_times(tab, i, i + 1, t)[0])
-    return t
+def greedy_path(tab: TabularProblem, q: FloatArray) -> tuple[IntArray, bool]:
+    """States visited by the greedy policy from the start (stops at the finish, a dead end or a loop) and whether it
+    reached the finish."""
+    path, reached, _ = _greedy(tab, q)
+    return path, reached
 
 
 class QLearningPlanner:
@@ -327,7 +330,7 @@ class QLearningPlanner:
             "actions": int(tab.target.size),
             "training_s": trained,
             "runtime_s": _time.perf_counter() - t0,
-            "model_voyage_time_h": _greedy_time(tab, q),
+            "model_voyage_time_h": _greedy(tab, q)[2],
             "history": [[e, h] for e, h in history],
         }
         if tab.rank_node is not None:
