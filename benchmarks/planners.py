@@ -12,9 +12,9 @@ track's mean and largest distance from the DP's.
 
 The planners' settings here are cut down from the published ones so that the comparison runs in about ten minutes
 per course on a free core (stated in :data:`SETTINGS`): the published 15 000 MCTS iterations per 1 h decision
-would take days in Python on a 700 h voyage. ``--quick`` runs the control course at apf 0.5 only, with smaller settings
-still. Timings are machine-dependent; the first line times fixed workloads (``machine ...``,
-``benchmarks/run.py``'s calibration) so runs can be compared.
+would take days in Python on a 700 h voyage. ``--quick`` uses smaller settings still (those of
+``examples/planners_comparison.py``). Timings are machine-dependent; the first line times fixed workloads
+(``machine ...``, ``benchmarks/run.py``'s calibration) so runs can be compared.
 """
 
 from __future__ import annotations
@@ -107,7 +107,7 @@ def table(rows: list[dict]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="the control course at apf 0.5 only, smaller settings")
+    ap.add_argument("--quick", action="store_true", help="smaller settings (SETTINGS['quick'])")
     ap.add_argument("--only", nargs="*", help="courses whose name contains one of these words")
     ap.add_argument("--json", help="write the rows to this JSON file")
     ap.add_argument("--figure", help="write the map of every track to this PNG file")
@@ -116,8 +116,6 @@ def main(argv: list[str] | None = None) -> int:
     print("machine  " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in machine.items()))
     runs = [(label, kind, parse_planner(t)) for label, kind, t in SETTINGS["quick" if args.quick else "full"]]
     todo = courses()
-    if args.quick:
-        todo = {k: v for k, v in todo.items() if k == "control course, apf 0.5"}
     if args.only:
         todo = {k: v for k, v in todo.items() if any(w in k for w in args.only)}
     comparisons, rows = [], []
