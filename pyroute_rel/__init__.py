@@ -62,6 +62,10 @@ _EXPORTS: dict[str, str] = {
     "evaluate_track": "evaluate",
     "Track": "evaluate",
     "Evaluation": "evaluate",
+    "route_ensemble": "ensemble",
+    "EnsembleResult": "ensemble",
+    "monte_carlo": "monte_carlo",
+    "MonteCarloSettings": "monte_carlo",
     "plan": "planners.plan",
     "PlannedTrack": "planners.base",
     "PlannerSettings": "planners.settings",
@@ -105,6 +109,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use
     from .config import register_weather_kind
+    from .ensemble import EnsembleResult, route_ensemble
     from .errors import (
         ConvergenceError,
         CoordinateError,
@@ -125,6 +130,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .failure import FailureModel, list_failure_models, load_failure_model
     from .gci.numbers import convergence_study, grid_convergence, least_squares_convergence
     from .grid import Grid, make_grid, plan_grid
+    from .monte_carlo import MonteCarloSettings, monte_carlo
     from .obstacles.mask import Avoid
     from .obstacles.zones import load_zones
     from .outputs import write_outputs

@@ -81,6 +81,7 @@ def test_retiming_a_routed_track_gives_the_routes_figures():
     ]
 
 
+@pytest.mark.slow
 def test_retiming_in_time_varying_member_weather(tmp_path: Path):
     """An ensemble member's route, re-timed in the same member's (time-varying) weather, with its track read back
     from the route's own GPX file: the same figures (the file keeps 6 decimals of a degree: to 1e-6 relative)."""
@@ -175,6 +176,7 @@ def test_a_track_through_forbidden_conditions_is_sailed_and_its_legs_named():
     assert loose.feasible and loose.voyage_time_h == ev.voyage_time_h
 
 
+@pytest.mark.slow
 def test_land_zone_and_the_end_of_the_weather_are_named(tmp_path: Path):
     table = {**TABLE, "avoid": {"land": True}}
     across_iberia = Track(np.array([-12.0, -9.0, 2.0]), np.array([40.0, 40.0, 40.5]))

@@ -8,14 +8,15 @@ import io
 import json
 import math
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 __all__ = ["add_evaluate_parser", "EVALUATE_FILES"]
 
 EXIT_OK = 0
 
-#: The files ``evaluate --out`` writes.
-EVALUATE_FILES = ("evaluation.json", "evaluation.csv")
+#: The files ``evaluate --out`` writes (``monte_carlo.png`` with ``--monte-carlo``).
+EVALUATE_FILES = ("evaluation.json", "evaluation.csv", "monte_carlo.png")
 
 
 def add_evaluate_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], None]) -> None:
@@ -32,8 +33,25 @@ def add_evaluate_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
     e.add_argument("track", help="track file: .gpx, .geojson/.json or .csv")
     e.add_argument("--departure", help="departure time, ISO 8601 UTC (default: the track's first time, else the "
                    "scenario's)")  # fmt: skip
-    e.add_argument("--member", type=int, help="sail in this ensemble member's weather ([weather] member = k)")
+    e.add_argument(
+        "--member",
+        type=_member,
+        help="sail in this ensemble member's weather ([weather] member = k), or 'mean' for the ensemble mean",
+    )
     e.add_argument("--apf", type=float, help="acceptable probability of failure the legs are held to")
+    e.add_argument(
+        "--monte-carlo",
+        type=int,
+        metavar="N",
+        help="also sail the track N times with wind errors (AR(1) in time, growing with lead time, or the ensemble's "
+        "spread with --member) and boat-speed noise: the arrival distribution and the probability of meeting "
+        "p_f > apf with its 95%% interval",
+    )
+    e.add_argument("--seed", type=int, default=0, help="random seed of --monte-carlo (default 0)")
+    e.add_argument("--kappa", type=float, help="boat-speed variance per unit speed [kn] (default 0.2, Barde 2023)")
+    e.add_argument("--polar-sd", type=float, help="standard deviation of a per-run polar scale factor (default 0)")
+    e.add_argument("--wind-sd", type=float, help="wind error per component at departure [m/s] (default 1.0)")
+    e.add_argument("--wind-growth", type=float, help="its growth with lead time [m/s per h] (default 0.015)")
     e.add_argument("--json", action="store_true", help="print the evaluation as one JSON object")
     e.add_argument("--out", help=f"folder for {', '.join(EVALUATE_FILES)}")
     add_common(e)
@@ -57,11 +75,16 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
         scenario = member_scenario(args.scenario, args.member)
     track = read_track(args.track)
-    ev = evaluate_track(scenario.with_options(apf=args.apf), track, departure=args.departure)
+    scenario = scenario.with_options(apf=args.apf)
+    ev = evaluate_track(scenario, track, departure=args.departure)
     summary = ev.summary()
     summary["track_file"] = str(args.track)
+    mc = None
+    if args.monte_carlo is not None:
+        mc = _monte_carlo(args, scenario, track)
+        summary["monte_carlo"] = mc.summary()
     if args.out is not None:
-        _write(ev, summary, args.out)
+        _write(ev, summary, args.out, mc)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -69,16 +92,50 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _write(ev: Any, summary: dict[str, Any], out: str) -> None:
+def _member(text: str) -> int | str:
+    if text.strip().lower() == "mean":
+        return "mean"
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a member number or 'mean' (got {text!r})") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a member number >= 0 (got {value})")
+    return value
+
+
+def _monte_carlo(args: argparse.Namespace, scenario: Any, track: Any) -> Any:
+    from ..monte_carlo import MonteCarloSettings, monte_carlo, spread_from_members
+
+    given = {
+        "kappa": args.kappa,
+        "polar_sd": args.polar_sd,
+        "sigma0_ms": args.wind_sd,
+        "growth_ms_per_h": args.wind_growth,
+    }
+    settings = MonteCarloSettings(**{k: v for k, v in given.items() if v is not None})
+    if args.member is not None and args.wind_sd is None and args.wind_growth is None:
+        spread = spread_from_members(args.scenario, track, departure=args.departure)
+        settings = MonteCarloSettings(**{**settings.describe_values(), "spread_ms": spread})
+    return monte_carlo(scenario, track, runs=args.monte_carlo, seed=args.seed, settings=settings,
+                       departure=args.departure)  # fmt: skip
+
+
+def _write(ev: Any, summary: dict[str, Any], out: str, mc: Any = None) -> None:
     from ..files import write_together
 
-    write_together(
-        out,
-        {
-            "evaluation.json": lambda p: p.write_text(json.dumps(summary, indent=1), encoding="utf-8"),
-            "evaluation.csv": lambda p: p.write_text(_csv(ev), encoding="utf-8"),
-        },
-    )
+    writers: dict[str, Callable[[Any], object]] = {
+        "evaluation.json": lambda p: p.write_text(json.dumps(summary, indent=1), encoding="utf-8"),
+        "evaluation.csv": lambda p: p.write_text(_csv(ev), encoding="utf-8"),
+    }
+    if mc is not None:
+        from ..figures.ensemble import monte_carlo_histogram
+
+        writers["monte_carlo.png"] = lambda p: monte_carlo_histogram(mc, path=p)
+    write_together(out, writers)
+    stale = Path(out) / "monte_carlo.png"
+    if mc is None:
+        stale.unlink(missing_ok=True)  # from an earlier run with --monte-carlo
 
 
 def _csv(ev: Any) -> str:
@@ -126,5 +183,24 @@ def _text(ev: Any, s: dict[str, Any]) -> str:
             f"failure model    {s.get('failure_model') or 'none'} (apf {s.get('apf', 1.0):g}): max leg p_f "
             f"{ev.max_failure_probability:.3f}, voyage p_f {ev.voyage_failure_probability:.3f}",
             f"verdict          {verdict}" + (f" ({blocked} legs blocked)" if blocked > 1 else ""),
+            *_mc_lines(s.get("monte_carlo")),
         ]
     )
+
+
+def _mc_lines(mc: dict[str, Any] | None) -> list[str]:
+    if not mc:
+        return []
+    a = mc["arrival_h"]
+
+    def h(x: float | None) -> str:
+        return "-" if x is None else f"{x:.1f}"
+
+    lo, hi = mc["p_fail_conditions_ci95"]
+    return [
+        f"monte carlo      {mc['runs']} runs (seed {mc['seed']}): voyage time mean {h(a['mean'])} h, P5 {h(a['p5'])}, "
+        f"P50 {h(a['p50'])}, P95 {h(a['p95'])}, worst {h(a['worst'])} (deterministic {h(mc['deterministic_h'])} h); "
+        f"{mc['completed']:.0%} completed",
+        f"                 P(p_f > apf {mc['apf']:g}) = {mc['p_fail_conditions']:.3f} (95% interval {lo:.3f} to "
+        f"{hi:.3f})",
+    ]

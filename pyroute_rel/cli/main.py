@@ -19,6 +19,7 @@ from typing import Any
 
 from .. import __version__
 from ..errors import PyrouteError, PyrouteWarning, ScenarioError
+from .ensemble import add_ensemble_parser
 from .evaluate import add_evaluate_parser
 from .gci import NEGATIVE_NUMBERS, add_gci_parser
 from .planners import add_compare_parser
@@ -99,6 +100,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
     add_evaluate_parser(sub, _add_common)
+    add_ensemble_parser(sub, _add_common)
     add_compare_parser(sub, _add_common)
     return parser
 

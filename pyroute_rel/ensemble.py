@@ -1,0 +1,515 @@
+"""Ensemble routing: route every member of an ensemble forecast, sail every route in every member, choose by risk.
+
+Steps (:func:`route_ensemble`):
+
+1. **Route every member** (:func:`pyroute_rel.members.member_scenario`: the scenario with ``[weather] member = k``,
+   so a member's route is exactly ``pyroute-rel route`` with that key), and the ensemble-mean field
+   (``member = "mean"``), in parallel on the local cores (one process per core, :mod:`concurrent.futures`).
+2. **Candidates** are the members' routes plus the route on the ensemble mean (a member with no feasible route gives
+   no candidate).
+3. **Sail every candidate in every member's weather** (:func:`pyroute_rel.evaluate.sail_tracks`, each leg costed as
+   the router costs an arc): the time ``T[i, j]`` of candidate ``i`` in member ``j`` [h], its largest leg ``p_f`` and
+   whether it is feasible there (no ``p_f > apf``, land, zone, or leg that cannot be sailed: then ``T = inf``).
+4. **Regret** ``R[i, j] = T[i, j] - T*[j]``, ``T*[j]`` member ``j``'s own optimum (its route's voyage time): the
+   hours lost by sailing candidate ``i`` when member ``j`` comes true. The diagonal is zero (re-timing a route gives
+   its own figures); an entry is None where the candidate is infeasible in that member or the member has no route.
+5. **Arrival distribution** of each candidate over the members (equally likely): mean, P5, P50, P95, CVaR at the
+   chosen level and worst (:func:`arrival_stats`), and the fraction of members in which it meets ``p_f > apf``
+   (``p_fail_conditions``) or is infeasible for any reason (``infeasible_members``).
+6. **Choice**: among the candidates infeasible in the fewest members, the one with the least risk measure of its
+   arrival times (:class:`Risk`: ``mean``, ``pXX``, ``cvar:ALPHA`` or ``worst``); the summary says by how many hours
+   it beats the mean-field route.
+
+Quantiles are empirical (the inverted CDF: ``P_q`` is the sorted time at index ``ceil(q n) - 1``); CVaR at level
+``alpha`` is the mean of the worst ``1 - alpha`` of the distribution, ``(1 / (1 - alpha)) * integral from alpha to 1
+of P_u du`` (Rockafellar and Uryasev 2002), which weighs the member straddling ``alpha`` by its share.
+
+References
+----------
+Rockafellar, R. T. and Uryasev, S. (2002). Conditional value-at-risk for general loss distributions. Journal of
+Banking & Finance 26, 1443-1471.
+Tagliaferri, F. (2015). Risk-aware stochastic dynamic programming for yacht routing. PhD thesis, University of
+Edinburgh (coherent risk measures over transition models).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import NoFeasibleRouteError, ScenarioError, WeatherCoverageError, brief
+from .evaluate import evaluation_problem, sail_tracks
+from .members import member_count, member_scenario
+from .progress import progress_bar
+from .scenario import Scenario
+
+__all__ = [
+    "Risk",
+    "parse_risk",
+    "arrival_stats",
+    "empirical_quantile",
+    "cvar",
+    "MemberRoute",
+    "EnsembleResult",
+    "route_ensemble",
+    "route_member",
+    "regret_matrix",
+]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Name of the route on the ensemble-mean field among the candidates.
+MEAN_NAME = "mean"
+
+
+@dataclass(frozen=True)
+class Risk:
+    """A risk measure of arrival times: ``kind`` is ``"mean"``, ``"quantile"`` (``level`` in (0, 1)), ``"cvar"``
+    (``level`` in [0, 1)) or ``"worst"``."""
+
+    kind: str
+    level: float = 0.9
+
+    def __str__(self) -> str:
+        if self.kind == "quantile":
+            return f"p{100 * self.level:g}"
+        if self.kind == "cvar":
+            return f"cvar:{self.level:g}"
+        return self.kind
+
+    def of(self, times_h: npt.ArrayLike) -> float:
+        """The measure of arrival times [h] (``inf`` entries allowed: a route that cannot be completed)."""
+        t = np.asarray(times_h, dtype=float)
+        if self.kind == "mean":
+            return float(np.mean(t)) if np.isfinite(t).all() else math.inf
+        if self.kind == "quantile":
+            return empirical_quantile(t, self.level)
+        if self.kind == "cvar":
+            return cvar(t, self.level)
+        return float(np.max(t))
+
+
+def parse_risk(text: str) -> Risk:
+    """A :class:`Risk` from its name: ``mean``, ``pXX`` (``p90``: the 90th percentile), ``cvar:ALPHA``
+    (``cvar:0.9``) or ``worst``.
+
+    >>> parse_risk("p90"), parse_risk("cvar:0.75"), str(parse_risk("worst"))
+    (Risk(kind='quantile', level=0.9), Risk(kind='cvar', level=0.75), 'worst')
+    """
+    s = str(text).strip().lower()
+    try:
+        if s in ("mean", "worst"):
+            return Risk(s)
+        if s.startswith("p") and 0.0 < float(s[1:]) < 100.0:
+            return Risk("quantile", float(s[1:]) / 100.0)
+        if s.startswith("cvar:") and 0.0 <= float(s[5:]) < 1.0:
+            return Risk("cvar", float(s[5:]))
+    except ValueError:
+        pass
+    raise ScenarioError(
+        f"--risk must be mean, pXX (a percentile, e.g. p90), cvar:ALPHA (ALPHA in [0, 1), e.g. cvar:0.9) or worst "
+        f"(got {brief(text)})"
+    )
+
+
+def empirical_quantile(times_h: npt.ArrayLike, q: float) -> float:
+    """The empirical ``q``-quantile [h]: the sorted time at index ``ceil(q n) - 1`` (at least 0).
+
+    >>> empirical_quantile([4.0, 1.0, 3.0, 2.0], 0.5), empirical_quantile([4.0, 1.0, 3.0, 2.0], 0.51)
+    (2.0, 3.0)
+    """
+    t = np.sort(np.asarray(times_h, dtype=float))
+    i = max(int(math.ceil(q * t.size - 1e-12)) - 1, 0)
+    return float(t[i])
+
+
+def cvar(times_h: npt.ArrayLike, alpha: float) -> float:
+    """Conditional value at risk at level ``alpha`` [h]: the mean of the worst ``1 - alpha`` of equally likely times
+    (the sorted time straddling ``alpha`` weighed by its share; see the module notes).
+
+    >>> cvar([1.0, 2.0, 3.0, 4.0], 0.5), cvar([1.0, 2.0, 3.0, 4.0], 0.6), cvar([1.0, 2.0], 0.0)
+    (3.5, 3.625, 1.5)
+    """
+    t = np.sort(np.asarray(times_h, dtype=float))
+    n = t.size
+    lo = np.arange(n) / n
+    hi = (np.arange(n) + 1) / n
+    w = np.clip(hi - np.maximum(lo, alpha), 0.0, None) / (1.0 - alpha)
+    keep = w > 0
+    return float(np.sum(w[keep] * t[keep]))
+
+
+def arrival_stats(times_h: npt.ArrayLike, level: float = 0.9) -> dict[str, float]:
+    """Mean, P5, P50, P95, CVaR at ``level`` and worst of equally likely arrival times [h] (``inf`` where a route
+    cannot be completed: the measures that reach it are ``inf``)."""
+    t = np.asarray(times_h, dtype=float)
+    return {
+        "mean": float(np.mean(t)) if np.isfinite(t).all() else math.inf,
+        "p5": empirical_quantile(t, 0.05),
+        "p50": empirical_quantile(t, 0.5),
+        "p95": empirical_quantile(t, 0.95),
+        "cvar": cvar(t, level),
+        "worst": float(np.max(t)),
+    }
+
+
+@dataclass(frozen=True)
+class MemberRoute:
+    """One member's route, as a worker returns it: the track and its figures, or why there is none.
+
+    Attributes
+    ----------
+    member : Member index (or ``"mean"``).
+    lon_deg, lat_deg : Track points [deg] (empty without a route).
+    voyage_time_h : Voyage time [h] (``inf`` without a route).
+    max_failure_probability : The route's largest leg ``p_f``.
+    error : Why there is no route (None when there is one).
+    """
+
+    member: int | str
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    voyage_time_h: float
+    max_failure_probability: float = 0.0
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        """True when the member has a route."""
+        return self.error is None
+
+
+# ------------------------------------------------------------------------------------------------ workers
+
+_CACHE: dict[tuple[str, Any, tuple[str, ...] | None], Scenario] = {}
+_GRIDS: dict[str, Any] = {}
+
+
+def _scenario(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> Scenario:
+    """The member's scenario, kept for the process (a worker routes and then sails in the same members)."""
+    key = (path, member, files)
+    if key not in _CACHE:
+        if len(_CACHE) >= 64:
+            _CACHE.pop(next(iter(_CACHE)))
+        _CACHE[key] = member_scenario(path, member, member_files=files)
+    return _CACHE[key].with_options(**options)
+
+
+def route_member(
+    path: str | Path,
+    member: int | str,
+    *,
+    member_files: Sequence[str | Path] | None = None,
+    options: dict[str, Any] | None = None,
+) -> MemberRoute:
+    """Route one member of a scenario file's ensemble (``"mean"``: the ensemble mean); a member without a feasible
+    route (or whose weather does not cover the voyage) gives a :class:`MemberRoute` with its ``error``."""
+    files = None if member_files is None else tuple(str(f) for f in member_files)
+    sc = _scenario(str(path), member, files, dict(options or {}))
+    key = f"{path}:{sorted((options or {}).items())}"
+    grids = _GRIDS.get(key)
+    if grids is None:
+        grids = _GRIDS[key] = sc.leg_grids()  # arc geometry and obstacle masks computed once per process
+    try:
+        route = sc.route(grids=grids)
+    except (NoFeasibleRouteError, WeatherCoverageError) as exc:
+        return MemberRoute(member, np.zeros(0), np.zeros(0), math.inf, error=" ".join(str(exc).split()))
+    return MemberRoute(member, route.lon_deg, route.lat_deg, route.voyage_time_h, route.max_failure_probability)
+
+
+def _sail_in_member(
+    path: str,
+    member: int,
+    files: tuple[str, ...] | None,
+    options: dict[str, Any],
+    tracks: list[FloatArray],
+    land: bool,
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Every candidate sailed in one member's weather: (time [h], largest p_f, meets p_f > apf, feasible, touches
+    land); land (the same in every member) is tested only when ``land`` is True."""
+    sc = _scenario(path, member, files, options)
+    avoid = sc.avoid if land else replace(sc.avoid, land=False)
+    sailed = sail_tracks(evaluation_problem(sc), tracks, avoid=avoid)
+    times = np.array([s.voyage_time_h for s in sailed])
+    p_max = np.array([s.max_p_f for s in sailed])
+    over = np.array([any("p_f" in r for r in s.leg_reasons()) for s in sailed])
+    feasible = np.array([s.feasible for s in sailed])
+    on_land = np.array([bool(s.land.any()) for s in sailed])
+    return times, p_max, over, feasible, on_land
+
+
+def _worker_init() -> None:
+    os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads inside
+
+
+def _run(tasks: list[tuple[Any, ...]], fn: Any, pool: ProcessPoolExecutor | None, bar: Any) -> list[Any]:
+    """``[fn(*t) for t in tasks]`` in the pool's processes (in this one without a pool); order kept."""
+    if pool is None or len(tasks) <= 1:
+        out = []
+        for t in tasks:
+            out.append(fn(*t))
+            bar.update(1)
+        return out
+    from concurrent.futures import as_completed
+
+    results: list[Any] = [None] * len(tasks)
+    futures = {pool.submit(fn, *t): i for i, t in enumerate(tasks)}
+    for f in as_completed(futures):
+        results[futures[f]] = f.result()
+        bar.update(1)
+    return results
+
+
+def _pool(workers: int) -> ProcessPoolExecutor | None:
+    """Worker processes for both steps (a worker keeps the members' weather it has read), or None for 1 worker."""
+    if workers <= 1:
+        return None
+    import multiprocessing
+
+    context = multiprocessing.get_context("forkserver")  # not fork: this process may run threads
+    return ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init)
+
+
+# ------------------------------------------------------------------------------------------------ the ensemble
+
+
+@dataclass(frozen=True, eq=False)
+class EnsembleResult:
+    """Every member routed and every candidate sailed in every member (:func:`route_ensemble`).
+
+    Attributes
+    ----------
+    members : Member indices.
+    routes : Each member's route (:class:`MemberRoute`, with its ``error`` where it has none), in ``members`` order.
+    mean_route : The route on the ensemble-mean field (None when not routed).
+    names : Candidate names: ``"member k"`` for member routes, ``"mean"`` for the mean-field route.
+    sources : The member each candidate was routed in (``"mean"`` for the mean field).
+    tracks : Each candidate's track, (N, 2) lon, lat [deg].
+    time_h : Voyage time of candidate ``i`` sailed in member ``j`` [h], shape (candidates, members); ``inf`` where it
+        cannot be completed.
+    max_p_f : Its largest leg ``p_f`` there.
+    p_fail : Whether it meets ``p_f > apf`` there.
+    feasible : Whether it is feasible there (no ``p_f > apf``, land, zone, or leg that cannot be sailed).
+    risk : The risk measure the choice minimises.
+    """
+
+    members: tuple[int, ...]
+    routes: tuple[MemberRoute, ...]
+    mean_route: MemberRoute | None
+    names: tuple[str, ...]
+    sources: tuple[int | str, ...]
+    tracks: tuple[FloatArray, ...]
+    time_h: FloatArray
+    max_p_f: FloatArray
+    p_fail: npt.NDArray[np.bool_]
+    feasible: npt.NDArray[np.bool_]
+    risk: Risk
+
+    @property
+    def own_h(self) -> FloatArray:
+        """Each member's own optimum: its route's voyage time [h] (``inf`` without a route)."""
+        return np.array([r.voyage_time_h for r in self.routes])
+
+    @property
+    def regret_h(self) -> FloatArray:
+        """Regret of candidate ``i`` in member ``j`` [h] (:func:`regret_matrix`); NaN where infeasible."""
+        return regret_matrix(self.time_h, self.own_h, self.feasible)
+
+    @property
+    def risk_values(self) -> FloatArray:
+        """The risk measure of each candidate's arrival times [h]."""
+        return np.array([self.risk.of(t) for t in self.time_h])
+
+    @property
+    def infeasible_fraction(self) -> FloatArray:
+        """Fraction of members in which each candidate is infeasible."""
+        return 1.0 - self.feasible.mean(axis=1)
+
+    @property
+    def chosen(self) -> int:
+        """Index of the chosen candidate: the least risk among those infeasible in the fewest members."""
+        frac = self.infeasible_fraction
+        best = np.flatnonzero(np.isclose(frac, frac.min(), rtol=0.0, atol=1e-12))
+        values = self.risk_values[best]
+        return int(best[int(np.argmin(values))])
+
+    @property
+    def mean_index(self) -> int | None:
+        """Index of the mean-field candidate (None without one)."""
+        return self.names.index(MEAN_NAME) if MEAN_NAME in self.names else None
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON contract of ``pyroute-rel ensemble --json`` (see the module notes)."""
+        level = self.risk.level if self.risk.kind == "cvar" else 0.9
+        regret = self.regret_h
+        chosen = self.chosen
+        values = self.risk_values
+        m = self.mean_index
+        beats = None if m is None else _num(values[m] - values[chosen])
+        return {
+            "members": [
+                {
+                    "member": r.member,
+                    "voyage_time_h": _num(r.voyage_time_h),
+                    "feasible": r.ok,
+                    **({} if r.ok else {"reason": r.error}),
+                }
+                for r in self.routes
+            ],
+            "candidates": [
+                {
+                    "name": name,
+                    "arrival_h": {k: _num(v) for k, v in arrival_stats(self.time_h[i], level).items()},
+                    "risk_h": _num(values[i]),
+                    "p_fail_conditions": float(self.p_fail[i].mean()),
+                    "infeasible_members": float(self.infeasible_fraction[i]),
+                    "max_p_f": float(np.max(self.max_p_f[i])),
+                }
+                for i, name in enumerate(self.names)
+            ],
+            "chosen": {
+                "name": self.names[chosen],
+                "risk": str(self.risk),
+                "value_h": _num(values[chosen]),
+                "infeasible_members": float(self.infeasible_fraction[chosen]),
+                "mean_field_infeasible_members": None if m is None else float(self.infeasible_fraction[m]),
+                "mean_field_value_h": None if m is None else _num(values[m]),
+                "beats_mean_field_by_h": beats,
+            },
+            "regret_h": [[_num(v) for v in row] for row in regret],
+            "time_h": [[_num(v) for v in row] for row in self.time_h],
+            "feasible": self.feasible.tolist(),
+        }
+
+
+def _num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def regret_matrix(time_h: npt.ArrayLike, own_h: npt.ArrayLike, feasible: npt.ArrayLike) -> FloatArray:
+    """Regret ``time_h[i, j] - own_h[j]`` [h]; NaN where candidate ``i`` is infeasible in member ``j`` or member ``j``
+    has no route (``own_h`` infinite).
+
+    >>> regret_matrix([[10.0, 12.0], [11.0, 11.0]], [10.0, 11.0], [[True, True], [True, False]]).tolist()
+    [[0.0, 1.0], [1.0, nan]]
+    """
+    t = np.asarray(time_h, dtype=float)
+    own = np.asarray(own_h, dtype=float)[None, :]
+    ok = np.asarray(feasible, dtype=bool) & np.isfinite(own) & np.isfinite(t)
+    with np.errstate(invalid="ignore"):
+        return np.where(ok, t - own, np.nan)
+
+
+def route_ensemble(
+    path: str | Path,
+    *,
+    members: Sequence[int] | None = None,
+    member_files: Sequence[str | Path] | None = None,
+    risk: Risk | str = "cvar:0.9",
+    mean_field: bool = True,
+    workers: int | None = None,
+    options: dict[str, Any] | None = None,
+    progress: bool = False,
+) -> EnsembleResult:
+    """Route every member of a scenario's ensemble, sail every route in every member and choose by risk (see the
+    module notes).
+
+    Parameters
+    ----------
+    path : Scenario file whose ``[weather]`` files have a member dimension (or whose first file ``member_files``
+        replace, one per member).
+    members : Which members (default all).
+    member_files : One weather file per member (:mod:`pyroute_rel.members`).
+    risk : The risk measure (:func:`parse_risk`).
+    mean_field : Also route the ensemble-mean field (not with ``member_files``).
+    workers : Processes (default: the CPUs this process may use, :func:`~pyroute_rel.parallel.default_workers`;
+        1: in this process).
+    options : Scenario options for every member (:meth:`~pyroute_rel.scenario.Scenario.with_options`).
+    progress : Show progress bars.
+
+    Raises
+    ------
+    NoFeasibleRouteError
+        When no member has a route.
+    ScenarioError
+        When the scenario has no ensemble or ``members`` names members it does not have.
+    """
+    from .parallel import default_workers
+
+    r = parse_risk(risk) if isinstance(risk, str) else risk
+    n = member_count(path, member_files=member_files)
+    chosen = list(range(n)) if members is None else [int(m) for m in members]
+    bad = [m for m in chosen if not 0 <= m < n]
+    if bad or not chosen:
+        raise ScenarioError(f"--members must name members in [0, {n - 1}] (got {bad or 'none'})")
+    workers = default_workers() if workers is None else max(int(workers), 1)
+    files = None if member_files is None else tuple(str(Path(f).resolve()) for f in member_files)
+    opts = dict(options or {})
+    with_mean = mean_field and files is None
+    _CACHE.clear()  # the files may have changed since an earlier call in this process
+    _GRIDS.clear()
+    pool = _pool(workers)
+    try:
+        return _route_and_sail(path, chosen, files, opts, with_mean, r, pool, progress)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+        _CACHE.clear()
+        _GRIDS.clear()
+
+
+def _route_and_sail(
+    path: str | Path,
+    chosen: list[int],
+    files: tuple[str, ...] | None,
+    opts: dict[str, Any],
+    with_mean: bool,
+    r: Risk,
+    pool: ProcessPoolExecutor | None,
+    progress: bool,
+) -> EnsembleResult:
+    """The two steps of :func:`route_ensemble`: route the members (and the mean), then sail every route in every
+    member."""
+    jobs = [(str(path), m) for m in chosen] + ([(str(path), MEAN_NAME)] if with_mean else [])
+    bar = progress_bar(len(jobs), enabled=progress, desc="routing members", unit="member")
+    routed = _run([(p, m, files, opts) for p, m in jobs], _route_task, pool, bar)
+    bar.close()
+    member_routes = tuple(routed[: len(chosen)])
+    mean_route = routed[-1] if with_mean else None
+    cands = [x for x in routed if x.ok]
+    if not cands:
+        raise NoFeasibleRouteError(f"no member has a feasible route: {member_routes[0].error}")
+    names = tuple(MEAN_NAME if c.member == MEAN_NAME else f"member {c.member}" for c in cands)
+    tracks = [np.column_stack([c.lon_deg, c.lat_deg]) for c in cands]
+    bar = progress_bar(len(chosen), enabled=progress, desc="sailing in members", unit="member")
+    sailed = _run(
+        [(str(path), m, files, opts, tracks, i == 0) for i, m in enumerate(chosen)], _sail_in_member, pool, bar
+    )
+    bar.close()
+    times, p_max, over, ok, on_land = (np.column_stack([s[k] for s in sailed]) for k in range(5))
+    ok = ok & ~on_land[:, :1]  # land is tested in the first member only
+    return EnsembleResult(
+        members=tuple(chosen),
+        routes=member_routes,
+        mean_route=mean_route,
+        names=names,
+        sources=tuple(c.member for c in cands),
+        tracks=tuple(tracks),
+        time_h=times,
+        max_p_f=p_max,
+        p_fail=over,
+        feasible=ok,
+        risk=r,
+    )
+
+
+def _route_task(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> MemberRoute:
+    return route_member(path, member, member_files=files, options=options)
