@@ -49,7 +49,7 @@ __all__ = ["QLearningPlanner", "TabularProblem", "graph_states", "cell_states", 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 
-#: Reward of reaching a state with no action (a dead end) [h]: far worse than any voyage.
+#: Reward of reaching a state with no action (a dead end), in hours: far worse than any voyage.
 DEAD_END_H = 1.0e5
 
 
