@@ -32,6 +32,7 @@ from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_g
 from .manoeuvre import ManoeuvrePenalties
 from .obstacles.mask import Avoid, check_points, obstacle_mask
 from .obstacles.zones import zones_outside
+from .planners.settings import PlannerSettings
 from .route import GridTrack, Route, build_route, join_routes, route_on_grid
 from .solve import ArcMask, RoutingProblem
 
@@ -87,6 +88,8 @@ class Scenario:
     refine : Corridor refinements of the track (0 = none).
     notes : What reading the scenario assumed, one line each, for the user to see (e.g. a departure without a
         time zone read as UTC); the command line prints them on stderr.
+    planner : The ``[planner]`` table: which planner routes the scenario and its settings
+        (:mod:`pyroute_rel.planners`; :meth:`route` is always the DP).
     """
 
     source: str
@@ -119,6 +122,7 @@ class Scenario:
     sample_km: float | None = None
     notes: tuple[str, ...] = ()
     manoeuvres: ManoeuvrePenalties | None = None
+    planner: PlannerSettings = field(default_factory=PlannerSettings)
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's, with the command-line option named).

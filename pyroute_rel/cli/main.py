@@ -22,6 +22,7 @@ from ..errors import PyrouteError, PyrouteWarning, ScenarioError
 from .ensemble import add_ensemble_parser
 from .evaluate import add_evaluate_parser
 from .gci import NEGATIVE_NUMBERS, add_gci_parser
+from .planners import add_compare_parser
 from .sweep import add_sweep_parser
 from .tradeoff import add_tradeoff_parser
 
@@ -104,6 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_tradeoff_parser(sub, _add_common)
     add_evaluate_parser(sub, _add_common)
     add_ensemble_parser(sub, _add_common)
+    add_compare_parser(sub, _add_common)
     return parser
 
 
@@ -183,6 +185,12 @@ def _add_route_parser(sub: Any) -> None:
     )
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument(
+        "--planner",
+        choices=("dp", "mcts", "qlearning", "dqn"),
+        help="who plans the track: dp (default, the exact DP), mcts, qlearning or dqn (overrides [planner].kind; "
+        "the evaluator re-times their tracks; --out then writes summary.json and track.csv)",
+    )
+    r.add_argument(
         "--out",
         help="folder for route.geojson, route.gpx (the track with times and speeds, and a route of its turning "
         "points for chart plotters such as OpenCPN), route.csv, summary.json, forbidden.geojson (the arcs the "
@@ -242,6 +250,10 @@ def _route(args: argparse.Namespace) -> int:
         sample_km=args.sample_km,
     )
     scenario = load_scenario(args.scenario).with_options(**options)
+    if (args.planner or scenario.planner.kind) != "dp":
+        from .planners import route_with_planner
+
+        return route_with_planner(scenario, args, t0)
     if args.out is not None:  # '' too: refused, not read as "no --out"
         from ..files import check_out_dir, check_targets
         from ..outputs import OUTPUT_FILES
