@@ -58,6 +58,8 @@ _EXPORTS: dict[str, str] = {
     "route_on_grid": "route",
     "refine": "refine",
     "write_outputs": "outputs",
+    "load_sweep": "sweep",
+    "run_sweep": "sweep",
     "read_track": "evaluate",
     "evaluate_track": "evaluate",
     "Track": "evaluate",
@@ -67,6 +69,10 @@ _EXPORTS: dict[str, str] = {
     "monte_carlo": "monte_carlo",
     "MonteCarloSettings": "monte_carlo",
     "ManoeuvrePenalties": "manoeuvre",
+    "plan": "planners.plan",
+    "PlannedTrack": "planners.base",
+    "PlannerSettings": "planners.settings",
+    "track_similarity": "similarity",
     # grid convergence
     "grid_convergence": "gci.numbers",
     "least_squares_convergence": "gci.numbers",
@@ -132,11 +138,16 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .obstacles.mask import Avoid
     from .obstacles.zones import load_zones
     from .outputs import write_outputs
+    from .planners.base import PlannedTrack
+    from .planners.plan import plan
+    from .planners.settings import PlannerSettings
     from .polar import Polar, boat_speed_kn, get_polar, read_polar
     from .refine import refine
     from .route import ForbiddenArcs, Legs, Route, route_on_grid
     from .scenario import Scenario, load_scenario, scenario_from_mapping
+    from .similarity import track_similarity
     from .solve import RoutingProblem, forward_dp
+    from .sweep import load_sweep, run_sweep
     from .weather.base import Conditions, WeatherSource
     from .weather.gridded import GriddedWeather
     from .weather.readers import open_weather, weather_from_dataset

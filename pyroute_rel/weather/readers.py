@@ -50,6 +50,7 @@ from ..errors import (
 )
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
+from . import cache
 from .gridded import OUT_OF_RANGE, GriddedWeather, PreparedPoints, WeatherField, check_plausible
 
 __all__ = [
@@ -331,6 +332,14 @@ def weather_from_mapping(
         )
     base = Path(base_dir)
     paths = [p if p.is_absolute() else base / p for p in (Path(s).expanduser() for s in raw)]
+    if cache.enabled():  # a sweep's process: read every time once, keep it for the next runs (weather.cache)
+        key = ("file", cache.file_stamps(paths), tuple(sorted((variables or {}).items())), member, out_of_range)
+        key += (None if bbox is None else tuple(float(b) for b in bbox),)
+        return cache.cached(
+            key,
+            lambda: open_weather(paths, variables=variables, bbox=bbox, member=member, out_of_range=out_of_range),
+            nbytes=lambda w: w.nbytes,
+        )
     return open_weather(
         paths, variables=variables, bbox=bbox, time_window=time_window, member=member, out_of_range=out_of_range
     )
