@@ -876,6 +876,108 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
         ScenarioError,
         ("route must be a Route",),
     ),
+    # ---- planners, track similarity, sweeps
+    "plan scenario None": (lambda: pr.plan(None), ScenarioError, ("scenario must be a Scenario", "got None")),
+    "plan scenario a file name": (lambda: pr.plan("s.toml"), ScenarioError, ("scenario must be a Scenario",)),
+    "plan members 'x'": (
+        lambda: pr.plan(scenario(), members="x"),
+        ScenarioError,
+        ("members must be a tuple of weather sources",),
+    ),
+    "plan members of numbers": (
+        lambda: pr.plan(scenario(), members=(1, 2)),
+        ScenarioError,
+        ("members must be a tuple of weather sources",),
+    ),
+    "plan progress 'yes'": (
+        lambda: pr.plan(scenario(), progress="yes"),
+        ScenarioError,
+        ("progress must be True or False",),
+    ),
+    "plan kind 'astar'": (lambda: pr.plan(scenario(), kind="astar"), ScenarioError, ("kind must be one of",)),
+    "PlannedTrack lon 'x'": (
+        lambda: pr.PlannedTrack("dp", "x", [0.0, 1.0], [0.0, 1.0], True),
+        pr.TrackError,
+        ("PlannedTrack.lon_deg must be a number", "'x', a str"),
+    ),
+    "PlannedTrack elapsed a dict": (
+        lambda: pr.PlannedTrack("dp", [0.0, 1.0], [0.0, 1.0], {}, True),
+        pr.TrackError,
+        ("PlannedTrack.elapsed_h must be",),
+    ),
+    "PlannedTrack lengths": (
+        lambda: pr.PlannedTrack("dp", [0.0, 1.0], [0.0, 1.0, 2.0], [0.0, 1.0], True),
+        pr.TrackError,
+        ("PlannedTrack.lat_deg must be a 1-D array, one value per track point",),
+    ),
+    "PlannedTrack reached None": (
+        lambda: pr.PlannedTrack("dp", [0.0, 1.0], [0.0, 1.0], [0.0, 1.0], None),
+        pr.TrackError,
+        ("PlannedTrack.reached must be True or False",),
+    ),
+    "PlannedTrack planner 5": (
+        lambda: pr.PlannedTrack(5, [0.0, 1.0], [0.0, 1.0], [0.0, 1.0], True),
+        pr.TrackError,
+        ("PlannedTrack.planner must be a str",),
+    ),
+    "PlannedTrack stats a list": (
+        lambda: pr.PlannedTrack("dp", [0.0, 1.0], [0.0, 1.0], [0.0, 1.0], True, stats=[]),
+        pr.TrackError,
+        ("PlannedTrack.stats must be a dict",),
+    ),
+    "PlannerSettings kind 5": (lambda: pr.PlannerSettings(kind=5), ScenarioError, ("[planner].kind must be one of",)),
+    "PlannerSettings seed -1": (lambda: pr.PlannerSettings(seed=-1), ScenarioError, ("[planner].seed",)),
+    "PlannerSettings mcts a dict": (
+        lambda: pr.PlannerSettings(mcts={}),
+        ScenarioError,
+        ("PlannerSettings.mcts must be a MCTSSettings",),
+    ),
+    "track_similarity lon 'x'": (
+        lambda: pr.track_similarity("x", [0.0, 1.0], [0.0, 1.0], [0.0, 1.0]),
+        pr.CoordinateError,
+        ("track A lon must be a number", "'x', a str"),
+    ),
+    "track_similarity lat_b a dict": (
+        lambda: pr.track_similarity([0.0, 1.0], [0.0, 1.0], [0.0, 1.0], {}),
+        pr.CoordinateError,
+        ("track B lat must be",),
+    ),
+    "track_similarity arrival 'x'": (
+        lambda: pr.track_similarity([0.0, 1.0], [0.0, 1.0], [0.0, 1.0], [0.0, 1.0], arrival_a="x"),
+        pr.TrackError,
+        ("arrival_a must be a UTC time", "'x'"),
+    ),
+    "track_similarity arrival a number": (  # was read as seconds after 1970 when the other was given
+        lambda: pr.track_similarity(
+            [0.0, 1.0], [0.0, 1.0], [0.0, 1.0], [0.0, 1.0], arrival_a="2018-06-01T00:00", arrival_b=5
+        ),
+        pr.TrackError,
+        ("arrival_b must be a UTC time", "(got 5)"),
+    ),
+    "track_similarity step_km True": (
+        lambda: pr.track_similarity([0.0, 1.0], [0.0, 1.0], [0.0, 1.0], [0.0, 1.0], step_km=True),
+        pr.CoordinateError,
+        ("step_km must be in [0.01, 1000] [km]",),
+    ),
+    "load_sweep None": (lambda: pr.load_sweep(None), ScenarioError, ("sweep file must be a file name", "got None")),
+    "load_sweep 5": (lambda: pr.load_sweep(5), ScenarioError, ("sweep file must be a file name",)),
+    "run_sweep None": (lambda: pr.run_sweep(None), ScenarioError, ("runs must be a list of sweep runs", "got None")),
+    "run_sweep 'x'": (lambda: pr.run_sweep("x"), ScenarioError, ("runs must be a list of sweep runs",)),
+    "run_sweep runs of numbers": (lambda: pr.run_sweep([5]), ScenarioError, ("runs must hold sweep runs", "5")),
+    "run_sweep engine an array": (
+        lambda: pr.run_sweep([], engine=np.ones((2, 2))),
+        ScenarioError,
+        ("engine must be one of",),
+    ),
+    "run_sweep flush_s NaN": (lambda: pr.run_sweep([], flush_s=NAN), ScenarioError, ("flush_s must be", "finite")),
+    "run_sweep connect_timeout_s 0": (
+        lambda: pr.run_sweep([], connect_timeout_s=0),
+        ScenarioError,
+        ("connect_timeout_s must be a finite number > 0 [s]",),
+    ),
+    "run_sweep log 5": (lambda: pr.run_sweep([], log=5), ScenarioError, ("log must be a function",)),
+    "run_sweep out ''": (lambda: pr.run_sweep([], out=""), ScenarioError, ("out must be a file name",)),
+    "run_sweep progress None": (lambda: pr.run_sweep([], progress=None), ScenarioError, ("progress must be",)),
     # ---- grid convergence
     "grid_convergence None": (lambda: pr.grid_convergence(None, None), ConvergenceError, ()),
     "grid_convergence NaN h": (lambda: pr.grid_convergence([1, NAN, 4], [1, 2, 3]), ConvergenceError, ()),
