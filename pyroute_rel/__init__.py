@@ -19,6 +19,8 @@ Names are loaded on first use, so ``import pyroute_rel`` stays cheap (the comman
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
@@ -104,6 +106,22 @@ def __getattr__(name: str) -> Any:
     value = getattr(importlib.import_module(f".{module}", __name__), name)
     globals()[name] = value  # later look-ups skip this function
     return value
+
+
+class _Package(types.ModuleType):
+    """The package's module type: importing a submodule does not bind it over a public function of the same name.
+
+    ``import pyroute_rel.refine`` (the module) would otherwise make ``pyroute_rel.refine`` (the function) the module,
+    and ``pr.refine(...)`` a TypeError; the same for ``monte_carlo``. The submodules stay in :data:`sys.modules`.
+    """
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == name:
+            return  # the public function of that name is loaded on first use by __getattr__
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __dir__() -> list[str]:

@@ -512,12 +512,6 @@ class Evaluation:
     time : UTC time at each point (NaT from the first leg that cannot be sailed).
     elapsed_h : Time at each point [h after the departure] (``inf`` likewise).
     departure : Departure time (UTC).
-    voyage_time_h : Time to the last point [h] (``inf`` when a leg cannot be sailed).
-    distance_nm : Great-circle length of the track [nm].
-    arrival : Arrival time (UTC; NaT when a leg cannot be sailed).
-    max_failure_probability : Largest leg ``p_f`` of the legs sailed.
-    voyage_failure_probability : Probability of failure over the legs sailed (as :attr:`Route.voyage_failure_probability
-        <pyroute_rel.route.Route.voyage_failure_probability>`).
     feasible : True when the router could have sailed every leg: no ``p_f > apf``, land, zone, or leg that cannot be
         sailed.
     reason : None, or why the first blocked leg is blocked: one of :data:`BLOCK_REASONS`.
@@ -525,6 +519,9 @@ class Evaluation:
     leg_reasons : Why each leg is blocked (a tuple of :data:`BLOCK_REASONS` names per leg, empty where it is not).
     exposure_by_criterion_h : Hours sailed where each criterion of the failure model fires [h].
     meta : Settings for the summary (apf, failure model, polar, samples per leg, scenario).
+
+    The voyage figures (``voyage_time_h``, ``distance_nm``, ``arrival``, ``max_failure_probability``,
+    ``voyage_failure_probability``) are properties, documented below.
     """
 
     legs: Legs

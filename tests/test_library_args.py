@@ -1054,7 +1054,6 @@ def test_none_for_every_required_argument_is_a_domain_error(name: str, tmp_path:
 
 
 @pytest.mark.parametrize("name", ["refine", "monte_carlo"])
-@pytest.mark.xfail(strict=True, reason="main: importing the submodule of the same name first binds pr.<name> to it")
 def test_pr_refine_is_the_function_even_after_importing_its_module(name: str) -> None:
     # found by this file: 'import pyroute_rel.refine' (as test_refine.py does, or a scenario with refine > 0 routed
     # before pr.refine is first used) makes pr.refine the module, and pr.refine(...) a raw TypeError; the same for
