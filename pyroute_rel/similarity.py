@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .errors import CoordinateError
+from .errors import CoordinateError, TrackError, brief, check_numbers
 from .units import KM_PER_NM
 
 __all__ = ["TrackSimilarity", "track_similarity", "distance_to_track_km"]
@@ -47,7 +47,8 @@ class TrackSimilarity:
 
 
 def _checked(lon: Any, lat: Any, name: str) -> tuple[FloatArray, FloatArray]:
-    lo, la = np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
+    lo = check_numbers(lon, f"{name} lon", CoordinateError, infinite=True, unit="deg")
+    la = check_numbers(lat, f"{name} lat", CoordinateError, infinite=True, unit="deg")
     if lo.ndim != 1 or lo.shape != la.shape or lo.size < 2:
         raise CoordinateError(f"{name} must have at least two points, as 1-D lon and lat arrays [deg] of one length")
     if not (np.isfinite(lo).all() and np.isfinite(la).all()) or np.any(np.abs(la) > 90.0):
@@ -79,6 +80,25 @@ def _dense(lon: FloatArray, lat: FloatArray, step_km: float) -> tuple[FloatArray
     return geodesy.wrap_lon(x), y
 
 
+def _arrival(value: Any, name: str) -> np.datetime64 | None:
+    """An arrival time (UTC) as ``datetime64[s]``, or None; a number, a word or objects are a TrackError."""
+    if value is None:
+        return None
+    if not isinstance(value, str | np.datetime64) or isinstance(value, np.ndarray):
+        raise TrackError(
+            f"{name} must be a UTC time (numpy datetime64 or ISO 8601 string) or None (got {brief(value)})"
+        )
+    try:
+        t = np.datetime64(value, "s")
+    except (TypeError, ValueError, OverflowError):
+        t = np.datetime64("NaT")
+    if np.isnat(t):
+        raise TrackError(
+            f"{name} must be a UTC time (numpy datetime64 or ISO 8601 string) or None (got {brief(value)})"
+        )
+    return t
+
+
 def track_similarity(
     lon_a: npt.ArrayLike,
     lat_a: npt.ArrayLike,
@@ -105,15 +125,16 @@ def track_similarity(
     """
     la, pa = _checked(lon_a, lat_a, "track A")
     lb, pb = _checked(lon_b, lat_b, "track B")
-    if not (isinstance(step_km, int | float) and 0.01 <= step_km <= 1000.0):
+    arrivals = [_arrival(t, name) for t, name in ((arrival_a, "arrival_a"), (arrival_b, "arrival_b"))]
+    if isinstance(step_km, bool) or not (isinstance(step_km, int | float) and 0.01 <= step_km <= 1000.0):
         raise CoordinateError(f"step_km must be in [0.01, 1000] [km] (got {step_km!r})")
     xb, yb = _dense(lb, pb, step_km)
     xa, ya = _dense(la, pa, step_km)
     b_from_a = distance_to_track_km(xb, yb, la, pa) / KM_PER_NM
     a_from_b = distance_to_track_km(xa, ya, lb, pb) / KM_PER_NM
     diff = None
-    if arrival_a is not None and arrival_b is not None:
-        diff = float((np.datetime64(arrival_b, "s") - np.datetime64(arrival_a, "s")) / np.timedelta64(1, "s")) / 3600.0
+    if arrivals[0] is not None and arrivals[1] is not None:
+        diff = float((arrivals[1] - arrivals[0]) / np.timedelta64(1, "s")) / 3600.0
     return TrackSimilarity(
         mean_cross_track_nm=float(b_from_a.mean()),
         max_cross_track_nm=float(b_from_a.max()),

@@ -41,7 +41,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .config import SCHEMA, parse_departure, probability
-from .errors import NoFeasibleRouteError, PyrouteError, ScenarioError, WeatherCoverageError, brief, show
+from .errors import (
+    NoFeasibleRouteError,
+    PyrouteError,
+    ScenarioError,
+    WeatherCoverageError,
+    brief,
+    check_callable,
+    check_flag,
+    check_numbers,
+    check_path,
+    show,
+)
 from .files import atomic_write, atomic_write_text, brief_path
 from .times import iso_utc
 
@@ -333,7 +344,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
     """
     from .scenario import read_scenario_table
 
-    p = Path(path)
+    p = Path(check_path(path, "sweep file", SweepError))
     try:
         table = read_scenario_table(p)  # the same reading checks as a scenario file's
     except ScenarioError as exc:
@@ -686,7 +697,7 @@ def _engine_rows(
 
 
 def _check_engine(engine: str, workers: int | None, scheduler: str | None, retries: int, batch: int) -> None:
-    if engine not in ENGINES:
+    if not isinstance(engine, str) or engine not in ENGINES:
         raise SweepError(f"engine must be one of {', '.join(ENGINES)} (got {brief(engine)})")
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise SweepError(f"--workers must be a whole number >= 1 (got {brief(workers)})")
@@ -696,6 +707,26 @@ def _check_engine(engine: str, workers: int | None, scheduler: str | None, retri
         raise SweepError(f"--retries must be a whole number >= 0 (got {brief(retries)})")
     if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
         raise SweepError(f"--batch must be a whole number >= 1 (got {brief(batch)})")
+
+
+def _check_run_options(runs: Any, out: Any, progress: Any, log: Any, flush_s: Any, connect_timeout_s: Any) -> list[Run]:
+    """The other arguments of :func:`run_sweep`, checked before any run: a SweepError naming the argument."""
+    if isinstance(runs, str | bytes | Mapping) or not isinstance(runs, Iterable):
+        raise SweepError(f"runs must be a list of sweep runs (load_sweep(...).runs) (got {brief(runs)})")
+    runs = list(runs)
+    bad = next((r for r in runs if not isinstance(r, Run)), None)
+    if bad is not None:
+        raise SweepError(f"runs must hold sweep runs (pyroute_rel.sweep.Run) (got {brief(bad)})")
+    if out is not None:
+        check_path(out, "out", SweepError)
+    check_flag(progress, "progress", SweepError)
+    if log is not None:
+        check_callable(log, "log", SweepError)
+    for name, value in (("flush_s", flush_s), ("connect_timeout_s", connect_timeout_s)):
+        seconds = check_numbers(value, name, SweepError, missing=False, unit="s")
+        if isinstance(value, bool) or seconds.shape != () or not seconds > 0:
+            raise SweepError(f"{name} must be a finite number > 0 [s] (got {brief(value)})")
+    return runs
 
 
 def run_sweep(
@@ -742,6 +773,7 @@ def run_sweep(
     from .progress import progress_bar
 
     _check_engine(engine, workers, scheduler, retries, batch)
+    runs = _check_run_options(runs, out, progress, log, flush_s, connect_timeout_s)
     keyed = [(run_key(r), r) for r in runs]
     store = _Store(Path(out), batch=batch, flush_s=flush_s) if out is not None else None
     done = {r["key"]: r for r in read_runs(out).to_pylist()} if out is not None else {}

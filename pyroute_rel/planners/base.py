@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import geodesy
-from ..errors import ScenarioError
+from ..errors import ScenarioError, TrackError, check_flag, check_instance, check_numbers
 from ..obstacles.areas import arcs_blocked
 from ..obstacles.land import land_geometry
 from ..obstacles.zones import arcs_blocked_by_zones
@@ -282,10 +282,15 @@ class PlannedTrack:
     stats: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        check_instance(self.planner, str, "PlannedTrack.planner", TrackError)
+        object.__setattr__(self, "reached", check_flag(self.reached, "PlannedTrack.reached", TrackError))
+        check_instance(self.stats, dict, "PlannedTrack.stats", TrackError)
+        size = None
         for name in ("lon_deg", "lat_deg", "elapsed_h"):
-            values = np.asarray(getattr(self, name), dtype=float)
-            if values.ndim != 1 or values.size != np.asarray(self.lon_deg).size or values.size < 1:
-                raise ValueError(f"PlannedTrack.{name} must be a 1-D array, one value per track point")
+            values = check_numbers(getattr(self, name), f"PlannedTrack.{name}", TrackError, infinite=True)
+            size = values.size if size is None else size
+            if values.ndim != 1 or values.size != size or values.size < 1:
+                raise TrackError(f"PlannedTrack.{name} must be a 1-D array, one value per track point")
             object.__setattr__(self, name, values)
 
     @property

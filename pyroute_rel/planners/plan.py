@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-from ..errors import ScenarioError
+from ..errors import ScenarioError, brief, check_flag, check_instance
 from .base import PlannedTrack, Planner, PlanningProblem
 from .settings import PLANNERS
 
@@ -59,6 +59,15 @@ def plan(
     >>> track.planner, track.reached, track.stats["nodes"] == plan(sc, kind="dp").stats["nodes"]
     ('qlearning', True, True)
     """
+    from ..scenario import Scenario
+    from ..weather import WeatherSource
+
+    check_instance(scenario, Scenario, "scenario", ScenarioError, expected="a Scenario (pyroute_rel.load_scenario)")
+    progress = check_flag(progress, "progress", ScenarioError)
+    if not isinstance(members, tuple | list) or not all(isinstance(m, WeatherSource) for m in members):
+        raise ScenarioError(
+            f"members must be a tuple of weather sources, one per ensemble member (got {brief(members)})"
+        )
     settings = scenario.planner if kind is None else replace(scenario.planner, kind=kind)
     problem = PlanningProblem.of(scenario, settings=settings, members=members)
     return get_planner(settings.kind).plan(problem, progress=progress)

@@ -499,8 +499,12 @@ def _check_options(
         raise WeatherError(f"margin_deg must be a finite number >= 0 [deg] (got {brief(margin_deg)})")
     if variables is not None:
         check_instance(variables, Mapping, "variables", WeatherError, expected='a dict {field: "file variable"}')
-    if member is not None and (isinstance(member, bool) or not isinstance(member, (int, np.integer)) or member < 0):
-        raise WeatherError(f"member must be an integer >= 0 (got {brief(member)})")
+    if (
+        member is not None
+        and not (isinstance(member, str) and member == "mean")
+        and (isinstance(member, bool) or not isinstance(member, (int, np.integer)) or member < 0)
+    ):
+        raise WeatherError(f'member must be an integer >= 0 or "mean" (got {brief(member)})')
     variables = dict(variables or {})
     for key, name in variables.items():
         if not isinstance(name, str):
