@@ -19,6 +19,8 @@ Names are loaded on first use, so ``import pyroute_rel`` stays cheap (the comman
 from __future__ import annotations
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
@@ -58,6 +60,8 @@ _EXPORTS: dict[str, str] = {
     "route_on_grid": "route",
     "refine": "refine",
     "write_outputs": "outputs",
+    "load_sweep": "sweep",
+    "run_sweep": "sweep",
     "read_track": "evaluate",
     "evaluate_track": "evaluate",
     "Track": "evaluate",
@@ -67,6 +71,10 @@ _EXPORTS: dict[str, str] = {
     "monte_carlo": "monte_carlo",
     "MonteCarloSettings": "monte_carlo",
     "ManoeuvrePenalties": "manoeuvre",
+    "plan": "planners.plan",
+    "PlannedTrack": "planners.base",
+    "PlannerSettings": "planners.settings",
+    "track_similarity": "similarity",
     # grid convergence
     "grid_convergence": "gci.numbers",
     "least_squares_convergence": "gci.numbers",
@@ -98,6 +106,22 @@ def __getattr__(name: str) -> Any:
     value = getattr(importlib.import_module(f".{module}", __name__), name)
     globals()[name] = value  # later look-ups skip this function
     return value
+
+
+class _Package(types.ModuleType):
+    """The package's module type: importing a submodule does not bind it over a public function of the same name.
+
+    ``import pyroute_rel.refine`` (the module) would otherwise make ``pyroute_rel.refine`` (the function) the module,
+    and ``pr.refine(...)`` a TypeError; the same for ``monte_carlo``. The submodules stay in :data:`sys.modules`.
+    """
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == name:
+            return  # the public function of that name is loaded on first use by __getattr__
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __dir__() -> list[str]:
@@ -132,11 +156,16 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .obstacles.mask import Avoid
     from .obstacles.zones import load_zones
     from .outputs import write_outputs
+    from .planners.base import PlannedTrack
+    from .planners.plan import plan
+    from .planners.settings import PlannerSettings
     from .polar import Polar, boat_speed_kn, get_polar, read_polar
     from .refine import refine
     from .route import ForbiddenArcs, Legs, Route, route_on_grid
     from .scenario import Scenario, load_scenario, scenario_from_mapping
+    from .similarity import track_similarity
     from .solve import RoutingProblem, forward_dp
+    from .sweep import load_sweep, run_sweep
     from .weather.base import Conditions, WeatherSource
     from .weather.gridded import GriddedWeather
     from .weather.readers import open_weather, weather_from_dataset

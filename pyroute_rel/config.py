@@ -13,6 +13,8 @@ A scenario has these tables (unknown tables or keys are refused with the file an
                (more kinds: :func:`register_weather_kind`)
     [failure]  model = "dickson2018" | "path/to/model.toml" | "none"   apf = 1.0
     [avoid]    land = true  margin_km = 0  resolution = "intermediate"  zones = ["zones.geojson"]
+    [planner]  kind = "dp" | "mcts" | "qlearning" | "dqn"  seed = 0  and [planner.mcts], ... (see
+               pyroute_rel.planners.settings)
 
 Paths are relative to the scenario file's folder. Times without a zone are read as UTC, with a note
 (:attr:`~pyroute_rel.scenario.Scenario.notes`). :func:`parse_tables` gives the settings
@@ -38,6 +40,7 @@ from .geodesy import along_track_km, crossing_fraction, distance_km, intermediat
 from .grid import DEFAULT_N_RANKS, LAYOUTS
 from .manoeuvre import ManoeuvrePenalties
 from .obstacles.mask import Avoid
+from .planners.settings import parse_planner
 from .polar import BEYOND_MODES, get_polar
 from .weather import UniformWeather, WeatherSource
 
@@ -321,6 +324,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
         ),
         "zones": Key("GeoJSON files of exclusion zones (relative to the scenario file)", _zone_files, []),
     },
+    "planner": {},  # validated by pyroute_rel.planners.settings.parse_planner
 }
 
 
@@ -658,6 +662,7 @@ def parse_tables(table: Mapping[str, Any], base_dir: Path) -> dict[str, Any]:
     bbox = _course_bbox(route, grid)
     weather = parse_weather(table.get("weather"), base_dir, bbox=bbox, departure=route["departure"])
     failure = parse_failure(table.get("failure", {}))
+    planner = parse_planner(table.get("planner", {}))
     return {
         **route,
         **grid,
@@ -665,6 +670,7 @@ def parse_tables(table: Mapping[str, Any], base_dir: Path) -> dict[str, Any]:
         **failure,
         "weather": weather,
         "avoid": avoid,
+        "planner": planner,
         "base_dir": base_dir,
         "notes": tuple(notes),
     }

@@ -45,7 +45,15 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import NoFeasibleRouteError, ScenarioError, WeatherCoverageError, brief
+from .errors import (
+    NoFeasibleRouteError,
+    ScenarioError,
+    WeatherCoverageError,
+    brief,
+    check_flag,
+    check_instance,
+    check_path,
+)
 from .evaluate import evaluation_problem, sail_tracks
 from .members import member_count, member_scenario
 from .progress import progress_bar
@@ -444,7 +452,8 @@ def route_ensemble(
     """
     from .parallel import default_workers
 
-    r = parse_risk(risk) if isinstance(risk, str) else risk
+    _check_ensemble_args(path, members, member_files, mean_field, workers, options, progress)
+    r = parse_risk(risk) if isinstance(risk, str) else check_instance(risk, Risk, "risk", ScenarioError)
     n = member_count(path, member_files=member_files)
     chosen = list(range(n)) if members is None else [int(m) for m in members]
     bad = [m for m in chosen if not 0 <= m < n]
@@ -464,6 +473,27 @@ def route_ensemble(
             pool.shutdown()
         _CACHE.clear()
         _GRIDS.clear()
+
+
+def _check_ensemble_args(
+    path: Any, members: Any, member_files: Any, mean_field: Any, workers: Any, options: Any, progress: Any
+) -> None:
+    """The arguments of :func:`route_ensemble` checked before any file is read: ScenarioError naming the argument."""
+    check_path(path, "scenario", ScenarioError)
+    if members is not None:
+        check_instance(members, list | tuple | range | np.ndarray, "members", ScenarioError, expected="a list of ints")
+        if any(isinstance(m, bool) or not isinstance(m, int | np.integer) for m in members):
+            raise ScenarioError(f"members must be whole numbers (member indices) (got {brief(members)})")
+    if member_files is not None:
+        check_instance(member_files, list | tuple, "member_files", ScenarioError, expected="a list of file names")
+        for f in member_files:
+            check_path(f, "member_files item", ScenarioError)
+    check_flag(mean_field, "mean_field", ScenarioError)
+    check_flag(progress, "progress", ScenarioError)
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ScenarioError(f"workers must be a whole number >= 1 or None (got {brief(workers)})")
+    if options is not None:
+        check_instance(options, dict, "options", ScenarioError, expected="a dict of scenario options or None")
 
 
 def _route_and_sail(

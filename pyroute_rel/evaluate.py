@@ -37,7 +37,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .cost import REASONS, ArcCosts
-from .errors import ScenarioError, TrackError, brief
+from .errors import ScenarioError, TrackError, brief, check_numbers, check_path
 from .files import brief_path, read_regular_bytes
 from .route import Legs, track_legs
 from .times import iso_utc
@@ -89,8 +89,8 @@ class Track:
     time: npt.NDArray[np.datetime64] | None = None
 
     def __post_init__(self) -> None:
-        lon = np.asarray(self.lon_deg, dtype=float)
-        lat = np.asarray(self.lat_deg, dtype=float)
+        lon = check_numbers(self.lon_deg, "Track.lon_deg", TrackError, infinite=True, unit="deg")
+        lat = check_numbers(self.lat_deg, "Track.lat_deg", TrackError, infinite=True, unit="deg")
         if lon.ndim != 1 or lon.shape != lat.shape or lon.size < 2:
             raise TrackError(f"a track needs two or more points, as 1-D lon and lat arrays (got {lon.shape})")
         if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
@@ -103,7 +103,7 @@ class Track:
         object.__setattr__(self, "lon_deg", lon)
         object.__setattr__(self, "lat_deg", lat)
         if self.time is not None:
-            t = np.asarray(self.time).astype("datetime64[s]")
+            t = _track_times(self.time)
             if t.shape != lon.shape or np.isnat(t).any():
                 raise TrackError(f"a track's times must be one UTC time per point ({lon.size}) (got {t.shape})")
             object.__setattr__(self, "time", t)
@@ -114,11 +114,24 @@ class Track:
         return np.column_stack([self.lon_deg, self.lat_deg])
 
 
+def _track_times(value: Any) -> npt.NDArray[np.datetime64]:
+    """A track's times as ``datetime64[s]``; anything that is not times (a word, objects, a huge number) is a
+    TrackError."""
+    try:
+        return np.asarray(value).astype("datetime64[s]")
+    except (TypeError, ValueError, OverflowError):
+        raise TrackError(
+            f"Track.time must be UTC times (numpy datetime64 or ISO 8601 strings), one per point (got {brief(value)})"
+        ) from None
+
+
 def as_track(track: Track | npt.ArrayLike) -> Track:
     """A :class:`Track` from a Track or an (N, 2) array of lon, lat [deg]."""
     if isinstance(track, Track):
         return track
-    arr = np.asarray(track, dtype=float)
+    if not isinstance(track, np.ndarray | list | tuple):
+        raise TrackError(f"a track must be a Track or an (N, 2) array of lon, lat [deg] (got {brief(track)})")
+    arr = check_numbers(track, "track", TrackError, infinite=True, unit="deg")
     if arr.ndim != 2 or arr.shape[1] != 2:
         raise TrackError(f"a track must be a Track or an (N, 2) array of lon, lat [deg] (got shape {arr.shape})")
     return Track(arr[:, 0], arr[:, 1])
@@ -142,7 +155,7 @@ def read_track(path: str | Path) -> Track:
     TrackError
         One line naming the file and what is wrong (no line in it, a bad number or time).
     """
-    p = Path(path)
+    p = Path(check_path(path, "track file", TrackError))
     label = brief_path(p)
     data = read_regular_bytes(p, limit_bytes=TRACK_MAX_BYTES, error=TrackError, label=label, what="track file")
     try:
@@ -499,12 +512,6 @@ class Evaluation:
     time : UTC time at each point (NaT from the first leg that cannot be sailed).
     elapsed_h : Time at each point [h after the departure] (``inf`` likewise).
     departure : Departure time (UTC).
-    voyage_time_h : Time to the last point [h] (``inf`` when a leg cannot be sailed).
-    distance_nm : Great-circle length of the track [nm].
-    arrival : Arrival time (UTC; NaT when a leg cannot be sailed).
-    max_failure_probability : Largest leg ``p_f`` of the legs sailed.
-    voyage_failure_probability : Probability of failure over the legs sailed (as :attr:`Route.voyage_failure_probability
-        <pyroute_rel.route.Route.voyage_failure_probability>`).
     feasible : True when the router could have sailed every leg: no ``p_f > apf``, land, zone, or leg that cannot be
         sailed.
     reason : None, or why the first blocked leg is blocked: one of :data:`BLOCK_REASONS`.
@@ -512,6 +519,9 @@ class Evaluation:
     leg_reasons : Why each leg is blocked (a tuple of :data:`BLOCK_REASONS` names per leg, empty where it is not).
     exposure_by_criterion_h : Hours sailed where each criterion of the failure model fires [h].
     meta : Settings for the summary (apf, failure model, polar, samples per leg, scenario).
+
+    The voyage figures (``voyage_time_h``, ``distance_nm``, ``arrival``, ``max_failure_probability``,
+    ``voyage_failure_probability``) are properties, documented below.
     """
 
     legs: Legs

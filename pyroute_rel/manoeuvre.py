@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import ScenarioError
+from .errors import ScenarioError, check_instance
 
 __all__ = [
     "PORT",
@@ -115,6 +115,7 @@ class ManoeuvrePenalties:
     gybe_penalty_s: tuple[float, ...] = (0.0,)
 
     def __init__(self, tack_s: Any = None, gybe_s: Any = None, *, where: str = "[boat]") -> None:
+        check_instance(where, str, "ManoeuvrePenalties where", ScenarioError, expected="a str (the table's name)")
         for name, raw in (("tack", tack_s), ("gybe", gybe_s)):
             tws, sec = ((0.0,), (0.0,)) if raw is None else _table(raw, f"{where}.{name}_penalty_s")
             object.__setattr__(self, f"{name}_tws_kn", tws)

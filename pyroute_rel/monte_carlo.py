@@ -42,7 +42,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .cost import ArcGeometry, arc_geometry, geometry_costs
-from .errors import ScenarioError
+from .errors import ScenarioError, brief, check_instance, check_numbers
 from .evaluate import Track, as_track, evaluation_problem, sail_tracks
 from .units import KN_PER_MS
 from .weather.base import Conditions
@@ -62,6 +62,10 @@ __all__ = [
 ]
 
 FloatArray = npt.NDArray[np.float64]
+
+
+#: Most Monte-Carlo runs of one call (each run sails every leg: the run arrays hold runs x legs values).
+MAX_RUNS = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -91,10 +95,16 @@ class MonteCarloSettings:
     def __post_init__(self) -> None:
         for name in ("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "kappa", "polar_sd"):
             v = getattr(self, name)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0.0):
+            if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v) and v >= 0.0):
                 raise ScenarioError(f"Monte-Carlo {name} must be a finite number >= 0 (got {v!r})")
-        if not (isinstance(self.tau_h, int | float) and self.tau_h > 0.0):
-            raise ScenarioError(f"Monte-Carlo tau_h must be > 0 [h] (got {self.tau_h!r})")
+        tau = self.tau_h
+        if isinstance(tau, bool) or not (isinstance(tau, int | float) and tau > 0.0):
+            raise ScenarioError(f"Monte-Carlo tau_h must be > 0 [h] (got {tau!r})")
+        if self.spread_ms is not None:
+            spread = check_numbers(self.spread_ms, "Monte-Carlo spread_ms", ScenarioError, missing=False, unit="m/s")
+            if spread.ndim != 1 or (spread < 0.0).any():
+                raise ScenarioError(f"Monte-Carlo spread_ms must be one value >= 0 per leg [m/s] (got {spread!r})")
+            object.__setattr__(self, "spread_ms", spread)
 
     @classmethod
     def zero(cls) -> MonteCarloSettings:
@@ -306,10 +316,24 @@ def monte_carlo(
     """
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ScenarioError(f"--monte-carlo needs a whole number of runs >= 1 (got {runs!r})")
+    if runs > MAX_RUNS:
+        raise ScenarioError(f"--monte-carlo runs must be at most {MAX_RUNS} (got {runs})")
+    from .scenario import Scenario
+    from .solve import RoutingProblem
+
+    check_instance(scenario, Scenario, "scenario", ScenarioError, expected="a Scenario (pyroute_rel.load_scenario)")
     trk = as_track(track)
-    s = settings or MonteCarloSettings()
+    s = (
+        MonteCarloSettings()
+        if settings is None
+        else check_instance(settings, MonteCarloSettings, "settings", ScenarioError)
+    )
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0):
+        raise ScenarioError(f"seed must be a whole number >= 0 or None (got {brief(seed)})")
     if departure is None and trk.time is not None:
         departure = trk.time[0]
+    if problem is not None:
+        check_instance(problem, RoutingProblem, "problem", ScenarioError, expected="a RoutingProblem or None")
     prob = problem or evaluation_problem(scenario, departure=departure)
     base = sail_tracks(prob, [trk])[0]
     n_legs = trk.lon_deg.size - 1

@@ -32,6 +32,7 @@ from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_g
 from .manoeuvre import ManoeuvrePenalties
 from .obstacles.mask import Avoid, check_points, obstacle_mask
 from .obstacles.zones import zones_outside
+from .planners.settings import PlannerSettings
 from .route import GridTrack, Route, build_route, join_routes, route_on_grid
 from .solve import ArcMask, RoutingProblem
 
@@ -51,6 +52,7 @@ SCENARIO_MAX_DEPTH = 16
 __all__ = [
     "Scenario",
     "load_scenario",
+    "read_scenario_table",
     "scenario_from_mapping",
     "parse_departure",
     "nesting_depth",
@@ -86,6 +88,8 @@ class Scenario:
     refine : Corridor refinements of the track (0 = none).
     notes : What reading the scenario assumed, one line each, for the user to see (e.g. a departure without a
         time zone read as UTC); the command line prints them on stderr.
+    planner : The ``[planner]`` table: which planner routes the scenario and its settings
+        (:mod:`pyroute_rel.planners`; :meth:`route` is always the DP).
     """
 
     source: str
@@ -118,6 +122,7 @@ class Scenario:
     sample_km: float | None = None
     notes: tuple[str, ...] = ()
     manoeuvres: ManoeuvrePenalties | None = None
+    planner: PlannerSettings = field(default_factory=PlannerSettings)
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's, with the command-line option named).
@@ -390,6 +395,16 @@ def load_scenario(path: str | Path) -> Scenario:
 
     Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file and the field for any problem.
     """
+    table = read_scenario_table(path)
+    return scenario_from_mapping(table, base_dir=Path(path).parent, source=str(path))
+
+
+def read_scenario_table(path: str | Path) -> dict[str, Any]:
+    """A scenario file's TOML tables, not yet validated (:func:`scenario_from_mapping` does that): for code that
+    changes a setting in the file's own terms before validating (:mod:`pyroute_rel.sweep`).
+
+    Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file when it cannot be read as TOML.
+    """
     if not isinstance(path, (str, Path)):
         raise ScenarioError(f"a scenario path must be a str or pathlib.Path (got {brief(path)})")
     p = Path(path)
@@ -418,7 +433,7 @@ def load_scenario(path: str | Path) -> Scenario:
             f"{brief_path(p)}: arrays or tables nested {depth} levels deep (a scenario needs at most "
             f"{SCENARIO_MAX_DEPTH})"
         )
-    return scenario_from_mapping(table, base_dir=p.parent, source=str(p))
+    return table
 
 
 def nesting_depth(value: Any) -> int:

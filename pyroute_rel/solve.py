@@ -45,7 +45,7 @@ from .cost import (
     geometry_costs,
     geometry_from_xyz,
 )
-from .errors import ScenarioError
+from .errors import ScenarioError, brief, check_callable, check_flag, check_instance, check_numbers
 from .failure import FailureModel
 from .grid import Grid
 from .manoeuvre import (
@@ -118,6 +118,25 @@ class ArcMask(Protocol):
         ...
 
 
+def _check_departure(departure: Any) -> None:
+    """A RoutingProblem's departure: one UTC time (a number, a word, a date out of range is a ScenarioError)."""
+    try:
+        dep: Any = np.asarray(departure).astype("datetime64[s]")
+    except (TypeError, ValueError, OverflowError):
+        dep = np.asarray(np.datetime64("NaT"))
+    if dep.shape != () or np.isnat(dep) or isinstance(departure, bool | int | float | complex | np.number):
+        raise ScenarioError(
+            f"departure must be a UTC time (numpy datetime64 or ISO 8601 string) (got {brief(departure)})"
+        )
+    if not _FIRST_TIME <= dep <= _LAST_TIME:  # numpy wraps a year past 2.9e11 around without a word
+        raise ScenarioError(
+            f"departure must be a UTC time in the years 1 to 9999 (got {brief(departure)}, read as {dep})"
+        )
+
+
+_FIRST_TIME, _LAST_TIME = np.datetime64("0001-01-01T00:00:00", "s"), np.datetime64("9999-12-31T23:59:59", "s")
+
+
 @dataclass(frozen=True)
 class RoutingProblem:
     """Everything the solver needs besides the grid; validated once here.
@@ -184,11 +203,14 @@ class RoutingProblem:
             )
         if self.max_memory is not None:
             parse_bytes(self.max_memory, "RoutingProblem.max_memory")
-        if self.time_step_h is not None and not (
-            isinstance(self.time_step_h, int | float) and 0.0 < float(self.time_step_h) <= 48.0
+        if self.time_step_h is not None and (
+            isinstance(self.time_step_h, bool)
+            or not (isinstance(self.time_step_h, int | float) and 0.0 < float(self.time_step_h) <= 48.0)
         ):
             raise ScenarioError(f"time_step_h must be in (0, 48] [h] (got {self.time_step_h!r})")
-        if not (isinstance(self.max_wait_h, int | float) and 0.0 <= float(self.max_wait_h) <= 24.0 * 60):
+        if isinstance(self.max_wait_h, bool) or not (
+            isinstance(self.max_wait_h, int | float) and 0.0 <= float(self.max_wait_h) <= 24.0 * 60
+        ):
             raise ScenarioError(f"max_wait_h must be in [0, 1440] [h] (got {self.max_wait_h!r})")
         if self.time_step_h is not None and self.max_wait_h / self.time_step_h > 10_000:
             raise ScenarioError(
@@ -197,19 +219,13 @@ class RoutingProblem:
             )
         if self.max_wait_h > 0 and self.time_step_h is None:
             raise ScenarioError("max_wait_h > 0 needs time_step_h (waiting is modelled on a time lattice)")
-        if not (isinstance(self.apf, int | float) and 0.0 <= float(self.apf) <= 1.0):
+        if isinstance(self.apf, bool) or not (isinstance(self.apf, int | float) and 0.0 <= float(self.apf) <= 1.0):
             raise ScenarioError(f"apf must be a probability in [0, 1] (got {self.apf!r})")
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) or not 1 <= self.samples <= 64:
             raise ScenarioError(f"samples_per_arc must be a whole number in [1, 64] (got {self.samples!r})")
         check_beyond(self.beyond, "RoutingProblem.beyond")
-        try:
-            dep: Any = np.asarray(self.departure).astype("datetime64[s]")
-        except (TypeError, ValueError):
-            dep = np.asarray(np.datetime64("NaT"))
-        if dep.shape != () or np.isnat(dep) or isinstance(self.departure, bool | int | float):
-            raise ScenarioError(
-                f"departure must be a UTC time (numpy datetime64 or ISO 8601 string) (got {self.departure!r})"
-            )
+        check_flag(self.prune, "RoutingProblem.prune", ScenarioError)
+        _check_departure(self.departure)
         for name, value, ok, what in (
             (
                 "weather",
@@ -287,7 +303,24 @@ class RoutingProblem:
         return fast if fast is not None else geometry_costs(geom, t0_h, **self._cost_options(), exact_p_f=False)
 
     def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
-        """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`)."""
+        """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`); the points [deg] and departures [h
+        after departure] are numbers (NaN: missing), else a ScenarioError naming the argument."""
+        lon0, lat0, lon1, lat1 = (
+            check_numbers(v, f"RoutingProblem.costs {n}", ScenarioError, unit="deg")
+            for v, n in ((lon0, "lon0"), (lat0, "lat0"), (lon1, "lon1"), (lat1, "lat1"))
+        )
+        t0_h = check_numbers(t0_h, "RoutingProblem.costs t0_h", ScenarioError, unit="h")
+        try:
+            arcs = np.broadcast_shapes(lon0.shape, lat0.shape, lon1.shape, lat1.shape)
+            fits = np.broadcast_shapes(arcs, t0_h.shape) == arcs
+        except ValueError:
+            fits = False
+        if not fits:
+            shapes = ", ".join(str(a.shape) for a in (lon0, lat0, lon1, lat1, t0_h))
+            raise ScenarioError(
+                f"RoutingProblem.costs: lon0, lat0, lon1, lat1 must broadcast together and t0_h to their shape "
+                f"(got shapes {shapes})"
+            )
         return arc_costs(lon0, lat0, lon1, lat1, t0_h, samples=self.samples, **self._cost_options())
 
     def weather_at(self, lon_deg: Any, lat_deg: Any, t_h: Any) -> Conditions:
@@ -476,6 +509,20 @@ class SideLabels:
     end_from: int = 0
 
 
+def _check_dp_args(grid: Any, problem: Any, progress: Any, cost_hook: Any) -> bool:
+    """The arguments of :func:`forward_dp`, checked before any work: a ScenarioError naming the argument."""
+    check_instance(grid, Grid, "grid", ScenarioError, expected="a Grid (pyroute_rel.make_grid)")
+    check_instance(problem, RoutingProblem, "problem", ScenarioError, expected="a RoutingProblem")
+    if cost_hook is not None:
+        check_callable(cost_hook, "cost_hook", ScenarioError)
+    if problem.blocked is not None and problem.blocked.grid is not grid:
+        raise ScenarioError(
+            "the problem's obstacle mask was built for another grid: build the problem for this grid "
+            "(Scenario.problem(grid=...))"
+        )
+    return check_flag(progress, "progress", ScenarioError)
+
+
 def forward_dp(
     grid: Grid,
     problem: RoutingProblem,
@@ -492,12 +539,8 @@ def forward_dp(
 
     ``cost_hook(k, costs)`` is called with the costs of the arcs into rank k (for tests and diagnostics).
     """
+    progress = _check_dp_args(grid, problem, progress, cost_hook)
     n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
-    if problem.blocked is not None and problem.blocked.grid is not grid:
-        raise ValueError(
-            "the problem's obstacle mask was built for another grid: build the problem for this grid "
-            "(Scenario.problem(grid=...))"
-        )
     check_budget(route_memory(grid, problem), max_memory=problem.max_memory, knobs=_memory_knobs(grid, problem))
     n_lab = 2 if problem.sides else 1
     arrival = np.full((n_ranks, n_nodes, n_lab), np.inf)

@@ -61,7 +61,7 @@ import numpy.typing as npt
 
 from .cost import ArcGeometry, geometry_costs
 from .crossings import needs_pieces
-from .errors import LabelLimitError, NoFeasibleRouteError, ScenarioError
+from .errors import LabelLimitError, NoFeasibleRouteError, ScenarioError, check_flag, check_instance
 from .exposure import arc_exposure, hazard, leg_exposure
 from .grid import Grid
 from .progress import progress_bar
@@ -195,6 +195,7 @@ def bottleneck_front(grid: Grid, problem: RoutingProblem, *, progress: bool = Fa
     NoFeasibleRouteError
         When no route exists at ``problem.apf`` itself.
     """
+    progress = _check_grid_problem(grid, problem, progress)
     levels = failure_levels(problem)
     points: list[FrontPoint] = []
     apf = float(problem.apf)
@@ -259,6 +260,7 @@ def voyage_front(grid: Grid, problem: RoutingProblem, *, max_labels: int = MAX_L
     ScenarioError
         For a finish line or a time lattice, which the label setting does not model.
     """
+    progress = _check_grid_problem(grid, problem, progress)
     _check_voyage_problem(grid, problem, max_labels)
     labels = _Labels(
         node=np.arange(grid.start_points[0].size),
@@ -310,6 +312,13 @@ def route_on_grid_reason(grid: Grid, problem: RoutingProblem) -> str:
     except NoFeasibleRouteError as exc:
         return str(exc)
     return ""
+
+
+def _check_grid_problem(grid: Any, problem: Any, progress: Any) -> bool:
+    """The arguments every front takes, checked at the public boundary: ScenarioError naming the argument."""
+    check_instance(grid, Grid, "grid", ScenarioError, expected="a Grid (pyroute_rel.make_grid)")
+    check_instance(problem, RoutingProblem, "problem", ScenarioError, expected="a RoutingProblem")
+    return check_flag(progress, "progress", ScenarioError)
 
 
 def _check_voyage_problem(grid: Grid, problem: RoutingProblem, max_labels: int) -> None:
@@ -555,6 +564,9 @@ def sensitivity(grid: Grid, problem: RoutingProblem, route: Route | None = None)
     ``route`` is that route when already computed (e.g. the bottleneck front's first point); an empty list without
     a failure model.
     """
+    _check_grid_problem(grid, problem, False)
+    if route is not None:
+        check_instance(route, Route, "route", ScenarioError, expected="a Route (of this grid and problem) or None")
     model = problem.failure
     if model is None:
         return []

@@ -255,6 +255,10 @@ def load_toml_snippet(text: str, where: str, tmp: Path) -> None:
         raise AssertionError(f"{where}: not valid TOML ({exc}):\n{text}") from None
     if "criteria" in table or "target" in table or "network" in table:
         load_model_snippet(table, tmp)
+    elif "sweep" in table:
+        from pyroute_rel.sweep import sweep_from_mapping
+
+        sweep_from_mapping(table, base_dir=EXAMPLES, source=where)
     elif "route" in table and "weather" in table:
         pr.scenario_from_mapping(table, base_dir=EXAMPLES, source=where)
     else:

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-SCRIPTS = ["paper_reproduction", "convergence_study", "real_course", "era5_figure"]
+SCRIPTS = ["paper_reproduction", "convergence_study", "real_course", "era5_figure", "planners_comparison"]
 
 
 def _load(name: str):

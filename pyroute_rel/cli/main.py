@@ -22,6 +22,8 @@ from ..errors import PyrouteError, PyrouteWarning, ScenarioError
 from .ensemble import add_ensemble_parser
 from .evaluate import add_evaluate_parser
 from .gci import NEGATIVE_NUMBERS, add_gci_parser
+from .planners import add_compare_parser
+from .sweep import add_sweep_parser
 from .tradeoff import add_tradeoff_parser
 
 __all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
@@ -99,9 +101,11 @@ def build_parser() -> argparse.ArgumentParser:
     f.set_defaults(func=_cmd_failure)
 
     add_gci_parser(sub, _add_common, _csv_ints, _csv_floats)
+    add_sweep_parser(sub, _add_common, _csv_floats)
     add_tradeoff_parser(sub, _add_common)
     add_evaluate_parser(sub, _add_common)
     add_ensemble_parser(sub, _add_common)
+    add_compare_parser(sub, _add_common)
     return parser
 
 
@@ -181,6 +185,12 @@ def _add_route_parser(sub: Any) -> None:
     )
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument(
+        "--planner",
+        choices=("dp", "mcts", "qlearning", "dqn"),
+        help="who plans the track: dp (default, the exact DP), mcts, qlearning or dqn (overrides [planner].kind; "
+        "the evaluator re-times their tracks; --out then writes summary.json and track.csv)",
+    )
+    r.add_argument(
         "--out",
         help="folder for route.geojson, route.gpx (the track with times and speeds, and a route of its turning "
         "points for chart plotters such as OpenCPN), route.csv, summary.json, forbidden.geojson (the arcs the "
@@ -221,7 +231,7 @@ def _route(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()  # runtime: loading the scenario, polar, weather and failure model, then routing
     from ..scenario import load_scenario
 
-    scenario = load_scenario(args.scenario).with_options(
+    options = dict(
         n_nodes=args.n_nodes,
         n_ranks=args.n_ranks,
         apf=args.apf,
@@ -239,6 +249,11 @@ def _route(args: argparse.Namespace) -> int:
         refine=args.refine,
         sample_km=args.sample_km,
     )
+    scenario = load_scenario(args.scenario).with_options(**options)
+    if (args.planner or scenario.planner.kind) != "dp":
+        from .planners import route_with_planner
+
+        return route_with_planner(scenario, args, t0)
     if args.out is not None:  # '' too: refused, not read as "no --out"
         from ..files import check_out_dir, check_targets
         from ..outputs import OUTPUT_FILES
@@ -252,7 +267,7 @@ def _route(args: argparse.Namespace) -> int:
                 "--out writes one route's files; with --departures use --json for the table, or "
                 "route each departure on its own"
             )
-        return _departure_sweep(scenario, args)
+        return _departure_sweep(args, {k: v for k, v in options.items() if v is not None})
     route = scenario.route(progress=not args.quiet)
     elapsed = time.perf_counter() - t0
     summary = route.summary()
@@ -284,11 +299,13 @@ def _route(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
-    """Route one scenario for several departure times (planning): a table, or JSON with --json."""
-    from ..errors import NoFeasibleRouteError, WeatherCoverageError
-    from ..progress import progress_bar
+def _departure_sweep(args: argparse.Namespace, options: dict[str, Any]) -> int:
+    """Route one scenario for several departure times (planning): a table, or JSON with --json. A thin use of
+    :mod:`pyroute_rel.sweep` (one run per departure, in this process)."""
+    from ..errors import NoFeasibleRouteError
     from ..scenario import parse_departure
+    from ..sweep import Run, run_sweep
+    from ..times import iso_utc
 
     times = [parse_departure(t.strip(), "--departures") for t in args.departures.split(",") if t.strip()]
     if not times:
@@ -298,29 +315,19 @@ def _departure_sweep(scenario: Any, args: argparse.Namespace) -> int:
     repeated = sorted({str(t) for t in times if times.count(t) > 1})
     if repeated:
         raise ScenarioError(f"--departures lists {repeated[0]}Z more than once (each departure is routed once)")
-    grids = scenario.leg_grids()  # one set of grids: arc geometry and obstacle masks are computed once
+    runs = [Run(args.scenario, departure=iso_utc(t), options=tuple(options.items())) for t in times]
     rows = []
-    bar = progress_bar(len(times), enabled=not args.quiet, desc="departures", unit="departure")
-    for dep in times:
-        row: dict[str, Any] = {"departure": str(dep) + "Z", "voyage_time_h": None, "feasible": False}
-        try:
-            route = scenario.with_options(departure=str(dep)).route(grids=grids)
-        except (NoFeasibleRouteError, WeatherCoverageError) as exc:  # this departure only: the others still route
-            row["reason"] = str(exc)
+    for r in run_sweep(runs, progress=not args.quiet).to_pylist():
+        if r["status"] == "error":  # the scenario's own error, the same for every departure
+            raise (RuntimeError if r["message"].startswith("internal error") else ScenarioError)(r["message"])
+        row: dict[str, Any] = {"departure": r["departure"], "voyage_time_h": r["voyage_time_h"], "feasible": False}
+        if r["status"] == "no_route":  # this departure only: the others still route
+            row["reason"] = r["message"]
         else:
-            row.update(
-                {
-                    "voyage_time_h": route.voyage_time_h,
-                    "feasible": True,
-                    "arrival": route.summary()["arrival"],
-                    "max_failure_probability": route.max_failure_probability,
-                }
-            )
-            if "refine" in route.meta:
-                row["grid_voyage_time_h"] = route.meta["refine"]["grid_voyage_time_h"]
+            row.update(feasible=True, arrival=r["arrival"], max_failure_probability=r["max_failure_probability"])
+            if r["grid_voyage_time_h"] is not None:
+                row["grid_voyage_time_h"] = r["grid_voyage_time_h"]
         rows.append(row)
-        bar.update(1)
-    bar.close()
     if args.json:
         print(json.dumps({"departures": rows}))
     else:

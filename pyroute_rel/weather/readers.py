@@ -50,6 +50,7 @@ from ..errors import (
 )
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
+from . import cache
 from .gridded import OUT_OF_RANGE, GriddedWeather, PreparedPoints, WeatherField, check_plausible
 
 __all__ = [
@@ -331,6 +332,14 @@ def weather_from_mapping(
         )
     base = Path(base_dir)
     paths = [p if p.is_absolute() else base / p for p in (Path(s).expanduser() for s in raw)]
+    if cache.enabled():  # a sweep's process: read every time once, keep it for the next runs (weather.cache)
+        key = ("file", cache.file_stamps(paths), tuple(sorted((variables or {}).items())), member, out_of_range)
+        key += (None if bbox is None else tuple(float(b) for b in bbox),)
+        return cache.cached(
+            key,
+            lambda: open_weather(paths, variables=variables, bbox=bbox, member=member, out_of_range=out_of_range),
+            nbytes=lambda w: w.nbytes,
+        )
     return open_weather(
         paths, variables=variables, bbox=bbox, time_window=time_window, member=member, out_of_range=out_of_range
     )
@@ -490,8 +499,12 @@ def _check_options(
         raise WeatherError(f"margin_deg must be a finite number >= 0 [deg] (got {brief(margin_deg)})")
     if variables is not None:
         check_instance(variables, Mapping, "variables", WeatherError, expected='a dict {field: "file variable"}')
-    if member is not None and (isinstance(member, bool) or not isinstance(member, (int, np.integer)) or member < 0):
-        raise WeatherError(f"member must be an integer >= 0 (got {brief(member)})")
+    if (
+        member is not None
+        and not (isinstance(member, str) and member == "mean")
+        and (isinstance(member, bool) or not isinstance(member, (int, np.integer)) or member < 0)
+    ):
+        raise WeatherError(f'member must be an integer >= 0 or "mean" (got {brief(member)})')
     variables = dict(variables or {})
     for key, name in variables.items():
         if not isinstance(name, str):

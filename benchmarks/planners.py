@@ -1,0 +1,139 @@
+"""MCTS-UCT, tabular Q-learning and a DQN against the exact DP on four courses (issue 22).
+
+Run: ``python benchmarks/planners.py [--quick] [--only NAME ...] [--json FILE] [--figure FILE]``.
+
+Courses: the paper's control course at apf 1 and at apf 0.5, the ERA5 example (time-varying gridded weather; its
+data are made by ``examples/make_era5_example.py`` when missing) and the real course with land, a coastal margin and
+a fishing zone (``examples/microtransat_real_course.toml`` from its start line's middle to its finish, since the
+other planners route point to point). Each planner's track is re-timed by the evaluator; the table gives the voyage
+time, the gap to the DP on the scenario's grid and to the DP refined in two corridors, whether the track arrives
+and is feasible, runtime and training time, work done (MCTS iterations, training voyages, arcs costed) and the
+track's mean and largest distance from the DP's.
+
+The planners' settings here are cut down from the published ones so that the comparison runs in about ten minutes
+per course on a free core (stated in :data:`SETTINGS`): the published 15 000 MCTS iterations per 1 h decision
+would take days in Python on a 700 h voyage. ``--quick`` uses smaller settings still (those of
+``examples/planners_comparison.py``). Timings are machine-dependent; the first line times fixed workloads
+(``machine ...``, ``benchmarks/run.py``'s calibration) so runs can be compared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from run import calibrate  # noqa: E402
+
+from pyroute_rel import load_scenario, scenario_from_mapping  # noqa: E402
+from pyroute_rel.planners.compare import compare_planners  # noqa: E402
+from pyroute_rel.planners.settings import parse_planner  # noqa: E402
+
+#: The planner runs of every course: (label, kind, [planner] table).
+SETTINGS = {
+    "full": [
+        ("mcts", "mcts", {"mcts": {"iterations": 20, "step_h": 24.0, "rollout_h": 72.0}}),
+        ("qlearning (graph)", "qlearning", {"qlearning": {"episodes": 3000, "gamma": 1.0}}),
+        (
+            "qlearning (cells)",
+            "qlearning",
+            {"qlearning": {"space": "cells", "cell_nm": 90.0, "cells_across": 15, "gamma": 1.0}},
+        ),
+        ("dqn", "dqn", {"dqn": {"episodes": 20, "step_h": 24.0}}),
+    ],
+    "quick": [
+        ("mcts", "mcts", {"mcts": {"iterations": 10, "step_h": 24.0, "rollout_h": 48.0}}),
+        ("qlearning (graph)", "qlearning", {"qlearning": {"episodes": 500, "gamma": 1.0}}),
+        (
+            "qlearning (cells)",
+            "qlearning",
+            {"qlearning": {"space": "cells", "cell_nm": 120.0, "cells_across": 11, "episodes": 1000, "gamma": 1.0}},
+        ),
+        ("dqn", "dqn", {"dqn": {"episodes": 5, "step_h": 24.0, "hidden": [32]}}),
+    ],
+}
+
+#: The DP grid of every course: 40 ranks (Q-learning on the graph learns on this grid).
+N_RANKS = 40
+
+
+def courses() -> dict[str, object]:
+    """The four courses' scenarios (40-rank grids)."""
+    control = load_scenario(EXAMPLES / "microtransat_control.toml").with_options(n_ranks=N_RANKS)
+    era5_data = EXAMPLES / "data" / "era5_synthetic.nc"
+    if not era5_data.exists():
+        subprocess.run([sys.executable, str(EXAMPLES / "make_era5_example.py")], check=True)
+    real_path = EXAMPLES / "microtransat_real_course.toml"
+    real = tomllib.loads(real_path.read_text())
+    (a, b) = real["route"].pop("start_line")
+    real["route"].pop("finish_line")
+    real["route"]["start"] = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]
+    real["grid"] = {"n_ranks": N_RANKS}
+    return {
+        "control course, apf 1": control.with_options(apf=1.0),
+        "control course, apf 0.5": control.with_options(apf=0.5),
+        "ERA5 example": load_scenario(EXAMPLES / "microtransat_era5.toml").with_options(n_ranks=N_RANKS),
+        "real course with land and a zone": scenario_from_mapping(real, base_dir=EXAMPLES, source=str(real_path)),
+    }
+
+
+def table(rows: list[dict]) -> str:
+    """The rows as the README's Markdown table."""
+
+    def f(v: object, fmt: str) -> str:
+        return "-" if v is None else format(v, fmt)
+
+    head = (
+        "| course | planner | voyage [h] | gap to DP [h] | gap to refined DP [h] | arrives, feasible | runtime [s] | "
+        "training [s] | work | mean / max from DP [nm] |"
+    )
+    lines = [head, "|" + "---|" * 10]
+    for r in rows:
+        lines.append(
+            f"| {r['course']} | {r['planner']} | {f(r['voyage_time_h'], '.2f')} | {f(r['gap_to_dp_h'], '+.2f')} | "
+            f"{f(r['gap_to_refined_dp_h'], '+.2f')} | {'yes' if r['reached'] else 'no'}, "
+            f"{'yes' if r['feasible'] else 'no'} | {f(r['runtime_s'], '.1f')} | {f(r['training_s'], '.1f')} | "
+            f"{f(r['iterations'], '')} | {f(r['mean_cross_track_nm'], '.0f')} / {f(r['max_cross_track_nm'], '.0f')} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="smaller settings (SETTINGS['quick'])")
+    ap.add_argument("--only", nargs="*", help="courses whose name contains one of these words")
+    ap.add_argument("--json", help="write the rows to this JSON file")
+    ap.add_argument("--figure", help="write the map of every track to this PNG file")
+    args = ap.parse_args(argv)
+    machine = calibrate(quick=True)
+    print("machine  " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in machine.items()))
+    runs = [(label, kind, parse_planner(t)) for label, kind, t in SETTINGS["quick" if args.quick else "full"]]
+    todo = courses()
+    if args.only:
+        todo = {k: v for k, v in todo.items() if any(w in k for w in args.only)}
+    comparisons, rows = [], []
+    for name, sc in todo.items():
+        comp = compare_planners(sc, name=name, runs=runs, refine=2)  # type: ignore[arg-type]
+        comparisons.append(comp)
+        rows += comp.rows()
+        print(table(comp.rows()), flush=True)
+    print()
+    print(table(rows))
+    if args.json:
+        Path(args.json).write_text(json.dumps({"machine": machine, "rows": rows}, indent=1))
+    if args.figure:
+        from pyroute_rel.figures.planners import planners_map
+
+        planners_map(comparisons).savefig(args.figure, dpi=110)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

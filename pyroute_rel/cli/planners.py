@@ -1,0 +1,149 @@
+"""``pyroute-rel route --planner mcts|qlearning|dqn`` and ``pyroute-rel compare TRACK_A TRACK_B``.
+
+A planner other than the DP plans a track (:func:`pyroute_rel.planners.plan.plan`); the evaluator re-times it in the
+scenario's weather (:func:`pyroute_rel.evaluate.evaluate_track`), and those are the figures printed: the same
+measure as every other track.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_compare_parser", "route_with_planner", "PLANNER_FILES"]
+
+#: Files ``route --planner ... --out DIR`` writes.
+PLANNER_FILES = ("summary.json", "track.csv")
+
+
+def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any, dict[str, Any]]:
+    from ..evaluate import evaluate_track
+    from ..planners.plan import plan
+
+    planned = plan(scenario, kind=kind, progress=progress)
+    ev = evaluate_track(scenario, planned.points())
+    summary = {
+        "planner": kind,
+        "reached": planned.reached,
+        "planner_voyage_time_h": planned.voyage_time_h,
+        "planner_stats": planned.stats,
+        **ev.summary(),
+    }
+    if not planned.reached:
+        summary["feasible"] = False
+        summary["reason"] = summary.get("reason") or "not_reached"
+    return planned, ev, summary
+
+
+def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> int:
+    """Plan the scenario with ``args.planner`` (or its ``[planner].kind``), re-time the track, print and write it."""
+    from ..files import check_out_dir, write_together
+
+    kind = args.planner or scenario.planner.kind
+    scenario = replace(scenario, planner=replace(scenario.planner, kind=kind))
+    if args.departures is not None:
+        from ..errors import ScenarioError
+
+        raise ScenarioError("--departures routes with the DP only (leave out --planner or use --planner dp)")
+    if args.out is not None:
+        check_out_dir(args.out)
+    planned, ev, summary = _planner_summary(scenario, kind, progress=not args.quiet)
+    elapsed = time.perf_counter() - t0
+    summary["runtime_s"] = elapsed
+    if args.out is not None:
+        text = json.dumps(summary, indent=1)
+        rows = io.StringIO()
+        w = csv.writer(rows, lineterminator="\n")
+        w.writerow(["lon", "lat", "time", "planner_elapsed_h"])
+        for (lo, la), t, h in zip(ev.track, ev.time, planned.elapsed_h, strict=True):
+            w.writerow([f"{lo:.6f}", f"{la:.6f}", "" if str(t) == "NaT" else f"{t}Z", f"{h:.6f}"])
+        write_together(
+            args.out,
+            {
+                "summary.json": lambda p: Path(p).write_text(text, encoding="utf-8"),
+                "track.csv": lambda p: Path(p).write_text(rows.getvalue(), encoding="utf-8"),
+            },
+            option="--out",
+        )
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    st = planned.stats
+    voyage = summary["voyage_time_h"]
+    lines = [
+        f"planner          {kind} ({'reached the finish' if planned.reached else 'did NOT reach the finish'})",
+        f"voyage time      {voyage:.2f} h (re-timed by the evaluator; the planner's own: {planned.voyage_time_h:.2f} h)"
+        if voyage is not None
+        else "voyage time      none (a leg cannot be sailed)",
+        f"distance         {ev.distance_nm:.1f} nm",
+        f"feasible         {summary['feasible']}" + (f" ({summary['reason']})" if summary["reason"] else ""),
+        f"failure          max leg p_f {ev.max_failure_probability:.3f}, "
+        f"voyage p_f {ev.voyage_failure_probability:.3f}",
+        f"work             {_work(st)}",
+        f"runtime          {elapsed:.2f} s",
+    ]
+    if args.out is not None:
+        lines.append(f"outputs          {Path(args.out)}/ ({', '.join(PLANNER_FILES)})")
+    print("\n".join(lines))
+    return 0
+
+
+def _work(stats: dict[str, Any]) -> str:
+    keys = ("iterations", "decisions", "episodes", "training_s", "states", "actions", "arcs_evaluated")
+    return ", ".join(
+        f"{k} {stats[k]:.3g}" if isinstance(stats[k], float) else f"{k} {stats[k]}" for k in keys if k in stats
+    )
+
+
+def add_compare_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], None]) -> None:
+    """Add ``compare``."""
+    c = sub.add_parser(
+        "compare",
+        help="how close two tracks are (cross-track distances, arrival difference)",
+        description="Measure track B against track A (GPX, GeoJSON or CSV): the mean and largest distance of B's "
+        "points from A, the Hausdorff distance, and B's arrival minus A's when both files have times.",
+    )
+    c.add_argument("track_a", help="reference track file (e.g. the DP's route.geojson)")
+    c.add_argument("track_b", help="track file to measure against it")
+    c.add_argument("--step-km", type=float, default=5.0, help="densify the tracks to points this far apart [km]")
+    c.add_argument("--json", action="store_true", help="print the figures as one JSON object")
+    add_common(c)
+    c.set_defaults(func=_cmd_compare)
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from ..evaluate import read_track
+    from ..similarity import track_similarity
+
+    a, b = read_track(args.track_a), read_track(args.track_b)
+    s = track_similarity(
+        a.lon_deg,
+        a.lat_deg,
+        b.lon_deg,
+        b.lat_deg,
+        arrival_a=None if a.time is None else a.time[-1],
+        arrival_b=None if b.time is None else b.time[-1],
+        step_km=args.step_km,
+    )
+    if args.json:
+        print(json.dumps(s.as_dict()))
+        return 0
+    diff = s.arrival_difference_h
+    print(
+        "\n".join(
+            [
+                f"mean cross-track  {s.mean_cross_track_nm:.2f} nm",
+                f"max cross-track   {s.max_cross_track_nm:.2f} nm",
+                f"hausdorff         {s.hausdorff_nm:.2f} nm",
+                "arrival B - A     " + ("unknown (a track has no times)" if diff is None else f"{diff:+.2f} h"),
+            ]
+        )
+    )
+    return 0

@@ -1,0 +1,197 @@
+"""``pyroute-rel sweep``: many routes of one scenario (:mod:`pyroute_rel.sweep`), a table and a plot."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_sweep_parser", "departures_option"]
+
+
+def departures_option(text: str) -> Any:
+    """``--departures``: ``START,END,STEP_H`` (a range every STEP_H hours) or ISO 8601 times, comma-separated;
+    as the ``departures`` of a ``[sweep]`` table.
+
+    >>> departures_option("2018-06-01T00:00Z,2018-06-02T00:00Z,12")
+    {'start': '2018-06-01T00:00Z', 'end': '2018-06-02T00:00Z', 'step_h': 12.0}
+    >>> departures_option("2018-06-01T00:00Z, 2018-06-05T00:00Z")
+    ['2018-06-01T00:00Z', '2018-06-05T00:00Z']
+    """
+    parts = [p.strip() for p in text.split(",") if p.strip()]
+    if len(parts) == 3:
+        try:
+            return {"start": parts[0], "end": parts[1], "step_h": float(parts[2])}
+        except ValueError:
+            pass
+    return parts
+
+
+def _members_option(text: str) -> Any:
+    if text.strip() == "all":
+        return "all"
+    try:
+        return [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'all' or comma-separated member numbers (got {text!r})") from None
+
+
+def add_sweep_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], None], csv_floats: Any) -> None:
+    """Add ``sweep`` to the ``pyroute-rel`` command."""
+    s = sub.add_parser(
+        "sweep",
+        help="route many runs of a scenario (departures, members, apf, polars, grids): a table and a plot",
+        description="Route every run of a sweep specification (a TOML file with a [sweep] table), or of a "
+        "scenario with --departures; print a table of the runs and plot voyage time and voyage p_f against "
+        "departure. With --out the runs are recorded as they finish (runs.parquet/, tracks/): running the same "
+        "command again routes only the runs not yet recorded.",
+    )
+    s.add_argument("spec", help="sweep specification (TOML with [sweep]) or a scenario TOML file")
+    s.add_argument(
+        "--departures",
+        type=departures_option,
+        help="START,END,STEP_H (ISO 8601 times, hours) or comma-separated ISO 8601 departure times",
+    )
+    s.add_argument("--members", type=_members_option, help="ensemble members: 'all' or comma-separated numbers")
+    s.add_argument("--apf", type=csv_floats, help="acceptable probabilities of failure, comma-separated")
+    s.add_argument("--out", help="folder for runs.parquet/ (one part per finished batch), tracks/ and sweep.png")
+    s.add_argument("--plot", help="PNG to write the plot to (default: sweep.png in --out; none without --out)")
+    s.add_argument(
+        "--engine",
+        choices=("inline", "processes", "dask"),
+        help="where runs are routed: inline (this process; the default), processes (a local pool of --workers), "
+        "dask (--scheduler's cluster, or a LocalCluster of --workers; the default with either)",
+    )
+    s.add_argument("--workers", type=int, help="worker processes (a dask LocalCluster unless --engine processes)")
+    s.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="address of a running dask scheduler")
+    s.add_argument("--retries", type=int, default=2, help="dask runs a failed task again this often (default 2)")
+    s.add_argument(
+        "--batch",
+        type=int,
+        default=32,
+        help="with --out, write a part file every this many finished runs (or every 5 s): a killed sweep loses at "
+        "most the runs of its last batch (default 32)",
+    )
+    s.add_argument(
+        "--connect-timeout", type=float, default=10.0, help="how long to try reaching --scheduler [s] (default 10)"
+    )
+    s.add_argument("--json", action="store_true", help='print {"runs": [one object per run]} instead of a table')
+    add_common(s)
+    s.set_defaults(func=_cmd_sweep)
+
+
+def _spec_table(args: argparse.Namespace) -> tuple[dict[str, Any], Path, str]:
+    """The sweep table of the file (a spec, or a scenario made into one), with the options written in."""
+    from ..scenario import read_scenario_table
+    from ..sweep import SweepError
+
+    path = Path(args.spec)
+    table = read_scenario_table(path)
+    if "sweep" in table:
+        spec = dict(table["sweep"]) if isinstance(table["sweep"], dict) else table["sweep"]
+        base, source = path.parent, str(path)
+    else:
+        spec, base, source = {"scenario": str(path.resolve())}, Path("."), str(path)
+    if not isinstance(spec, dict):
+        raise SweepError(f"{source}: [sweep] must be a table")
+    for key, value in (("departures", args.departures), ("members", args.members), ("apf", args.apf)):
+        if value is not None:
+            spec[key] = value
+    return {"sweep": spec}, base, source
+
+
+def _engine(args: argparse.Namespace) -> str:
+    if args.engine is not None:
+        return str(args.engine)
+    return "dask" if args.scheduler is not None or args.workers is not None else "inline"
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from ..sweep import SweepError, run_sweep, sweep_from_mapping
+
+    table, base, source = _spec_table(args)
+    try:
+        runs = sweep_from_mapping(table, base_dir=base, source=source).runs
+    except SweepError as exc:  # a value given on the command line is named as its option
+        msg = str(exc)
+        for key in ("departures", "members", "apf"):
+            if getattr(args, key) is not None:
+                msg = msg.replace(f"[sweep].{key}", f"--{key}")
+        raise SweepError(msg) from None
+    plot = Path(args.plot) if args.plot else (Path(args.out) / "sweep.png" if args.out else None)
+    if args.out is not None:
+        from ..files import check_out_dir
+
+        check_out_dir(args.out)
+    if args.plot and not Path(args.plot).resolve().parent.is_dir():
+        raise SweepError(f"--plot {args.plot}: its folder does not exist")
+    result = run_sweep(
+        runs,
+        engine=_engine(args),
+        workers=args.workers,
+        scheduler=args.scheduler,
+        out=args.out,
+        retries=args.retries,
+        batch=args.batch,
+        connect_timeout_s=args.connect_timeout,
+        progress=not args.quiet,
+        log=None if args.quiet else lambda line: print(f"pyroute-rel: {line}", file=sys.stderr),
+    )
+    rows = result.to_pylist()
+    if plot is not None:
+        from ..figures.sweep import write_sweep_figure
+
+        write_sweep_figure(rows, plot)
+    if args.json:
+        print(json.dumps({"runs": rows}))
+    else:
+        print(_table_text(rows))
+        if plot is not None:
+            print(f"plot: {plot}")
+    return _exit_code(rows)
+
+
+def _exit_code(rows: list[dict[str, Any]]) -> int:
+    """3 when a run hit an internal error; 2 when every run was a user error; else 0 (runs without a route are
+    results)."""
+    from ..errors import ScenarioError
+
+    if any(str(r["message"]).startswith("internal error") for r in rows):
+        first = next(r for r in rows if str(r["message"]).startswith("internal error"))
+        print(f"pyroute-rel: {first['message']} (run {first['key']}; see --debug)", file=sys.stderr)
+        return 3
+    if rows and all(r["status"] == "error" for r in rows):
+        raise ScenarioError(f"no run could be routed: {rows[0]['message']}")
+    return 0
+
+
+def _table_text(rows: list[dict[str, Any]]) -> str:
+    """The runs as a table: the settings that vary, then the results."""
+    from ..figures.sweep import VARIED
+
+    varied = [c for c in VARIED if len({json.dumps(r.get(c)) for r in rows}) > 1]
+    head = f"{'departure':<21}" + "".join(f" {c:<14}" for c in varied)
+    head += f" {'status':<9}{'voyage [h]':>11} {'arrival':<21}{'max p_f':>8}{'voy. p_f':>9}"
+    lines = [head]
+    for r in rows:
+        line = f"{r['departure'] or '-':<21}" + "".join(f" {_cell(r.get(c)):<14}" for c in varied)
+        if r["status"] == "ok":
+            line += (
+                f" {'ok':<9}{r['voyage_time_h']:>11.2f} {r['arrival']:<21}{r['max_failure_probability']:>8.3f}"
+                f"{r['voyage_failure_probability'] + 0.0:>9.3f}"
+            )
+        else:
+            line += f" {r['status']:<9} {r['message']}"
+        lines.append(line)
+    n_ok = sum(r["status"] == "ok" for r in rows)
+    lines.append(f"{len(rows)} runs: {n_ok} routed, {len(rows) - n_ok} without a route")
+    return "\n".join(lines)
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, str) and v.startswith("{"):
+        return " ".join(f"{k}={x}" for k, x in json.loads(v).items()) or "-"
+    return "-" if v is None else str(v)

@@ -1,0 +1,353 @@
+"""The ``[planner]`` table of a scenario: which planner routes it and each planner's settings, with the published
+defaults.
+
+::
+
+    [planner]
+    kind = "dp"          # "dp" (default), "mcts", "qlearning" or "dqn"
+    seed = 0             # every random choice of the sampled and learned planners
+
+    [planner.mcts]       # Barde (2023), ISAE-SUPAERO: MCTS-UCT
+    iterations = 15000   # UCT iterations per decision
+    exploration = 0.7071067811865476   # C_p = 1/sqrt(2)
+    step_h = 1.0         # one decision per hour
+    headings = 8         # 45 deg apart
+    nogo_min_deg = 35.0  # no sailing closer than 35 deg to the wind ...
+    nogo_max_deg = 160.0 # ... nor deeper than 160 deg
+    reward_c = 1.001     # reward exp((TimeMax c - date) / (TimeMax c - TimeMin))
+    rollout_h = 0.0      # rollout horizon [h] (0: until arrival or the time limit)
+    max_voyage_h = 0.0   # give up after this long [h] (0: 3 x the great circle at the polar's mean speed)
+    graph = false        # true: search the rank digraph's arcs instead of headings (for checks against the DP)
+    final = "visits"     # sail the most visited action ("best": the one with the best reward below it)
+
+    [planner.qlearning]  # Jing et al. (2021): tabular Q-learning
+    space = "graph"      # "graph": states = rank-digraph nodes, actions = arcs; "cells": 8-neighbour grid of cells
+    alpha = 0.6
+    gamma = 0.9
+    epsilon = 0.2
+    episodes = 3000
+    cell_nm = 10.0       # side of a cell [nm] ("cells")
+    cells_across = 10    # cells across the course ("cells")
+
+    [planner.dqn]        # Mannocci & Bologna (2021): DQN over a local wind image
+    episodes = 200
+    step_h = 6.0
+    image_cells = 8      # the wind image is image_cells x image_cells (u, v) around the craft
+    image_km = 1000.0    # its side [km]
+    hidden = [64, 64]
+    learning_rate = 0.001
+    gamma = 0.99
+    epsilon = 0.2
+    batch = 64
+    replay = 20000
+    target_every = 200   # learning steps between copies of the Q-network into the target network
+    turn_deg = 22.5      # actions: turn by -turn, keep, +turn (pi/8 in the paper)
+    nogo_min_deg = 45.0
+    model = ""           # file to save the trained network to (and read it from when it exists); "" = keep none
+    departure_spread_h = 72.0   # training voyages depart up to this long after the scenario's departure [h]
+
+This module knows nothing of routing: it reads and checks values, so the scenario reader can use it.
+
+References
+----------
+Barde (2023), ISAE-SUPAERO: MCTS-UCT routing of sailing craft (8 headings, 1 h steps, C_p = 1/sqrt(2), 15 000
+iterations per decision, no-go below 35 deg and above 160 deg TWA).
+Jing et al. (2021): tabular Q-learning route planning on a 10 x 10 grid of 10 nm cells, 8 neighbours (alpha = 0.6,
+gamma = 0.9, epsilon = 0.2, 3000 iterations).
+Mannocci and Bologna (2021): a DQN sailing the Vendee Globe 2020/21 (2 x 128 x 128 wind image over 1000 km, 3
+actions: turn by pi/8 either way or keep).
+Kocsis, L. and Szepesvári, C. (2006). Bandit based Monte-Carlo planning. ECML 2006, doi:10.1007/11871842_29.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+from ..errors import ScenarioError, brief, show
+
+__all__ = [
+    "PLANNERS",
+    "MCTSSettings",
+    "QLearningSettings",
+    "DQNSettings",
+    "PlannerSettings",
+    "parse_planner",
+]
+
+#: The planners by name: the exact DP and the three sampled or learned planners.
+PLANNERS = ("dp", "mcts", "qlearning", "dqn")
+#: Spaces tabular Q-learning works in.
+QLEARNING_SPACES = ("graph", "cells")
+
+
+def _number(value: Any, where: str, lo: float, hi: float, *, lo_open: bool = False) -> float:
+    ok = not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(float(value))
+    if ok:
+        x = float(value)
+        ok = (x > lo if lo_open else x >= lo) and x <= hi
+    if not ok:
+        bracket = "(" if lo_open else "["
+        raise ScenarioError(f"{where} must be a number in {bracket}{lo:g}, {hi:g}] (got {brief(value)})")
+    return float(value)
+
+
+def _whole(value: Any, where: str, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= int(value) <= hi:
+        raise ScenarioError(f"{where} must be a whole number in [{lo}, {hi}] (got {brief(value)})")
+    return int(value)
+
+
+def _check(obj: Any, table: str, limits: Mapping[str, tuple[Any, ...]]) -> None:
+    """Check every field of a settings dataclass against ``limits`` (name -> (kind, lo, hi[, lo_open]))."""
+    for name, spec in limits.items():
+        value = getattr(obj, name)
+        where = f"[planner.{table}].{name}"
+        if spec[0] == "int":
+            object.__setattr__(obj, name, _whole(value, where, spec[1], spec[2]))
+        elif spec[0] == "float":
+            object.__setattr__(obj, name, _number(value, where, spec[1], spec[2], lo_open=len(spec) > 3))
+        elif spec[0] == "bool":
+            if not isinstance(value, bool):
+                raise ScenarioError(f"{where} must be true or false (got {brief(value)})")
+        elif spec[0] == "choice":
+            if not isinstance(value, str) or value not in spec[1]:
+                raise ScenarioError(f"{where} must be one of {list(spec[1])} (got {brief(value)})")
+        elif spec[0] == "str":
+            if not isinstance(value, str):
+                raise ScenarioError(f"{where} must be a file name (a string) (got {brief(value)})")
+
+
+@dataclass(frozen=True)
+class MCTSSettings:
+    """MCTS-UCT settings (Barde 2023); the defaults are the published ones.
+
+    Attributes
+    ----------
+    iterations : UCT iterations per decision (15 000 published) [-].
+    exploration : UCT exploration constant C_p (1/sqrt(2) published) [-].
+    step_h : Time between decisions (1 h published) [h].
+    headings : Number of headings, evenly spaced from north (8, 45 deg apart, published) [-].
+    nogo_min_deg, nogo_max_deg : Headings with a true wind angle below / above these are not sailed (35 and 160
+        published) [deg].
+    reward_c : The ``c`` of the reward ``exp((TimeMax c - date) / (TimeMax c - TimeMin))`` (1.001 published) [-].
+    rollout_h : Longest rollout [h]; 0: until arrival or :attr:`max_voyage_h`.
+    max_voyage_h : Voyage time after which the search gives up [h] (TimeMax); 0: three times the great-circle
+        distance at the polar's mean speed.
+    graph : Search the scenario's rank digraph (actions = its arcs) instead of headings: the same tree search on
+        the DP's graph, for checks against the DP.
+    final : The action sailed after a decision's search: ``"visits"`` the most visited (published) or ``"best"``
+        the one below which the best reward was found (exact once the tree holds every path).
+    """
+
+    iterations: int = 15_000
+    exploration: float = 1.0 / math.sqrt(2.0)
+    step_h: float = 1.0
+    headings: int = 8
+    nogo_min_deg: float = 35.0
+    nogo_max_deg: float = 160.0
+    reward_c: float = 1.001
+    rollout_h: float = 0.0
+    max_voyage_h: float = 0.0
+    graph: bool = False
+    final: str = "visits"
+
+    def __post_init__(self) -> None:
+        _check(
+            self,
+            "mcts",
+            {
+                "iterations": ("int", 1, 10_000_000),
+                "exploration": ("float", 0.0, 100.0),
+                "step_h": ("float", 0.0, 48.0, True),
+                "headings": ("int", 2, 360),
+                "nogo_min_deg": ("float", 0.0, 180.0),
+                "nogo_max_deg": ("float", 0.0, 180.0),
+                "reward_c": ("float", 1.0, 10.0, True),
+                "rollout_h": ("float", 0.0, 100_000.0),
+                "max_voyage_h": ("float", 0.0, 100_000.0),
+                "graph": ("bool",),
+                "final": ("choice", ("visits", "best")),
+            },
+        )
+        if self.nogo_min_deg >= self.nogo_max_deg:
+            raise ScenarioError(
+                f"[planner.mcts].nogo_min_deg must be below nogo_max_deg (got {self.nogo_min_deg:g} and "
+                f"{self.nogo_max_deg:g})"
+            )
+
+
+@dataclass(frozen=True)
+class QLearningSettings:
+    """Tabular Q-learning settings (Jing et al. 2021); the defaults are the published ones.
+
+    Attributes
+    ----------
+    space : ``"graph"``: states are the rank digraph's nodes and actions its arcs; ``"cells"``: the published grid of
+        square cells with 8 neighbours, edge time ``2 d / (v_i + v_j)``.
+    alpha : Learning rate (0.6 published) [-].
+    gamma : Discount factor (0.9 published) [-].
+    epsilon : Exploration rate of the epsilon-greedy policy (0.2 published) [-].
+    episodes : Training episodes (3000 iterations published) [-].
+    cell_nm : Side of a cell (10 nm published) [nm].
+    cells_across : Cells across the course (10 published) [-].
+    """
+
+    space: str = "graph"
+    alpha: float = 0.6
+    gamma: float = 0.9
+    epsilon: float = 0.2
+    episodes: int = 3000
+    cell_nm: float = 10.0
+    cells_across: int = 10
+
+    def __post_init__(self) -> None:
+        _check(
+            self,
+            "qlearning",
+            {
+                "space": ("choice", QLEARNING_SPACES),
+                "alpha": ("float", 0.0, 1.0, True),
+                "gamma": ("float", 0.0, 1.0, True),
+                "epsilon": ("float", 0.0, 1.0),
+                "episodes": ("int", 1, 10_000_000),
+                "cell_nm": ("float", 0.01, 10_000.0),
+                "cells_across": ("int", 1, 10_001),
+            },
+        )
+
+
+@dataclass(frozen=True)
+class DQNSettings:
+    """Deep Q-network settings (after Mannocci & Bologna 2021, scaled down to train in minutes on a CPU).
+
+    Attributes
+    ----------
+    episodes : Training voyages, each from a random departure (and member) of the scenario's weather [-].
+    step_h : Time between decisions [h].
+    image_cells : Side of the wind image around the craft, in cells (the paper's 128) [-].
+    image_km : Side of the wind image (the paper's 1000 km) [km].
+    hidden : Sizes of the Q-network's hidden layers [-].
+    learning_rate : Adam's step size [-].
+    gamma : Discount factor [-].
+    epsilon : Exploration rate while training [-].
+    batch : Transitions per learning step [-].
+    replay : Capacity of the experience replay [transitions].
+    target_every : Learning steps between copies of the Q-network into the target network [-].
+    turn_deg : The actions turn by ``-turn_deg``, 0 or ``+turn_deg`` (pi/8 = 22.5 deg in the paper) [deg].
+    nogo_min_deg : Headings closer to the wind are not sailed (45 deg in the paper) [deg].
+    model : File the trained network is saved to (``.npz``) and read from when it exists; ``""``: none.
+    departure_spread_h : Training voyages depart at random times up to this long after the scenario's departure
+        [h].
+    """
+
+    episodes: int = 200
+    step_h: float = 6.0
+    image_cells: int = 8
+    image_km: float = 1000.0
+    hidden: tuple[int, ...] = (64, 64)
+    learning_rate: float = 1e-3
+    gamma: float = 0.99
+    epsilon: float = 0.2
+    batch: int = 64
+    replay: int = 20_000
+    target_every: int = 200
+    turn_deg: float = 22.5
+    nogo_min_deg: float = 45.0
+    model: str = ""
+    departure_spread_h: float = 72.0
+
+    def __post_init__(self) -> None:
+        _check(
+            self,
+            "dqn",
+            {
+                "episodes": ("int", 1, 1_000_000),
+                "step_h": ("float", 0.0, 48.0, True),
+                "image_cells": ("int", 1, 256),
+                "image_km": ("float", 1.0, 20_000.0),
+                "learning_rate": ("float", 0.0, 1.0, True),
+                "gamma": ("float", 0.0, 1.0, True),
+                "epsilon": ("float", 0.0, 1.0),
+                "batch": ("int", 1, 100_000),
+                "replay": ("int", 1, 10_000_000),
+                "target_every": ("int", 1, 10_000_000),
+                "turn_deg": ("float", 0.0, 180.0, True),
+                "nogo_min_deg": ("float", 0.0, 180.0),
+                "model": ("str",),
+                "departure_spread_h": ("float", 0.0, 100_000.0),
+            },
+        )
+        hidden = self.hidden
+        if (
+            isinstance(hidden, str | bytes)
+            or not isinstance(hidden, list | tuple)
+            or not hidden
+            or len(hidden) > 8
+            or not all(isinstance(h, numbers.Integral) and not isinstance(h, bool) and 1 <= h <= 4096 for h in hidden)
+        ):
+            raise ScenarioError(
+                "[planner.dqn].hidden must be a list of 1 to 8 layer sizes, whole numbers in [1, 4096] "
+                f"(got {brief(hidden)})"
+            )
+        object.__setattr__(self, "hidden", tuple(int(h) for h in hidden))
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """The ``[planner]`` table: which planner routes the scenario, its seed and every planner's settings.
+
+    Attributes
+    ----------
+    kind : One of :data:`PLANNERS` (``"dp"`` default).
+    seed : Seed of every random choice (fixed: results are reproducible) [-].
+    mcts, qlearning, dqn : Each planner's settings.
+    """
+
+    kind: str = "dp"
+    seed: int = 0
+    mcts: MCTSSettings = field(default_factory=MCTSSettings)
+    qlearning: QLearningSettings = field(default_factory=QLearningSettings)
+    dqn: DQNSettings = field(default_factory=DQNSettings)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.kind, str) or self.kind not in PLANNERS:
+            raise ScenarioError(f"[planner].kind must be one of {list(PLANNERS)} (got {brief(self.kind)})")
+        _whole(self.seed, "[planner].seed", 0, 2**32 - 1)
+        for name, cls in (("mcts", MCTSSettings), ("qlearning", QLearningSettings), ("dqn", DQNSettings)):
+            if not isinstance(getattr(self, name), cls):
+                raise ScenarioError(
+                    f"PlannerSettings.{name} must be a {cls.__name__} (got {brief(getattr(self, name))})"
+                )
+
+
+_TABLES = {"mcts": MCTSSettings, "qlearning": QLearningSettings, "dqn": DQNSettings}
+
+
+def parse_planner(raw: Any) -> PlannerSettings:
+    """Read a scenario's ``[planner]`` table (unknown keys are refused, naming the key and those expected).
+
+    >>> s = parse_planner({"kind": "mcts", "mcts": {"iterations": 200}})
+    >>> s.kind, s.mcts.iterations, s.mcts.headings, round(s.mcts.exploration, 4), s.qlearning.alpha
+    ('mcts', 200, 8, 0.7071, 0.6)
+    """
+    if not isinstance(raw, Mapping):
+        raise ScenarioError("[planner] must be a table")
+    top = {"kind", "seed", *_TABLES}
+    for key in raw:
+        if key not in top:
+            raise ScenarioError(f"[planner]: unknown key '{show(key)}' (expected one of {', '.join(sorted(top))})")
+    parts: dict[str, Any] = {}
+    for name, cls in _TABLES.items():
+        sub = raw.get(name, {})
+        if not isinstance(sub, Mapping):
+            raise ScenarioError(f"[planner.{name}] must be a table")
+        known = [f.name for f in fields(cls)]
+        for key in sub:
+            if key not in known:
+                raise ScenarioError(f"[planner.{name}]: unknown key '{show(key)}' (expected one of {', '.join(known)})")
+        parts[name] = cls(**dict(sub))
+    return PlannerSettings(kind=raw.get("kind", "dp"), seed=raw.get("seed", 0), **parts)

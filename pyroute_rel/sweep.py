@@ -1,0 +1,804 @@
+"""Sweeps: many routes of one scenario (departures × ensemble members × apf × failure models × polars × grids), in
+this process, a local process pool or on a dask.distributed cluster, into a tidy, resumable table.
+
+A sweep is a list of :class:`Run` (a scenario file plus the settings it changes). Each run is the scenario file with
+those settings written into its tables (``[route].departure``, ``[weather].member``, ``[failure].apf`` and
+``model``, ``[boat].polar``, ``[grid]`` keys), validated and routed as ``pyroute-rel route`` would route the edited
+file; so a row equals that route. :func:`run_sweep` returns a :class:`pyarrow.Table`, one row per run
+(:data:`COLUMNS`): the run's key, its parameters, ``status`` (``ok``; ``no_route`` when no route respects the
+constraints or the weather does not cover the departure; ``error`` with the one-line message of any other user
+error), voyage time, distance, arrival, failure probabilities, arcs, runtime and the track's file.
+
+Engines: ``"inline"`` (this process; the default), ``"processes"`` (a local process pool) and ``"dask"``
+(:mod:`distributed`: a running scheduler's address, or a ``LocalCluster`` of ``workers`` processes). Every process
+keeps the weather it opened (:mod:`pyroute_rel.weather.cache`) and the grids it built for its later runs. On dask
+a task that fails unexpectedly (an internal error, a worker lost) is run again by dask (``retries``); a user error
+is a row, never retried.
+
+Output (``out``): ``runs.parquet/``, a Parquet dataset folder: each batch of finished runs is one part file,
+written whole (a temporary name, then a rename), so a sweep that is killed keeps every batch it wrote;
+``pyarrow.parquet.read_table("out/runs.parquet")`` reads them all. ``tracks/<key>.geojson``: the track of each
+routed run, a GeoJSON Feature whose LineString holds the points and whose properties hold the time and the leg's
+failure probability at each point. A run's key hashes its parameters, the package version and the content of every
+file it reads (scenario, weather, polar, failure model, zones); running the same sweep again skips the keys already
+recorded. Internal errors are returned but not recorded, so a re-run tries them again.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import math
+import os
+import time
+import uuid
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from .config import SCHEMA, parse_departure, probability
+from .errors import (
+    NoFeasibleRouteError,
+    PyrouteError,
+    ScenarioError,
+    WeatherCoverageError,
+    brief,
+    check_callable,
+    check_flag,
+    check_numbers,
+    check_path,
+    show,
+)
+from .files import atomic_write, atomic_write_text, brief_path
+from .times import iso_utc
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+
+    from .grid import Grid
+    from .route import Route
+    from .scenario import Scenario
+
+__all__ = [
+    "Run",
+    "SweepSpec",
+    "SweepError",
+    "COLUMNS",
+    "ENGINES",
+    "load_sweep",
+    "sweep_from_mapping",
+    "departure_range",
+    "run_key",
+    "run_one",
+    "run_sweep",
+    "read_runs",
+    "MAX_RUNS",
+]
+
+#: Engines of :func:`run_sweep`.
+ENGINES = ("inline", "processes", "dask")
+#: Most runs one sweep may hold.
+MAX_RUNS = 1_000_000
+#: Files larger than this are keyed by size, modification time and their first and last MB instead of their whole
+#: content [bytes].
+HASH_WHOLE_BYTES = 256_000_000
+#: Grids kept per process for later runs.
+GRID_CACHE_SIZE = 8
+#: Sweep specification keys (the ``[sweep]`` table).
+SPEC_KEYS = ("scenario", "departures", "members", "apf", "failure_models", "polars", "grids")
+
+#: The table's columns and their Arrow types (as strings: ``pyarrow`` is imported only when a table is built).
+COLUMNS: dict[str, str] = {
+    "key": "string",
+    "scenario": "string",
+    "departure": "string",
+    "member": "int64",
+    "apf": "float64",
+    "failure_model": "string",
+    "polar": "string",
+    "grid": "string",
+    "options": "string",
+    "status": "string",
+    "message": "string",
+    "voyage_time_h": "float64",
+    "distance_nm": "float64",
+    "arrival": "string",
+    "max_failure_probability": "float64",
+    "voyage_failure_probability": "float64",
+    "grid_voyage_time_h": "float64",
+    "arcs": "int64",
+    "runtime_s": "float64",
+    "track": "string",
+}
+
+
+class SweepError(ScenarioError):
+    """A sweep specification, option or engine that cannot be used (a user error: exit 2)."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run of a sweep: a scenario file and the settings it changes (None: the file's).
+
+    Attributes
+    ----------
+    scenario : The scenario TOML file.
+    departure : ``[route].departure``, ISO 8601 UTC.
+    member : ``[weather].member``, the ensemble member.
+    apf : ``[failure].apf``.
+    failure_model : ``[failure].model`` (``"none"`` for none).
+    polar : ``[boat].polar``, a shipped name or a file.
+    grid : ``[grid]`` keys and values, e.g. ``(("n_ranks", 80),)``.
+    options : Further settings of :meth:`~pyroute_rel.scenario.Scenario.with_options` (``pyroute-rel route``'s
+        options), applied after the file's.
+    """
+
+    scenario: str
+    departure: str | None = None
+    member: int | None = None
+    apf: float | None = None
+    failure_model: str | None = None
+    polar: str | None = None
+    grid: tuple[tuple[str, Any], ...] = ()
+    options: tuple[tuple[str, Any], ...] = ()
+
+    def params(self) -> dict[str, Any]:
+        """The run's settings as the table's parameter columns."""
+        return {
+            "scenario": self.scenario,
+            "departure": self.departure,
+            "member": self.member,
+            "apf": self.apf,
+            "failure_model": self.failure_model,
+            "polar": self.polar,
+            "grid": json.dumps(dict(self.grid), sort_keys=True),
+            "options": json.dumps(dict(self.options), sort_keys=True, default=str),
+        }
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A sweep specification (:func:`load_sweep`): its runs, and where it came from."""
+
+    source: str
+    runs: tuple[Run, ...]
+    base_dir: Path = field(default=Path("."))
+
+
+# --- specifications ----------------------------------------------------------------------------------------------
+
+
+def departure_range(start: Any, end: Any, step_h: Any, where: str = "departures") -> list[str]:
+    """Departures from ``start`` to ``end`` (included when on a step) every ``step_h`` hours, ISO 8601 UTC.
+
+    >>> departure_range("2018-06-01T00:00:00Z", "2018-06-02T00:00:00Z", 12)
+    ['2018-06-01T00:00:00Z', '2018-06-01T12:00:00Z', '2018-06-02T00:00:00Z']
+    """
+    import numpy as np
+
+    t0 = parse_departure(start, f"{where}.start")
+    t1 = parse_departure(end, f"{where}.end")
+    if isinstance(step_h, bool) or not isinstance(step_h, int | float) or not math.isfinite(step_h) or step_h <= 0:
+        raise SweepError(f"{where}.step_h must be a positive number of hours (got {brief(step_h)})")
+    if t1 < t0:
+        raise SweepError(f"{where}.end must not be before {where}.start (got {iso_utc(t1)} < {iso_utc(t0)})")
+    span_h = float((t1 - t0) / np.timedelta64(1, "s")) / 3600.0
+    n = int(math.floor(span_h / step_h + 1e-9)) + 1
+    if n > MAX_RUNS:
+        raise SweepError(f"{where} gives {n} departures (at most {MAX_RUNS}): use a larger step_h")
+    return [iso_utc(t0 + np.timedelta64(round(i * step_h * 3600.0), "s")) for i in range(n)]
+
+
+def _departures(raw: Any, where: str) -> list[str | None]:
+    if raw is None:
+        return [None]
+    if isinstance(raw, Mapping):
+        unknown = sorted(set(raw) - {"start", "end", "step_h"})
+        missing = [k for k in ("start", "end", "step_h") if k not in raw]
+        if unknown or missing:
+            raise SweepError(
+                f"{where} must be {{start, end, step_h}} or a list of times "
+                f"({'unknown key ' + show(unknown[0]) if unknown else 'missing ' + missing[0]})"
+            )
+        return list(departure_range(raw["start"], raw["end"], raw["step_h"], where))
+    if isinstance(raw, list) and raw:
+        return [iso_utc(parse_departure(v, f"{where}[{i}]")) for i, v in enumerate(raw)]
+    raise SweepError(f"{where} must be {{start, end, step_h}} or a non-empty list of ISO 8601 times (got {brief(raw)})")
+
+
+def _nonempty_list(raw: Any, where: str, check: Callable[[Any, str], Any]) -> list[Any]:
+    if not isinstance(raw, list) or not raw:
+        raise SweepError(f"{where} must be a non-empty list (got {brief(raw)})")
+    return [check(v, f"{where}[{i}]") for i, v in enumerate(raw)]
+
+
+def _name(v: Any, where: str) -> str:
+    if not isinstance(v, str) or not v.strip():
+        raise SweepError(f"{where} must be a name or a file name (got {brief(v)})")
+    return v
+
+
+def _member(v: Any, where: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+        raise SweepError(f"{where} must be a whole number >= 0 (got {brief(v)})")
+    return int(v)
+
+
+def _grid_settings(v: Any, where: str) -> tuple[tuple[str, Any], ...]:
+    if not isinstance(v, Mapping):
+        raise SweepError(f"{where} must be a table of [grid] settings such as {{n_ranks = 80}} (got {brief(v)})")
+    keys = SCHEMA["grid"]
+    for k, value in v.items():
+        if k not in keys:
+            raise SweepError(f"{where}: unknown [grid] key {show(k)} (expected one of {', '.join(keys)})")
+        if keys[k].check is not None:
+            keys[k].check(value, f"{where}.{k}")
+    return tuple(sorted(v.items()))
+
+
+def _members(raw: Any, where: str, scenario: Path) -> list[int | None]:
+    if raw is None:
+        return [None]
+    if raw != "all":
+        return list(_nonempty_list(raw, where, _member))
+    from .scenario import read_scenario_table
+
+    weather = read_scenario_table(scenario).get("weather")
+    paths = weather.get("paths") if isinstance(weather, Mapping) and weather.get("kind") == "file" else None
+    if not isinstance(paths, list) or not all(isinstance(p, str) for p in paths):
+        raise SweepError(f'{where} = "all" needs a scenario whose [weather] is kind = "file" with paths')
+    from .weather.readers import ensemble_size
+
+    n = ensemble_size([_resolve(p, scenario.parent) for p in paths])
+    if n is None:
+        raise SweepError(f'{where} = "all": the weather files of {brief_path(scenario)} have no ensemble dimension')
+    return list(range(n))
+
+
+def _resolve(name: str, base: Path) -> Path:
+    p = Path(name).expanduser()
+    return p if p.is_absolute() else base / p
+
+
+def _file_or_name(name: str, base: Path) -> str:
+    """A polar or failure model named in a spec: a file beside the spec as an absolute path, else the name."""
+    p = _resolve(name, base)
+    return str(p.resolve()) if p.is_file() else name
+
+
+def sweep_from_mapping(table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<sweep>") -> SweepSpec:
+    """Validate a sweep specification given as mappings (the parsed TOML): see :func:`load_sweep`."""
+    try:
+        spec = _sweep_from_mapping(table, Path(base_dir))
+    except PyrouteError as exc:
+        raise SweepError(f"{source}: {exc}") from None
+    return SweepSpec(source=source, runs=spec.runs, base_dir=spec.base_dir)
+
+
+def _sweep_from_mapping(table: Mapping[str, Any], base: Path) -> SweepSpec:
+    if not isinstance(table, Mapping) or "sweep" not in table:
+        raise SweepError("a sweep specification needs a [sweep] table")
+    extra = sorted(set(table) - {"sweep"})
+    if extra:
+        raise SweepError(f"unknown table [{show(extra[0])}] (a sweep specification has only [sweep])")
+    raw = table["sweep"]
+    if not isinstance(raw, Mapping):
+        raise SweepError("[sweep] must be a table")
+    for k in raw:
+        if k not in SPEC_KEYS:
+            raise SweepError(f"[sweep]: unknown key {show(k)} (expected one of {', '.join(SPEC_KEYS)})")
+    name = raw.get("scenario")
+    if not isinstance(name, str) or not name.strip():
+        raise SweepError(f"[sweep].scenario must be the scenario TOML file (got {brief(name)})")
+    scenario = _resolve(name, base)
+    if not scenario.is_file():
+        raise SweepError(f"[sweep].scenario: no such file {brief_path(scenario)}")
+    deps = _departures(raw.get("departures"), "[sweep].departures")
+    members = _members(raw.get("members"), "[sweep].members", scenario)
+    apfs = _nonempty_list(raw["apf"], "[sweep].apf", probability) if "apf" in raw else [None]
+    models = (
+        [_file_or_name(m, base) for m in _nonempty_list(raw["failure_models"], "[sweep].failure_models", _name)]
+        if "failure_models" in raw
+        else [None]
+    )
+    polars = (
+        [_file_or_name(p, base) for p in _nonempty_list(raw["polars"], "[sweep].polars", _name)]
+        if "polars" in raw
+        else [None]
+    )
+    grids = _nonempty_list(raw["grids"], "[sweep].grids", _grid_settings) if "grids" in raw else [()]
+    n = len(deps) * len(members) * len(apfs) * len(models) * len(polars) * len(grids)
+    if n > MAX_RUNS:
+        raise SweepError(f"[sweep] gives {n} runs (at most {MAX_RUNS})")
+    runs = tuple(
+        Run(str(scenario), departure=d, member=m, apf=a, failure_model=f, polar=p, grid=g)
+        for g, m, p, f, a, d in itertools.product(grids, members, polars, models, apfs, deps)
+    )
+    return SweepSpec(source="", runs=runs, base_dir=base)
+
+
+def load_sweep(path: str | Path) -> SweepSpec:
+    """Read and validate a sweep specification (TOML)::
+
+        [sweep]
+        scenario = "microtransat_era5.toml"        # relative to this file
+        departures = {start = "2018-06-01T00:00:00Z", end = "2018-06-03T00:00:00Z", step_h = 12}
+        # or departures = ["2018-06-01T00:00:00Z", ...]
+        members = "all"                            # or [0, 1, 2]: [weather].member of an ensemble file
+        apf = [1.0, 0.2]
+        failure_models = ["dickson2018"]           # optional
+        polars = ["maribot_vane"]                  # optional: shipped names or files
+        grids = [{n_ranks = 40}, {n_ranks = 80}]   # optional: [grid] settings
+
+    Every key but ``scenario`` is optional (the scenario's own setting). The runs are every combination, grids
+    outermost and departures innermost.
+
+    Raises
+    ------
+    SweepError
+        (a ``ValueError``) naming the file and the field, in one line.
+    """
+    from .scenario import read_scenario_table
+
+    p = Path(check_path(path, "sweep file", SweepError))
+    try:
+        table = read_scenario_table(p)  # the same reading checks as a scenario file's
+    except ScenarioError as exc:
+        raise SweepError(str(exc).replace("scenario file", "sweep file")) from None
+    spec = sweep_from_mapping(table, base_dir=p.parent, source=brief_path(p))
+    return SweepSpec(source=str(p), runs=spec.runs, base_dir=spec.base_dir)
+
+
+# --- keys ----------------------------------------------------------------------------------------------------------
+
+_DIGESTS: dict[tuple[str, int, int], str] = {}
+
+
+def _file_digest(path: Path) -> str:
+    """A hash of a file's content (see :data:`HASH_WHOLE_BYTES`), remembered by path, size and time."""
+    try:
+        st = path.stat()
+    except OSError:
+        return "missing"
+    memo = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    if memo in _DIGESTS:
+        return _DIGESTS[memo]
+    h = hashlib.blake2b(digest_size=16)
+    with open(path, "rb") as fh:
+        if st.st_size <= HASH_WHOLE_BYTES:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+        else:
+            h.update(f"{st.st_size}:{st.st_mtime_ns}".encode())
+            h.update(fh.read(1 << 20))
+            fh.seek(-(1 << 20), os.SEEK_END)
+            h.update(fh.read(1 << 20))
+    _DIGESTS[memo] = h.hexdigest()
+    return _DIGESTS[memo]
+
+
+def _referenced_files(table: Mapping[str, Any], base: Path, run: Run) -> list[str]:
+    """Names of the files a run reads besides its scenario (weather, polar, failure model, zones), as written."""
+    names: list[Any] = []
+    weather = table.get("weather")
+    if isinstance(weather, Mapping) and weather.get("kind") == "file" and isinstance(weather.get("paths"), list):
+        names += weather["paths"]
+    boat, failure, avoid = (
+        table.get(k) if isinstance(table.get(k), Mapping) else {} for k in ("boat", "failure", "avoid")
+    )
+    names += [run.polar or boat.get("polar"), run.failure_model or failure.get("model")]
+    if isinstance(avoid.get("zones"), list):
+        names += avoid["zones"]
+    return [n for n in names if isinstance(n, str) and _resolve(n, base).is_file()]
+
+
+def run_key(run: Run) -> str:
+    """The run's key: a hash of its settings, the package version and the content of the files it reads.
+
+    A changed scenario, weather, polar, failure model or zones file gives a new key (files beyond
+    :data:`HASH_WHOLE_BYTES` by size, modification time and their ends).
+    """
+    from . import __version__
+    from .scenario import read_scenario_table
+
+    path = Path(run.scenario)
+    try:
+        table = read_scenario_table(path)
+    except ScenarioError:
+        table = {}
+    files = {n: _file_digest(_resolve(n, path.parent)) for n in _referenced_files(table, path.parent, run)}
+    params = {k: v for k, v in run.params().items() if k != "scenario"}
+    doc = {"version": __version__, "run": params, "scenario": _file_digest(path), "files": files}
+    return hashlib.blake2b(json.dumps(doc, sort_keys=True, default=str).encode(), digest_size=12).hexdigest()
+
+
+# --- running one -------------------------------------------------------------------------------------------------
+
+_GRIDS: OrderedDict[str, list[Grid]] = OrderedDict()
+
+
+def _edited_table(run: Run) -> dict[str, Any]:
+    """The run's scenario tables with its settings written in."""
+    from .scenario import read_scenario_table
+
+    table = copy.deepcopy(read_scenario_table(run.scenario))
+
+    def put(name: str, key: str, value: Any) -> None:
+        sub = table.setdefault(name, {})
+        if not isinstance(sub, dict):
+            raise ScenarioError(f"{run.scenario}: [{name}] must be a table")
+        sub[key] = value
+
+    if run.departure is not None:
+        put("route", "departure", run.departure)
+    if run.member is not None:
+        put("weather", "member", run.member)
+    if run.apf is not None:
+        put("failure", "apf", run.apf)
+    if run.failure_model is not None:
+        put("failure", "model", run.failure_model)
+    if run.polar is not None:
+        put("boat", "polar", run.polar)
+    for k, v in run.grid:
+        put("grid", k, v)
+    return table
+
+
+def _scenario(run: Run) -> Scenario:
+    from .scenario import scenario_from_mapping
+
+    path = Path(run.scenario)
+    sc = scenario_from_mapping(_edited_table(run), base_dir=path.parent, source=str(path))
+    return sc.with_options(**dict(run.options)) if run.options else sc
+
+
+def _grids(sc: Scenario) -> list[Grid]:
+    """The scenario's grids, shared by every run of this process with the same course and grid settings (what is
+    cached on them, arc geometry and obstacle masks, is then computed once)."""
+    names = ("start", "finish", "waypoints", "start_line", "finish_line", "layout", "n_ranks", "n_nodes")
+    names += ("spacing_km", "aspect", "half_width_km", "max_deviation_deg")
+    key = json.dumps([getattr(sc, n) for n in names], default=str)
+    if key in _GRIDS:
+        _GRIDS.move_to_end(key)
+        return _GRIDS[key]
+    grids = sc.leg_grids()
+    _GRIDS[key] = grids
+    while len(_GRIDS) > GRID_CACHE_SIZE:
+        _GRIDS.popitem(last=False)
+    return grids
+
+
+def _route_columns(route: Route) -> dict[str, Any]:
+    s = route.summary()
+    return {
+        "departure": s["departure"],
+        "voyage_time_h": route.voyage_time_h,
+        "distance_nm": route.distance_nm,
+        "arrival": s["arrival"],
+        "max_failure_probability": route.max_failure_probability,
+        "voyage_failure_probability": route.voyage_failure_probability,
+        "grid_voyage_time_h": route.meta["refine"]["grid_voyage_time_h"] if "refine" in route.meta else None,
+        "arcs": int(s["arcs"]["evaluated"]),
+        "_track": s["track"],
+    }
+
+
+def run_one(run: Run, key: str = "") -> dict[str, Any]:
+    """Route one run: its row of the table (:data:`COLUMNS`), plus ``_track`` (the summary's track points) when
+    routed.
+
+    A user error (:class:`~pyroute_rel.errors.PyrouteError`) is the row's ``status`` and ``message``; any other
+    exception is raised (an engine may retry it). The process keeps the weather and grids for its next runs.
+    """
+    from .weather import cache
+
+    row: dict[str, Any] = {c: None for c in COLUMNS}
+    row.update(run.params(), key=key, status="ok", message="")
+    t0 = time.perf_counter()
+    try:
+        with cache.caching():
+            sc = _scenario(run)
+            row["departure"] = iso_utc(sc.departure)
+            route = sc.route(grids=_grids(sc))
+    except (NoFeasibleRouteError, WeatherCoverageError) as exc:
+        row.update(status="no_route", message=_one_line(exc))
+    except PyrouteError as exc:
+        row.update(status="error", message=_one_line(exc))
+    else:
+        row.update(_route_columns(route))
+    row["runtime_s"] = time.perf_counter() - t0
+    return row
+
+
+def _one_line(exc: BaseException, limit: int = 1000) -> str:
+    line = " ".join(str(exc).split())
+    return line if len(line) <= limit else line[: limit - 3] + "..."
+
+
+# --- output ------------------------------------------------------------------------------------------------------
+
+RUNS_DIR = "runs.parquet"
+TRACKS_DIR = "tracks"
+
+
+def _schema() -> pa.Schema:
+    import pyarrow as pa
+
+    return pa.schema([(name, pa.type_for_alias(kind)) for name, kind in COLUMNS.items()])
+
+
+def _table(rows: Sequence[Mapping[str, Any]]) -> pa.Table:
+    import pyarrow as pa
+
+    return pa.Table.from_pylist([{c: r.get(c) for c in COLUMNS} for r in rows], schema=_schema())
+
+
+def read_runs(out: str | Path) -> pa.Table:
+    """Every run recorded in a sweep's output folder (``out/runs.parquet``), once per key (an empty table if none)."""
+    import pyarrow.parquet as pq
+
+    folder = Path(out) / RUNS_DIR
+    parts = sorted(folder.glob("part-*.parquet")) if folder.is_dir() else []
+    if not parts:
+        return _table([])
+    rows: dict[str, dict[str, Any]] = {}
+    for p in parts:
+        for r in pq.read_table(p, schema=_schema()).to_pylist():
+            rows.setdefault(r["key"], r)
+    return _table(list(rows.values()))
+
+
+def _track_geojson(row: Mapping[str, Any]) -> str:
+    pts = row["_track"]
+    return json.dumps(
+        {
+            "type": "Feature",
+            "geometry": {"type": "LineString", "coordinates": [[p["lon"], p["lat"]] for p in pts]},
+            "properties": {
+                "key": row["key"],
+                "departure": row["departure"],
+                "voyage_time_h": row["voyage_time_h"],
+                "time": [p["time"] for p in pts],
+                "p_f": [p["p_f"] for p in pts],
+            },
+        }
+    )
+
+
+class _Store:
+    """A sweep's output folder: finished rows are buffered and written as one part file per batch."""
+
+    def __init__(self, out: Path, *, batch: int, flush_s: float):
+        self.out, self.batch, self.flush_s = out, batch, flush_s
+        self.pending: list[dict[str, Any]] = []
+        self.last = time.monotonic()
+
+    def add(self, row: dict[str, Any]) -> None:
+        if row.get("_internal"):
+            return  # not recorded: a re-run tries it again
+        (self.out / RUNS_DIR).mkdir(parents=True, exist_ok=True)  # on the first result: nothing before
+        (self.out / TRACKS_DIR).mkdir(exist_ok=True)
+        if row.get("_track") is not None:
+            name = f"{TRACKS_DIR}/{row['key']}.geojson"
+            atomic_write_text(self.out / name, _track_geojson(row))
+            row["track"] = name
+        self.pending.append(row)
+        if len(self.pending) >= self.batch or time.monotonic() - self.last >= self.flush_s:
+            self.flush()
+
+    def flush(self) -> None:
+        self.last = time.monotonic()
+        if not self.pending:
+            return
+        import pyarrow.parquet as pq
+
+        table, self.pending = _table(self.pending), []
+        name = f"part-{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:12]}.parquet"
+        atomic_write(self.out / RUNS_DIR / name, lambda p: pq.write_table(table, p))
+
+
+# --- engines -----------------------------------------------------------------------------------------------------
+
+
+def _internal_row(run: Run, key: str, exc: BaseException) -> dict[str, Any]:
+    row: dict[str, Any] = {c: None for c in COLUMNS}
+    row.update(run.params(), key=key, status="error", _internal=True)
+    row["message"] = f"internal error: {type(exc).__name__}: {_one_line(exc)}"
+    return row
+
+
+def _inline(todo: Sequence[tuple[str, Run]]) -> Iterator[dict[str, Any]]:
+    for key, run in todo:
+        try:
+            yield run_one(run, key)
+        except Exception as exc:  # a bug of ours: recorded in the result, not in the files
+            yield _internal_row(run, key, exc)
+
+
+def _worker_init() -> None:
+    os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads on top
+
+
+def _processes(todo: Sequence[tuple[str, Run]], workers: int) -> Iterator[dict[str, Any]]:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ctx = multiprocessing.get_context("forkserver")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init) as pool:
+        futures = {pool.submit(run_one, run, key): (key, run) for key, run in todo}
+        for fut in as_completed(futures):
+            try:
+                yield fut.result()
+            except Exception as exc:
+                yield _internal_row(futures[fut][1], futures[fut][0], exc)
+
+
+def _dask_client(scheduler: str | None, workers: int | None, timeout_s: float) -> Any:
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:  # pragma: no cover - a dependency
+        raise SweepError(f"the dask engine needs distributed: pip install distributed ({exc})") from None
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SweepError(f"--scheduler {scheduler}: cannot reach the dask scheduler ({_one_line(exc)})") from None
+    cluster = LocalCluster(
+        n_workers=workers or 1,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        env={"PYROUTE_REL_THREADS": "1"},
+    )
+    return Client(cluster, set_as_default=False)
+
+
+def _dask(
+    todo: Sequence[tuple[str, Run]], scheduler: str | None, workers: int | None, retries: int, timeout_s: float
+) -> Iterator[dict[str, Any]]:
+    from distributed import as_completed
+
+    client = _dask_client(scheduler, workers, timeout_s)
+    try:
+        futures = {
+            client.submit(run_one, run, key, key=f"pyroute-rel-run-{key}", pure=False, retries=retries): (key, run)
+            for key, run in todo
+        }
+        for fut in as_completed(futures, loop=client.loop):
+            try:
+                yield fut.result()
+            except Exception as exc:  # failed retries + 1 times (or its workers died): recorded, not in the files
+                yield _internal_row(futures[fut][1], futures[fut][0], exc)
+    finally:
+        cluster = client.cluster
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _engine_rows(
+    engine: str,
+    todo: Sequence[tuple[str, Run]],
+    *,
+    workers: int | None,
+    scheduler: str | None,
+    retries: int,
+    timeout_s: float,
+) -> Iterator[dict[str, Any]]:
+    if engine == "inline":
+        return _inline(todo)
+    if engine == "processes":
+        return _processes(todo, workers or 2)
+    return _dask(todo, scheduler, workers, retries, timeout_s)
+
+
+def _check_engine(engine: str, workers: int | None, scheduler: str | None, retries: int, batch: int) -> None:
+    if not isinstance(engine, str) or engine not in ENGINES:
+        raise SweepError(f"engine must be one of {', '.join(ENGINES)} (got {brief(engine)})")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise SweepError(f"--workers must be a whole number >= 1 (got {brief(workers)})")
+    if scheduler is not None and engine != "dask":
+        raise SweepError(f"--scheduler needs the dask engine (got engine {engine!r})")
+    if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
+        raise SweepError(f"--retries must be a whole number >= 0 (got {brief(retries)})")
+    if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise SweepError(f"--batch must be a whole number >= 1 (got {brief(batch)})")
+
+
+def _check_run_options(runs: Any, out: Any, progress: Any, log: Any, flush_s: Any, connect_timeout_s: Any) -> list[Run]:
+    """The other arguments of :func:`run_sweep`, checked before any run: a SweepError naming the argument."""
+    if isinstance(runs, str | bytes | Mapping) or not isinstance(runs, Iterable):
+        raise SweepError(f"runs must be a list of sweep runs (load_sweep(...).runs) (got {brief(runs)})")
+    runs = list(runs)
+    bad = next((r for r in runs if not isinstance(r, Run)), None)
+    if bad is not None:
+        raise SweepError(f"runs must hold sweep runs (pyroute_rel.sweep.Run) (got {brief(bad)})")
+    if out is not None:
+        check_path(out, "out", SweepError)
+    check_flag(progress, "progress", SweepError)
+    if log is not None:
+        check_callable(log, "log", SweepError)
+    for name, value in (("flush_s", flush_s), ("connect_timeout_s", connect_timeout_s)):
+        seconds = check_numbers(value, name, SweepError, missing=False, unit="s")
+        if isinstance(value, bool) or seconds.shape != () or not seconds > 0:
+            raise SweepError(f"{name} must be a finite number > 0 [s] (got {brief(value)})")
+    return runs
+
+
+def run_sweep(
+    runs: Iterable[Run],
+    *,
+    engine: str = "inline",
+    workers: int | None = None,
+    scheduler: str | None = None,
+    out: str | Path | None = None,
+    retries: int = 2,
+    progress: bool = False,
+    log: Callable[[str], object] | None = None,
+    batch: int = 32,
+    flush_s: float = 5.0,
+    connect_timeout_s: float = 10.0,
+) -> pa.Table:
+    """Route every run; the tidy table, one row per run in the order given (:data:`COLUMNS`).
+
+    Parameters
+    ----------
+    runs : The runs (:class:`Run`; :func:`load_sweep` gives a specification's). Runs with the same key are routed
+        once.
+    engine : ``"inline"`` (this process), ``"processes"`` (a local pool of ``workers`` processes, default 2) or
+        ``"dask"`` (``scheduler``'s cluster, else a ``LocalCluster`` of ``workers`` processes, default 1).
+    out : Output folder: runs already recorded there are not routed again; each finished batch (``batch`` runs or
+        ``flush_s`` seconds [s], whichever first) is written at once (see the module notes).
+    retries : How often dask runs a task again after an unexpected failure (a user error is never retried).
+    progress : Show a progress bar (runs done, failed, rate) on stderr.
+    log : Called with one line of news, e.g. ``"12 done, 228 to run"``.
+    batch, flush_s : A part file is written every ``batch`` finished runs, or ``flush_s`` [s] after the last one.
+    connect_timeout_s : How long to try reaching ``scheduler`` [s].
+
+    Returns
+    -------
+    pyarrow.Table
+        Internal errors (after the retries) are rows with status ``error`` and a message starting
+        ``"internal error"``, not written to ``out``.
+
+    Raises
+    ------
+    SweepError
+        For an unknown engine, bad options, or a scheduler that cannot be reached.
+    """
+    from .progress import progress_bar
+
+    _check_engine(engine, workers, scheduler, retries, batch)
+    runs = _check_run_options(runs, out, progress, log, flush_s, connect_timeout_s)
+    keyed = [(run_key(r), r) for r in runs]
+    store = _Store(Path(out), batch=batch, flush_s=flush_s) if out is not None else None
+    done = {r["key"]: r for r in read_runs(out).to_pylist()} if out is not None else {}
+    todo = list({k: r for k, r in keyed if k not in done}.items())
+    if log is not None:
+        log(f"{len(set(k for k, _ in keyed) & set(done))} done, {len(todo)} to run")
+    bar = progress_bar(len(todo), enabled=progress, desc="sweep", unit="run")
+    failed = 0
+    try:
+        for row in (
+            _engine_rows(
+                engine, todo, workers=workers, scheduler=scheduler, retries=retries, timeout_s=connect_timeout_s
+            )
+            if todo
+            else ()
+        ):
+            if store is not None:
+                store.add(row)
+            done[row["key"]] = row
+            failed += row["status"] != "ok"
+            if hasattr(bar, "set_postfix_str"):
+                bar.set_postfix_str(f"failed {failed}", refresh=False)
+            bar.update(1)
+    finally:
+        bar.close()
+        if store is not None:
+            store.flush()
+    return _table([done[k] for k, _ in keyed])

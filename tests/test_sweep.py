@@ -1,0 +1,317 @@
+"""Sweeps (pyroute_rel.sweep, ``pyroute-rel sweep``): each row is the single route of the same settings, a killed
+sweep resumes to the same table, a real dask cluster gives the same table and loses no run when a worker dies,
+bad specifications are one-line errors."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from pyroute_rel.cli.main import main
+from pyroute_rel.sweep import Run, departure_range, load_sweep, read_runs, run_key, run_sweep
+from pyroute_rel.weather import cache
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Columns that differ between two runs of the same sweep: the time it took.
+TIMING = ("runtime_s",)
+
+
+def _make_ensemble():
+    spec = importlib.util.spec_from_file_location("make_ensemble", ROOT / "benchmarks" / "make_ensemble.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def ensemble(tmp_path_factory) -> Path:
+    """A 3-member ensemble (2 deg, 12-hourly, 40 days) and its scenario on 12 ranks."""
+    folder = tmp_path_factory.mktemp("ensemble")
+    return _make_ensemble().write_ensemble(folder, n_ranks=12, members=3, step_deg=2.0, step_h=12, days=40)
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(ensemble, tmp_path_factory):
+    """The sweep of :data:`BODY`, run inline without interruption: (its spec file, its output folder, its table)."""
+    folder = tmp_path_factory.mktemp("uninterrupted")
+    spec_path = _spec(folder, ensemble, BODY)
+    return spec_path, folder / "out", run_sweep(load_sweep(spec_path).runs, out=folder / "out")
+
+
+def _spec(folder: Path, scenario: Path, body: str, name: str = "spec.toml") -> Path:
+    path = folder / name
+    path.write_text(f'[sweep]\nscenario = "{scenario}"\n{body}\n', encoding="utf-8")
+    return path
+
+
+#: 2 departures x 3 members x 2 apf: the strict apf leaves some runs without a route (the storm).
+BODY = """departures = ["2018-06-02T00:00:00Z", "2018-06-03T00:00:00Z"]
+members = "all"
+apf = [1.0, 0.02]"""
+
+
+def _edited(scenario: Path, row: dict) -> Path:
+    """The scenario file with the row's departure and member written in by text (independently of the sweep)."""
+    text = scenario.read_text(encoding="utf-8")
+    text = text.replace('departure = "2018-06-01T00:00:00Z"', f'departure = "{row["departure"]}"')
+    text = text.replace("member = 0", f"member = {row['member']}")
+    path = scenario.parent / f"edited_{row['key']}.toml"  # beside it: its weather file is named relative to it
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _comparable(table) -> list[dict]:
+    return sorted(({k: v for k, v in r.items() if k not in TIMING} for r in table.to_pylist()), key=lambda r: r["key"])
+
+
+@pytest.mark.slow
+def test_each_row_equals_the_same_single_route(ensemble, uninterrupted, capsys) -> None:
+    spec_path, out, table = uninterrupted
+    spec = load_sweep(spec_path)
+    assert len(spec.runs) == 12 and {r.member for r in spec.runs} == {0, 1, 2}
+    rows = table.to_pylist()
+    assert [r["key"] for r in rows] == [run_key(r) for r in spec.runs]
+    statuses = {r["status"] for r in rows}
+    assert statuses == {"ok", "no_route"}, statuses  # the storm blocks some runs at apf 0.02
+    for row in rows:
+        code = main(["route", str(_edited(ensemble, row)), "--apf", str(row["apf"]), "--json", "--quiet"])
+        printed, err = capsys.readouterr()
+        if row["status"] == "no_route":
+            assert code == 2 and err.strip() == f"pyroute-rel: error: {row['message']}"
+            assert row["track"] is None and row["voyage_time_h"] is None
+            continue
+        assert code == 0, err
+        single = json.loads(printed)
+        assert row["departure"] == single["departure"] and row["arrival"] == single["arrival"]
+        assert abs(row["voyage_time_h"] - single["voyage_time_h"]) <= 1e-9
+        assert row["distance_nm"] == pytest.approx(single["distance_nm"], rel=1e-12)
+        assert row["max_failure_probability"] == pytest.approx(single["max_failure_probability"], abs=1e-12)
+        assert row["voyage_failure_probability"] == pytest.approx(single["voyage_failure_probability"], abs=1e-12)
+        assert row["arcs"] == single["arcs"]["evaluated"]
+        track = json.loads((out / row["track"]).read_text())
+        assert track["geometry"]["coordinates"] == [[p["lon"], p["lat"]] for p in single["track"]]
+        assert track["properties"]["time"] == [p["time"] for p in single["track"]]
+    on_disk = pq.read_table(out / "runs.parquet")  # the dataset folder, read as one table
+    assert _comparable(on_disk) == _comparable(table)
+
+
+@pytest.mark.slow
+def test_weather_is_opened_once_per_member_and_keys_follow_the_files(ensemble, tmp_path) -> None:
+    runs = [Run(str(ensemble), departure=d, member=m) for m in (0, 1) for d in departure_range(
+        "2018-06-02T00:00Z", "2018-06-02T12:00Z", 6)]  # fmt: skip
+    assert len(runs) == 6
+    cache.clear()
+    table = run_sweep(runs)
+    assert set(table.column("status").to_pylist()) == {"ok"}
+    assert cache.stats() == {"hits": 4, "misses": 2, "entries": 2}  # one read per member, then reused
+    cache.clear()
+    copy = tmp_path / "ensemble.toml"
+    copy.write_text(ensemble.read_text())
+    (tmp_path / "ensemble.nc").write_bytes((ensemble.parent / "ensemble.nc").read_bytes())
+    moved = Run(str(copy), departure=runs[0].departure, member=0)
+    assert run_key(moved) == run_key(runs[0])  # the same content elsewhere: the same run
+    with open(tmp_path / "ensemble.nc", "ab") as fh:
+        fh.write(b"\0")  # the weather changed: a new key
+    assert run_key(moved) != run_key(runs[0])
+
+
+def _parts(out: Path) -> list[Path]:
+    return sorted((out / "runs.parquet").glob("part-*.parquet"))
+
+
+@pytest.mark.slow
+def test_a_killed_sweep_resumes_to_the_uninterrupted_table(ensemble, uninterrupted, tmp_path, monkeypatch, capsys):
+    spec_path = _spec(tmp_path, ensemble, BODY)
+    out = tmp_path / "killed"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--out", str(out), "--batch", "1"]
+    with subprocess.Popen([*cmd, "--quiet"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE) as proc:
+        deadline = time.monotonic() + 60
+        while len(_parts(out)) < 3 and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        assert proc.returncode == -signal.SIGKILL, proc.stderr.read()
+    kept = read_runs(out).to_pylist()
+    assert 3 <= len(kept) < 12
+    computed: list[str] = []
+    import pyroute_rel.sweep as sweep
+
+    real = sweep.run_one
+    monkeypatch.setattr(sweep, "run_one", lambda run, key: computed.append(key) or real(run, key))
+    assert main(["sweep", str(spec_path), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"{len(kept)} done, {12 - len(kept)} to run" in err
+    assert sorted(computed) == sorted({run_key(r) for r in load_sweep(spec_path).runs} - {r["key"] for r in kept})
+    assert _comparable(read_runs(out)) == _comparable(uninterrupted[2])
+    assert main(["sweep", str(spec_path), "--out", str(out), "--json"]) == 0  # all done: nothing to route
+    captured = capsys.readouterr()
+    assert "12 done, 0 to run" in captured.err and len(json.loads(captured.out)["runs"]) == 12
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.mark.slow
+def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(ensemble, uninterrupted, tmp_path):
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_THREADS": "1"}
+    procs = [
+        subprocess.Popen(
+            ["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        )
+    ]  # fmt: skip
+    try:
+        for _ in range(2):
+            procs.append(
+                subprocess.Popen(
+                    ["dask", "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"],
+                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                )
+            )  # fmt: skip
+        spec_path = _spec(tmp_path, ensemble, BODY)
+        out = tmp_path / "dask"
+        cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--scheduler", address]
+        sweep = subprocess.Popen(
+            [*cmd, "--out", str(out), "--batch", "1", "--connect-timeout", "60", "--quiet", "--json"],
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        deadline = time.monotonic() + 90
+        while len(_parts(out)) < 2 and sweep.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert sweep.poll() is None and len(_parts(out)) < 12  # mid-sweep
+        procs[1].send_signal(signal.SIGKILL)  # a worker dies mid-sweep: its runs go to the other one
+        stdout, stderr = sweep.communicate(timeout=120)
+        assert sweep.returncode == 0, stderr
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()
+    rows = json.loads(stdout)["runs"]
+    assert len(rows) == 12 and not any(r["message"].startswith("internal error") for r in rows)
+    assert _comparable(read_runs(out)) == _comparable(uninterrupted[2])
+
+
+@pytest.mark.parametrize(
+    ("body", "expected"),
+    [
+        ('departures = {start = "2018-06-02T00:00Z", end = "2018-06-01T00:00Z", step_h = 6}', "must not be before"),
+        ('departures = {start = "2018-06-02T00:00Z", end = "2018-06-03T00:00Z"}', "missing step_h"),
+        ("apf = [1.0, 2.0]", r"\[sweep\]\.apf\[1\] must be a probability"),
+        ("members = [0, -1]", r"\[sweep\]\.members\[1\] must be a whole number"),
+        ("grids = [{n_rank = 3}]", r"\[sweep\]\.grids\[0\]: unknown \[grid\] key n_rank"),
+        ("grids = [{n_ranks = 0}]", r"\[sweep\]\.grids\[0\]\.n_ranks must be >= 1"),
+        ("polar = ['x']", r"\[sweep\]: unknown key polar"),
+    ],
+)
+def test_bad_specifications_are_one_line_errors(ensemble, tmp_path, capsys, body, expected) -> None:
+    assert main(["sweep", str(_spec(tmp_path, ensemble, body)), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("pyroute-rel: error: ") and "spec.toml" in err
+    assert re.search(expected, err), err
+    assert not any(tmp_path.glob("*.png"))
+
+
+def test_bad_options_and_files_are_one_line_errors(ensemble, tmp_path, capsys) -> None:
+    control = ROOT / "examples" / "microtransat_control.toml"
+    cases = [
+        (["sweep", str(control), "--members", "all"], '--members = "all" needs a scenario whose [weather]'),
+        (["sweep", str(control), "--departures", "2018-06-01T00:00Z,June"], "--departures[1]"),
+        (["sweep", str(_spec(tmp_path, tmp_path / "nope.toml", ""))], "no such file"),
+        (["sweep", str(tmp_path / "missing.toml")], "missing.toml"),
+    ]
+    for argv, expected in cases:
+        assert main([*argv, "--quiet"]) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and expected in err, err
+
+
+@pytest.mark.slow
+def test_an_unreachable_scheduler_is_a_one_line_error(ensemble, tmp_path, capsys) -> None:
+    argv = ["sweep", str(ensemble), "--scheduler", f"tcp://127.0.0.1:{_free_port()}", "--connect-timeout", "1"]
+    assert main([*argv, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "cannot reach the dask scheduler" in err
+
+
+@pytest.mark.slow
+def test_runs_without_a_route_exit_0_and_are_recorded_and_plotted(ensemble, tmp_path, capsys) -> None:
+    from pyroute_rel.figures.sweep import sweep_figure
+
+    deps = "2018-06-02T00:00:00Z,2018-06-03T00:00:00Z"
+    out = tmp_path / "out"
+    argv = ["sweep", str(ensemble), "--departures", deps, "--members", "1", "--apf", "0.02", "--out", str(out)]
+    assert main([*argv, "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    rows = read_runs(out).to_pylist()
+    by_dep = {r["departure"]: r for r in rows}
+    assert by_dep["2018-06-02T00:00:00Z"]["status"] == "ok"
+    bad = by_dep["2018-06-03T00:00:00Z"]
+    assert bad["status"] == "no_route" and bad["message"].startswith("no feasible route")
+    assert "2 runs: 1 routed, 1 without a route" in printed and (out / "sweep.png").is_file()
+    fig = sweep_figure(rows)
+    top, bottom = fig.axes[:2]
+    ok = by_dep["2018-06-02T00:00:00Z"]
+    line = top.lines[0]
+    assert list(line.get_ydata()) == [ok["voyage_time_h"]]
+    assert list(bottom.lines[0].get_ydata()) == [ok["voyage_failure_probability"]]
+    crosses = [ln for ln in top.lines if ln.get_marker() == "x"]
+    assert len(crosses) == 1 and list(crosses[0].get_xdata()) == [np.datetime64("2018-06-03T00:00:00")]
+
+
+def test_a_departure_range_spans_its_ends() -> None:
+    got = departure_range("2018-06-01T00:00Z", "2018-06-01T10:00Z", 2.5)
+    hours = [(np.datetime64(t.rstrip("Z")) - np.datetime64("2018-06-01T00:00")) / np.timedelta64(1, "h") for t in got]
+    assert hours == [0.0, 2.5, 5.0, 7.5, 10.0]
+    assert departure_range("2018-06-01T00:00Z", "2018-06-01T01:00Z", 2.0) == ["2018-06-01T00:00:00Z"]
+
+
+@pytest.mark.slow
+def test_a_process_pool_gives_the_inline_rows(ensemble) -> None:
+    runs = [Run(str(ensemble), departure="2018-06-02T00:00:00Z", member=m, grid=(("n_ranks", 8),)) for m in (0, 2)]
+    inline = run_sweep(runs)
+    pooled = run_sweep(runs, engine="processes", workers=2)
+    assert _comparable(pooled) == _comparable(inline)
+    assert inline.column("status").to_pylist() == ["ok", "ok"]
+
+
+def test_many_series_are_drawn_as_the_members_medians() -> None:
+    """With more series than lines, each apf's line holds each departure's median over the members."""
+    from pyroute_rel.figures.sweep import MAX_LINES, sweep_figure
+
+    rng = np.random.default_rng(3)
+    rows = [
+        {"departure": f"2018-06-0{d + 1}T00:00:00Z", "status": "ok", "member": m, "apf": apf, "failure_model": None,
+         "polar": None, "grid": "{}", "options": "{}", "voyage_time_h": float(rng.uniform(700, 800)),
+         "voyage_failure_probability": float(rng.uniform(0, 1))}
+        for m in range(5) for apf in (1.0, 0.5) for d in range(3)
+    ]  # fmt: skip
+    assert 10 > MAX_LINES
+    top = sweep_figure(rows).axes[0]
+    medians = [ln for ln in top.lines if ln.get_linestyle() == "-"]
+    assert [ln.get_label() for ln in medians] == ["apf 1.0: median per departure", "apf 0.5: median per departure"]
+    for ln, apf in zip(medians, (1.0, 0.5), strict=True):
+        expected = [
+            np.median(
+                [r["voyage_time_h"] for r in rows if r["apf"] == apf and r["departure"].startswith(f"2018-06-0{d}")]
+            )
+            for d in (1, 2, 3)
+        ]
+        assert list(ln.get_ydata()) == expected
