@@ -16,7 +16,11 @@ that of a bi-objective shortest-path problem. It is found by label setting in ra
 keeps the labels (arrival time, accumulated hazard) no other label at that node dominates; a label is extended along
 every arc out of its node, and the labels arriving at a node are reduced to the non-dominated ones. An arc's hazard
 is :func:`~pyroute_rel.exposure.arc_exposure`'s, the figure a routed voyage reports, so a front point's
-voyage failure probability is that of its route (tested). Arcs with ``p_f > apf`` stay forbidden.
+voyage failure probability is that of its route (tested). Arcs with ``p_f > apf`` stay forbidden. With steady
+weather only the arcs that need it are resolved on 1 km sub-arcs: an arc that meets no ``p_f > 0`` anywhere adds 0,
+and one inside a single patch's conditions with every criterion in one bin adds its ``p_f`` over its whole time (the
+same to rounding; ``_steady_hazards``), and each rank's labels are extended and reduced in one compiled pass
+(:mod:`pyroute_rel.front_compiled`).
 
 When is it exact?
     With steady weather, always: arc times and hazards do not depend on the departure, and a dominated label's
@@ -29,7 +33,7 @@ When is it exact?
 
 The number of labels at a node can grow with the number of paths; :func:`voyage_front` refuses loudly
 (:class:`~pyroute_rel.errors.LabelLimitError`) when a node holds more than ``max_labels`` (default
-:data:`MAX_LABELS`, as commercial routers cap their labels per state) and reports the labels per node kept.
+:data:`MAX_LABELS`, 1024; commercial routers cap their labels per state at 512) and reports the labels per node kept.
 
 **Failure-mode sensitivity** (:func:`sensitivity`). For each criterion of the model: the hours it costs (the
 route at the user's ``apf`` minus the route with that criterion removed, :meth:`FailureModel.without
@@ -55,9 +59,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .cost import ArcGeometry
+from .cost import ArcGeometry, geometry_costs
+from .crossings import needs_pieces
 from .errors import LabelLimitError, NoFeasibleRouteError, ScenarioError, check_flag, check_instance
-from .exposure import arc_exposure, leg_exposure
+from .exposure import arc_exposure, hazard, leg_exposure
 from .grid import Grid
 from .progress import progress_bar
 from .route import Route, build_route, route_on_grid
@@ -78,8 +83,11 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 
-#: Default cap on the non-dominated labels one node may hold in :func:`voyage_front` (``--max-labels``).
-MAX_LABELS = 512
+#: Default cap on the non-dominated labels one node may hold in :func:`voyage_front` (``--max-labels``). Commercial
+#: routers cap at 512 per state; the control course (``examples/microtransat_control.toml``) on its default grid needs
+#: 711 at one node (105 on average), so 512 would refuse the documented example: 1024 lets it run with room, and
+#: still bounds a rank's labels (nodes x 1024) to a few hundred thousand on default grids.
+MAX_LABELS = 1024
 
 
 @dataclass(frozen=True)
@@ -266,7 +274,7 @@ def voyage_front(grid: Grid, problem: RoutingProblem, *, max_labels: int = MAX_L
     try:
         for k in range(grid.n_ranks + 1):
             cand = _extend(grid, problem, k, labels)
-            labels = _reduce(cand)
+            labels = cand if isinstance(cand, _Labels) else _reduce(cand)
             per_node = np.bincount(labels.node) if labels.node.size else np.zeros(0, dtype=np.intp)
             per_node = per_node[per_node > 0]
             if per_node.size and per_node.max() > max_labels:
@@ -329,9 +337,11 @@ def _check_voyage_problem(grid: Grid, problem: RoutingProblem, max_labels: int) 
         raise ScenarioError("the voyage front does not model exclusion zones with time windows (--front bottleneck)")
 
 
-def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Candidates:
+def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Candidates | _Labels:
     """Every label of the previous rank extended along every sailable arc into rank ``k``: with steady weather each
-    arc is costed once; otherwise each (label, arc) pair at the label's arrival time."""
+    arc is costed once and the non-dominated labels are kept as they are made
+    (:func:`~pyroute_rel.front_compiled.extend_steady`); otherwise each (label, arc) pair is costed at the label's
+    arrival time and the candidates are returned (:func:`_reduce` keeps the non-dominated ones)."""
     src, valid = grid.pattern(k)
     width = src.shape[1]
     n_src = grid.start_points[0].size if k == 0 else grid.n_nodes
@@ -348,20 +358,24 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
         time_all = np.where(live, costs.time_h, np.inf).ravel()
         arc = np.flatnonzero(np.isfinite(time_all))
         p_arc = np.broadcast_to(costs.p_f, src.shape).ravel()[arc]
-        hz = arc_exposure(problem, *(e[arc] for e in ends), np.zeros(arc.size), time_all[arc], p_arc).hazard
         time_arc = time_all[arc]
-    else:
-        arc = np.flatnonzero(live.ravel())
+        hz = _steady_hazards(problem, geom, src.shape, arc, [e[arc] for e in ends], time_arc, p_arc)
+        from .front_compiled import extend_steady  # numba: imported by the voyage front only
+
+        node, t, h, parent = extend_steady(
+            labels.t,
+            labels.h,
+            np.concatenate([offset, [labels.node.size]]),
+            np.searchsorted(arc // width, np.arange(src.shape[0] + 1)),
+            src.ravel()[arc],
+            time_arc,
+            hz,
+        )
+        return _Labels(node=node, t=t, h=h, parent=parent)
+    arc = np.flatnonzero(live.ravel())
     n_per = count[src.ravel()[arc]]
     pair = np.repeat(np.arange(arc.size), n_per)  # (label, arc) pairs: the arc of each
     parent = offset[src.ravel()[arc]][pair] + _ramp(n_per)
-    if steady:
-        return _Candidates(
-            node=arc[pair] // width,
-            t=labels.t[parent] + time_arc[pair],
-            h=labels.h[parent] + hz[pair],
-            parent=parent,
-        )
     c_arc, t0 = arc[pair], labels.t[parent]
     sub = ArcGeometry(
         *(
@@ -382,6 +396,67 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
     )
 
 
+def _steady_hazards(
+    problem: RoutingProblem,
+    geom: ArcGeometry,
+    shape: tuple[int, ...],
+    arc: IntArray,
+    ends: list[FloatArray],
+    time_h: FloatArray,
+    p_f: FloatArray,
+) -> FloatArray:
+    """Steady weather: the hazard of each sailable arc ``arc`` (flat indices into a rank's arcs of shape ``shape``;
+    ``ends`` their end points [deg], ``time_h`` their times [h], ``p_f`` their costed ``p_f``), as
+    :func:`~pyroute_rel.exposure.arc_exposure` gives it, resolving on 1 km sub-arcs only the arcs that need it.
+
+    An arc whose largest ``p_f`` (every piece it crosses judged, :mod:`pyroute_rel.crossings`: a bound that may count
+    a state the arc does not meet, never miss one) is 0 adds no hazard: every sub-arc's is 0. Among the others, an arc
+    that lies in one patch's conditions with every criterion in one bin all along (patches only; not
+    :func:`~pyroute_rel.crossings.needs_pieces`) meets the same ``p_f`` at every sub-arc's midpoint, so its hazard is
+    that ``p_f`` over its whole time: the sum of its sub-arcs' hazards but for rounding (their times add up to the
+    arc's). The rest are resolved on sub-arcs."""
+    hz = np.zeros(arc.size)
+    model = problem.failure
+    if model is None:
+        return hz
+    t0 = np.zeros(shape)
+    costs = geometry_costs(
+        geom,
+        t0,
+        departure=problem.departure,
+        weather=problem.weather,
+        polar=problem.polar,
+        failure=model,
+        apf=float(problem.apf),
+        beyond=problem.beyond,
+        wave_loss=problem.wave_loss,
+        exact_p_f=True,
+    )
+    p_max = np.broadcast_to(costs.p_f, shape).ravel()[arc]
+    some = p_max > 0.0  # the others: no hazard
+    bounds = getattr(problem.weather, "boundaries", None)
+    near = None
+    if bounds is not None and not bounds.continuous:  # patches: no missing weather, conditions constant per piece
+        time_all = np.broadcast_to(costs.time_h, shape)
+        near = needs_pieces(
+            geom.lon_deg,
+            geom.lat_deg,
+            geom.course_deg,
+            geom.seg_nm,
+            t0,
+            time_all,
+            weather=problem.weather,
+            failure=model,
+            departure=problem.departure,
+        )
+    whole = np.zeros(arc.size, dtype=bool) if near is None else some & ~np.broadcast_to(near, shape).ravel()[arc]
+    hz[whole] = hazard(p_max[whole], time_h[whole], model.exposure_h)
+    rest = np.flatnonzero(some & ~whole)
+    if rest.size:
+        hz[rest] = arc_exposure(problem, *(e[rest] for e in ends), np.zeros(rest.size), time_h[rest], p_f[rest]).hazard
+    return hz
+
+
 def _ramp(n_per: IntArray) -> IntArray:
     """0, 1, ..., n - 1 for each n of ``n_per``, concatenated."""
     total = int(n_per.sum())
@@ -390,27 +465,12 @@ def _ramp(n_per: IntArray) -> IntArray:
 
 
 def _reduce(c: _Candidates) -> _Labels:
-    """The non-dominated candidates at each node (of equal ones the first), sorted by node then time.
+    """The non-dominated candidates at each node (of equal ones the first), sorted by node then time: those whose
+    hazard is below every hazard before them at their node, sorted by (node, time, hazard, position)
+    (:func:`~pyroute_rel.front_compiled.nondominated`, one compiled pass)."""
+    from .front_compiled import nondominated  # numba: imported by the voyage front only
 
-    Sorted by (node, time, hazard), a candidate is kept when its hazard is below every hazard before it at its node:
-    a running minimum per node, done in one pass with integer keys (the hazard's rank, offset so that an earlier
-    node's keys are all larger than a later node's)."""
-    if c.node.size == 0:
-        return _Labels(c.node, c.t, c.h, c.parent)
-    by_h = np.argsort(c.h, kind="stable")
-    h_sorted = c.h[by_h]
-    h_rank = np.empty(c.h.size, dtype=np.int64)  # equal hazards share a rank
-    h_rank[by_h] = np.concatenate([[0], np.cumsum(h_sorted[1:] != h_sorted[:-1])])
-    by_t = by_h[np.argsort(c.t[by_h], kind="stable")]
-    order = by_t[np.argsort(c.node[by_t], kind="stable")]  # by node, time, hazard, then as given
-    node = c.node[order]
-    span = int(h_rank.max()) + 2
-    key = (int(node.max()) - node).astype(np.int64) * span + h_rank[order]
-    running = np.minimum.accumulate(key)
-    keep = np.ones(node.size, dtype=bool)
-    same = node[1:] == node[:-1]
-    keep[1:] = ~same | (key[1:] < running[:-1])
-    pick = order[keep]
+    pick = nondominated(c.node, c.t, c.h, int(c.node.max()) + 1 if c.node.size else 0)
     return _Labels(node=c.node[pick], t=c.t[pick], h=c.h[pick], parent=c.parent[pick])
 
 
