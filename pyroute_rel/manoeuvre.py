@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import ScenarioError, check_instance
+from .errors import ScenarioError, brief, check_instance
 
 __all__ = [
     "PORT",
@@ -135,7 +135,10 @@ class ManoeuvrePenalties:
 
     def tables_h(self, tws_kn: npt.ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Time a tack and a gybe would cost [h] in wind of ``tws_kn`` [kn] (NaN wind: 0)."""
-        tws = np.asarray(tws_kn, dtype=float)
+        try:
+            tws = np.asarray(tws_kn, dtype=float)
+        except (TypeError, ValueError):  # the only check: the DP calls this every rank with its own arrays
+            raise ScenarioError(f"tws_kn must be wind speeds [kn] (got {brief(tws_kn)})") from None
         safe = np.where(np.isfinite(tws), tws, 0.0)
         tack = np.interp(safe, self.tack_tws_kn, self.tack_penalty_s) / 3600.0
         gybe = np.interp(safe, self.gybe_tws_kn, self.gybe_penalty_s) / 3600.0

@@ -391,6 +391,11 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
         ScenarioError,
         ("wind speeds must be >= 0 [kn] and increase",),
     ),
+    "ManoeuvrePenalties.penalty_h wind 'x'": (
+        lambda: pr.ManoeuvrePenalties(tack_s=[[5.0, 30.0]]).penalty_h([1], ["x"]),
+        ScenarioError,
+        ("tws_kn must be wind speeds [kn]", "'x'"),
+    ),
     "ManoeuvrePenalties where 5": (
         lambda: pr.ManoeuvrePenalties(where=5),
         ScenarioError,
