@@ -304,12 +304,15 @@ class RoutingProblem:
 
     def costs(self, lon0: Any, lat0: Any, lon1: Any, lat1: Any, t0_h: Any) -> ArcCosts:
         """Arc costs for this problem (see :func:`~pyroute_rel.cost.arc_costs`); the points [deg] and departures [h
-        after departure] are numbers (NaN: missing), else a ScenarioError naming the argument."""
+        after departure; inf: not reached, the arc costs inf] are numbers (NaN: missing), else a ScenarioError
+        naming the argument."""
         lon0, lat0, lon1, lat1 = (
             check_numbers(v, f"RoutingProblem.costs {n}", ScenarioError, unit="deg")
             for v, n in ((lon0, "lon0"), (lat0, "lat0"), (lon1, "lon1"), (lat1, "lat1"))
         )
-        t0_h = check_numbers(t0_h, "RoutingProblem.costs t0_h", ScenarioError, unit="h")
+        t0_h = check_numbers(
+            t0_h, "RoutingProblem.costs t0_h", ScenarioError, infinite=True, unit="h"
+        )  # inf: not reached
         try:
             arcs = np.broadcast_shapes(lon0.shape, lat0.shape, lon1.shape, lat1.shape)
             fits = np.broadcast_shapes(arcs, t0_h.shape) == arcs
