@@ -359,3 +359,10 @@ def test_cli_refuses_a_bad_cap_with_exit_2(tmp_path: Path) -> None:
     run = cli("tradeoff", str(small_toml(tmp_path)), "--front", "voyage", "--max-labels", "1", "--quiet")
     assert run.returncode == 2
     assert "--max-labels" in run.stderr and len(run.stderr.strip().splitlines()) == 1
+
+
+def test_cli_refuses_a_negative_cap_even_for_the_bottleneck_front(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    run = cli("tradeoff", str(small_toml(tmp_path)), "--max-labels", "-1", "--out", str(out), "--quiet")
+    assert run.returncode == 2 and not out.exists()
+    assert run.stderr.strip() == "pyroute-rel: error: --max-labels must be a whole number >= 1 (got -1)"

@@ -54,6 +54,8 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     from ..scenario import load_scenario
 
     t0 = time.perf_counter()
+    if args.max_labels < 1:  # refused whichever front: a bad value is never silently ignored
+        raise ScenarioError(f"--max-labels must be a whole number >= 1 (got {args.max_labels})")
     scenario = load_scenario(args.scenario).with_options(apf=args.apf, n_ranks=args.n_ranks)
     if scenario.waypoints:
         raise ScenarioError(f"{scenario.source}: tradeoff routes one leg: a course through waypoints is not supported")
