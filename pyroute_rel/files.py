@@ -112,10 +112,11 @@ _KINDS = {
 }
 
 
-def check_out_dir(path: str | os.PathLike[str], *, option: str = "--out") -> Path:
+def check_out_dir(path: str | os.PathLike[str], *, option: str = "--out", files: Iterable[str] = ()) -> Path:
     """Refuse, before any work, an output folder that cannot be written: a file, a folder under a file, a name too
     long for the file system, or a place without write permission (:class:`~pyroute_rel.errors.OutputError`,
-    naming ``option``). Creates nothing."""
+    naming ``option``); in an existing folder, also any of ``files`` that is not a regular file
+    (:func:`check_targets`). Creates nothing."""
     if not isinstance(path, (str, os.PathLike)):
         raise OutputError(f"{option} must be a folder name (str or pathlib.Path) (got {brief(path)})")
     if str(path).strip() == "":
@@ -135,6 +136,8 @@ def check_out_dir(path: str | os.PathLike[str], *, option: str = "--out") -> Pat
         raise OutputError(f"{option} {brief_path(out)}: {brief_path(here)} is a file, not a folder")
     if not os.access(here, os.W_OK | os.X_OK):
         raise OutputError(f"{option} {brief_path(out)}: no permission to write in {brief_path(here)}")
+    if out.is_dir():
+        check_targets(out, files, option=option)
     return out
 
 

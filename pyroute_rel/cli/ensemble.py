@@ -61,11 +61,9 @@ def _cmd_ensemble(args: argparse.Namespace) -> int:
 
     risk = parse_risk(args.risk)  # before the work
     if args.out is not None:
-        from ..files import check_out_dir, check_targets
+        from ..files import check_out_dir
 
-        out = check_out_dir(args.out)
-        if out.is_dir():
-            check_targets(out, ENSEMBLE_FILES)
+        check_out_dir(args.out, files=ENSEMBLE_FILES)
     result = route_ensemble(
         args.scenario,
         members=args.members,

@@ -63,11 +63,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from ..scenario import load_scenario
 
     if args.out is not None:
-        from ..files import check_out_dir, check_targets
+        from ..files import check_out_dir
 
-        out = check_out_dir(args.out)
-        if out.is_dir():
-            check_targets(out, EVALUATE_FILES)
+        check_out_dir(args.out, files=EVALUATE_FILES)
     if args.member is None:
         scenario = load_scenario(args.scenario)
     else:

@@ -169,7 +169,7 @@ def _gate_args(p: argparse.ArgumentParser) -> None:
 def _check_gate_args(args: argparse.Namespace) -> None:
     """Refuse bad gate and output options before any work (one line naming the option)."""
     from ..errors import ConvergenceError
-    from ..files import check_out_dir, check_targets
+    from ..files import check_out_dir
     from ..gci.numbers import check_safety_factor
 
     check_safety_factor(args.safety_factor, "gci", "--safety-factor")
@@ -179,9 +179,7 @@ def _check_gate_args(args: argparse.Namespace) -> None:
     if not (math.isfinite(tol) and tol >= 0.0):
         raise ConvergenceError(f"--asymptotic-tol must be a finite number >= 0, e.g. 0.1 (got {tol:g})")
     if args.out is not None:
-        out = check_out_dir(args.out)
-        if out.is_dir():
-            check_targets(out, GCI_FILES)
+        check_out_dir(args.out, files=GCI_FILES)
 
 
 def _gate(study: Any, args: argparse.Namespace) -> str | None:

@@ -255,12 +255,10 @@ def _route(args: argparse.Namespace) -> int:
 
         return route_with_planner(scenario, args, t0)
     if args.out is not None:  # '' too: refused, not read as "no --out"
-        from ..files import check_out_dir, check_targets
+        from ..files import check_out_dir
         from ..outputs import OUTPUT_FILES
 
-        out = check_out_dir(args.out)  # before the work, not after it
-        if out.is_dir():
-            check_targets(out, OUTPUT_FILES)
+        check_out_dir(args.out, files=OUTPUT_FILES)  # before the work, not after it
     if args.departures is not None:
         if args.out is not None:
             raise ScenarioError(

@@ -50,7 +50,7 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
 
 
 def _cmd_tradeoff(args: argparse.Namespace) -> int:
-    from ..files import check_out_dir, check_targets, write_together
+    from ..files import check_out_dir, write_together
     from ..scenario import load_scenario
 
     t0 = time.perf_counter()
@@ -60,9 +60,7 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     if scenario.waypoints:
         raise ScenarioError(f"{scenario.source}: tradeoff routes one leg: a course through waypoints is not supported")
     if args.out is not None:
-        out = check_out_dir(args.out)
-        if out.is_dir():
-            check_targets(out, OUTPUT_FILES)
+        check_out_dir(args.out, files=OUTPUT_FILES)
     result = _compute(scenario, args)
     doc = _document(result, args.front)
     doc["runtime_s"] = time.perf_counter() - t0
