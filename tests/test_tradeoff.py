@@ -231,6 +231,23 @@ def test_voyage_front_is_exact_over_fifo_time_varying_weather() -> None:
     same_points([(p.voyage_time_h, p.hazard) for p in front.points], nondominated(t, h))
 
 
+@pytest.mark.parametrize("seed", [0, 4])
+def test_voyage_front_points_are_their_routes_bit_for_bit(seed: int) -> None:
+    """The figures and tracks computed for all front routes at once are those of each route built on its own
+    (build_route on the label's path, the previous implementation), to the last bit."""
+    sc = small(seed, n_nodes=6)
+    grid = sc.make_grid()
+    front = voyage_front(grid, sc.problem(grid=grid))
+    assert len(front.points) > 1
+    for p in front.points:
+        r = p.route
+        assert p.voyage_time_h == r.voyage_time_h and p.distance_nm == r.distance_nm
+        assert p.max_failure_probability == r.max_failure_probability
+        assert p.voyage_failure_probability == r.voyage_failure_probability + 0.0
+        assert p.track() == r.summary()["track"]
+        np.testing.assert_array_equal(p.elapsed_h, r.elapsed_h)
+
+
 def test_label_cap_is_refused_naming_the_knob() -> None:
     sc = small(0)
     grid = sc.make_grid()
