@@ -81,6 +81,10 @@ __all__ = [
     "bottleneck_front",
     "voyage_front",
     "sensitivity",
+    "course_route",
+    "course_bottleneck_front",
+    "course_voyage_front",
+    "course_sensitivity",
     "bounding_criterion",
 ]
 
@@ -234,7 +238,19 @@ def bottleneck_front(grid: Grid, problem: RoutingProblem, *, progress: bool = Fa
     NoFeasibleRouteError
         When no route exists at ``problem.apf`` itself.
     """
-    progress = _check_grid_problem(grid, problem, progress)
+    return course_bottleneck_front([(grid, problem)], progress=progress)
+
+
+def course_bottleneck_front(legs: Sequence[tuple[Grid, RoutingProblem]], *, progress: bool = False) -> Front:
+    """:func:`bottleneck_front` of a course through waypoints: one :func:`course_route` per front point plus one.
+
+    The course's route at a threshold is its legs' routes at that threshold, each departing when the previous one
+    arrives: with FIFO weather the fastest course among those whose every arc has ``p_f`` at most the threshold, so
+    the epsilon-constraint argument of the module notes holds for the course. The thresholds are those of the first
+    leg's problem (``apf`` and failure table; the legs share them).
+    """
+    legs = _check_legs(legs, progress)
+    problem = legs[0][1]
     levels = failure_levels(problem)
     points: list[FrontPoint] = []
     apf = float(problem.apf)
@@ -242,7 +258,7 @@ def bottleneck_front(grid: Grid, problem: RoutingProblem, *, progress: bool = Fa
     try:
         while True:
             try:
-                route = route_on_grid(grid, replace(problem, apf=apf))
+                route = _course_route(legs, apf=apf)
             except NoFeasibleRouteError:
                 if not points:
                     raise
@@ -257,6 +273,29 @@ def bottleneck_front(grid: Grid, problem: RoutingProblem, *, progress: bool = Fa
         bar.close()
     keep = pareto_indices([p.voyage_time_h for p in points], [p.max_failure_probability for p in points])
     return Front(kind="bottleneck", points=tuple(points[i] for i in keep), runs=len(points))
+
+
+def course_route(legs: Sequence[tuple[Grid, RoutingProblem]]) -> Route:
+    """The course's minimum-time route on its legs' grids: each leg routed by the forward DP
+    (:func:`~pyroute_rel.route.route_on_grid`) departing when the previous one arrives (on the side of the wind it
+    ended on), the legs joined (:func:`~pyroute_rel.route.join_routes`): :meth:`Scenario.route
+    <pyroute_rel.scenario.Scenario.route>` without corridor refinement, on grids given (and their caches reused).
+    """
+    return _course_route(_check_legs(legs, False))
+
+
+def _course_route(legs: list[tuple[Grid, RoutingProblem]], **changes: Any) -> Route:
+    """:func:`course_route` with ``changes`` made to every leg's problem (e.g. ``apf``, ``failure``)."""
+    routes: list[Route] = []
+    departure = legs[0][1].departure
+    for grid, problem in legs:
+        leg_problem = replace(problem, departure=departure, **changes)
+        last = routes[-1].manoeuvres if routes else None
+        if last is not None and last.side.size and leg_problem.sides:  # a leg starts on the side the last ended on
+            leg_problem = replace(leg_problem, initial_side=int(last.side[-1]))
+        routes.append(route_on_grid(grid, leg_problem))
+        departure = routes[-1].arrival
+    return routes[0] if len(routes) == 1 else join_routes(routes)
 
 
 @dataclass(frozen=True)
@@ -764,14 +803,21 @@ def sensitivity(grid: Grid, problem: RoutingProblem, route: Route | None = None)
     ``route`` is that route when already computed (e.g. the bottleneck front's first point); an empty list without
     a failure model.
     """
-    _check_grid_problem(grid, problem, False)
+    return course_sensitivity([(grid, problem)], route)
+
+
+def course_sensitivity(legs: Sequence[tuple[Grid, RoutingProblem]], route: Route | None = None) -> list[Sensitivity]:
+    """:func:`sensitivity` of a course through waypoints: the routes with and without each criterion are
+    :func:`course_route`'s (``route``: the course's route at the first leg's ``apf``, when already computed)."""
+    legs = _check_legs(legs, False)
+    problem = legs[0][1]
     if route is not None:
         check_instance(route, Route, "route", ScenarioError, expected="a Route (of this grid and problem) or None")
     model = problem.failure
     if model is None:
         return []
     if route is None:
-        route = route_on_grid(grid, problem)
+        route = _course_route(legs)
     exposure = leg_exposure(
         problem,
         route.lon_deg,
@@ -782,7 +828,7 @@ def sensitivity(grid: Grid, problem: RoutingProblem, route: Route | None = None)
     )
     out = []
     for c in model.criteria:
-        other = route_on_grid(grid, replace(problem, failure=model.without(c.node)))
+        other = _course_route(legs, failure=model.without(c.node))
         moved = route.nodes != other.nodes
         bound = np.concatenate([moved, [False]]) | np.concatenate([[False], moved])  # legs into/out of a moved node
         exposed = exposure.criterion_h[c.describe()] > 0.0

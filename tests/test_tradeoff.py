@@ -31,6 +31,8 @@ from pyroute_rel.tradeoff import (
     Front,
     bottleneck_front,
     bounding_criterion,
+    course_bottleneck_front,
+    course_voyage_front,
     pareto_indices,
     sensitivity,
     voyage_front,
@@ -246,6 +248,50 @@ def test_voyage_front_points_are_their_routes_bit_for_bit(seed: int) -> None:
         assert p.voyage_failure_probability == r.voyage_failure_probability + 0.0
         assert p.track() == r.summary()["track"]
         np.testing.assert_array_equal(p.elapsed_h, r.elapsed_h)
+
+
+def two_legs(seed: int) -> Scenario:
+    """:func:`small`'s course through a waypoint: two legs of 2 ranks of 5 nodes (25 paths each, 625 in all)."""
+    sc = small(seed)
+    return replace(sc, waypoints=((-14.0, 44.5),), n_ranks=4)
+
+
+def every_course(sc: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Voyage time [h], largest leg p_f and hazard of every path through the course: every path of each leg's grid
+    (:func:`every_path`; the hazards with nothing screened) combined with every path of the other leg (steady
+    weather: a leg's figures do not depend on when it is sailed)."""
+    per_leg = []
+    for g in sc.leg_grids():
+        problem = sc.problem(grid=g)
+        t, m, _ = every_path(g, problem)  # p_f as the router costs it (as for one grid)
+        _, _, h = every_path(g, replace(problem, weather=Unsteady(problem.weather, problem.departure)))
+        per_leg.append((t, m, h))
+    (t1, m1, h1), (t2, m2, h2) = per_leg
+    return (t1[:, None] + t2).ravel(), np.maximum(m1[:, None], m2).ravel(), (h1[:, None] + h2).ravel()
+
+
+@pytest.mark.parametrize("seed", [0, pytest.param(2, marks=pytest.mark.slow)])
+def test_course_fronts_through_a_waypoint_equal_every_path_enumerated(seed: int) -> None:
+    """The voyage front carries the labels at the mark into the next leg; the bottleneck front routes the course at
+    each threshold: both equal the non-dominated paths of the concatenated graph, enumerated."""
+    sc = two_legs(seed)
+    legs = [(g, sc.problem(grid=g)) for g in sc.leg_grids()]
+    assert [g.n_ranks for g, _ in legs] == [2, 2]
+    t, m, h = every_course(sc)
+    voyage = course_voyage_front(legs)
+    check_sorted_nondominated(voyage, "hazard")
+    assert len(voyage.points) > 2
+    same_points([(p.voyage_time_h, p.hazard) for p in voyage.points], nondominated(t, h))
+    bottleneck = course_bottleneck_front(legs)
+    check_sorted_nondominated(bottleneck, "max_failure_probability")
+    same_points([(p.voyage_time_h, p.max_failure_probability) for p in bottleneck.points], nondominated(t, m))
+    assert bottleneck.points[0].route.voyage_time_h == sc.route().voyage_time_h  # the course as `route` sails it
+    for p in voyage.points:  # each point is its joined route's, bit for bit
+        r = p.route
+        assert len(r.course_legs) == 2
+        assert p.voyage_time_h == r.voyage_time_h and p.distance_nm == r.distance_nm
+        assert p.voyage_failure_probability == r.voyage_failure_probability + 0.0
+        assert p.max_failure_probability == r.max_failure_probability and p.track() == r.summary()["track"]
 
 
 def test_label_cap_is_refused_naming_the_knob() -> None:

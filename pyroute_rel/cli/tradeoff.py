@@ -28,7 +28,8 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         "(largest leg p_f; one route per front point plus one) or 'voyage' (voyage failure probability from the "
         "time spent in each condition; label setting, exact on the grid with steady weather). Arcs with p_f above "
         "the scenario's apf stay forbidden. Also the sensitivity to each criterion of the failure model at the apf: "
-        "the hours it costs (routes with and without it) and where it binds. Routes on the grid (no refinement).",
+        "the hours it costs (routes with and without it) and where it binds. Routes on the grid (no refinement); "
+        "a course through waypoints is routed leg after leg, the voyage front's labels carried from mark to mark.",
     )
     t.add_argument("scenario", help="scenario TOML file")
     t.add_argument(
@@ -57,8 +58,6 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     if args.max_labels < 1:  # refused whichever front: a bad value is never silently ignored
         raise ScenarioError(f"--max-labels must be a whole number >= 1 (got {args.max_labels})")
     scenario = load_scenario(args.scenario).with_options(apf=args.apf, n_ranks=args.n_ranks)
-    if scenario.waypoints:
-        raise ScenarioError(f"{scenario.source}: tradeoff routes one leg: a course through waypoints is not supported")
     if args.out is not None:
         check_out_dir(args.out, files=OUTPUT_FILES)
     result = _compute(scenario, args)
@@ -77,20 +76,19 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
 
 def _compute(scenario: Any, args: argparse.Namespace) -> dict[str, Any]:
     """The fronts (the bottleneck front always: its routes are the single-apf routes), the route at the apf and
-    the sensitivity table."""
-    from ..route import route_on_grid
-    from ..tradeoff import bottleneck_front, sensitivity, voyage_front
+    the sensitivity table; a course through waypoints leg after leg, on one grid per leg."""
+    from ..tradeoff import course_bottleneck_front, course_route, course_sensitivity, course_voyage_front
 
-    grid = scenario.make_grid()
-    problem = scenario.problem(grid=grid)
+    failure = scenario.load_failure()
+    legs = [(g, scenario.problem(failure=failure, grid=g)) for g in scenario.leg_grids()]
     progress = not args.quiet
-    bottleneck = bottleneck_front(grid, problem, progress=progress)
+    bottleneck = course_bottleneck_front(legs, progress=progress)
     voyage = None
     if args.front == "voyage":
-        voyage = voyage_front(grid, problem, max_labels=args.max_labels, progress=progress)
-    route = route_on_grid(grid, problem)  # the route at the apf (its arc costs are cached on the grid by now)
-    rows = sensitivity(grid, problem, route)
-    return {"bottleneck": bottleneck, "voyage": voyage, "route": route, "rows": rows, "problem": problem}
+        voyage = course_voyage_front(legs, max_labels=args.max_labels, progress=progress)
+    route = course_route(legs)  # the route at the apf (its arc costs are cached on the grids by now)
+    rows = course_sensitivity(legs, route)
+    return {"bottleneck": bottleneck, "voyage": voyage, "route": route, "rows": rows, "problem": legs[0][1]}
 
 
 def _document(result: dict[str, Any], kind: str) -> dict[str, Any]:
