@@ -64,7 +64,14 @@ import numpy.typing as npt
 from . import geodesy
 from .cost import ArcGeometry, geometry_costs
 from .crossings import needs_pieces
-from .errors import LabelLimitError, NoFeasibleRouteError, ScenarioError, check_flag, check_instance
+from .errors import (
+    LabelLimitError,
+    NoFeasibleRouteError,
+    ScenarioError,
+    check_callable,
+    check_flag,
+    check_instance,
+)
 from .exposure import arc_exposure, hazard, leg_exposure
 from .grid import Grid
 from .progress import progress_bar
@@ -85,6 +92,7 @@ __all__ = [
     "course_bottleneck_front",
     "course_voyage_front",
     "course_sensitivity",
+    "refined_front",
     "bounding_criterion",
 ]
 
@@ -273,6 +281,39 @@ def course_bottleneck_front(legs: Sequence[tuple[Grid, RoutingProblem]], *, prog
         bar.close()
     keep = pareto_indices([p.voyage_time_h for p in points], [p.max_failure_probability for p in points])
     return Front(kind="bottleneck", points=tuple(points[i] for i in keep), runs=len(points))
+
+
+def refined_front(front: Front, route_at: Callable[[float], Route], *, progress: bool = False) -> Front:
+    """A bottleneck front with each route refined: ``route_at(m)`` for each point's largest leg ``p_f`` ``m``, the
+    dominated results dropped.
+
+    ``route_at`` routes the course at a threshold with corridor refinement, e.g. ``lambda apf:
+    scenario.with_options(apf=apf, refine=2).route(grids=grids)`` (``pyroute-rel tradeoff --refine``), so each point
+    is the route ``pyroute-rel route --apf m --refine N`` gives. What is exact: each refined route is the corridor
+    DP's minimum time at its threshold, no longer than the grid route it refines (refinement keeps the grid route
+    when no corridor improves on it) and with no leg ``p_f`` above ``m``, so every point of ``front`` is dominated by
+    or equal to a point of the result (tested). What is not: the front of the continuous problem (each corridor is
+    a grid around one route, and a threshold whose grid route is dominated is not refined).
+
+    Raises
+    ------
+    ScenarioError
+        For a front that is not a bottleneck front (the voyage front is not refined).
+    """
+    check_instance(front, Front, "front", ScenarioError, expected="a Front (bottleneck_front)")
+    if front.kind != "bottleneck":
+        raise ScenarioError("only the bottleneck front is refined (the voyage front is exact on its grid)")
+    check_callable(route_at, "route_at", ScenarioError)
+    points = []
+    bar = progress_bar(len(front.points), enabled=check_flag(progress, "progress", ScenarioError), desc="refine")
+    try:
+        for p in front.points:
+            points.append(_point(route_at(p.max_failure_probability), p.max_failure_probability))
+            bar.update(1)
+    finally:
+        bar.close()
+    keep = pareto_indices([p.voyage_time_h for p in points], [p.max_failure_probability for p in points])
+    return Front(kind="bottleneck", points=tuple(points[i] for i in keep), runs=front.runs + len(points))
 
 
 def course_route(legs: Sequence[tuple[Grid, RoutingProblem]]) -> Route:
@@ -829,8 +870,7 @@ def course_sensitivity(legs: Sequence[tuple[Grid, RoutingProblem]], route: Route
     out = []
     for c in model.criteria:
         other = _course_route(legs, failure=model.without(c.node))
-        moved = route.nodes != other.nodes
-        bound = np.concatenate([moved, [False]]) | np.concatenate([[False], moved])  # legs into/out of a moved node
+        bound = _bound_legs(route, other)
         exposed = exposure.criterion_h[c.describe()] > 0.0
         out.append(
             Sensitivity(
@@ -845,6 +885,16 @@ def course_sensitivity(legs: Sequence[tuple[Grid, RoutingProblem]], route: Route
             )
         )
     return out
+
+
+def _bound_legs(route: Route, other: Route) -> npt.NDArray[np.bool_]:
+    """The legs of ``route`` into or out of a node where ``other`` (the same course routed otherwise) is elsewhere,
+    leg of the course by leg (a mark between two legs is not a node)."""
+    out = []
+    for r, o in zip(route.course_legs or (route,), other.course_legs or (other,), strict=True):
+        moved = r.nodes != o.nodes
+        out.append(np.concatenate([moved, [False]]) | np.concatenate([[False], moved]))
+    return np.concatenate(out)
 
 
 def bounding_criterion(rows: list[Sensitivity], n_legs: int) -> IntArray:

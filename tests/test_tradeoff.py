@@ -34,6 +34,7 @@ from pyroute_rel.tradeoff import (
     course_bottleneck_front,
     course_voyage_front,
     pareto_indices,
+    refined_front,
     sensitivity,
     voyage_front,
 )
@@ -294,6 +295,27 @@ def test_course_fronts_through_a_waypoint_equal_every_path_enumerated(seed: int)
         assert p.max_failure_probability == r.max_failure_probability and p.track() == r.summary()["track"]
 
 
+@pytest.mark.slow
+def test_refined_bottleneck_front_is_no_worse_and_each_point_is_route_refine() -> None:
+    """Each refined point is `route --apf P --refine 2` run on its own (a fresh grid), and every grid point is
+    dominated by or equal to a refined one."""
+    sc = load_scenario(CONTROL).with_options(n_ranks=24, apf=1.0)
+    grid = sc.make_grid()
+    front = bottleneck_front(grid, sc.problem(grid=grid))
+    refined = refined_front(front, lambda apf: sc.with_options(apf=apf, refine=2).route(grids=[grid]))
+    check_sorted_nondominated(refined, "max_failure_probability")
+    assert refined.runs == front.runs + len(front.points)
+    for p in front.points:
+        assert on_or_dominated(refined, "max_failure_probability", p.voyage_time_h, p.max_failure_probability)
+    assert refined.points[0].voyage_time_h < front.points[0].voyage_time_h  # the corridors gain something here
+    for p in refined.points:
+        alone = sc.with_options(apf=p.apf, refine=2).route()
+        assert p.voyage_time_h == alone.voyage_time_h and p.max_failure_probability <= p.apf  # type: ignore[operator]
+        assert p.route.meta["refine"]["levels"]
+    with pytest.raises(ScenarioError, match="only the bottleneck front"):
+        refined_front(replace(front, kind="voyage"), lambda apf: sc.route())
+
+
 def test_label_cap_is_refused_naming_the_knob() -> None:
     sc = small(0)
     grid = sc.make_grid()
@@ -429,3 +451,22 @@ def test_cli_refuses_a_negative_cap_even_for_the_bottleneck_front(tmp_path: Path
     run = cli("tradeoff", str(small_toml(tmp_path)), "--max-labels", "-1", "--out", str(out), "--quiet")
     assert run.returncode == 2 and not out.exists()
     assert run.stderr.strip() == "pyroute-rel: error: --max-labels must be a whole number >= 1 (got -1)"
+
+
+@pytest.mark.slow
+def test_cli_through_a_waypoint_equals_the_library_and_refine_is_for_the_bottleneck_front(tmp_path: Path) -> None:
+    path = small_toml(tmp_path)
+    text = path.read_text().replace('departure = "2018', 'waypoints = [[-14.0, 44.5]]\ndeparture = "2018')
+    path.write_text(text.replace("n_ranks = 3", "n_ranks = 4"))
+    run = cli("tradeoff", str(path), "--front", "voyage", "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    sc = load_scenario(path)
+    front = course_voyage_front([(g, sc.problem(grid=g)) for g in sc.leg_grids()])
+    got = json.loads(run.stdout)["front"]
+    assert [(p["voyage_time_h"], p["hazard"]) for p in got] == [(p.voyage_time_h, p.hazard) for p in front.points]
+    assert all(len(p["track"]) == 7 for p in got)  # start, 2 nodes, the mark, 2 nodes, finish
+    run = cli("tradeoff", str(path), "--front", "voyage", "--refine", "1", "--quiet")
+    assert run.returncode == 2 and "--refine applies to the bottleneck front" in run.stderr
+    run = cli("tradeoff", str(path), "--refine", "1", "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["refine"] == 1

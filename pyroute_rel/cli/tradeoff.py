@@ -6,6 +6,7 @@ import argparse
 import json
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +43,15 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         help=f"voyage front: most non-dominated labels a node may hold (default {MAX_LABELS}); past it the run "
         "stops with an error",
     )
+    t.add_argument(
+        "--refine",
+        type=int,
+        default=0,
+        metavar="LEVELS",
+        help="bottleneck front: route each front point again as `route --apf P --refine LEVELS` does (P its largest "
+        "leg p_f: corridor grids around it), keeping the non-dominated results (default 0: the routes on the grid; "
+        "[grid].refine is not applied)",
+    )
     t.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1] (overrides [failure].apf)")
     t.add_argument("--n-ranks", type=int, help="number of ranks (overrides [grid].n_ranks)")
     t.add_argument("--json", action="store_true", help="print the result as one JSON object")
@@ -57,11 +67,16 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if args.max_labels < 1:  # refused whichever front: a bad value is never silently ignored
         raise ScenarioError(f"--max-labels must be a whole number >= 1 (got {args.max_labels})")
+    if args.refine < 0:
+        raise ScenarioError(f"--refine must be a whole number >= 0 (got {args.refine})")
+    if args.refine and args.front == "voyage":
+        raise ScenarioError("--refine applies to the bottleneck front: the voyage front is computed on the grid")
     scenario = load_scenario(args.scenario).with_options(apf=args.apf, n_ranks=args.n_ranks)
     if args.out is not None:
         check_out_dir(args.out, files=OUTPUT_FILES)
     result = _compute(scenario, args)
     doc = _document(result, args.front)
+    doc["refine"] = args.refine
     doc["runtime_s"] = time.perf_counter() - t0
     if args.out is not None:
         figures = _figures(result, args.front)
@@ -77,12 +92,26 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
 def _compute(scenario: Any, args: argparse.Namespace) -> dict[str, Any]:
     """The fronts (the bottleneck front always: its routes are the single-apf routes), the route at the apf and
     the sensitivity table; a course through waypoints leg after leg, on one grid per leg."""
-    from ..tradeoff import course_bottleneck_front, course_route, course_sensitivity, course_voyage_front
+    from ..tradeoff import (
+        course_bottleneck_front,
+        course_route,
+        course_sensitivity,
+        course_voyage_front,
+        refined_front,
+    )
 
     failure = scenario.load_failure()
-    legs = [(g, scenario.problem(failure=failure, grid=g)) for g in scenario.leg_grids()]
+    grids = scenario.leg_grids()
+    legs = [(g, scenario.problem(failure=failure, grid=g)) for g in grids]
     progress = not args.quiet
     bottleneck = course_bottleneck_front(legs, progress=progress)
+    if args.refine:
+        refined = scenario.with_options(refine=args.refine)
+
+        def route_at(apf: float) -> Any:
+            return replace(refined, apf=apf).route(grids=grids)
+
+        bottleneck = refined_front(bottleneck, route_at, progress=progress)
     voyage = None
     if args.front == "voyage":
         voyage = course_voyage_front(legs, max_labels=args.max_labels, progress=progress)
@@ -127,6 +156,8 @@ def _text(doc: dict[str, Any], out: str | None) -> str:
         f"{doc['kind']} front at apf {doc['apf']:g}: {len(doc['front'])} routes ({doc['runs']} runs, "
         f"{doc['runtime_s']:.1f} s)"
     ]
+    if doc["refine"]:
+        lines[0] += f", each route refined in {doc['refine']} corridor levels"
     if doc["labels"]["max"] is not None:
         lines[0] += f", labels per node: mean {doc['labels']['mean']:.1f}, max {doc['labels']['max']}"
     lines.append(f"{'time [h]':>10} {'max p_f':>8} {'voyage p_f':>10} {'hazard':>8} {'distance [nm]':>13}")
