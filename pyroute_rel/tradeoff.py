@@ -19,8 +19,20 @@ is :func:`~pyroute_rel.exposure.arc_exposure`'s, the figure a routed voyage repo
 voyage failure probability is that of its route (tested). Arcs with ``p_f > apf`` stay forbidden. With steady
 weather only the arcs that need it are resolved on 1 km sub-arcs: an arc that meets no ``p_f > 0`` anywhere adds 0,
 and one inside a single patch's conditions with every criterion in one bin adds its ``p_f`` over its whole time (the
-same to rounding; ``_steady_hazards``), and each rank's labels are extended and reduced in one compiled pass
-(:mod:`pyroute_rel.front_compiled`).
+same to rounding; ``_steady_hazards``), and each rank's labels are extended and reduced in one compiled pass that
+merges the sorted runs of labels each arc brings to a node (:mod:`pyroute_rel.front_compiled`). The front's routes
+share most of their legs: with steady weather their figures and tracks are computed at once, each distinct leg
+costed once by the functions :func:`~pyroute_rel.route.build_route` calls (the same figures to the last bit: tested),
+and a point's :class:`~pyroute_rel.route.Route` is built only when :attr:`FrontPoint.route` is read.
+
+**Courses through waypoints** (:func:`course_bottleneck_front`, :func:`course_voyage_front`; one grid and problem per
+leg, as :meth:`Scenario.leg_grids <pyroute_rel.scenario.Scenario.leg_grids>` plans them). The bottleneck front routes
+the whole course at each threshold (:func:`course_route`: each leg departing when the previous one arrives, the
+fastest course within the threshold under FIFO weather). The voyage front carries the non-dominated labels at each
+mark into the next leg as its start labels (arrival time, accumulated hazard): the label setting runs on the legs'
+graphs joined at the marks, so it is exact there whenever it is on one grid (tested against every path of a two-leg
+course). :func:`refined_front` routes each bottleneck point again with corridor refinement (``tradeoff
+--refine``).
 
 When is it exact?
     With steady weather, always: arc times and hazards do not depend on the departure, and a dominated label's
