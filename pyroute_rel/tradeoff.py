@@ -673,13 +673,12 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
     geom = grid_geometry(grid, k, problem.samples)
     ends = [np.broadcast_to(a, src.shape).ravel() for a in grid.arcs(k)[:4]]
     steady = bool(problem.weather.steady)
-    if steady:  # cost each live arc once, then keep the sailable ones
-        costs = problem.geometry_costs(geom, np.zeros(src.shape))
+    if steady:  # cost each live arc once (p_f judged on every piece: the hazard screen's), keep the sailable ones
+        costs = problem.geometry_costs(geom, np.zeros(src.shape)) if problem.failure is None else _exact(problem, geom)
         time_all = np.where(live, costs.time_h, np.inf).ravel()
         arc = np.flatnonzero(np.isfinite(time_all))
-        p_arc = np.broadcast_to(costs.p_f, src.shape).ravel()[arc]
         time_arc = time_all[arc]
-        hz = _steady_hazards(problem, geom, src.shape, arc, [e[arc] for e in ends], time_arc, p_arc)
+        hz = _steady_hazards(problem, geom, src.shape, arc, [e[arc] for e in ends], time_arc, costs)
         from .front_compiled import extend_steady  # numba: imported by the voyage front only
 
         node, t, h, parent = extend_steady(
@@ -716,6 +715,29 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
     )
 
 
+def _exact(problem: RoutingProblem, geom: ArcGeometry, *, exact_p_f: bool = True) -> Any:
+    """Steady weather: the costs of a rank's arcs leaving at the departure, each arc's ``p_f`` judged on every piece
+    it crosses (``exact_p_f``; the DP's costs judge them only where they can forbid the arc: the same times and
+    forbidden arcs, :func:`~pyroute_rel.cost.geometry_costs`)."""
+    return geometry_costs(
+        geom,
+        np.zeros(geom.shape),
+        departure=problem.departure,
+        weather=problem.weather,
+        polar=problem.polar,
+        failure=problem.failure,
+        apf=float(problem.apf),
+        beyond=problem.beyond,
+        wave_loss=problem.wave_loss,
+        exact_p_f=exact_p_f,
+    )
+
+
+def _columns(geom: ArcGeometry) -> tuple[FloatArray, ...]:
+    """The geometry's sample points, courses and sub-segment lengths (without the arcs' end vectors)."""
+    return (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm)
+
+
 def _steady_hazards(
     problem: RoutingProblem,
     geom: ArcGeometry,
@@ -723,10 +745,10 @@ def _steady_hazards(
     arc: IntArray,
     ends: list[FloatArray],
     time_h: FloatArray,
-    p_f: FloatArray,
+    costs: Any,
 ) -> FloatArray:
     """Steady weather: the hazard of each sailable arc ``arc`` (flat indices into a rank's arcs of shape ``shape``;
-    ``ends`` their end points [deg], ``time_h`` their times [h], ``p_f`` their costed ``p_f``), as
+    ``ends`` their end points [deg], ``time_h`` their times [h], ``costs`` the rank's costs from :func:`_exact`), as
     :func:`~pyroute_rel.exposure.arc_exposure` gives it, resolving on 1 km sub-arcs only the arcs that need it.
 
     An arc whose largest ``p_f`` (every piece it crosses judged, :mod:`pyroute_rel.crossings`: a bound that may count
@@ -734,24 +756,12 @@ def _steady_hazards(
     that lies in one patch's conditions with every criterion in one bin all along (patches only; not
     :func:`~pyroute_rel.crossings.needs_pieces`) meets the same ``p_f`` at every sub-arc's midpoint, so its hazard is
     that ``p_f`` over its whole time: the sum of its sub-arcs' hazards but for rounding (their times add up to the
-    arc's). The rest are resolved on sub-arcs."""
+    arc's). The rest are resolved on sub-arcs, given the ``p_f`` the router costs them with (the DP's, as a routed
+    voyage's legs have it: used where a sub-arc's weather is missing)."""
     hz = np.zeros(arc.size)
     model = problem.failure
     if model is None:
         return hz
-    t0 = np.zeros(shape)
-    costs = geometry_costs(
-        geom,
-        t0,
-        departure=problem.departure,
-        weather=problem.weather,
-        polar=problem.polar,
-        failure=model,
-        apf=float(problem.apf),
-        beyond=problem.beyond,
-        wave_loss=problem.wave_loss,
-        exact_p_f=True,
-    )
     p_max = np.broadcast_to(costs.p_f, shape).ravel()[arc]
     some = p_max > 0.0  # the others: no hazard
     bounds = getattr(problem.weather, "boundaries", None)
@@ -763,7 +773,7 @@ def _steady_hazards(
             geom.lat_deg,
             geom.course_deg,
             geom.seg_nm,
-            t0,
+            np.zeros(shape),
             time_all,
             weather=problem.weather,
             failure=model,
@@ -773,7 +783,13 @@ def _steady_hazards(
     hz[whole] = hazard(p_max[whole], time_h[whole], model.exposure_h)
     rest = np.flatnonzero(some & ~whole)
     if rest.size:
-        hz[rest] = arc_exposure(problem, *(e[rest] for e in ends), np.zeros(rest.size), time_h[rest], p_f[rest]).hazard
+        p_f = p_max[rest]  # the DP's p_f: the same where it can forbid an arc, else its samples' largest
+        if float(problem.apf) >= float(np.max(model.p_flat)):
+            cols = [
+                np.broadcast_to(a, shape + (a.shape[-1],)).reshape(-1, a.shape[-1])[arc[rest]] for a in _columns(geom)
+            ]
+            p_f = np.asarray(_exact(problem, ArcGeometry(*cols), exact_p_f=False).p_f, dtype=float)
+        hz[rest] = arc_exposure(problem, *(e[rest] for e in ends), np.zeros(rest.size), time_h[rest], p_f).hazard
     return hz
 
 
