@@ -406,7 +406,9 @@ def course_voyage_front(
     :meth:`Scenario.problem <pyroute_rel.scenario.Scenario.problem>` gives it); the marks after the start must be
     points (one start point per later leg). A front point's route is the legs' routes joined
     (:func:`~pyroute_rel.route.join_routes`), each leg departing when the previous one arrives, as
-    :meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>` sails a course.
+    :meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>` sails a course. With time-varying weather a point's
+    figures other than its hazard are its route's, whose later legs depart at the arrival rounded to the second (as
+    :meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>`'s do); the labels carry the unrounded time.
     """
     legs = _check_legs(legs, progress)
     for grid, problem in legs:
@@ -511,7 +513,7 @@ def _front_points(legs: list[tuple[Grid, RoutingProblem]], histories: list[list[
     h = histories[-1][-1].h
     makers = [_route_maker(legs, paths, i) for i in range(h.size)]
     if not all(p.weather.steady and not p.sides for _, p in legs):
-        return [replace(_point(make()), hazard=float(h[i]) + 0.0, make_route=make) for i, make in enumerate(makers)]
+        return [replace(_point(make()), hazard=float(h[i]) + 0.0) for i, make in enumerate(makers)]
     fig = _steady_figures(legs, paths)
     departure = np.datetime64(legs[0][1].departure).astype("datetime64[s]")
     with np.errstate(divide="ignore"):  # a leg with p_fail_leg = 1: certain failure
