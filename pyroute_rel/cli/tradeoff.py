@@ -29,7 +29,7 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         "(largest leg p_f; one route per front point plus one) or 'voyage' (voyage failure probability from the "
         "time spent in each condition; label setting, exact on the grid with steady weather). Arcs with p_f above "
         "the scenario's apf stay forbidden. Also the sensitivity to each criterion of the failure model at the apf: "
-        "the hours it costs (routes with and without it) and where it binds. Routes on the grid (no refinement); "
+        "the hours it costs (routes with and without it) and where it binds. Routes on the grid unless --refine; "
         "a course through waypoints is routed leg after leg, the voyage front's labels carried from mark to mark.",
     )
     t.add_argument("scenario", help="scenario TOML file")
