@@ -58,7 +58,7 @@ def test_nondominated_keeps_a_front_per_node() -> None:
         assert sel.tolist() == expected
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=200, deadline=None)
 @given(
     st.lists(st.lists(st.tuples(st.sampled_from([0.0, 1.0, 2.0, 3.0]), values), max_size=6), min_size=1, max_size=4),
     st.lists(st.tuples(st.integers(0, 3), st.integers(0, 3), st.sampled_from([0.5, 1.0]), values), max_size=16),
