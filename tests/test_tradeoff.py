@@ -31,7 +31,10 @@ from pyroute_rel.tradeoff import (
     Front,
     bottleneck_front,
     bounding_criterion,
+    course_bottleneck_front,
+    course_voyage_front,
     pareto_indices,
+    refined_front,
     sensitivity,
     voyage_front,
 )
@@ -231,6 +234,88 @@ def test_voyage_front_is_exact_over_fifo_time_varying_weather() -> None:
     same_points([(p.voyage_time_h, p.hazard) for p in front.points], nondominated(t, h))
 
 
+@pytest.mark.parametrize("seed", [0, 4])
+def test_voyage_front_points_are_their_routes_bit_for_bit(seed: int) -> None:
+    """The figures and tracks computed for all front routes at once are those of each route built on its own
+    (build_route on the label's path, the previous implementation), to the last bit."""
+    sc = small(seed, n_nodes=6)
+    grid = sc.make_grid()
+    front = voyage_front(grid, sc.problem(grid=grid))
+    assert len(front.points) > 1
+    for p in front.points:
+        r = p.route
+        assert p.voyage_time_h == r.voyage_time_h and p.distance_nm == r.distance_nm
+        assert p.max_failure_probability == r.max_failure_probability
+        assert p.voyage_failure_probability == r.voyage_failure_probability + 0.0
+        assert p.track() == r.summary()["track"]
+        np.testing.assert_array_equal(p.elapsed_h, r.elapsed_h)
+
+
+def two_legs(seed: int) -> Scenario:
+    """:func:`small`'s course through a waypoint: two legs of 2 ranks of 5 nodes (25 paths each, 625 in all)."""
+    sc = small(seed)
+    return replace(sc, waypoints=((-14.0, 44.5),), n_ranks=4)
+
+
+def every_course(sc: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Voyage time [h], largest leg p_f and hazard of every path through the course: every path of each leg's grid
+    (:func:`every_path`; the hazards with nothing screened) combined with every path of the other leg (steady
+    weather: a leg's figures do not depend on when it is sailed)."""
+    per_leg = []
+    for g in sc.leg_grids():
+        problem = sc.problem(grid=g)
+        t, m, _ = every_path(g, problem)  # p_f as the router costs it (as for one grid)
+        _, _, h = every_path(g, replace(problem, weather=Unsteady(problem.weather, problem.departure)))
+        per_leg.append((t, m, h))
+    (t1, m1, h1), (t2, m2, h2) = per_leg
+    return (t1[:, None] + t2).ravel(), np.maximum(m1[:, None], m2).ravel(), (h1[:, None] + h2).ravel()
+
+
+@pytest.mark.parametrize("seed", [0, pytest.param(2, marks=pytest.mark.slow)])
+def test_course_fronts_through_a_waypoint_equal_every_path_enumerated(seed: int) -> None:
+    """The voyage front carries the labels at the mark into the next leg; the bottleneck front routes the course at
+    each threshold: both equal the non-dominated paths of the concatenated graph, enumerated."""
+    sc = two_legs(seed)
+    legs = [(g, sc.problem(grid=g)) for g in sc.leg_grids()]
+    assert [g.n_ranks for g, _ in legs] == [2, 2]
+    t, m, h = every_course(sc)
+    voyage = course_voyage_front(legs)
+    check_sorted_nondominated(voyage, "hazard")
+    assert len(voyage.points) > 2
+    same_points([(p.voyage_time_h, p.hazard) for p in voyage.points], nondominated(t, h))
+    bottleneck = course_bottleneck_front(legs)
+    check_sorted_nondominated(bottleneck, "max_failure_probability")
+    same_points([(p.voyage_time_h, p.max_failure_probability) for p in bottleneck.points], nondominated(t, m))
+    assert bottleneck.points[0].route.voyage_time_h == sc.route().voyage_time_h  # the course as `route` sails it
+    for p in voyage.points:  # each point is its joined route's, bit for bit
+        r = p.route
+        assert len(r.course_legs) == 2
+        assert p.voyage_time_h == r.voyage_time_h and p.distance_nm == r.distance_nm
+        assert p.voyage_failure_probability == r.voyage_failure_probability + 0.0
+        assert p.max_failure_probability == r.max_failure_probability and p.track() == r.summary()["track"]
+
+
+@pytest.mark.slow
+def test_refined_bottleneck_front_is_no_worse_and_each_point_is_route_refine() -> None:
+    """Each refined point is `route --apf P --refine 2` run on its own (a fresh grid), and every grid point is
+    dominated by or equal to a refined one."""
+    sc = load_scenario(CONTROL).with_options(n_ranks=24, apf=1.0)
+    grid = sc.make_grid()
+    front = bottleneck_front(grid, sc.problem(grid=grid))
+    refined = refined_front(front, lambda apf: sc.with_options(apf=apf, refine=2).route(grids=[grid]))
+    check_sorted_nondominated(refined, "max_failure_probability")
+    assert refined.runs == front.runs + len(front.points)
+    for p in front.points:
+        assert on_or_dominated(refined, "max_failure_probability", p.voyage_time_h, p.max_failure_probability)
+    assert refined.points[0].voyage_time_h < front.points[0].voyage_time_h  # the corridors gain something here
+    for p in refined.points:
+        alone = sc.with_options(apf=p.apf, refine=2).route()
+        assert p.voyage_time_h == alone.voyage_time_h and p.max_failure_probability <= p.apf  # type: ignore[operator]
+        assert p.route.meta["refine"]["levels"]
+    with pytest.raises(ScenarioError, match="only the bottleneck front"):
+        refined_front(replace(front, kind="voyage"), lambda apf: sc.route())
+
+
 def test_label_cap_is_refused_naming_the_knob() -> None:
     sc = small(0)
     grid = sc.make_grid()
@@ -366,3 +451,22 @@ def test_cli_refuses_a_negative_cap_even_for_the_bottleneck_front(tmp_path: Path
     run = cli("tradeoff", str(small_toml(tmp_path)), "--max-labels", "-1", "--out", str(out), "--quiet")
     assert run.returncode == 2 and not out.exists()
     assert run.stderr.strip() == "pyroute-rel: error: --max-labels must be a whole number >= 1 (got -1)"
+
+
+@pytest.mark.slow
+def test_cli_through_a_waypoint_equals_the_library_and_refine_is_for_the_bottleneck_front(tmp_path: Path) -> None:
+    path = small_toml(tmp_path)
+    text = path.read_text().replace('departure = "2018', 'waypoints = [[-14.0, 44.5]]\ndeparture = "2018')
+    path.write_text(text.replace("n_ranks = 3", "n_ranks = 4"))
+    run = cli("tradeoff", str(path), "--front", "voyage", "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    sc = load_scenario(path)
+    front = course_voyage_front([(g, sc.problem(grid=g)) for g in sc.leg_grids()])
+    got = json.loads(run.stdout)["front"]
+    assert [(p["voyage_time_h"], p["hazard"]) for p in got] == [(p.voyage_time_h, p.hazard) for p in front.points]
+    assert all(len(p["track"]) == 7 for p in got)  # start, 2 nodes, the mark, 2 nodes, finish
+    run = cli("tradeoff", str(path), "--front", "voyage", "--refine", "1", "--quiet")
+    assert run.returncode == 2 and "--refine applies to the bottleneck front" in run.stderr
+    run = cli("tradeoff", str(path), "--refine", "1", "--json", "--quiet")
+    assert run.returncode == 0, run.stderr
+    assert json.loads(run.stdout)["refine"] == 1

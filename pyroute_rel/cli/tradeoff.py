@@ -6,6 +6,7 @@ import argparse
 import json
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +29,8 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         "(largest leg p_f; one route per front point plus one) or 'voyage' (voyage failure probability from the "
         "time spent in each condition; label setting, exact on the grid with steady weather). Arcs with p_f above "
         "the scenario's apf stay forbidden. Also the sensitivity to each criterion of the failure model at the apf: "
-        "the hours it costs (routes with and without it) and where it binds. Routes on the grid (no refinement).",
+        "the hours it costs (routes with and without it) and where it binds. Routes on the grid unless --refine; "
+        "a course through waypoints is routed leg after leg, the voyage front's labels carried from mark to mark.",
     )
     t.add_argument("scenario", help="scenario TOML file")
     t.add_argument(
@@ -40,6 +42,15 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         default=MAX_LABELS,
         help=f"voyage front: most non-dominated labels a node may hold (default {MAX_LABELS}); past it the run "
         "stops with an error",
+    )
+    t.add_argument(
+        "--refine",
+        type=int,
+        default=0,
+        metavar="LEVELS",
+        help="bottleneck front: route each front point again as `route --apf P --refine LEVELS` does (P its largest "
+        "leg p_f: corridor grids around it), keeping the non-dominated results (default 0: the routes on the grid; "
+        "[grid].refine is not applied)",
     )
     t.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1] (overrides [failure].apf)")
     t.add_argument("--n-ranks", type=int, help="number of ranks (overrides [grid].n_ranks)")
@@ -56,13 +67,16 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if args.max_labels < 1:  # refused whichever front: a bad value is never silently ignored
         raise ScenarioError(f"--max-labels must be a whole number >= 1 (got {args.max_labels})")
+    if args.refine < 0:
+        raise ScenarioError(f"--refine must be a whole number >= 0 (got {args.refine})")
+    if args.refine and args.front == "voyage":
+        raise ScenarioError("--refine applies to the bottleneck front: the voyage front is computed on the grid")
     scenario = load_scenario(args.scenario).with_options(apf=args.apf, n_ranks=args.n_ranks)
-    if scenario.waypoints:
-        raise ScenarioError(f"{scenario.source}: tradeoff routes one leg: a course through waypoints is not supported")
     if args.out is not None:
         check_out_dir(args.out, files=OUTPUT_FILES)
     result = _compute(scenario, args)
     doc = _document(result, args.front)
+    doc["refine"] = args.refine
     doc["runtime_s"] = time.perf_counter() - t0
     if args.out is not None:
         figures = _figures(result, args.front)
@@ -77,20 +91,33 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
 
 def _compute(scenario: Any, args: argparse.Namespace) -> dict[str, Any]:
     """The fronts (the bottleneck front always: its routes are the single-apf routes), the route at the apf and
-    the sensitivity table."""
-    from ..route import route_on_grid
-    from ..tradeoff import bottleneck_front, sensitivity, voyage_front
+    the sensitivity table; a course through waypoints leg after leg, on one grid per leg."""
+    from ..tradeoff import (
+        course_bottleneck_front,
+        course_route,
+        course_sensitivity,
+        course_voyage_front,
+        refined_front,
+    )
 
-    grid = scenario.make_grid()
-    problem = scenario.problem(grid=grid)
+    failure = scenario.load_failure()
+    grids = scenario.leg_grids()
+    legs = [(g, scenario.problem(failure=failure, grid=g)) for g in grids]
     progress = not args.quiet
-    bottleneck = bottleneck_front(grid, problem, progress=progress)
+    bottleneck = course_bottleneck_front(legs, progress=progress)
+    if args.refine:
+        refined = scenario.with_options(refine=args.refine)
+
+        def route_at(apf: float) -> Any:
+            return replace(refined, apf=apf).route(grids=grids)
+
+        bottleneck = refined_front(bottleneck, route_at, progress=progress)
     voyage = None
     if args.front == "voyage":
-        voyage = voyage_front(grid, problem, max_labels=args.max_labels, progress=progress)
-    route = route_on_grid(grid, problem)  # the route at the apf (its arc costs are cached on the grid by now)
-    rows = sensitivity(grid, problem, route)
-    return {"bottleneck": bottleneck, "voyage": voyage, "route": route, "rows": rows, "problem": problem}
+        voyage = course_voyage_front(legs, max_labels=args.max_labels, progress=progress)
+    route = course_route(legs)  # the route at the apf (its arc costs are cached on the grids by now)
+    rows = course_sensitivity(legs, route)
+    return {"bottleneck": bottleneck, "voyage": voyage, "route": route, "rows": rows, "problem": legs[0][1]}
 
 
 def _document(result: dict[str, Any], kind: str) -> dict[str, Any]:
@@ -129,6 +156,8 @@ def _text(doc: dict[str, Any], out: str | None) -> str:
         f"{doc['kind']} front at apf {doc['apf']:g}: {len(doc['front'])} routes ({doc['runs']} runs, "
         f"{doc['runtime_s']:.1f} s)"
     ]
+    if doc["refine"]:
+        lines[0] += f", each route refined in {doc['refine']} corridor levels"
     if doc["labels"]["max"] is not None:
         lines[0] += f", labels per node: mean {doc['labels']['mean']:.1f}, max {doc['labels']['max']}"
     lines.append(f"{'time [h]':>10} {'max p_f':>8} {'voyage p_f':>10} {'hazard':>8} {'distance [nm]':>13}")

@@ -78,15 +78,17 @@ def front_figure(
     return fig
 
 
-def _map_axes(fig: Figure, routes: Sequence[Route]) -> tuple[Axes, Any]:
-    """Axes framing the routes and the weather's patches, longitudes continuous from the start."""
+def _map_axes(fig: Figure, routes: Sequence[Any], example: Route) -> tuple[Axes, Any]:
+    """Axes framing the tracks (each with ``lon_deg``, ``lat_deg``), the weather's patches and the course's marks (of
+    the route ``example``), longitudes continuous from the start."""
+    weather = example.weather
     ax = fig.add_subplot()
     ref = float(routes[0].lon_deg[0])
 
     def view(lon: Any) -> Any:
         return continuous_lon_deg(lon, ref)
 
-    for patch in getattr(routes[0].weather, "patches", ()):
+    for patch in getattr(weather, "patches", ()):
         (w, e), (s, n) = patch.lon, patch.lat
         ax.fill(view(np.array([w, e, e, w])), [s, s, n, n], facecolor="0.5", alpha=0.15, edgecolor="0.3", zorder=0)
         what = ", ".join(f"{k} {v:g}" for k, v in patch.values.items())
@@ -94,6 +96,10 @@ def _map_axes(fig: Figure, routes: Sequence[Route]) -> tuple[Axes, Any]:
         ax.text(float(view(w)) + 0.2, n - 0.2, f"{name}: {what}" if name else what, fontsize=6, va="top")
     ax.plot(view(routes[0].lon_deg[0]), routes[0].lat_deg[0], "k^", ms=7, label="start")
     ax.plot(view(routes[0].lon_deg[-1]), routes[0].lat_deg[-1], "ks", ms=7, label="finish")
+    marks = [(leg.lon_deg[-1], leg.lat_deg[-1]) for leg in example.course_legs[:-1]]
+    if marks:
+        lon, lat = np.array(marks).T
+        ax.plot(view(lon), lat, "kD", ms=6, label="waypoint" if len(marks) == 1 else "waypoints")
     ax.set_xlabel("longitude [deg]")
     ax.set_ylabel("latitude [deg]")
     mid = float(np.mean(np.concatenate([r.lat_deg for r in routes])))
@@ -108,9 +114,9 @@ def routes_figure(front: Front, *, title: str | None = None, max_labelled: int =
     from matplotlib import colormaps
 
     key, _ = OBJECTIVE[front.kind]
-    routes = [p.route for p in front.points]
+    routes = front.points  # their tracks: no route is built
     fig = _figure(9.0, 6.5)
-    ax, view = _map_axes(fig, routes)
+    ax, view = _map_axes(fig, routes, routes[0].route)  # one route built: its weather and marks
     cmap = colormaps["viridis"]
     n = len(routes)
     named = set(np.linspace(0, n - 1, min(n, max_labelled)).round().astype(int).tolist())
@@ -120,7 +126,7 @@ def routes_figure(front: Front, *, title: str | None = None, max_labelled: int =
         if i in named:
             label = f"{p.voyage_time_h:.1f} h, p {getattr(p, key):.3g}"
             label += f", hazard {p.hazard:.3g}" if front.kind == "voyage" else ""
-        ax.plot(view(p.route.lon_deg), p.route.lat_deg, color=colour, lw=1.2, label=label)
+        ax.plot(view(p.lon_deg), p.lat_deg, color=colour, lw=1.2, label=label)
     ax.legend(fontsize=7, loc="best", title=f"{front.kind} front: time, {key.replace('_', ' ')}", title_fontsize=7)
     ax.set_title(title or f"the {n} routes of the {front.kind} front")
     fig.tight_layout()
@@ -132,7 +138,7 @@ def sensitivity_figure(route: Route, rows: Sequence[Sensitivity], which: Any, *,
     ``rows`` per leg, -1 for none: grey); the stretches exposed to a criterion (it fires there) drawn wide and pale in
     its colour."""
     fig = _figure(9.0, 6.5)
-    ax, view = _map_axes(fig, [route])
+    ax, view = _map_axes(fig, [route], route)
     lon, lat = view(route.lon_deg), route.lat_deg
     for i, row in enumerate(rows):
         colour = _CRITERION_COLOURS[i % len(_CRITERION_COLOURS)]
