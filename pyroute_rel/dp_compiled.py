@@ -40,10 +40,10 @@ __all__ = ["RankStep", "rank_step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
-#: ``wind(pick)``: the wind speed [kn] and direction (from) [deg] at the samples of the arcs ``pick`` (row and
-#: column index arrays, shape (n, samples)) or of every arc (None: shape (nodes, arcs, samples)); None when the
+#: ``wind(pick)``: the wind speed [kn] and direction (from) [deg] at the samples of the arcs ``pick`` (flat indices
+#: ``node * arcs + arc``: shape (n, samples)) or of every arc (None: shape (nodes, arcs, samples)); None when the
 #: weather has a current there (the compiled step does not model it).
-WindSampler = Callable[[tuple[IntArray, IntArray] | None], tuple[FloatArray, FloatArray] | None]
+WindSampler = Callable[[IntArray | None], tuple[FloatArray, FloatArray] | None]
 
 
 class RankStep(NamedTuple):
@@ -168,8 +168,7 @@ def _cost_arcs(wind: WindSampler, pick, width, course, seg, tables, forbid):  # 
     flags = np.empty(pick.size, dtype=np.uint8)
     if pick.size == 0:
         return times, flags
-    rows, cols = np.divmod(pick, width)
-    sampled = wind((rows, cols))
+    sampled = wind(pick)
     if sampled is None:
         return None
     tws, twd = (_c(a).reshape(pick.size, course.shape[2]) for a in sampled)
@@ -235,10 +234,13 @@ def _first_arcs(t_prev, src, valid, seg, samples, bound, first):  # type: ignore
 def _cost_list(
     tws, twd, course, seg, pick, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed, times, flags
 ):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Time and flags of each arc of ``pick`` (flat indices), its wind in the same row of ``tws``, ``twd``."""
+    """Time and flags of each arc of ``pick`` (flat indices, nodes in increasing order), its wind in the same row
+    of ``tws``, ``twd``."""
     width = seg.shape[1]
+    d = 0
     for q in range(pick.size):
-        d = pick[q] // width
+        while pick[q] >= (d + 1) * width:  # the node, without a division
+            d += 1
         a = pick[q] - d * width
         t, f = _arc_time(tws, twd, q, course, d, a, seg[d, a], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid,
                          min_speed)  # fmt: skip

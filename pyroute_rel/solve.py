@@ -950,15 +950,15 @@ def _compiled_step(
 
     shape = valid.shape + (geom.samples,)
 
-    def wind(pick: tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]] | None) -> tuple[FloatArray, FloatArray] | None:
-        lon, lat = np.broadcast_to(geom.lon_deg, shape), np.broadcast_to(geom.lat_deg, shape)
-        if pick is not None:
-            lon, lat = lon[pick], lat[pick]
-        cond = problem.weather.sample(lon, lat, problem.departure)
-        return None if cond.has_current else (cond.tws_kn, cond.twd_deg)
-
     def full(a: npt.NDArray[Any], to: tuple[int, ...]) -> npt.NDArray[Any]:  # no copy where it has the shape
         return a if a.shape == to else np.broadcast_to(a, to)
+
+    def wind(pick: npt.NDArray[np.intp] | None) -> tuple[FloatArray, FloatArray] | None:
+        lon, lat = full(geom.lon_deg, shape), full(geom.lat_deg, shape)
+        if pick is not None:  # the arcs' rows of (nodes * arcs, samples): a view where the geometry has the shape
+            lon, lat = (np.take(a.reshape(-1, shape[-1]), pick, axis=0) for a in (lon, lat))
+        cond = problem.weather.sample(lon, lat, problem.departure)
+        return None if cond.has_current else (cond.tws_kn, cond.twd_deg)
 
     prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
     step = rank_step(
