@@ -148,10 +148,12 @@ def _pruned_step(  # type: ignore[no-untyped-def]
     n_dst, width = seg.shape
     first = np.full(n_dst * 4, -1, dtype=np.intp)
     counts[0] = _first_arcs(tp, src, valid, seg, course.shape[2], bound, first)
-    pick = first[first >= 0]
-    t_first = _cost_arcs(wind, pick, width, course, seg, tables, forbid)
-    if t_first is None:
+    picked = first >= 0  # nodes with fewer than four live arcs leave -1s
+    costs = _cost_arcs(wind, first[picked], width, course, seg, tables, forbid)
+    if costs is None:
         return False
+    t_first = (np.full(first.size, np.inf), np.zeros(first.size, dtype=np.uint8))  # laid out as ``first``
+    t_first[0][picked], t_first[1][picked] = costs
     rest = np.empty(n_dst * width, dtype=np.intp)
     n_rest = _rest_arcs(tp, src, valid, seg, course.shape[2], bound, first, t_first[0], t_first[1], rest)
     t_rest = _cost_arcs(wind, rest[:n_rest], width, course, seg, tables, forbid)
