@@ -22,6 +22,7 @@ BEAT = ROOT / "examples" / "microtransat_beat.toml"
 _PER_ARC = f"""
 import pyroute_rel.solve as S
 from pyroute_rel.dp_compiled import _rank_kernel
+from pyroute_rel.polar_compiled import tables
 from pyroute_rel.solve import grid_geometry
 sc = load_scenario({str(EXAMPLE)!r}).with_options(layout="square", n_nodes=160, n_ranks=160, failure_model="none",
                                                   land=False, samples_per_arc=1)
@@ -37,18 +38,18 @@ for k in range(grid.n_ranks + 1):
     g = grid_geometry(grid, k, 1)
     c = problem.weather.sample(g.lon_deg, g.lat_deg, problem.departure)
     seg = req(np.broadcast_to(g.seg_nm[..., 0], valid.shape))
-    blocks.append((req(c.tws_kn), req(c.twd_deg), req(g.course_deg), seg, req(t_prev),
+    blocks.append((req(c.tws_kn).reshape(-1, 1), req(c.twd_deg).reshape(-1, 1), req(g.course_deg), seg, req(t_prev),
                    req(np.broadcast_to(src, valid.shape), np.intp), req(valid, np.bool_)))
     if k < grid.n_ranks:
         t_prev = req(res.arrival_h[k][:, None])
-pol = [req(t).reshape(-1) for t in (problem.polar.twa_deg, problem.polar.tws_kn, problem.polar.speed_kn)]
+pol = tables(problem.polar)
 zero = np.zeros(1)
 def kernel():
     for tws, twd, course, seg, tp, src, valid in blocks:
         n = seg.shape[0]
         _rank_kernel(tws, twd, course, seg, tp, src, valid, *pol, False, 0.01, -1.0, np.array([-1]), zero, zero, zero,
                      zero, np.empty((n, 1)), np.empty((n, 1), np.intp), np.empty((n, 1), np.intp),
-                     np.zeros(seg.shape, np.uint8), np.zeros(seg.shape, np.bool_), np.zeros(seg.shape, np.bool_))
+                     np.zeros(5, np.int64))
 kernel()
 a, b, c = [], [], []
 for _ in range(repeats(5)):

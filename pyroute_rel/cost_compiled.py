@@ -18,7 +18,9 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
+from . import polar_compiled
 from .polar import MIN_SPEED_KN, Polar, check_beyond
+from .polar_compiled import fold_twa, speed_kn, sub_time
 
 __all__ = ["sail_wind"]
 
@@ -59,50 +61,19 @@ def sail_wind(
         for a in (tws_kn, twd_deg, course_deg, seg_nm)
     ]
     twa, v, dt = (np.empty(flat[0].size) for _ in range(3))
-    tables = [np.require(t, np.float64, ("C", "W")).reshape(-1) for t in (polar.twa_deg, polar.tws_kn, polar.speed_kn)]
-    _wind_kernel(*flat, *tables, beyond == "forbid", MIN_SPEED_KN, twa, v, dt)  # type: ignore[call-arg]
+    _wind_kernel(*flat, *polar_compiled.tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)  # type: ignore[call-arg]
     return twa.reshape(shape), v.reshape(shape), dt.reshape(shape)
 
 
 @numba.njit(nogil=True, cache=True)
-def _wind_kernel(tws, twd, course, seg, twa_tab, tws_tab, speed_tab, forbid, min_speed, twa_out, v_out, dt_out):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """One point at a time: fold TWA, bilinear polar (:func:`~pyroute_rel.polar.boat_speed_kn`), then
-    ``seg / speed`` or ``inf`` (missing wind, no speed), in the numpy path's order of operations."""
-    n_twa = twa_tab.size
-    n_tws = tws_tab.size
+def _wind_kernel(
+    tws, twd, course, seg, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed, twa_out, v_out, dt_out
+):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """One point at a time: fold TWA, bilinear polar, then ``seg / speed`` or ``inf`` (missing wind, no speed)
+    (:mod:`pyroute_rel.polar_compiled`), in the numpy path's order of operations."""
     for k in range(tws.size):
-        w = tws[k]
-        d = twd[k]
-        a = abs(d - course[k])
-        if a > 360.0:
-            a = a % 360.0
-        a = min(a, 360.0 - a)
+        a = fold_twa(twd[k], course[k])
         twa_out[k] = a
-        v = np.nan  # NaN in, NaN out (but for the no-go and "forbid" rules, applied last as in the numpy code)
-        if a == a and w == w:
-            # cells as clip(searchsorted(table, x, "right") - 1, 0, n - 2), by counting the inner rows at or below
-            # x: polar tables are short, and a search that branches mispredicts once per point (half the time)
-            i = 0
-            for m in range(1, n_twa - 1):
-                i += twa_tab[m] <= a
-            j = 0
-            for m in range(1, n_tws - 1):
-                j += tws_tab[m] <= w
-            fa = (a - twa_tab[i]) / (twa_tab[i + 1] - twa_tab[i])
-            fa = min(max(fa, 0.0), 1.0)
-            fw = (w - tws_tab[j]) / (tws_tab[j + 1] - tws_tab[j])
-            fw = min(max(fw, 0.0), 1.0)
-            c = i * n_tws + j
-            gw = 1.0 - fw
-            low = speed_tab[c] * gw + speed_tab[c + 1] * fw
-            high = speed_tab[c + n_tws] * gw + speed_tab[c + n_tws + 1] * fw
-            v = high * fa - low * (fa - 1.0)
-            if tws_tab[0] > 0.0 and w < tws_tab[0]:
-                v *= w / tws_tab[0]
-        if twa_tab[0] > 0.0 and a < twa_tab[0]:
-            v = 0.0
-        if forbid and (a > twa_tab[n_twa - 1] or w > tws_tab[n_tws - 1]):
-            v = 0.0
+        v = speed_kn(a, tws[k], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
         v_out[k] = v
-        # missing weather (an infinite wind, too) or no speed: forbidden
-        dt_out[k] = seg[k] / v if v >= min_speed and np.isfinite(w) and np.isfinite(d) else np.inf
+        dt_out[k] = sub_time(seg[k], v, tws[k], twd[k], min_speed)[0]

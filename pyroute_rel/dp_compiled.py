@@ -1,42 +1,80 @@
 """Compiled twin of one rank of the forward DP, for steady wind-only problems (issue 18).
 
 Where the arc costs need nothing but the wind (steady weather, no failure model, wave speed loss, current, obstacle
-mask, waiting or finish line), :func:`~pyroute_rel.solve.forward_dp` hands each rank to :func:`rank_step`: one
-compiled loop over the arcs into each node that does what the numpy path does operation for operation -- TWA,
-bilinear polar speed, time per sub-segment (the arithmetic of :func:`pyroute_rel.cost_compiled.sail_wind`), the
-arc's reason flags, pruning (each node's four arcs of smallest lower bound first, then every arc whose bound does
-not exceed the best of them, see ``RoutingProblem.prune``), the arrival from each source label with the time of a
-change of side (:mod:`pyroute_rel.manoeuvre`: labels (node, side), the plain DP being the case of one label) and
-the earliest arrival at each label -- without a temporary array per step. Its results are bit-identical to the
-numpy path's (arrival times, back-pointers, labels, counts; property-tested); only the weather (and each arc's side
-and manoeuvre time) is still computed in numpy, once per arc sample.
+mask, waiting or finish line), :func:`~pyroute_rel.solve.forward_dp` hands each rank to :func:`rank_step`, which
+does what the numpy path does operation for operation -- TWA, bilinear polar speed, time per sub-segment
+(:mod:`pyroute_rel.polar_compiled`, shared with :mod:`pyroute_rel.cost_compiled`), the arc's reason flags, pruning
+(each node's four arcs of smallest lower bound first, then every arc whose bound does not exceed the best of them,
+see ``RoutingProblem.prune``), the arrival from each source label with the time of a change of side
+(:mod:`pyroute_rel.manoeuvre`: labels (node, side), the plain DP being the case of one label) and the earliest
+arrival at each label -- without a temporary array per step. Its results are bit-identical to the numpy path's
+(arrival times, back-pointers, labels, counts; property-tested).
 
-Kernels take contiguous, writable float64 arrays (one compiled signature). numba is imported only by problems this
+Two kernels share the per-arc arithmetic:
+
+- with one label per node and pruning (the paper's square grid), the weather is sampled only where an arc is costed,
+  as the numpy path's pruning does: the four arcs of smallest bound into each node first, then the arcs whose bound
+  does not exceed the best of them (on the square 160 x 160 grid 0.89 M of 4.07 M arcs), in three short kernels
+  between which the caller samples the wind at the picked arcs;
+- otherwise (side labels, or no pruning) the wind is sampled at every arc and one kernel does the rank.
+
+Kernels take contiguous, writable arrays (one compiled signature each). numba is imported only by problems this
 path serves.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import NamedTuple
+
 import numba
 import numpy as np
 import numpy.typing as npt
 
+from . import polar_compiled
 from .manoeuvre import ManoeuvrePenalties
 from .polar import MIN_SPEED_KN, Polar
+from .polar_compiled import fold_twa, speed_kn, sub_time
 
-__all__ = ["rank_step"]
+__all__ = ["RankStep", "rank_step"]
 
 FloatArray = npt.NDArray[np.float64]
-BoolArray = npt.NDArray[np.bool_]
+IntArray = npt.NDArray[np.intp]
+#: ``wind(pick)``: the wind speed [kn] and direction (from) [deg] at the samples of the arcs ``pick`` (flat indices
+#: ``node * arcs + arc``: shape (n, samples)) or of every arc (None: shape (nodes, arcs, samples)); None when the
+#: weather has a current there (the compiled step does not model it).
+WindSampler = Callable[[IntArray | None], tuple[FloatArray, FloatArray] | None]
+
+
+class RankStep(NamedTuple):
+    """What :func:`rank_step` finds for a rank: the earliest arrival at each label and how many arcs were costed."""
+
+    #: Earliest arrival at each label [h] (inf where no arc arrives), shape (nodes, labels).
+    t_best: FloatArray
+    #: The arc it comes by (first of equal ones; 0 where none), same shape.
+    j_best: IntArray
+    #: The source label it leaves from (first of equal ones; 0 where none), same shape.
+    c_best: IntArray
+    #: Arcs that leave a reached label.
+    live: int
+    #: Of those, arcs costed (the others were pruned).
+    costed: int
+    #: Of those, arcs forbidden, and arcs with each reason (:data:`~pyroute_rel.cost.REASONS` ``polar``, ``weather``).
+    forbidden: int
+    no_speed: int
+    no_wind: int
+
+
+def _c(a: npt.ArrayLike, dtype: type = np.float64) -> npt.NDArray:
+    return np.require(a, dtype, ("C", "W"))
 
 
 def rank_step(
-    tws_kn: FloatArray,
-    twd_deg: FloatArray,
+    wind: WindSampler,
     course_deg: FloatArray,
     seg_nm: FloatArray,
     t_prev: FloatArray,
-    src: npt.NDArray[np.intp],
+    src: IntArray,
     valid: npt.NDArray[np.bool_],
     polar: Polar,
     *,
@@ -44,15 +82,14 @@ def rank_step(
     bound_kn: float | None,
     from_sides: tuple[int, ...] = (-1,),
     penalties: ManoeuvrePenalties | None = None,
-) -> tuple[
-    FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], npt.NDArray[np.uint8], npt.NDArray[np.bool_], BoolArray
-]:
+) -> RankStep | None:
     """One rank of the DP: the earliest arrival at each label [h] and the arc and source label it comes by.
 
     Parameters
     ----------
-    tws_kn, twd_deg : Wind speed [kn] and direction (from) [deg] at the arcs' samples, shape (nodes, arcs, samples).
-    course_deg : Great-circle course at the samples [deg], same shape.
+    wind : Samples the wind at the arcs (:data:`WindSampler`): at the arcs costed only, when pruning one label per
+        node; else at every arc.
+    course_deg : Great-circle course at the arcs' samples [deg], shape (nodes, arcs, samples).
     seg_nm : Sub-segment length of each arc [nm], shape (nodes, arcs) (the geometry's ``seg_nm[..., 0]``).
     t_prev : Arrival at each label of the previous rank [h] (inf: not reached), shape (source nodes, source labels).
     src, valid : Source node of each arc and whether it exists, shape (nodes, arcs) (``grid.pattern(k)``).
@@ -70,97 +107,91 @@ def rank_step(
 
     Returns
     -------
-    ``t_best`` [h] (inf where no arc arrives), ``j_best`` the arc index and ``c_best`` the source label (first arc,
-    then first source label, of equal ones; 0 where none), all of shape (nodes, labels); the reason flags of each
-    costed arc (:data:`~pyroute_rel.cost.REASONS`; 0 elsewhere), which arcs were costed and which were live (leave a
-    reached label).
+    The :class:`RankStep` (labels: one, or port and starboard with ``penalties``), or None when ``wind`` found a
+    current.
     """
-    n_dst, width = seg_nm.shape
+    n_dst = seg_nm.shape[0]
     n_out = 1 if penalties is None else 2
-
-    def c(a: npt.ArrayLike) -> FloatArray:
-        return np.require(a, np.float64, ("C", "W"))
-
-    tables = [c(t).reshape(-1) for t in (polar.twa_deg, polar.tws_kn, polar.speed_kn)]
-    p = penalties or ManoeuvrePenalties()
-    pen = [c(np.asarray(t, dtype=float)) for t in (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn, p.gybe_penalty_s)]
+    tables = polar_compiled.tables(polar)
+    forbid = beyond == "forbid"
+    course, seg, tp = _c(course_deg), _c(seg_nm), _c(t_prev)
+    src, valid = _c(src, np.intp), _c(valid, np.bool_)
     t_best = np.empty((n_dst, n_out))
     j_best = np.empty((n_dst, n_out), dtype=np.intp)
-    c_best = np.empty((n_dst, n_out), dtype=np.intp)
-    reason = np.zeros((n_dst, width), dtype=np.uint8)
-    counted = np.zeros((n_dst, width), dtype=np.bool_)
-    live = np.zeros((n_dst, width), dtype=np.bool_)
-    _rank_kernel(  # type: ignore[call-arg]
-        c(tws_kn),
-        c(twd_deg),
-        c(course_deg),
-        c(seg_nm),
-        c(t_prev),
-        np.require(src, np.intp, ("C", "W")),
-        np.require(valid, np.bool_, ("C", "W")),
-        *tables,
-        beyond == "forbid",
-        MIN_SPEED_KN,
-        -1.0 if bound_kn is None else float(bound_kn),
-        np.asarray(from_sides, dtype=np.int64),
-        *pen,
-        t_best,
-        j_best,
-        c_best,
-        reason,
-        counted,
-        live,
-    )
-    return t_best, j_best, c_best, reason, counted, live
+    c_best = np.zeros((n_dst, n_out), dtype=np.intp)
+    counts = np.zeros(5, dtype=np.int64)
+    if n_out == 1 and tp.shape[1] == 1 and bound_kn is not None:
+        if not _pruned_step(wind, course, seg, tp, src, valid, tables, forbid, float(bound_kn), t_best, j_best, counts):
+            return None
+    else:
+        sampled = wind(None)
+        if sampled is None:
+            return None
+        tws, twd = (_c(a).reshape(-1, course.shape[2]) for a in sampled)
+        p = penalties or ManoeuvrePenalties()
+        pen = [
+            _c(np.asarray(t, dtype=float)) for t in (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn, p.gybe_penalty_s)
+        ]
+        _rank_kernel(  # type: ignore[call-arg]
+            tws, twd, course, seg, tp, src, valid, *tables, forbid, MIN_SPEED_KN,
+            -1.0 if bound_kn is None else float(bound_kn), np.asarray(from_sides, dtype=np.int64), *pen,
+            t_best, j_best, c_best, counts,
+        )  # fmt: skip
+    return RankStep(t_best, j_best, c_best, *(int(n) for n in counts))
 
 
-@numba.njit(nogil=True, cache=True)
-def _arc_time(tws, twd, course, seg, d, a, twa_tab, tws_tab, speed_tab, forbid, min_speed):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Sailing time of arc (d, a) [h] and its reason flags (1: no speed, 2: missing wind), as the numpy cost kernel
-    computes them: per sample the TWA, bilinear polar and ``seg / speed``, summed over the samples in order."""
-    n_twa = twa_tab.size
-    n_tws = tws_tab.size
-    samples = tws.shape[2]
+def _pruned_step(  # type: ignore[no-untyped-def]
+    wind: WindSampler, course, seg, tp, src, valid, tables, forbid, bound, t_best, j_best, counts
+) -> bool:
+    """:func:`rank_step` of one label per node with pruning: the wind sampled at the arcs costed only (False: it
+    found a current)."""
+    n_dst, width = seg.shape
+    first = np.full(n_dst * 4, -1, dtype=np.intp)
+    counts[0] = _first_arcs(tp, src, valid, seg, course.shape[2], bound, first)
+    picked = first >= 0  # nodes with fewer than four live arcs leave -1s
+    costs = _cost_arcs(wind, first[picked], width, course, seg, tables, forbid)
+    if costs is None:
+        return False
+    t_first = (np.full(first.size, np.inf), np.zeros(first.size, dtype=np.uint8))  # laid out as ``first``
+    t_first[0][picked], t_first[1][picked] = costs
+    rest = np.empty(n_dst * width, dtype=np.intp)
+    n_rest = _rest_arcs(tp, src, valid, seg, course.shape[2], bound, first, t_first[0], t_first[1], rest)
+    t_rest = _cost_arcs(wind, rest[:n_rest], width, course, seg, tables, forbid)
+    if t_rest is None:
+        return False
+    _best_of_lists(tp, src, first, *t_first, rest[:n_rest], *t_rest, t_best, j_best, counts)
+    return True
+
+
+def _cost_arcs(wind: WindSampler, pick, width, course, seg, tables, forbid):  # type: ignore[no-untyped-def]
+    """Time [h] and reason flags of the arcs ``pick`` (flat indices node * width + arc), the wind sampled at them
+    (None: a current)."""
+    times = np.empty(pick.size)
+    flags = np.empty(pick.size, dtype=np.uint8)
+    if pick.size == 0:
+        return times, flags
+    sampled = wind(pick)
+    if sampled is None:
+        return None
+    tws, twd = (_c(a).reshape(pick.size, course.shape[2]) for a in sampled)
+    _cost_list(tws, twd, course, seg, pick, *tables, forbid, MIN_SPEED_KN, times, flags)  # type: ignore[call-arg]
+    return times, flags
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _arc_time(tws, twd, i, course, d, a, seg, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Sailing time [h] of arc (d, a) of length ``seg`` [nm] per sub-segment, with the wind of row ``i`` of
+    ``tws``, ``twd``, and its reason flags (1: no speed, 2: missing wind), as the numpy cost kernel computes them:
+    per sample the TWA, bilinear polar and ``seg / speed``, summed over the samples in order."""
     total = 0.0
     flags = 0
-    for s in range(samples):
-        w = tws[d, a, s]
-        wd = twd[d, a, s]
-        ang = abs(wd - course[d, a, s])
-        if ang > 360.0:
-            ang = ang % 360.0
-        ang = min(ang, 360.0 - ang)
-        v = np.nan
-        if ang == ang and w == w:
-            i = 0
-            for m in range(1, n_twa - 1):
-                i += twa_tab[m] <= ang
-            j = 0
-            for m in range(1, n_tws - 1):
-                j += tws_tab[m] <= w
-            fa = (ang - twa_tab[i]) / (twa_tab[i + 1] - twa_tab[i])
-            fa = min(max(fa, 0.0), 1.0)
-            fw = (w - tws_tab[j]) / (tws_tab[j + 1] - tws_tab[j])
-            fw = min(max(fw, 0.0), 1.0)
-            cell = i * n_tws + j
-            gw = 1.0 - fw
-            low = speed_tab[cell] * gw + speed_tab[cell + 1] * fw
-            high = speed_tab[cell + n_tws] * gw + speed_tab[cell + n_tws + 1] * fw
-            v = high * fa - low * (fa - 1.0)
-            if tws_tab[0] > 0.0 and w < tws_tab[0]:
-                v *= w / tws_tab[0]
-        if twa_tab[0] > 0.0 and ang < twa_tab[0]:
-            v = 0.0
-        if forbid and (ang > twa_tab[n_twa - 1] or w > tws_tab[n_tws - 1]):
-            v = 0.0
-        if not (np.isfinite(w) and np.isfinite(wd)):
-            flags |= 2
-            dt = np.inf
-        elif v >= min_speed:
-            dt = seg[d, a] / v
-        else:
-            flags |= 1
-            dt = np.inf
+    for s in range(tws.shape[1]):
+        w = tws[i, s]
+        wd = twd[i, s]
+        ang = fold_twa(wd, course[d, a, s])
+        v = speed_kn(ang, w, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
+        dt, f = sub_time(seg, v, w, wd, min_speed)
+        flags |= f
         total = dt if s == 0 else total + dt
     if flags != 0:
         total = np.inf
@@ -168,58 +199,194 @@ def _arc_time(tws, twd, course, seg, d, a, twa_tab, tws_tab, speed_tab, forbid, 
 
 
 @numba.njit(nogil=True, cache=True)
-def _arrival(t0, t, from_side, side, change):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Arrival over an arc left at ``t0`` taking ``t`` [h], in the numpy path's order of additions: a change of side
-    from a source label with a side adds ``change`` after the sailing time (inf where ``t0`` is)."""
-    if from_side < 0:
-        return t0 + t
-    return (t0 + t) + (change if side != from_side else 0.0)
+def _first_arcs(t_prev, src, valid, seg, samples, bound, first):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Each node's four live arcs of smallest lower bound (``t0 + length / bound``; ties: lowest index) as flat
+    indices ``node * width + arc`` into ``first[4 * node:]`` (-1: fewer); returns the number of live arcs."""
+    n_dst, width = seg.shape
+    live = 0
+    low = np.empty(4)
+    idx = np.empty(4, dtype=np.intp)
+    for d in range(n_dst):
+        n = 0
+        for a in range(width):
+            if not valid[d, a]:
+                continue
+            t0 = t_prev[src[d, a], 0]
+            if not np.isfinite(t0):
+                continue
+            live += 1
+            lw = t0 + seg[d, a] * samples / bound
+            if n == 4 and not lw < low[3]:
+                continue
+            q = min(n, 3)
+            while q > 0 and lw < low[q - 1]:
+                if q < 4:
+                    low[q] = low[q - 1]
+                    idx[q] = idx[q - 1]
+                q -= 1
+            low[q] = lw
+            idx[q] = a
+            n = min(n + 1, 4)
+        for q in range(n):
+            first[4 * d + q] = d * width + idx[q]
+    return live
+
+
+@numba.njit(nogil=True, cache=True)
+def _cost_list(
+    tws, twd, course, seg, pick, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed, times, flags
+):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Time and flags of each arc of ``pick`` (flat indices, nodes in increasing order), its wind in the same row
+    of ``tws``, ``twd``."""
+    width = seg.shape[1]
+    d = 0
+    for q in range(pick.size):
+        while pick[q] >= (d + 1) * width:  # the node, without a division
+            d += 1
+        a = pick[q] - d * width
+        t, f = _arc_time(tws, twd, q, course, d, a, seg[d, a], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid,
+                         min_speed)  # fmt: skip
+        times[q] = t
+        flags[q] = f
+
+
+@numba.njit(nogil=True, cache=True)
+def _rest_arcs(t_prev, src, valid, seg, samples, bound, first, t_first, f_first, rest):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The live arcs not among ``first`` whose lower bound does not exceed the best arrival over a node's first
+    arcs (flat indices, in order, into ``rest``); returns their number."""
+    n_dst, width = seg.shape
+    n = 0
+    mine = np.zeros(width, dtype=np.bool_)
+    for d in range(n_dst):
+        best = np.inf
+        for q in range(4 * d, 4 * d + 4):
+            if first[q] < 0:
+                break
+            a = first[q] - d * width
+            mine[a] = True
+            tot = t_prev[src[d, a], 0] + t_first[q]
+            if f_first[q] == 0 and tot < best:
+                best = tot
+        for a in range(width):
+            if valid[d, a] and not mine[a]:
+                t0 = t_prev[src[d, a], 0]
+                if np.isfinite(t0) and t0 + seg[d, a] * samples / bound <= best:
+                    rest[n] = d * width + a
+                    n += 1
+        for q in range(4 * d, 4 * d + 4):
+            if first[q] >= 0:
+                mine[first[q] - d * width] = False
+    return n
+
+
+@numba.njit(nogil=True, cache=True)
+def _best_of_lists(t_prev, src, first, t_first, f_first, rest, t_rest, f_rest, t_best, j_best, counts):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The earliest arrival at each node over its costed arcs (first of equal ones: lowest arc index), and the
+    counts of costed and forbidden arcs."""
+    n_dst = t_best.shape[0]
+    width = src.shape[1]
+    r = 0
+    for d in range(n_dst):
+        best = np.inf
+        jb = 0
+        for q in range(4 * d, 4 * d + 4):
+            if first[q] >= 0:
+                best, jb = _keep_best(t_prev, src, d, first[q] - d * width, t_first[q], f_first[q], best, jb, counts)
+        while r < rest.size and rest[r] < (d + 1) * width:
+            best, jb = _keep_best(t_prev, src, d, rest[r] - d * width, t_rest[r], f_rest[r], best, jb, counts)
+            r += 1
+        t_best[d, 0] = best
+        j_best[d, 0] = jb
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _keep_best(t_prev, src, d, a, t, f, best, jb, counts):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """One costed arc (d, a) of time ``t`` and flags ``f``, counted; the better of it and (``best``, ``jb``)."""
+    _count(f, counts)
+    if f == 0:
+        tot = t_prev[src[d, a], 0] + t
+        if tot < best or (tot == best and a < jb):
+            return tot, a
+    return best, jb
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _count(f, counts):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Count one costed arc with flags ``f``: costed, forbidden, no speed, missing wind (``counts[1:]``)."""
+    counts[1] += 1
+    if f != 0:
+        counts[2] += 1
+        counts[3] += f & 1
+        counts[4] += (f >> 1) & 1
 
 
 @numba.njit(nogil=True, cache=True)
 def _rank_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    tws, twd, course, seg, t_prev, src, valid, twa_tab, tws_tab, speed_tab, forbid, min_speed, bound, from_sides,
-    tack_x, tack_y, gybe_x, gybe_y, t_best, j_best, c_best, reason, counted, live,
+    tws, twd, course, seg, t_prev, src, valid, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed,
+    bound, from_sides, tack_x, tack_y, gybe_x, gybe_y, t_best, j_best, c_best, counts,
 ):  # fmt: skip
     """Per node: the arcs' departures from each source label, prune (when ``bound`` > 0, for each label: the four
     arcs of smallest lower bound into it, then those whose bound does not exceed the best arrival over them) or cost
-    every live arc, and keep the first earliest arrival at each label."""
+    every live arc, and keep the first earliest arrival at each label. ``tws``, ``twd``: the wind at every arc,
+    shape (nodes * arcs, samples); ``counts``: live, costed, forbidden, no speed, missing wind arcs (added to)."""
     n_dst, width = seg.shape
     n_in = t_prev.shape[1]
-    polar = (twa_tab, tws_tab, speed_tab, forbid, min_speed)
+    n_out = t_best.shape[1]
     times = np.empty(width)
     t_src = np.empty((width, n_in))
     side = np.zeros(width, dtype=np.int8)
     up = np.zeros(width, dtype=np.bool_)
     change = np.zeros(width)
-    pen = (tack_x, tack_y, gybe_x, gybe_y)
-    n_out = t_best.shape[1]
+    reason = np.zeros(width, dtype=np.uint8)
+    counted = np.zeros(width, dtype=np.bool_)
+    live = np.zeros(width, dtype=np.bool_)
     for d in range(n_dst):
         if n_out == 2:
             _sides(twd, course, d, side, up)
         for a in range(width):
+            live[a] = False
+            counted[a] = False
+            reason[a] = 0
             for c in range(n_in):
                 t_src[a, c] = t_prev[src[d, a], c] if valid[d, a] else np.inf
                 if np.isfinite(t_src[a, c]):
-                    live[d, a] = True
+                    live[a] = True
+            counts[0] += live[a]
         if bound > 0.0:
-            _prune_and_cost(tws, twd, course, seg, t_src, polar, bound, from_sides, side, up, pen, change, d, live[d],
+            _prune_and_cost(tws, twd, course, seg, t_src, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid,
+                            min_speed, bound, from_sides, side, up, tack_x, tack_y, gybe_x, gybe_y, change, d, live,
                             times, reason, counted, n_out)  # fmt: skip
         else:
             for a in range(width):
-                if live[d, a]:
-                    counted[d, a] = True
-                    t, f = _arc_time(tws, twd, course, seg, d, a, *polar)
-                    reason[d, a] = f
+                if live[a]:
+                    counted[a] = True
+                    t, f = _arc_time(
+                        tws,
+                        twd,
+                        d * width + a,
+                        course,
+                        d,
+                        a,
+                        seg[d, a],
+                        twa_tab,
+                        tws_tab,
+                        speed_tab,
+                        twa_inv,
+                        tws_inv,
+                        forbid,
+                        min_speed,
+                    )
+                    reason[a] = f
                     times[a] = t
-        if n_out == 2:  # the manoeuvre's time, where an arc can be sailed
-            for a in range(width):
-                if counted[d, a] and reason[d, a] == 0:
-                    change[a] = _change(tws, d, a, up, *pen)
+        for a in range(width):
+            if counted[a]:
+                _count(reason[a], counts)
+                if n_out == 2 and reason[a] == 0:  # the manoeuvre's time, where an arc can be sailed
+                    change[a] = _change(tws, d * width + a, up[a], tack_x, tack_y, gybe_x, gybe_y)
         _best_labels(t_src, from_sides, side, change, d, times, reason, counted, t_best, j_best, c_best)
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, inline="always")
 def _interp(x, xp, fp):  # type: ignore[no-untyped-def]  # pragma: no cover
     """``numpy.interp(x, xp, fp)`` for one finite ``x``, in numpy's arithmetic (constant beyond the ends)."""
     n = xp.size
@@ -241,39 +408,49 @@ def _interp(x, xp, fp):  # type: ignore[no-untyped-def]  # pragma: no cover
     return out
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, inline="always")
+def _arrival(t0, t, from_side, side, change):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Arrival over an arc left at ``t0`` taking ``t`` [h], in the numpy path's order of additions: a change of side
+    from a source label with a side adds ``change`` after the sailing time (inf where ``t0`` is)."""
+    if from_side < 0:
+        return t0 + t
+    return (t0 + t) + (change if side != from_side else 0.0)
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
 def _sides(twd, course, d, side, up):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Side of each arc into node ``d`` and whether a change of side onto it is a tack (upwind of the beam), from
     the wind direction and course at its first sample: :func:`~pyroute_rel.manoeuvre.wind_side` and
     :func:`~pyroute_rel.manoeuvre.manoeuvre_kind`, operation for operation."""
-    for a in range(side.size):
-        rel = np.mod(twd[d, a, 0] - course[d, a, 0], 360.0)
+    width = side.size
+    for a in range(width):
+        rel = np.mod(twd[d * width + a, 0] - course[d, a, 0], 360.0)
         side[a] = 1 if rel < 180.0 or rel != rel else 0  # NaN: starboard
         up[a] = min(rel, 360.0 - rel) < 90.0
 
 
-@numba.njit(nogil=True, cache=True)
-def _change(tws, d, a, up, tack_x, tack_y, gybe_x, gybe_y):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """The time a change of side onto arc (d, a) costs [h]:
+@numba.njit(nogil=True, cache=True, inline="always")
+def _change(tws, i, up, tack_x, tack_y, gybe_x, gybe_y):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The time a change of side onto the arc of wind row ``i`` costs [h] (``up``: a tack):
     :meth:`~pyroute_rel.manoeuvre.ManoeuvrePenalties.tables_h` of the wind speed at its first sample."""
-    w = tws[d, a, 0]
+    w = tws[i, 0]
     w = w if np.isfinite(w) else 0.0
-    if up[a]:
+    if up:
         return _interp(w, tack_x, tack_y) / 3600.0
     return _interp(w, gybe_x, gybe_y) / 3600.0
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, inline="always")
 def _prune_and_cost(  # type: ignore[no-untyped-def]  # pragma: no cover
-    tws, twd, course, seg, t_src, polar, bound, from_sides, side, up, pen, change, d, live, times, reason, counted,
-    n_out,
+    tws, twd, course, seg, t_src, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed, bound,
+    from_sides, side, up, tack_x, tack_y, gybe_x, gybe_y, change, d, live, times, reason, counted, n_out,
 ):  # fmt: skip
     """Node ``d``'s arcs that can still win, costed: per label (an arc's side is known before it is costed) the four
     of smallest lower bound, then every one whose bound does not exceed the best arrival over those four (ties:
     lowest index; the numpy path's argpartition may pick another of equal bounds, which changes which arcs are
     costed, never the result)."""
     width = seg.shape[1]
-    samples = tws.shape[2]
+    samples = course.shape[2]
     n_in = t_src.shape[1]
     lower = np.full(width, np.inf)
     for a in range(width):
@@ -286,30 +463,60 @@ def _prune_and_cost(  # type: ignore[no-untyped-def]  # pragma: no cover
             m = -1
             for a in range(width):
                 mine = n_out == 1 or side[a] == s
-                if mine and live[a] and not counted[d, a] and (m < 0 or lower[a] < lower[m]):
+                if mine and live[a] and not counted[a] and (m < 0 or lower[a] < lower[m]):
                     m = a
             if m < 0:
                 break
-            counted[d, m] = True
-            t, f = _arc_time(tws, twd, course, seg, d, m, *polar)
-            reason[d, m] = f
+            counted[m] = True
+            t, f = _arc_time(
+                tws,
+                twd,
+                d * width + m,
+                course,
+                d,
+                m,
+                seg[d, m],
+                twa_tab,
+                tws_tab,
+                speed_tab,
+                twa_inv,
+                tws_inv,
+                forbid,
+                min_speed,
+            )
+            reason[m] = f
             times[m] = t
             if n_out == 2:
-                change[m] = _change(tws, d, m, up, *pen)
+                change[m] = _change(tws, d * width + m, up[m], tack_x, tack_y, gybe_x, gybe_y)
             for c in range(n_in):
                 tot = _arrival(t_src[m, c], t, from_sides[c], side[m], change[m])
                 if f == 0 and tot < best_first:
                     best_first = tot
         for a in range(width):
             mine = n_out == 1 or side[a] == s
-            if mine and live[a] and not counted[d, a] and lower[a] <= best_first:
-                counted[d, a] = True
-                t, f = _arc_time(tws, twd, course, seg, d, a, *polar)
-                reason[d, a] = f
+            if mine and live[a] and not counted[a] and lower[a] <= best_first:
+                counted[a] = True
+                t, f = _arc_time(
+                    tws,
+                    twd,
+                    d * width + a,
+                    course,
+                    d,
+                    a,
+                    seg[d, a],
+                    twa_tab,
+                    tws_tab,
+                    speed_tab,
+                    twa_inv,
+                    tws_inv,
+                    forbid,
+                    min_speed,
+                )
+                reason[a] = f
                 times[a] = t
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, inline="always")
 def _best_labels(t_src, from_sides, side, change, d, times, reason, counted, t_best, j_best, c_best):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The earliest arrival at each label of node ``d``: source labels in order, arcs in order, first of equal
     ones."""
@@ -322,7 +529,7 @@ def _best_labels(t_src, from_sides, side, change, d, times, reason, counted, t_b
     for c in range(t_src.shape[1]):
         for a in range(width):
             t0 = t_src[a, c]
-            if counted[d, a] and reason[d, a] == 0 and np.isfinite(t0):
+            if counted[a] and reason[a] == 0 and np.isfinite(t0):
                 tot = _arrival(t0, times[a], from_sides[c], side[a], change[a])
                 s = side[a] if n_out == 2 else 0
                 if tot < t_best[d, s]:

@@ -942,24 +942,39 @@ def _compiled_step(
     bound_kn: float | None,
     tally: _Tally,
 ) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], None] | None:
-    """:func:`_rank_step` of a steady wind-only problem in one compiled loop (:func:`pyroute_rel.dp_compiled.
-    rank_step`): the weather (and with side labels each arc's side and manoeuvre time) here, the rest there. None
-    when the weather turns out to have a current there (NaN included): the numpy path then costs the rank."""
+    """:func:`_rank_step` of a steady wind-only problem in compiled code (:func:`pyroute_rel.dp_compiled.
+    rank_step`): the weather sampled here, at the arcs the step asks for (with pruning, only those it costs), the
+    rest there. None when the weather turns out to have a current there (NaN included): the numpy path then costs
+    the rank."""
     from .dp_compiled import rank_step
 
-    cond = problem.weather.sample(geom.lon_deg, geom.lat_deg, problem.departure)
-    if cond.has_current:
-        return None
-    seg = np.broadcast_to(geom.seg_nm[..., 0], valid.shape)
+    shape = valid.shape + (geom.samples,)
+
+    def full(a: npt.NDArray[Any], to: tuple[int, ...]) -> npt.NDArray[Any]:  # no copy where it has the shape
+        return a if a.shape == to else np.broadcast_to(a, to)
+
+    def wind(pick: npt.NDArray[np.intp] | None) -> tuple[FloatArray, FloatArray] | None:
+        lon, lat = full(geom.lon_deg, shape), full(geom.lat_deg, shape)
+        if pick is not None:  # the arcs' rows of (nodes * arcs, samples): a view where the geometry has the shape
+            lon, lat = (np.take(a.reshape(-1, shape[-1]), pick, axis=0) for a in (lon, lat))
+        cond = problem.weather.sample(lon, lat, problem.departure)
+        return None if cond.has_current else (cond.tws_kn, cond.twd_deg)
+
     prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
-    t_best, j_best, c_best, reason, counted, live = rank_step(
-        cond.tws_kn, cond.twd_deg, geom.course_deg, seg, t_prev, np.broadcast_to(src, valid.shape), valid,
-        problem.polar, beyond=problem.beyond, bound_kn=prune, from_sides=prev_sides,
+    step = rank_step(
+        wind, full(geom.course_deg, shape), full(geom.seg_nm[..., 0], valid.shape), t_prev, full(src, valid.shape),
+        valid, problem.polar, beyond=problem.beyond, bound_kn=prune, from_sides=prev_sides,
         penalties=problem.manoeuvres if problem.sides else None,
     )  # fmt: skip
-    tally.add(live, counted, reason, None, None)
-    src_best = np.take_along_axis(src, j_best, axis=1)
-    return t_best, src_best, np.asarray(prev_sides, dtype=np.intp)[c_best], None
+    if step is None:
+        return None
+    tally.evaluated += step.costed
+    tally.pruned += step.live - step.costed
+    tally.forbidden += step.forbidden
+    tally.by_reason["polar"] += step.no_speed
+    tally.by_reason["weather"] += step.no_wind
+    src_best = np.take_along_axis(src, step.j_best, axis=1)
+    return step.t_best, src_best, np.asarray(prev_sides, dtype=np.intp)[step.c_best], None
 
 
 def _tally_columns(tally: _Tally, cols: list[tuple[Any, ...]], failure: FailureModel | None) -> None:

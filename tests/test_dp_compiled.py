@@ -88,3 +88,24 @@ def test_compiled_step_serves_only_steady_wind_only_problems(monkeypatch: pytest
     assert not solve._Pricing.of(flowing, None, finish_line=False).compiled
     a, b = both(grid, flowing, monkeypatch)
     assert_same(a, b)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_compiled_step_on_corridors_equals_numpy(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Refinement's corridor grids (wide enough to prune) have nodes with fewer live arcs than the four pruning
+    costs first (a regression: the costs of the next nodes' arcs were then read from the wrong slots; seed 1 found
+    it): each level's DP through the compiled step gives the numpy path's result, bit for bit."""
+    from pyroute_rel.refine import refine
+
+    rng = np.random.default_rng(seed)
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=15, n_nodes=41, spacing_km=25.0, max_deviation_deg=45.0)
+    problem = solve.RoutingProblem(departure=DEP, weather=random_weather(rng), polar=random_polar(rng), samples=2)
+    corridors = []
+    with monkeypatch.context() as mp:
+        mp.setattr(solve, "grid_geometry", lambda g, k, n, f=solve.grid_geometry: corridors.append(g) or f(g, k, n))
+        refine(grid, problem, solve.forward_dp(grid, problem), levels=3)
+    seen = list({id(g): g for g in corridors if g is not grid}.values())
+    assert len(seen) >= 2 and seen[0].pattern(1)[1].shape[1] > solve.PRUNE_MIN_WIDTH
+    for c in seen:
+        compiled, numpy_path = both(c, problem, monkeypatch)
+        assert_same(compiled, numpy_path, counts=False)
