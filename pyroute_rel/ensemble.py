@@ -304,6 +304,12 @@ def _worker_init() -> None:
     _GRIDS.clear()
 
 
+def _warm_up() -> None:
+    """Import what routing a member needs (seconds on a busy machine), while the caller reads the ensemble."""
+    from . import cost_compiled, solve  # noqa: F401
+    from .weather import readers  # noqa: F401
+
+
 def _forget(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> None:
     """Drop a member's scenario from the process (the mean field's, once routed: it is not sailed in)."""
     _CACHE.pop((path, member, files, repr(sorted(options.items()))), None)
@@ -322,6 +328,8 @@ class _Workers:
             self.pools = [
                 ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_worker_init) for _ in range(n)
             ]
+            for p in self.pools:
+                p.submit(_warm_up)
 
     def balanced(self, tasks: list[tuple[Any, ...]], fn: Any, bar: Any) -> tuple[list[Any], list[int]]:
         """``[fn(*t) for t in tasks]``, each task sent to the next free process, in order; with the process each
@@ -517,7 +525,7 @@ def route_ensemble(
     members : Which members (default all).
     member_files : One weather file per member (:mod:`pyroute_rel.members`).
     risk : The risk measure (:func:`parse_risk`).
-    mean_field : Also route the ensemble-mean field (not with ``member_files``).
+    mean_field : Also route the ensemble-mean field (with ``member_files``, their mean: :func:`~pyroute_rel.members.mean_of_files`).
     workers : Processes (default: the CPUs this process may use, :func:`~pyroute_rel.parallel.default_workers`;
         1: in this process).
     options : Scenario options for every member (:meth:`~pyroute_rel.scenario.Scenario.with_options`).
@@ -534,20 +542,21 @@ def route_ensemble(
 
     _check_ensemble_args(path, members, member_files, mean_field, workers, options, progress)
     r = parse_risk(risk) if isinstance(risk, str) else check_instance(risk, Risk, "risk", ScenarioError)
-    n = member_count(path, member_files=member_files)
-    chosen = list(range(n)) if members is None else [int(m) for m in members]
-    bad = [m for m in chosen if not 0 <= m < n]
-    if bad or not chosen:
-        raise ScenarioError(f"--members must name members in [0, {n - 1}] (got {bad or 'none'})")
     workers = default_workers() if workers is None else max(int(workers), 1)
-    files = None if member_files is None else tuple(str(Path(f).resolve()) for f in member_files)
-    opts = dict(options or {})
-    with_mean = mean_field and files is None
+    if members is not None:
+        workers = min(workers, len(members) + int(mean_field))
     _CACHE.clear()  # the files may have changed since an earlier call in this process
     _GRIDS.clear()
-    pool = _Workers(min(workers, len(chosen) + with_mean))
+    pool = _Workers(workers)  # the processes start (and import) while this one reads the members' count
     try:
-        return _route_and_sail(path, chosen, files, opts, with_mean, r, pool, progress)
+        n = member_count(path, member_files=member_files)
+        chosen = list(range(n)) if members is None else [int(m) for m in members]
+        bad = [m for m in chosen if not 0 <= m < n]
+        if bad or not chosen:
+            raise ScenarioError(f"--members must name members in [0, {n - 1}] (got {bad or 'none'})")
+        files = None if member_files is None else tuple(str(Path(f).resolve()) for f in member_files)
+        with_mean = bool(mean_field)
+        return _route_and_sail(path, chosen, files, dict(options or {}), with_mean, r, pool, progress)
     finally:
         pool.close()
         _CACHE.clear()

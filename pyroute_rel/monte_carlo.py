@@ -478,7 +478,7 @@ def spread_from_members(
 
     trk = as_track(track)
     n = member_count(path, member_files=member_files)
-    ref = mean_scenario(path) if member_files is None else member_scenario(path, 0, member_files=member_files)
+    ref = mean_scenario(path, member_files=member_files)
     prob = evaluation_problem(ref, departure=departure)
     base = sail_tracks(prob, [trk])[0]
     t_leg = np.where(np.isfinite(base.costs.time_h), base.costs.time_h, 0.0)
