@@ -525,7 +525,8 @@ def route_ensemble(
     members : Which members (default all).
     member_files : One weather file per member (:mod:`pyroute_rel.members`).
     risk : The risk measure (:func:`parse_risk`).
-    mean_field : Also route the ensemble-mean field (with ``member_files``, their mean: :func:`~pyroute_rel.members.mean_of_files`).
+    mean_field : Also route the ensemble-mean field (with ``member_files``, their mean:
+        :func:`~pyroute_rel.members.mean_of_files`).
     workers : Processes (default: the CPUs this process may use, :func:`~pyroute_rel.parallel.default_workers`;
         1: in this process).
     options : Scenario options for every member (:meth:`~pyroute_rel.scenario.Scenario.with_options`).
