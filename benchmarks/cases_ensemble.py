@@ -19,10 +19,6 @@ benchmark used to be, a 1500 km course (-14, 31) to (-26, 22) over a 16-day file
 default grid is wide for its length (the lateral spacing follows the rank spacing, the half-width stays 1000 km:
 1243 nodes a rank, about 3 times the control course's arcs), so it is slower than the control course.
 
-The ensemble cases also print ``cpu_s``, the processor seconds of the call (this process and its worker processes): on a
-machine shared with other jobs the wall time depends on the load, the processor time much less, and on 2 idle cores
-the wall time is about half of it plus what does not run in parallel.
-
 ``monte_carlo_1000_runs_160_legs``: 1000 Monte-Carlo runs of a 160-leg track over a time-varying gridded field (one
 member of the short course's file; loading excluded). Target: under 1 s.
 """
@@ -73,20 +69,15 @@ path = folder / "ens.toml"
 
 ENSEMBLE = """
 from pyroute_rel.ensemble import route_ensemble
-def cpu():  # user + system seconds of this process and of its reaped children (the worker processes)
-    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
-c0 = cpu()
 t0 = time.perf_counter()
 res = route_ensemble(path, workers=2, risk="cvar:0.9")
 t = time.perf_counter() - t0
-cpu_s = cpu() - c0
 s = res.summary()
 from pyroute_rel.members import member_scenario
 grid = member_scenario(path, 0).make_grid()
 own = [m["voyage_time_h"] for m in s["members"] if m["voyage_time_h"] is not None]
 no_route = [m for m in s["members"] if not m["feasible"]]
-print(json.dumps({"seconds": t, "cpu_s": cpu_s, "members": len(res.members), "candidates": len(res.names),
+print(json.dumps({"seconds": t, "members": len(res.members), "candidates": len(res.names),
                   "ranks": grid.n_ranks, "nodes": grid.n_nodes, "chosen": s["chosen"]["name"],
                   "voyage_h_min": min(own), "voyage_h_max": max(own), "members_without_route": len(no_route),
                   "why": no_route[0]["reason"][:90] if no_route else None, "peak_rss_mb": rss_mb()}))
