@@ -103,8 +103,9 @@ def make_ensemble(
 
 
 def write_ensemble(path: str | Path, n_members: int = 20, **options: object) -> Path:
-    """Write :func:`make_ensemble` to a NetCDF file (packed in 16-bit integers as ERA5's are, zlib) and return its
-    path."""
+    """Write :func:`make_ensemble` to a NetCDF file (packed in 16-bit integers as ERA5's are, zlib, one member per
+    storage chunk as a GRIB file holds one field per member: reading one member decompresses that member only) and
+    return its path."""
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     ds = make_ensemble(n_members, **options)  # type: ignore[arg-type]
@@ -118,6 +119,7 @@ def write_ensemble(path: str | Path, n_members: int = 20, **options: object) -> 
             "_FillValue": -32767,
             "scale_factor": scale[name],
             "add_offset": offset[name],
+            "chunksizes": (1, *ds[name].shape[1:]),
         }
         for name in ds.data_vars
     }

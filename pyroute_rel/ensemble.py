@@ -54,7 +54,7 @@ from .errors import (
     check_instance,
     check_path,
 )
-from .evaluate import evaluation_problem, sail_tracks
+from .evaluate import evaluation_problem, sail_in_members
 from .members import member_count, member_scenario
 from .progress import progress_bar
 from .scenario import Scenario
@@ -178,7 +178,8 @@ class MemberRoute:
     member : Member index (or ``"mean"``).
     lon_deg, lat_deg : Track points [deg] (empty without a route).
     voyage_time_h : Voyage time [h] (``inf`` without a route).
-    max_failure_probability : The route's largest leg ``p_f``.
+    max_failure_probability : The route's largest leg ``p_f`` sailed in its own member's weather (NaN before it is
+        sailed, and for the mean-field route, which is sailed in the members only).
     error : Why there is no route (None when there is one).
     """
 
@@ -186,7 +187,7 @@ class MemberRoute:
     lon_deg: FloatArray
     lat_deg: FloatArray
     voyage_time_h: float
-    max_failure_probability: float = 0.0
+    max_failure_probability: float = math.nan
     error: str | None = None
 
     @property
@@ -197,18 +198,18 @@ class MemberRoute:
 
 # ------------------------------------------------------------------------------------------------ workers
 
-_CACHE: dict[tuple[str, Any, tuple[str, ...] | None], Scenario] = {}
+# What a process keeps during one route_ensemble call: each member's scenario (and its weather) from its routing
+# to its sailing (a member is sailed in the process that routed it), and the course's grids.
+_CACHE: dict[tuple[str, Any, tuple[str, ...] | None, str], Scenario] = {}
 _GRIDS: dict[str, Any] = {}
 
 
 def _scenario(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> Scenario:
-    """The member's scenario, kept for the process (a worker routes and then sails in the same members)."""
-    key = (path, member, files)
+    """The member's scenario with the options, kept for the process."""
+    key = (path, member, files, repr(sorted(options.items())))
     if key not in _CACHE:
-        if len(_CACHE) >= 64:
-            _CACHE.pop(next(iter(_CACHE)))
-        _CACHE[key] = member_scenario(path, member, member_files=files)
-    return _CACHE[key].with_options(**options)
+        _CACHE[key] = member_scenario(path, member, member_files=files).with_options(**options)
+    return _CACHE[key]
 
 
 def route_member(
@@ -219,71 +220,158 @@ def route_member(
     options: dict[str, Any] | None = None,
 ) -> MemberRoute:
     """Route one member of a scenario file's ensemble (``"mean"``: the ensemble mean); a member without a feasible
-    route (or whose weather does not cover the voyage) gives a :class:`MemberRoute` with its ``error``."""
+    route (or whose weather does not cover the voyage) gives a :class:`MemberRoute` with its ``error``.
+
+    The track and voyage time are those of ``pyroute-rel route`` with ``[weather] member = k`` (the same DP on the
+    same grid); only the track is kept, not the route's per-leg description (:func:`route_ensemble` sails every
+    track again in every member)."""
     files = None if member_files is None else tuple(str(f) for f in member_files)
-    sc = _scenario(str(path), member, files, dict(options or {}))
-    key = f"{path}:{sorted((options or {}).items())}"
+    opts = dict(options or {})
+    sc = _scenario(str(path), member, files, opts)
+    key = f"{path}:{sorted(opts.items())}"
     grids = _GRIDS.get(key)
     if grids is None:
         grids = _GRIDS[key] = sc.leg_grids()  # arc geometry and obstacle masks computed once per process
     try:
-        route = sc.route(grids=grids)
+        lon, lat, hours = _track(sc, grids)
     except (NoFeasibleRouteError, WeatherCoverageError) as exc:
         return MemberRoute(member, np.zeros(0), np.zeros(0), math.inf, error=" ".join(str(exc).split()))
-    return MemberRoute(member, route.lon_deg, route.lat_deg, route.voyage_time_h, route.max_failure_probability)
+    return MemberRoute(member, lon, lat, hours, math.nan)
 
 
-def _sail_in_member(
+def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, float]:
+    """The route's track and voyage time [h]: the forward DP's path on the grid when the course is one leg that
+    the DP finishes exactly as :meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>` does (no waypoints,
+    refinement, start or finish line, zones, waiting or manoeuvre penalties), else that route's."""
+    simple = (
+        len(grids) == 1
+        and not sc.refine
+        and sc.start_line is None
+        and sc.finish_line is None
+        and not sc.avoid.zones
+        and sc.time_step_h is None
+    )
+    problem = sc.problem(grid=grids[0]) if simple else None
+    if problem is None or problem.sides:
+        route = sc.route(grids=grids)
+        return route.lon_deg, route.lat_deg, route.voyage_time_h
+    from .obstacles.mask import check_points
+    from .route import explain_infeasible
+    from .solve import forward_dp
+
+    check_points(sc.marks(), sc.avoid)
+    grid = grids[0]
+    s_lon, s_lat = grid.start_points
+    lons, lats = [*s_lon, grid.finish[0]], [*s_lat, grid.finish[1]]
+    sc.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)), (sc.departure, sc.departure))
+    result = forward_dp(grid, problem)
+    if result.dead_rank is not None or not np.isfinite(result.finish_h):
+        raise NoFeasibleRouteError(explain_infeasible(grid, problem, result))
+    lon, lat = result.points(grid)
+    return lon, lat, float(result.finish_h)
+
+
+def _sail_in_members(
     path: str,
-    member: int,
+    members: list[int],
     files: tuple[str, ...] | None,
     options: dict[str, Any],
     tracks: list[FloatArray],
     land: bool,
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """Every candidate sailed in one member's weather: (time [h], largest p_f, meets p_f > apf, feasible, touches
-    land); land (the same in every member) is tested only when ``land`` is True."""
-    sc = _scenario(path, member, files, options)
-    avoid = sc.avoid if land else replace(sc.avoid, land=False)
-    sailed = sail_tracks(evaluation_problem(sc), tracks, avoid=avoid)
-    times = np.array([s.voyage_time_h for s in sailed])
-    p_max = np.array([s.max_p_f for s in sailed])
-    over = np.array([any("p_f" in r for r in s.leg_reasons()) for s in sailed])
-    feasible = np.array([s.feasible for s in sailed])
-    on_land = np.array([bool(s.land.any()) for s in sailed])
-    return times, p_max, over, feasible, on_land
+    """Every candidate sailed in each of some members' weather, all together
+    (:func:`~pyroute_rel.evaluate.sail_in_members`): (time [h], largest p_f, meets p_f > apf, feasible, touches
+    land), each of shape (candidates, members); land (the same in every member) is tested only when ``land``."""
+    scs = [_scenario(path, m, files, options) for m in members]
+    avoid = scs[0].avoid if land else replace(scs[0].avoid, land=False)
+    sailed = sail_in_members([evaluation_problem(sc) for sc in scs], tracks, avoid=avoid)
+
+    def column(fn: Any) -> Any:
+        return np.array([[fn(s) for s in per_member] for per_member in sailed]).T
+
+    return (
+        column(lambda s: s.voyage_time_h),
+        column(lambda s: s.max_p_f),
+        column(lambda s: any("p_f" in r for r in s.leg_reasons())),
+        column(lambda s: s.feasible),
+        column(lambda s: bool(s.land.any())),
+    )
 
 
 def _worker_init() -> None:
     os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads inside
+    _CACHE.clear()
+    _GRIDS.clear()
 
 
-def _run(tasks: list[tuple[Any, ...]], fn: Any, pool: ProcessPoolExecutor | None, bar: Any) -> list[Any]:
-    """``[fn(*t) for t in tasks]`` in the pool's processes (in this one without a pool); order kept."""
-    if pool is None or len(tasks) <= 1:
-        out = []
-        for t in tasks:
-            out.append(fn(*t))
-            bar.update(1)
-        return out
-    from concurrent.futures import as_completed
-
-    results: list[Any] = [None] * len(tasks)
-    futures = {pool.submit(fn, *t): i for i, t in enumerate(tasks)}
-    for f in as_completed(futures):
-        results[futures[f]] = f.result()
-        bar.update(1)
-    return results
+def _warm_up() -> None:
+    """Import what routing a member needs (seconds on a busy machine), while the caller reads the ensemble."""
+    from . import cost_compiled, solve  # noqa: F401
+    from .weather import readers  # noqa: F401
 
 
-def _pool(workers: int) -> ProcessPoolExecutor | None:
-    """Worker processes for both steps (a worker keeps the members' weather it has read), or None for 1 worker."""
-    if workers <= 1:
-        return None
-    import multiprocessing
+def _forget(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> None:
+    """Drop a member's scenario from the process (the mean field's, once routed: it is not sailed in)."""
+    _CACHE.pop((path, member, files, repr(sorted(options.items()))), None)
 
-    context = multiprocessing.get_context("forkserver")  # not fork: this process may run threads
-    return ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_init)
+
+class _Workers:
+    """Worker processes, each one process, so that a task can be sent to the process that holds a member's weather
+    (None for one worker: everything runs in this process)."""
+
+    def __init__(self, n: int) -> None:
+        self.pools: list[ProcessPoolExecutor] = []
+        if n > 1:
+            import multiprocessing
+
+            context = multiprocessing.get_context("forkserver")  # not fork: this process may run threads
+            self.pools = [
+                ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_worker_init) for _ in range(n)
+            ]
+            for p in self.pools:
+                p.submit(_warm_up)
+
+    def balanced(self, tasks: list[tuple[Any, ...]], fn: Any, bar: Any) -> tuple[list[Any], list[int]]:
+        """``[fn(*t) for t in tasks]``, each task sent to the next free process, in order; with the process each
+        ran in."""
+        if not self.pools:
+            out = []
+            for t in tasks:
+                out.append(fn(*t))
+                bar.update(1)
+            return out, [0] * len(tasks)
+        from concurrent.futures import FIRST_COMPLETED, wait
+
+        results: list[Any] = [None] * len(tasks)
+        where = [0] * len(tasks)
+        running: dict[Any, tuple[int, int]] = {}
+        todo = iter(range(len(tasks)))
+        free = list(range(len(self.pools)))
+        while True:
+            for w in free:
+                i = next(todo, None)
+                if i is not None:
+                    running[self.pools[w].submit(fn, *tasks[i])] = (i, w)
+            free = []
+            if not running:
+                return results, where
+            done, _ = wait(running, return_when=FIRST_COMPLETED)
+            for f in done:
+                i, w = running.pop(f)
+                results[i], where[i] = f.result(), w
+                free.append(w)
+                bar.update(1)
+
+    def each(self, tasks: list[tuple[Any, ...] | None], fn: Any) -> list[Any]:
+        """``fn(*tasks[w])`` in process ``w`` (None: nothing there), all at once."""
+        if not self.pools:
+            return [None if t is None else fn(*t) for t in tasks]
+        futures = [None if t is None else self.pools[w].submit(fn, *t) for w, t in enumerate(tasks)]
+        return [None if f is None else f.result() for f in futures]
+
+    def close(self) -> None:
+        for p in self.pools:
+            p.shutdown(cancel_futures=True)
 
 
 # ------------------------------------------------------------------------------------------------ the ensemble
@@ -437,7 +525,8 @@ def route_ensemble(
     members : Which members (default all).
     member_files : One weather file per member (:mod:`pyroute_rel.members`).
     risk : The risk measure (:func:`parse_risk`).
-    mean_field : Also route the ensemble-mean field (not with ``member_files``).
+    mean_field : Also route the ensemble-mean field (with ``member_files``, their mean:
+        :func:`~pyroute_rel.members.mean_of_files`).
     workers : Processes (default: the CPUs this process may use, :func:`~pyroute_rel.parallel.default_workers`;
         1: in this process).
     options : Scenario options for every member (:meth:`~pyroute_rel.scenario.Scenario.with_options`).
@@ -454,23 +543,23 @@ def route_ensemble(
 
     _check_ensemble_args(path, members, member_files, mean_field, workers, options, progress)
     r = parse_risk(risk) if isinstance(risk, str) else check_instance(risk, Risk, "risk", ScenarioError)
-    n = member_count(path, member_files=member_files)
-    chosen = list(range(n)) if members is None else [int(m) for m in members]
-    bad = [m for m in chosen if not 0 <= m < n]
-    if bad or not chosen:
-        raise ScenarioError(f"--members must name members in [0, {n - 1}] (got {bad or 'none'})")
     workers = default_workers() if workers is None else max(int(workers), 1)
-    files = None if member_files is None else tuple(str(Path(f).resolve()) for f in member_files)
-    opts = dict(options or {})
-    with_mean = mean_field and files is None
+    if members is not None:
+        workers = min(workers, len(members) + int(mean_field))
     _CACHE.clear()  # the files may have changed since an earlier call in this process
     _GRIDS.clear()
-    pool = _pool(workers)
+    pool = _Workers(workers)  # the processes start (and import) while this one reads the members' count
     try:
-        return _route_and_sail(path, chosen, files, opts, with_mean, r, pool, progress)
+        n = member_count(path, member_files=member_files)
+        chosen = list(range(n)) if members is None else [int(m) for m in members]
+        bad = [m for m in chosen if not 0 <= m < n]
+        if bad or not chosen:
+            raise ScenarioError(f"--members must name members in [0, {n - 1}] (got {bad or 'none'})")
+        files = None if member_files is None else tuple(str(Path(f).resolve()) for f in member_files)
+        with_mean = bool(mean_field)
+        return _route_and_sail(path, chosen, files, dict(options or {}), with_mean, r, pool, progress)
     finally:
-        if pool is not None:
-            pool.shutdown()
+        pool.close()
         _CACHE.clear()
         _GRIDS.clear()
 
@@ -503,29 +592,45 @@ def _route_and_sail(
     opts: dict[str, Any],
     with_mean: bool,
     r: Risk,
-    pool: ProcessPoolExecutor | None,
+    pool: _Workers,
     progress: bool,
 ) -> EnsembleResult:
-    """The two steps of :func:`route_ensemble`: route the members (and the mean), then sail every route in every
-    member."""
-    jobs = [(str(path), m) for m in chosen] + ([(str(path), MEAN_NAME)] if with_mean else [])
+    """The two steps of :func:`route_ensemble`: route the members (and the mean, first: reading every member, it
+    is the longest), each in the next free process; then sail every route in every member, each member in the
+    process that routed it (which holds its weather), all its members together."""
+    p = str(path)
+    jobs = ([MEAN_NAME] if with_mean else []) + list(chosen)
     bar = progress_bar(len(jobs), enabled=progress, desc="routing members", unit="member")
-    routed = _run([(p, m, files, opts) for p, m in jobs], _route_task, pool, bar)
+    routed, where = pool.balanced([(p, m, files, opts) for m in jobs], _route_task, bar)
     bar.close()
-    member_routes = tuple(routed[: len(chosen)])
-    mean_route = routed[-1] if with_mean else None
-    cands = [x for x in routed if x.ok]
+    member_routes = tuple(routed[int(with_mean) :])
+    mean_route = routed[0] if with_mean else None
+    cands = [*member_routes, *([mean_route] if mean_route is not None else [])]
+    cands = [x for x in cands if x is not None and x.ok]
     if not cands:
         raise NoFeasibleRouteError(f"no member has a feasible route: {member_routes[0].error}")
     names = tuple(MEAN_NAME if c.member == MEAN_NAME else f"member {c.member}" for c in cands)
     tracks = [np.column_stack([c.lon_deg, c.lat_deg]) for c in cands]
+    held: dict[int, list[int]] = {}
+    for m, w in zip(jobs, where, strict=True):
+        if m != MEAN_NAME:
+            held.setdefault(w, []).append(int(m))
+    n_w = max(len(pool.pools), 1)
+    tasks = [(p, held[w], files, opts, tracks, w == min(held)) if w in held else None for w in range(n_w)]
     bar = progress_bar(len(chosen), enabled=progress, desc="sailing in members", unit="member")
-    sailed = _run(
-        [(str(path), m, files, opts, tracks, i == 0) for i, m in enumerate(chosen)], _sail_in_member, pool, bar
-    )
+    sailed = pool.each(tasks, _sail_task)
+    bar.update(len(chosen))
     bar.close()
-    times, p_max, over, ok, on_land = (np.column_stack([s[k] for s in sailed]) for k in range(5))
-    ok = ok & ~on_land[:, :1]  # land is tested in the first member only
+    column = {m: (w, i) for w in held for i, m in enumerate(held[w])}
+    times, p_max, over, ok, on_land = (
+        np.column_stack([sailed[column[m][0]][k][:, column[m][1]] for m in chosen]) for k in range(5)
+    )
+    ok = ok & ~on_land.any(axis=1, keepdims=True)  # land is tested in one process's members only
+    own = {c.member: i for i, c in enumerate(cands)}
+    member_routes = tuple(
+        replace(mr, max_failure_probability=float(p_max[own[mr.member], j])) if mr.ok else mr
+        for j, mr in enumerate(member_routes)
+    )
     return EnsembleResult(
         members=tuple(chosen),
         routes=member_routes,
@@ -542,4 +647,13 @@ def _route_and_sail(
 
 
 def _route_task(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> MemberRoute:
-    return route_member(path, member, member_files=files, options=options)
+    route = route_member(path, member, member_files=files, options=options)
+    if member == MEAN_NAME:
+        _forget(path, member, files, options)
+    return route
+
+
+def _sail_task(
+    path: str, members: list[int], files: tuple[str, ...] | None, options: dict[str, Any], tracks: Any, land: bool
+) -> Any:
+    return _sail_in_members(path, members, files, options, tracks, land)

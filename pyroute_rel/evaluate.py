@@ -29,6 +29,7 @@ import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,11 +37,12 @@ import numpy as np
 import numpy.typing as npt
 
 from . import geodesy
-from .cost import REASONS, ArcCosts
+from .cost import REASONS, ArcCosts, ArcGeometry, arc_geometry, geometry_costs
 from .errors import ScenarioError, TrackError, brief, check_numbers, check_path
 from .files import brief_path, read_regular_bytes
 from .route import Legs, track_legs
 from .times import iso_utc
+from .weather.base import Conditions
 
 if TYPE_CHECKING:
     from .scenario import Scenario
@@ -56,6 +58,7 @@ __all__ = [
     "evaluate_track",
     "evaluation_problem",
     "sail_tracks",
+    "sail_in_members",
     "BLOCK_REASONS",
     "TRACK_MAX_BYTES",
 ]
@@ -417,8 +420,9 @@ def sail_tracks(
     """Sail tracks leg after leg in a problem's weather, vectorised over the tracks (the k-th legs of every track
     are costed together).
 
-    Each leg is costed as :func:`~pyroute_rel.solve.leg_costs` costs a route's legs (the same call, the same departure
-    times), with ``apf = 1`` so that no leg is refused for its ``p_f``; a leg the craft cannot sail stops its track.
+    Each leg is costed as :func:`~pyroute_rel.solve.leg_costs` costs a route's legs (the same arithmetic, the same
+    departure times), with ``apf = 1`` so that no leg is refused for its ``p_f``; a leg the craft cannot sail stops
+    its track.
 
     Parameters
     ----------
@@ -431,47 +435,228 @@ def sail_tracks(
     list of Sailed
         One per track, in order.
     """
+    return sail_in_members([problem], tracks, avoid=avoid)[0]
+
+
+def sail_in_members(
+    problems: Sequence[RoutingProblem],
+    tracks: Sequence[Track | npt.ArrayLike],
+    *,
+    avoid: Any = None,
+) -> list[list[Sailed]]:
+    """Sail every track in every problem's weather (e.g. every ensemble member's): ``out[j][i]`` is
+    ``sail_tracks(problems[j], [tracks[i]])[0]``, the same numbers, computed together.
+
+    The problems must differ in their weather only (the first's polar, failure model, samples, departure and apf are
+    used). The k-th legs of every track in every weather are costed in one call (the weather answers each row from
+    its own source); then each weather's legs are judged on every piece they cross
+    (:func:`~pyroute_rel.crossings.arc_extremes`) in one call, all legs at once: the times do not depend on it
+    (``apf = 1`` refuses no leg), only the legs' ``p_f``.
+    """
     tr = [as_track(t) for t in tracks]
-    timing = replace(problem, apf=1.0, blocked=None)
+    n_m, n_c = len(problems), len(tr)
+    first = problems[0]
     n_legs = np.array([t.lon_deg.size - 1 for t in tr])
-    width = int(n_legs.max()) if len(tr) else 0
-    lon, lat = np.full((len(tr), width + 1), np.nan), np.full((len(tr), width + 1), np.nan)
+    width = int(n_legs.max()) if n_c else 0
+    lon1, lat1 = np.full((n_c, width + 1), np.nan), np.full((n_c, width + 1), np.nan)
     for i, t in enumerate(tr):
-        lon[i, : t.lon_deg.size], lat[i, : t.lat_deg.size] = t.lon_deg, t.lat_deg
-    has = np.arange(width)[None, :] < n_legs[:, None]
-    elapsed = np.where(np.arange(width + 1)[None, :] <= n_legs[:, None], 0.0, np.nan)
-    time_h = np.full((len(tr), width), np.nan)
-    p_f = np.full((len(tr), width), np.nan)
-    reason = np.zeros((len(tr), width), dtype=np.uint8)
-    if problem.weather.steady and problem.time_step_h is None:
-        a, b, c_, d = lon[:, :-1][has], lat[:, :-1][has], lon[:, 1:][has], lat[:, 1:][has]
-        c = timing.costs(a, b, c_, d, np.zeros(int(has.sum())))
-        time_h[has], p_f[has], reason[has] = c.time_h, c.p_f, c.reason
+        lon1[i, : t.lon_deg.size], lat1[i, : t.lat_deg.size] = t.lon_deg, t.lat_deg
+    has1 = np.arange(width)[None, :] < n_legs[:, None]
+    # rows: track i in weather j is row j * n_c + i
+    lon, lat, has = np.tile(lon1, (n_m, 1)), np.tile(lat1, (n_m, 1)), np.tile(has1, (n_m, 1))
+    legs = np.tile(n_legs, n_m)
+    elapsed = np.where(np.arange(width + 1)[None, :] <= legs[:, None], 0.0, np.nan)
+    time_h, p_f = np.full(has.shape, np.nan), np.full(has.shape, np.nan)
+    reason = np.zeros(has.shape, dtype=np.uint8)
+    if first.weather.steady and first.time_step_h is None:
+        for j, problem in enumerate(problems):  # every leg at once, judged on its pieces in the same call
+            rows = slice(j * n_c, (j + 1) * n_c)
+            a, b, c_, d = lon1[:, :-1][has1], lat1[:, :-1][has1], lon1[:, 1:][has1], lat1[:, 1:][has1]
+            c = replace(problem, apf=1.0, blocked=None).costs(a, b, c_, d, np.zeros(int(has1.sum())))
+            for arr, v in ((time_h, c.time_h), (p_f, c.p_f), (reason, c.reason)):
+                block = arr[rows]
+                block[has1] = v
+                arr[rows] = block
         elapsed[:, 1:] = np.where(has, np.cumsum(np.where(has, time_h, 0.0), axis=1), np.nan)
     else:
-        for k in range(width):
-            go = has[:, k] & np.isfinite(elapsed[:, k])
-            if not go.any():
-                continue
-            t0 = elapsed[go, k]
-            c = timing.costs(lon[go, k], lat[go, k], lon[go, k + 1], lat[go, k + 1], t0)
-            time_h[go, k], p_f[go, k], reason[go, k] = c.time_h, c.p_f, c.reason
-            elapsed[go, k + 1] = timing.arrive(t0 + c.time_h)
-            elapsed[has[:, k] & ~go, k + 1] = np.inf
-    land, zone = _obstacles(problem, avoid, lon, lat, elapsed, has)
-    out = []
-    for i, t in enumerate(tr):
-        n = int(n_legs[i])
-        e = elapsed[i, : n + 1].copy()
-        costs = ArcCosts(time_h=time_h[i, :n].copy(), p_f=p_f[i, :n].copy(), reason=reason[i, :n].copy())
-        hit_land, hit_zone = land[i, :n].copy(), zone[i, :n].copy()
-        stop = np.flatnonzero(~np.isfinite(e))
-        if stop.size:  # the legs after the one that cannot be sailed are not sailed
-            e[stop[0] :] = np.inf
-            costs.time_h[stop[0] :], costs.p_f[stop[0] :], costs.reason[stop[0] :] = np.nan, np.nan, 0
-            hit_land[stop[0] :], hit_zone[stop[0] :] = False, False
-        out.append(Sailed(t.lon_deg, t.lat_deg, e, costs, hit_land, hit_zone, float(problem.apf)))
+        _sail_legs(problems, n_c, lon, lat, has, elapsed, time_h, p_f, reason)
+        _judge_legs(problems, n_c, lon, lat, elapsed, time_h, p_f)
+    land1 = None
+    if avoid is not None and avoid.land:  # the same in every weather
+        land1, _ = _obstacles(first, replace(avoid, zones=()), lon1, lat1, elapsed[:n_c], has1)
+    zone = np.zeros(has.shape, dtype=bool)
+    if avoid is not None and avoid.zones:
+        _, zone = _obstacles(first, replace(avoid, land=False), lon, lat, elapsed, has)
+    land = np.zeros(has.shape, dtype=bool) if land1 is None else np.tile(land1, (n_m, 1))
+    out: list[list[Sailed]] = []
+    for j in range(n_m):
+        out.append([])
+        for i, t in enumerate(tr):
+            r, n = j * n_c + i, int(n_legs[i])
+            out[j].append(_sailed(t, elapsed[r, : n + 1], time_h[r, :n], p_f[r, :n], reason[r, :n], land[r, :n],
+                                  zone[r, :n], float(problems[j].apf)))  # fmt: skip
     return out
+
+
+def _sailed(
+    t: Track,
+    elapsed: FloatArray,
+    time_h: FloatArray,
+    p_f: FloatArray,
+    reason: npt.NDArray[np.uint8],
+    land: npt.NDArray[np.bool_],
+    zone: npt.NDArray[np.bool_],
+    apf: float,
+) -> Sailed:
+    """One track's :class:`Sailed` from its rows (copies), the legs after one that cannot be sailed cleared."""
+    e = elapsed.copy()
+    costs = ArcCosts(time_h=time_h.copy(), p_f=p_f.copy(), reason=reason.copy())
+    hit_land, hit_zone = land.copy(), zone.copy()
+    stop = np.flatnonzero(~np.isfinite(e))
+    if stop.size:  # the legs after the one that cannot be sailed are not sailed
+        e[stop[0] :] = np.inf
+        costs.time_h[stop[0] :], costs.p_f[stop[0] :], costs.reason[stop[0] :] = np.nan, np.nan, 0
+        hit_land[stop[0] :], hit_zone[stop[0] :] = False, False
+    return Sailed(t.lon_deg, t.lat_deg, e, costs, hit_land, hit_zone, apf)
+
+
+def _sail_legs(
+    problems: Sequence[RoutingProblem],
+    n_c: int,
+    lon: FloatArray,
+    lat: FloatArray,
+    has: npt.NDArray[np.bool_],
+    elapsed: FloatArray,
+    time_h: FloatArray,
+    p_f: FloatArray,
+    reason: npt.NDArray[np.uint8],
+) -> None:
+    """Time-varying weather: the k-th legs of every row costed together (their samples' ``p_f``), leg after leg,
+    filling the arrays in place."""
+    first = problems[0]
+    for k in range(has.shape[1]):
+        go = has[:, k] & np.isfinite(elapsed[:, k])
+        if not go.any():
+            continue
+        rows = np.flatnonzero(go)
+        t0 = elapsed[rows, k]
+        geom = arc_geometry(lon[rows, k], lat[rows, k], lon[rows, k + 1], lat[rows, k + 1], samples=first.samples)
+        c = geometry_costs(
+            ArcGeometry(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm),  # samples only: pieces later
+            t0,
+            departure=first.departure,
+            weather=_rows_weather(problems, rows // n_c),
+            polar=first.polar,
+            failure=first.failure,
+            apf=1.0,
+            beyond=first.beyond,
+            wave_loss=first.wave_loss,
+            workers=1 if len(problems) > 1 else None,  # threads split rows: the weather's rows must stay whole
+        )
+        time_h[rows, k], p_f[rows, k], reason[rows, k] = c.time_h, c.p_f, c.reason
+        elapsed[rows, k + 1] = first.arrive(t0 + c.time_h)
+        elapsed[has[:, k] & ~go, k + 1] = np.inf
+
+
+def _judge_legs(
+    problems: Sequence[RoutingProblem],
+    n_c: int,
+    lon: FloatArray,
+    lat: FloatArray,
+    elapsed: FloatArray,
+    time_h: FloatArray,
+    p_f: FloatArray,
+) -> None:
+    """Each weather's legs judged on every piece they cross, all at once, as the cost function judges an arc
+    (:func:`~pyroute_rel.cost.geometry_costs` with its end points): the legs sailed whose samples did not meet the
+    table's largest ``p_f`` and that may need it (:func:`~pyroute_rel.crossings.needs_pieces`) get the largest
+    ``p_f`` met anywhere along them (in place)."""
+    first = problems[0]
+    model = first.failure
+    if model is None:
+        return
+    from .crossings import arc_extremes, needs_pieces
+
+    top = float(np.max(model.p_flat))
+    for j, problem in enumerate(problems):
+        rows = slice(j * n_c, (j + 1) * n_c)
+        with np.errstate(invalid="ignore"):
+            todo = np.isfinite(time_h[rows]) & (p_f[rows] < top)
+        r, k = np.nonzero(todo)
+        if not r.size:
+            continue
+        r = r + j * n_c
+        t0, dt = elapsed[r, k], time_h[r, k]
+        geom = arc_geometry(lon[r, k], lat[r, k], lon[r, k + 1], lat[r, k + 1], samples=first.samples)
+        near = needs_pieces(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, t0, dt,
+                            weather=problem.weather, failure=model, departure=first.departure)  # fmt: skip
+        pick = np.arange(r.size) if near is None else np.flatnonzero(near)
+        if not pick.size:
+            continue
+        assert geom.a_xyz is not None and geom.b_xyz is not None
+        ext = arc_extremes(
+            geom.a_xyz[pick],
+            geom.b_xyz[pick],
+            t0[pick],
+            dt[pick],
+            departure=first.departure,
+            weather=problem.weather,
+            polar=first.polar,
+            failure=model,
+            apf=1.0,
+            beyond=first.beyond,
+            speed_factor=None if first.wave_loss is None else first.wave_loss.factor,
+        )
+        p_f[r[pick], k[pick]] = np.maximum(p_f[r[pick], k[pick]], ext.p_f)
+
+
+def _rows_weather(problems: Sequence[RoutingProblem], member: npt.NDArray[np.intp]) -> Any:
+    """The weather of rows whose weather is ``problems[member[row]]`` (``member`` sorted): the one source when
+    there is one, else :class:`_MemberRows`."""
+    if len(problems) == 1:
+        return problems[0].weather
+    cuts = np.searchsorted(member, np.arange(len(problems) + 1))
+    return _MemberRows([p.weather for p in problems], cuts)
+
+
+class _MemberRows:
+    """A weather source whose queries' rows (first axis) come from different sources: rows ``cuts[j]:cuts[j + 1]``
+    are answered by ``sources[j]`` (the sources share their kind: all steady or all time-varying)."""
+
+    def __init__(self, sources: Sequence[Any], cuts: npt.NDArray[np.intp]) -> None:
+        self.parts = [(s, int(a), int(b)) for s, a, b in zip(sources, cuts[:-1], cuts[1:], strict=True) if b > a]
+        self.steady = bool(sources[0].steady)
+        self.fields = frozenset(sources[0].fields)
+        self.max_current_ms = max(float(s.max_current_ms) for s in sources)
+
+    def prepare(self, lon_deg: Any, lat_deg: Any) -> list[object]:
+        lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
+        return [s.prepare(lon[a:b], lat[a:b]) for s, a, b in self.parts]
+
+    def sample_at(self, prepared: Any, departure: Any, *, offset_h: Any = None, fields: Any = None) -> Conditions:
+        off = None if offset_h is None else np.asarray(offset_h, dtype=float)
+        return _join(
+            [
+                s.sample_at(p, departure, offset_h=None if off is None else off[a:b], fields=fields)
+                for (s, a, b), p in zip(self.parts, prepared, strict=True)
+            ]
+        )
+
+    def sample(self, lon_deg: Any, lat_deg: Any, time: Any) -> Conditions:
+        lon, lat, t = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float), time)
+        return _join([s.sample(lon[a:b], lat[a:b], t[a:b]) for s, a, b in self.parts])
+
+
+def _join(parts: Sequence[Conditions]) -> Conditions:
+    """Conditions of consecutive row blocks joined along the first axis."""
+    names = [f.name for f in dataclass_fields(Conditions)]
+    shapes = [np.shape(p.tws_kn) for p in parts]
+    return Conditions(
+        **{
+            n: np.concatenate([np.broadcast_to(getattr(p, n), s) for p, s in zip(parts, shapes, strict=True)])
+            for n in names
+        }  # fmt: skip
+    )
 
 
 def _obstacles(

@@ -4,7 +4,10 @@ A scenario whose ``[weather]`` files hold an ensemble dimension (``number`` in E
 ``member``: :func:`~pyroute_rel.weather.readers.ensemble_size`) routes one member with ``[weather] member = k``, or
 the ensemble mean with ``member = "mean"``. Members may also be separate files, one per member (``member_files``):
 member ``k`` then reads ``[weather].paths`` with its first file replaced by ``member_files[k]`` (wind in the member
-files; waves or currents, if any, from the other files, common to all members).
+files; waves or currents, if any, from the other files, common to all members). Their ensemble mean
+(:func:`mean_of_files`) is a file like them whose every variable is the mean over the files (wind as its u and v
+components, as ``member = "mean"`` averages a member dimension), read in their place; the files must share their
+variables and grid (coordinates, values equal), else a ScenarioError names the first file that differs.
 
 Each member's weather is read exactly as ``pyroute-rel route`` reads it with ``[weather] member = k`` (the
 scenario's TOML read again with that key), so that a member's route is that route.
@@ -18,11 +21,13 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from .errors import ScenarioError
 from .files import brief_path, read_regular_bytes
 from .scenario import SCENARIO_MAX_BYTES, Scenario, scenario_from_mapping
 
-__all__ = ["scenario_table", "member_count", "member_scenario", "mean_scenario"]
+__all__ = ["scenario_table", "member_count", "member_scenario", "mean_scenario", "mean_of_files"]
 
 
 def scenario_table(path: str | Path) -> dict[str, Any]:
@@ -106,9 +111,9 @@ def member_scenario(
     """
     tables, base, name = _source(scenario)
     weather = _weather_table(tables, name)
+    if member_files is not None and member == "mean":
+        return _mean_of_files_scenario(scenario, tables, base, name, weather, member_files)
     if member_files is not None:
-        if member == "mean":
-            raise ScenarioError("the ensemble mean of member files is not supported: route each member")
         if isinstance(member, bool) or not isinstance(member, int) or not 0 <= member < len(member_files):
             raise ScenarioError(f"member must be in [0, {len(member_files) - 1}] (got {member!r})")
         weather["paths"] = [str(Path(member_files[member]).resolve()), *list(weather["paths"])[1:]]
@@ -122,6 +127,94 @@ def member_scenario(
     return other
 
 
-def mean_scenario(scenario: Scenario | str | Path) -> Scenario:
-    """The scenario on the ensemble-mean weather (``[weather] member = "mean"``)."""
-    return member_scenario(scenario, "mean")
+def mean_scenario(scenario: Scenario | str | Path, *, member_files: Sequence[str | Path] | None = None) -> Scenario:
+    """The scenario on the ensemble-mean weather (``[weather] member = "mean"``, or the mean of the member files)."""
+    return member_scenario(scenario, "mean", member_files=member_files)
+
+
+def _mean_of_files_scenario(
+    scenario: Scenario | str | Path,
+    tables: dict[str, Any],
+    base: Path,
+    name: str,
+    weather: dict[str, Any],
+    member_files: Sequence[str | Path],
+) -> Scenario:
+    """The scenario with the mean of the member files (written to a temporary file, read as a member file is, then
+    deleted: the weather is read into memory)."""
+    import tempfile
+
+    if not member_files:
+        raise ScenarioError("member files: expected one weather file per member (got none)")
+    with tempfile.TemporaryDirectory(prefix="pyroute_rel_mean_") as tmp:
+        mean = mean_of_files(member_files, Path(tmp) / "ensemble_mean.nc")
+        weather["paths"] = [str(mean), *list(weather["paths"])[1:]]
+        weather.pop("member", None)
+        tables["weather"] = weather
+        other = scenario_from_mapping(tables, base_dir=base, source=name)
+    if isinstance(scenario, Scenario):
+        return replace(scenario, weather=other.weather)
+    return other
+
+
+def mean_of_files(member_files: Sequence[str | Path], out: str | Path) -> Path:
+    """Write the ensemble mean of weather files, one per member, to a NetCDF file ``out`` and return its path.
+
+    Every data variable is averaged over the files in double precision (wind as the u and v components the files
+    hold; a direction variable, such as a mean wave direction, is averaged as the numbers stored, as ``member =
+    "mean"`` averages a member dimension). The files must hold the same variables on the same coordinates.
+
+    Raises
+    ------
+    ScenarioError
+        One line naming the first file that cannot be read, or whose variables or coordinates differ from the first
+        file's.
+    """
+    import xarray as xr
+
+    paths = [Path(f) for f in member_files]
+    total: xr.Dataset | None = None
+    ref: xr.Dataset | None = None
+    for p in paths:
+        try:
+            ds = xr.open_dataset(p, decode_timedelta=False)
+        except Exception as exc:  # netCDF4/HDF5 raise many types for damaged files
+            raise ScenarioError(f"member file '{p}': cannot read it ({type(exc).__name__}: {exc})") from None
+        with ds:
+            if ref is None:
+                ref = ds.load()
+            else:
+                _check_same_grid(ds, ref, p, paths[0])
+            part = ds[list(ref.data_vars)].astype(np.float64).load()
+            total = part if total is None else total + part
+    assert total is not None and ref is not None
+    mean = total / len(paths)
+    for v in mean.data_vars:
+        mean[v].attrs = dict(ref[v].attrs)
+        mean[v].encoding = {}
+    mean.attrs = {**ref.attrs, "history": f"ensemble mean of {len(paths)} member files (pyroute_rel)"}
+    mean.to_netcdf(out)
+    return Path(out)
+
+
+def _check_same_grid(ds: Any, ref: Any, path: Path, first: Path) -> None:
+    """ScenarioError unless ``ds`` has ``ref``'s data variables and coordinates (names, sizes and values)."""
+    if set(ds.data_vars) != set(ref.data_vars):
+        raise ScenarioError(
+            f"member file '{path}' holds variables {sorted(map(str, ds.data_vars))}, but '{first}' holds "
+            f"{sorted(map(str, ref.data_vars))}: member files must hold the same variables on the same grid"
+        )
+    for c in ref.coords:
+        same = c in ds.coords and ds[c].shape == ref[c].shape and bool(np.array_equal(ds[c].values, ref[c].values))
+        if not same:
+            raise ScenarioError(
+                f"member file '{path}': its coordinate '{c}' differs from '{first}' "
+                f"({_describe(ds, c)} against {_describe(ref, c)}): member files must share one grid"
+            )
+
+
+def _describe(ds: Any, c: Any) -> str:
+    if c not in ds.coords:
+        return "missing"
+    v = np.asarray(ds[c].values)
+    return f"{v.size} values" + (f" from {v.min()} to {v.max()}" if v.size else "")

@@ -13,10 +13,20 @@ Wind error (per run, per wind component, the same along a leg)
     0.015 m/s per hour, at most 4 m/s, correlation time 24 h. When the scenario's weather has ensemble members
     (:func:`spread_from_members`), ``s_k`` is instead each leg's ensemble standard deviation of the u and v
     components at its midpoint and mid-time.
-Boat-speed noise (per run, per leg)
-    The speed made good ``V`` becomes ``V' = V + sqrt(kappa V) eta`` (variance ``kappa V`` [kn**2]; ``eta ~ N(0,
-    1)``), floored at 10 % of ``V``: ``kappa = 0.2`` kn as in the MCTS-UCT router of Barde (ISAE 2023), which draws
-    the boat speed with variance ``kappa V`` with ``kappa = 20 %``. The leg's time is ``t V / V'``.
+Boat-speed noise (per run, per leg, AR(1) in time)
+    The speed made good ``V`` becomes ``V' = V + sqrt(kappa V) eta_k`` (variance ``kappa V`` [kn**2]), floored at
+    10 % of ``V``: ``kappa = 0.2`` kn as in the MCTS-UCT router of Barde (ISAE 2023), which draws the boat speed
+    with variance ``kappa V`` with ``kappa = 20 %``. The leg's time is ``t V / V'``. ``eta_k`` is a unit AR(1)
+    process along the legs, ``eta_k = psi_k eta_(k-1) + sqrt(1 - psi_k**2) xi_k``, ``psi_k = exp(-dt_k /
+    tau_speed)`` (``dt_k`` as for the wind): a boat slower than its polar stays slower for a while (a fouled hull,
+    a sea state the polar does not know, a sail plan), so the spread of the voyage time does not shrink as the
+    legs get shorter, as it would with a noise drawn afresh on every leg (Barde draws it per decision step). The
+    correlation time ``tau_speed_h = 12`` h is an assumption (no published value): of the order of the time over
+    which the sea state and the craft's trim change. Each ``eta_k`` is N(0, 1), so the mean voyage time is the
+    same whatever ``tau_speed_h`` (the expectation of a sum is the sum of the expectations); only the spread
+    depends on it. The mean time of a leg is above ``t`` (Jensen: ``E[1 / V'] > 1 / E[V']``): by a little more
+    than ``kappa / V`` of it (6 % at 4 kn), an effect of a symmetric noise on the speed, not of the sampling
+    (:func:`expected_speed_factor` gives it exactly; the tests check the runs' mean against it).
 Polar scaling (per run, optional)
     The polar's speeds scaled by ``1 + polar_sd * zeta``, ``zeta ~ N(0, 1)`` (Dickson et al. 2019 studied a 2.5 %
     polar uncertainty): ``V`` above is multiplied by it.
@@ -59,6 +69,7 @@ __all__ = [
     "wind_errors",
     "wilson_interval",
     "spread_from_members",
+    "expected_speed_factor",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -79,6 +90,7 @@ class MonteCarloSettings:
     sigma_max_ms : Its largest value [m/s].
     tau_h : Correlation time of the wind error [h] (> 0).
     kappa : Boat-speed variance per unit speed, ``Var(V') = kappa V`` [kn] (Barde 2023: 0.2).
+    tau_speed_h : Correlation time of the boat-speed noise [h] (> 0; an assumption, see the module notes).
     polar_sd : Standard deviation of the polar's scale factor [-] (0: none).
     spread_ms : Per-leg wind error standard deviations [m/s] replacing ``sigma0``/``growth`` (e.g. from the ensemble
         spread, :func:`spread_from_members`), or None.
@@ -91,15 +103,17 @@ class MonteCarloSettings:
     kappa: float = 0.2
     polar_sd: float = 0.0
     spread_ms: FloatArray | None = None
+    tau_speed_h: float = 12.0
 
     def __post_init__(self) -> None:
         for name in ("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "kappa", "polar_sd"):
             v = getattr(self, name)
             if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v) and v >= 0.0):
                 raise ScenarioError(f"Monte-Carlo {name} must be a finite number >= 0 (got {v!r})")
-        tau = self.tau_h
-        if isinstance(tau, bool) or not (isinstance(tau, int | float) and tau > 0.0):
-            raise ScenarioError(f"Monte-Carlo tau_h must be > 0 [h] (got {tau!r})")
+        for name in ("tau_h", "tau_speed_h"):
+            tau = getattr(self, name)
+            if isinstance(tau, bool) or not (isinstance(tau, int | float) and tau > 0.0):
+                raise ScenarioError(f"Monte-Carlo {name} must be > 0 [h] (got {tau!r})")
         if self.spread_ms is not None:
             spread = check_numbers(self.spread_ms, "Monte-Carlo spread_ms", ScenarioError, missing=False, unit="m/s")
             if spread.ndim != 1 or (spread < 0.0).any():
@@ -118,7 +132,8 @@ class MonteCarloSettings:
     def describe_values(self) -> dict[str, float]:
         """The scalar settings by name (to build changed settings)."""
         return {
-            k: getattr(self, k) for k in ("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "tau_h", "kappa", "polar_sd")
+            k: getattr(self, k)
+            for k in ("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "tau_h", "kappa", "polar_sd", "tau_speed_h")
         }
 
     def describe(self) -> dict[str, Any]:
@@ -129,6 +144,7 @@ class MonteCarloSettings:
             "sigma_max_ms": self.sigma_max_ms,
             "tau_h": self.tau_h,
             "kappa": self.kappa,
+            "tau_speed_h": self.tau_speed_h,
             "polar_sd": self.polar_sd,
             "wind_spread": "ensemble members" if self.spread_ms is not None else "lead-time growth",
         }
@@ -346,7 +362,7 @@ def monte_carlo(
     step = np.diff(mid_h, prepend=mid_h[:1])
     east = wind_errors(rng, runs, sigma, step, s.tau_h)
     north = wind_errors(rng, runs, sigma, step, s.tau_h)
-    eta = rng.standard_normal((runs, n_legs))
+    eta = wind_errors(rng, runs, np.ones(n_legs), step, s.tau_speed_h)  # a unit AR(1) process
     scale = 1.0 + s.polar_sd * rng.standard_normal(runs)
     times, p_max = _sail_runs(prob, trk, east, north, eta, scale, s.kappa)
     with np.errstate(invalid="ignore"):
@@ -410,6 +426,38 @@ def _sail_runs(
     return elapsed, p_f
 
 
+def expected_speed_factor(kappa: float, speed_kn: npt.ArrayLike) -> FloatArray:
+    """``E[V / V']`` of the boat-speed noise (see the module notes): the factor by which the noise stretches a leg's
+    time on average, ``E[1 / max(1 + s eta, 0.1)]`` with ``s = sqrt(kappa / V)``, ``eta ~ N(0, 1)``, by
+    the floor in closed form and the rest by Gauss-Legendre quadrature (:func:`_factor`).
+
+    >>> float(expected_speed_factor(0.0, 4.0)), round(float(expected_speed_factor(0.2, 4.0)), 4)
+    (1.0, 1.0606)
+    """
+    v = np.asarray(speed_kn, dtype=float)
+    s = np.sqrt(kappa / v)
+    out = np.ones(v.shape)
+    flat = out.reshape(-1)
+    for i, si in enumerate(np.broadcast_to(s, v.shape).reshape(-1)):
+        if si > 0.0:
+            flat[i] = _factor(float(si))
+    return out
+
+
+def _factor(s: float) -> float:
+    """``E[1 / max(1 + s eta, 0.1)]``: the floor's part in closed form, the rest by Gauss-Legendre quadrature on the
+    normal density above the kink ``eta = -0.9 / s`` (to 12 standard deviations)."""
+    from scipy.special import ndtr
+
+    kink = -0.9 / s
+    x, w = np.polynomial.legendre.leggauss(200)
+    lo, hi = kink, max(kink, 0.0) + 12.0
+    eta = 0.5 * (hi - lo) * x + 0.5 * (hi + lo)
+    density = np.exp(-0.5 * eta * eta) / math.sqrt(2.0 * math.pi)
+    upper = 0.5 * (hi - lo) * float(np.sum(w * density / (1.0 + s * eta)))
+    return upper + float(ndtr(kink)) / 0.1
+
+
 def spread_from_members(
     path: Any, track: Track | npt.ArrayLike, *, departure: Any = None, member_files: Any = None
 ) -> FloatArray:
@@ -430,7 +478,7 @@ def spread_from_members(
 
     trk = as_track(track)
     n = member_count(path, member_files=member_files)
-    ref = mean_scenario(path) if member_files is None else member_scenario(path, 0, member_files=member_files)
+    ref = mean_scenario(path, member_files=member_files)
     prob = evaluation_problem(ref, departure=departure)
     base = sail_tracks(prob, [trk])[0]
     t_leg = np.where(np.isfinite(base.costs.time_h), base.costs.time_h, 0.0)

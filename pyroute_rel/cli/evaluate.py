@@ -49,6 +49,9 @@ def add_evaluate_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
     )
     e.add_argument("--seed", type=int, default=0, help="random seed of --monte-carlo (default 0)")
     e.add_argument("--kappa", type=float, help="boat-speed variance per unit speed [kn] (default 0.2, Barde 2023)")
+    e.add_argument(
+        "--speed-tau", type=float, help="correlation time of the boat-speed noise [h] (default 12, an assumption)"
+    )
     e.add_argument("--polar-sd", type=float, help="standard deviation of a per-run polar scale factor (default 0)")
     e.add_argument("--wind-sd", type=float, help="wind error per component at departure [m/s] (default 1.0)")
     e.add_argument("--wind-growth", type=float, help="its growth with lead time [m/s per h] (default 0.015)")
@@ -107,6 +110,7 @@ def _monte_carlo(args: argparse.Namespace, scenario: Any, track: Any) -> Any:
 
     given = {
         "kappa": args.kappa,
+        "tau_speed_h": args.speed_tau,
         "polar_sd": args.polar_sd,
         "sigma0_ms": args.wind_sd,
         "growth_ms_per_h": args.wind_growth,
