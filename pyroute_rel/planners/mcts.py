@@ -399,7 +399,13 @@ def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progre
     _, _, t_max = time_limits(problem, s)
     headings = np.arange(s.headings) * (360.0 / s.headings)
     lattice = build_lattice(
-        problem, headings, spacing_deg=s.lattice_deg, slice_h=s.lattice_h, until_h=t_max + s.step_h, weather=mode
+        problem,
+        headings,
+        spacing_deg=s.lattice_deg,
+        slice_h=s.lattice_h,
+        until_h=t_max + s.step_h,
+        weather=mode,
+        sigma_scale=s.sigma_scale,
     )
     headings, tables, params = kernel_inputs(problem, s, lattice)
     built = _time.perf_counter() - t0

@@ -10,8 +10,8 @@ One step from ``(lon, lat, t)`` on heading ``h``:
 - the wind there, plus ``sigma * N(0, 1)`` per component in ``"perturbed"`` weather (one draw per step and
   component, as Barde samples the weather at each step);
 - the heading may be sailed when its true wind angle is within [``nogo_min``, ``nogo_max``], the failure model
-  allows it, the polar (bilinear, as :func:`~pyroute_rel.polar.boat_speed_kn`) times the wave factor gives at
-  least :data:`~pyroute_rel.polar.MIN_SPEED_KN`, and the step's end and middle are in open cells;
+  allows it at the step's start, middle and end (as the DP judges a leg all along it), the polar (bilinear, as :func:`~pyroute_rel.polar.boat_speed_kn`) times the wave factor gives at
+  least :data:`~pyroute_rel.polar.MIN_SPEED_KN`, and the step's middle and end are in open cells;
 - the craft sails ``speed * step_h`` along the great circle (spherical Earth, as :mod:`pyroute_rel.geodesy`) and
   the step takes ``step_h``;
 - when the finish is within ``speed * step_h`` on its bearing, sailing straight to it is the only action (it takes
@@ -163,14 +163,18 @@ def _distance_bearing(lon0, lat0, lon1, lat1):  # type: ignore[no-untyped-def]  
 
 
 @numba.njit(inline="always", **_JIT)
-def _open(lon, lat, k, open_, P):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Whether a point is in an open cell of slice ``k`` (inside the lattice, not land nor an active zone)."""
+def _open(lon, lat, k, m, h, okh, open_, P):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Whether a point is in an open cell of slice ``k`` (inside the lattice, not land nor an active zone) where the
+    failure model allows heading ``h`` (``h < 0``: any)."""
     fx = (lon - P[_LON0]) / P[_DLON]
     fy = (lat - P[_LAT0]) / P[_DLAT]
     ny, nx = open_.shape[1], open_.shape[2]
     if not (fx >= -0.5 and fy >= -0.5 and fx < nx - 0.5 and fy < ny - 0.5):
         return False
-    return open_[min(k, open_.shape[0] - 1), int(fy + 0.5), int(fx + 0.5)] != 0
+    j, i = int(fy + 0.5), int(fx + 0.5)
+    if open_[min(k, open_.shape[0] - 1), j, i] == 0:
+        return False
+    return h < 0 or okh[m, min(k, okh.shape[1] - 1), j, i, h] != 0
 
 
 @numba.njit(**_JIT)
@@ -220,7 +224,10 @@ def _try_heading(lon, lat, h, hdg, cond, m, W, okh, open_, polar, P):  # type: i
     dist = speed * P[_STEP]
     lon1, lat1 = _destination(lon, lat, hdg[h], dist)
     # the middle of a step (a few nm, well inside a cell) as the mean of its ends
-    if not (_open(lon1, lat1, k, open_, P) and _open(0.5 * (lon + lon1), 0.5 * (lat + lat1), k, open_, P)):
+    if not (
+        _open(lon1, lat1, k, m, h, okh, open_, P)
+        and _open(0.5 * (lon + lon1), 0.5 * (lat + lat1), k, m, h, okh, open_, P)
+    ):
         return False, lon, lat
     return True, lon1, lat1
 
@@ -236,7 +243,7 @@ def _finish_in_reach(lon, lat, dist, bearing, cond, hdg, m, okh, open_, polar, P
     speed = _polar(_fold(twd - bearing), tws, polar[0], polar[1], polar[2], P[_FORBID] != 0.0) * f
     if not speed >= P[_VMIN] or dist > speed * P[_STEP] or okh[m, min(k, okh.shape[1] - 1), j, i, h] == 0:
         return math.inf
-    if not _open(0.5 * (lon + P[_FLON]), 0.5 * (lat + P[_FLAT]), k, open_, P):
+    if not _open(0.5 * (lon + P[_FLON]), 0.5 * (lat + P[_FLAT]), k, m, h, okh, open_, P):
         return math.inf
     return dist / speed
 

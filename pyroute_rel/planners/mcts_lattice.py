@@ -146,6 +146,7 @@ def build_lattice(
     slice_h: float,
     until_h: float,
     weather: str = "forecast",
+    sigma_scale: float = 1.0,
 ) -> Lattice:
     """Sample the problem on a lattice (see the module notes).
 
@@ -157,6 +158,7 @@ def build_lattice(
     slice_h : Time between slices [h].
     until_h : Last time the search may simulate [h after departure] (TimeMax).
     weather : One of :data:`WEATHER_MODES`; ``"members"`` needs the problem's members.
+    sigma_scale : ``"perturbed"``: the standard deviations are multiplied by this [-].
     """
     if weather not in WEATHER_MODES:
         raise ScenarioError(f"[planner.mcts].weather must be one of {list(WEATHER_MODES)} (got {weather!r})")
@@ -199,8 +201,8 @@ def build_lattice(
         u=np.ascontiguousarray(u, dtype=np.float32),
         v=np.ascontiguousarray(v, dtype=np.float32),
         factor=np.ascontiguousarray(f, dtype=np.float32),
-        sigma_u=np.ascontiguousarray(sig_u, dtype=np.float32),
-        sigma_v=np.ascontiguousarray(sig_v, dtype=np.float32),
+        sigma_u=np.ascontiguousarray(sig_u * sigma_scale, dtype=np.float32),
+        sigma_v=np.ascontiguousarray(sig_v * sigma_scale, dtype=np.float32),
         okh=np.ascontiguousarray(okh, dtype=np.uint8),
         open=np.ascontiguousarray(opened, dtype=np.uint8),
         perturbed=perturbed,

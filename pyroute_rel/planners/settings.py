@@ -21,6 +21,7 @@ defaults.
     final = "visits"     # sail the most visited action ("best": the one with the best reward below it)
     weather = "auto"     # "forecast", "members" (one per iteration), "perturbed" (N(mean, sigma^2) per step);
                          # "auto": "perturbed" from the members' spread when there are members, else "forecast"
+    sigma_scale = 1.0    # "perturbed": the wind error's standard deviation times this (0: the mean weather)
     engine = "lattice"   # "lattice": compiled search over the problem sampled on a lattice; "python": reference
     lattice_deg = 0.25   # lattice spacing [deg] ("lattice")
     lattice_h = 6.0      # time between lattice slices [h] ("lattice")
@@ -155,6 +156,8 @@ class MCTSSettings:
         from the members' spread, or without members from
         :class:`~pyroute_rel.monte_carlo.MonteCarloSettings`' forecast error; ``"auto"`` (default): ``"perturbed"``
         when there are members (published), else ``"forecast"``.
+    sigma_scale : In ``"perturbed"`` weather, multiplies the standard deviation of the wind error (1: as stated
+        under ``weather``; 0: no noise, the same search as the mean weather) [-].
     engine : ``"lattice"`` (default): the compiled search (:mod:`~pyroute_rel.planners.mcts_kernel`) over the
         problem sampled on a lattice (:mod:`~pyroute_rel.planners.mcts_lattice`), a new tree per decision;
         ``"python"``: the reference search with every step costed exactly, keeping the subtree (weather with
@@ -175,6 +178,7 @@ class MCTSSettings:
     graph: bool = False
     final: str = "visits"
     weather: str = "auto"
+    sigma_scale: float = 1.0
     engine: str = "lattice"
     lattice_deg: float = 0.25
     lattice_h: float = 6.0
@@ -196,6 +200,7 @@ class MCTSSettings:
                 "graph": ("bool",),
                 "final": ("choice", ("visits", "best")),
                 "weather": ("choice", MCTS_WEATHER),
+                "sigma_scale": ("float", 0.0, 100.0),
                 "engine": ("choice", MCTS_ENGINES),
                 "lattice_deg": ("float", 0.01, 5.0),
                 "lattice_h": ("float", 0.1, 1000.0),
