@@ -54,7 +54,16 @@ from .base import PlannedTrack, PlanningProblem
 from .qlearning import TabularProblem, graph_states
 from .settings import MCTSSettings
 
-__all__ = ["MCTSPlanner", "State", "Moves", "weather_mode", "time_limits", "kernel_inputs", "plan_lattice"]
+__all__ = [
+    "MCTSPlanner",
+    "State",
+    "Moves",
+    "weather_mode",
+    "time_limits",
+    "kernel_inputs",
+    "plan_lattice",
+    "python_decision",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -449,3 +458,14 @@ def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progre
     }
     lon, lat = np.array([st.lon for st in track]), np.array([st.lat for st in track])
     return PlannedTrack("mcts", lon, lat, np.array([st.t_h for st in track]), state.done, stats)
+
+
+def python_decision(problem: PlanningProblem, s: MCTSSettings, seed: int) -> dict[int, int]:
+    """The visits of each root action after one decision's search from the start with the Python engine (the
+    heading space), e.g. to time it against the compiled search."""
+    sim = _HeadingSim(problem, s)
+    search = _Search(sim, problem, s, np.random.default_rng(seed))
+    root = _Node(states=dict.fromkeys(range(len(search.members)), State(*problem.start, 0.0)))
+    for _ in range(s.iterations):
+        search.iterate(root)
+    return {a: child.n for a, child in root.children.items()}

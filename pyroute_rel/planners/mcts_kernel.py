@@ -10,8 +10,9 @@ One step from ``(lon, lat, t)`` on heading ``h``:
 - the wind there, plus ``sigma * N(0, 1)`` per component in ``"perturbed"`` weather (one draw per step and
   component, as Barde samples the weather at each step);
 - the heading may be sailed when its true wind angle is within [``nogo_min``, ``nogo_max``], the failure model
-  allows it at the step's start, middle and end (as the DP judges a leg all along it), the polar (bilinear, as :func:`~pyroute_rel.polar.boat_speed_kn`) times the wave factor gives at
-  least :data:`~pyroute_rel.polar.MIN_SPEED_KN`, and the step's middle and end are in open cells;
+  allows it at the step's start, middle and end (as the DP judges a leg all along it), the polar (bilinear, as
+  :func:`~pyroute_rel.polar.boat_speed_kn`) times the wave factor gives at least
+  :data:`~pyroute_rel.polar.MIN_SPEED_KN`, and the step's middle and end are in open cells;
 - the craft sails ``speed * step_h`` along the great circle (spherical Earth, as :mod:`pyroute_rel.geodesy`) and
   the step takes ``step_h``;
 - when the finish is within ``speed * step_h`` on its bearing, sailing straight to it is the only action (it takes
