@@ -19,6 +19,7 @@ from pyroute_rel import geodesy, scenario_from_mapping
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.geodesy import gc_densify
 from pyroute_rel.obstacles.land import points_on_land
+from pyroute_rel.planners.mcts import MCTSPlanner
 from pyroute_rel.planners.mcts_kernel import PARAMS, search
 from pyroute_rel.planners.plan import plan
 from pyroute_rel.planners.settings import parse_planner
@@ -236,3 +237,31 @@ def test_lattice_search_respects_land_zones_and_apf(weather, tmp_path):
     assert not shapely.contains_xy(shapely.box(-62.2, 15.8, -62.0, 16.1), x, y).any()
     ev = evaluate.evaluate_track(sc, track.points())
     assert ev.max_failure_probability <= 0.5 and ev.feasible
+
+
+def test_members_spread_is_the_perturbed_sigma_and_members_are_sampled():
+    """Two uniform members, 14 and 16 kn from the north: "perturbed" draws about their mean, 15 kn from the north,
+    with their sample standard deviation, sqrt(2) kn, on the north component and 0 on the east one; "members" keeps
+    both; the planner sails either way and stays within apf."""
+    from dataclasses import replace as dc_replace
+
+    from pyroute_rel.planners.base import PlanningProblem
+    from pyroute_rel.planners.mcts_lattice import build_lattice
+    from pyroute_rel.weather.uniform import UniformWeather
+
+    sc = small()
+    base = PlanningProblem.of(sc)
+    members = [UniformWeather(tws_kn=w, twd_deg=0.0, hs_m=1.0) for w in (14.0, 16.0)]
+    pp = dc_replace(base, members=tuple(members))
+    hdg = np.arange(8) * 45.0
+    pert = build_lattice(pp, hdg, spacing_deg=0.2, slice_h=6.0, until_h=50.0, weather="perturbed")
+    assert pert.u.shape[0] == 1 and np.allclose(pert.v, 15.0) and np.allclose(pert.u, 0.0, atol=1e-5)
+    assert np.allclose(pert.sigma_v, math.sqrt(2.0)) and np.allclose(pert.sigma_u, 0.0, atol=1e-5)
+    both = build_lattice(pp, hdg, spacing_deg=0.2, slice_h=6.0, until_h=50.0, weather="members")
+    assert both.u.shape[0] == 2 and np.allclose(both.v[0], 14.0) and np.allclose(both.v[1], 16.0)
+    for mode in ("members", "perturbed"):
+        s = dc_replace(sc.planner.mcts, weather=mode)
+        track = MCTSPlanner(s).plan(pp)
+        assert track.stats["weather"] == mode and track.lon_deg.size > 1
+        ev = evaluate.evaluate_track(sc, track.points())
+        assert ev.max_failure_probability <= 0.5 and np.allclose(ev.elapsed_h, track.elapsed_h, rtol=1e-12)
