@@ -29,7 +29,7 @@ from pyroute_rel.units import KM_PER_NM
 evaluate = pytest.importorskip("pyroute_rel.evaluate")
 
 #: The toy: 15 kn from the north, headings 45 deg apart of which only 135 and 225 may be sailed (TWA in
-#: [100, 160]), a lattice that ends 0.5 deg south of the start (leaving it is a dead end), the finish to the
+#: [100, 160]), 2 h steps, a lattice that ends 0.5 deg south of the start (leaving it is a dead end), the finish to the
 #: south-east.
 TOY = {
     "lon0": -0.5,
@@ -39,7 +39,7 @@ TOY = {
     "ny": 15,
     "start": (0.0, 0.0),
     "finish": (0.2, -0.3),
-    "step_h": 1.0,
+    "step_h": 2.0,
     "nogo": (100.0, 160.0),
     "tws": 15.0,
     "time_max": 1000.0,
@@ -133,8 +133,8 @@ def test_full_search_finds_the_brute_force_best_of_each_first_heading():
     for a in (3, 5):
         h = hdg[a]
         v = _speed(polar, h)
-        lon1, lat1 = geodesy.destination_point(*TOY["start"], h, v * KM_PER_NM)
-        date = brute_force(polar, float(lon1), float(lat1), 1.0)
+        lon1, lat1 = geodesy.destination_point(*TOY["start"], h, v * TOY["step_h"] * KM_PER_NM)
+        date = brute_force(polar, float(lon1), float(lat1), TOY["step_h"])
         assert math.isfinite(date)
         assert best[a] == pytest.approx(reward(date), rel=1e-9)
     assert visits.sum() == 20_000 and np.all(wins[visits > 0] / visits[visits > 0] <= best[visits > 0] + 1e-12)
