@@ -122,6 +122,7 @@ def reward(date: float) -> float:
     return math.exp((top - date) / (top - TOY["time_min"]))
 
 
+@pytest.mark.slow
 def test_full_search_finds_the_brute_force_best_of_each_first_heading():
     """With more iterations than the toy's tree has nodes, the best reward below each root heading is the reward of
     the earliest arrival over every heading sequence starting with it; the headings that may not be sailed are never
@@ -239,6 +240,7 @@ def test_lattice_search_respects_land_zones_and_apf(weather, tmp_path):
     assert ev.max_failure_probability <= 0.5 and ev.feasible
 
 
+@pytest.mark.slow
 def test_members_spread_is_the_perturbed_sigma_and_members_are_sampled():
     """Two uniform members, 14 and 16 kn from the north: "perturbed" draws about their mean, 15 kn from the north,
     with their sample standard deviation, sqrt(2) kn, on the north component and 0 on the east one; "members" keeps
