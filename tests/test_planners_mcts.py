@@ -267,3 +267,41 @@ def test_members_spread_is_the_perturbed_sigma_and_members_are_sampled():
         assert track.stats["weather"] == mode and track.lon_deg.size > 1
         ev = evaluate.evaluate_track(sc, track.points())
         assert ev.max_failure_probability <= 0.5 and np.allclose(ev.elapsed_h, track.elapsed_h, rtol=1e-12)
+
+
+@pytest.mark.slow
+def test_perturbed_weather_from_the_command_line(tmp_path, capsys):
+    from pyroute_rel.cli import main
+
+    lines = [
+        "[route]",
+        "start = [-12.0, 45.0]",
+        "finish = [-13.0, 44.0]",
+        'departure = "2018-06-01T00:00:00Z"',
+        "[grid]",
+        'layout = "square"',
+        "n_ranks = 5",
+        "n_nodes = 7",
+        "[weather]",
+        'kind = "uniform"',
+        "tws_kn = 15.0",
+        "twd_deg = 0.0",
+        "[avoid]",
+        "land = false",
+        "[planner.mcts]",
+        'weather = "perturbed"',
+        "iterations = 50",
+        "step_h = 6.0",
+        "rollout_h = 24.0",
+        "lattice_deg = 0.1",
+    ]
+    path = tmp_path / "s.toml"
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["route", str(path), "--planner", "mcts", "--json", "--quiet", "--out", str(tmp_path / "m")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["planner"] == "mcts" and out["reached"] and out["feasible"]
+    assert out["planner_stats"]["weather"] == "perturbed" and out["planner_stats"]["engine"] == "lattice"
+    path.write_text("\n".join([*lines[:-5], 'weather = "noisy"']) + "\n")
+    assert main(["route", str(path), "--planner", "mcts", "--quiet", "--out", str(tmp_path / "n")]) == 2
+    err = capsys.readouterr().err
+    assert "[planner.mcts].weather must be one of" in err and "Traceback" not in err
