@@ -28,6 +28,8 @@ defaults.
     episodes = 3000
     cell_nm = 10.0       # side of a cell [nm] ("cells")
     cells_across = 10    # cells across the course ("cells")
+    time_bucket_h = 6.0  # time-varying weather: moves costed at the middle of their 6 h bucket
+    max_voyage_h = 0.0   # moves after this are not actions [h] (0: 3 x the great circle at the polar's mean speed)
 
     [planner.dqn]        # Mannocci & Bologna (2021): DQN over a local wind image
     episodes = 200
@@ -194,6 +196,10 @@ class QLearningSettings:
     episodes : Training episodes (3000 iterations published) [-].
     cell_nm : Side of a cell (10 nm published) [nm].
     cells_across : Cells across the course (10 published) [-].
+    time_bucket_h : In time-varying weather (or with zones that have time windows) a move is costed at the middle
+        of its time bucket of this width (a time lattice; not published: the paper's weather is steady) [h].
+    max_voyage_h : Moves starting this long after departure are not actions (the time lattice's extent) [h]; 0:
+        three times the great circle at the polar's mean speed.
     """
 
     space: str = "graph"
@@ -203,6 +209,8 @@ class QLearningSettings:
     episodes: int = 3000
     cell_nm: float = 10.0
     cells_across: int = 10
+    time_bucket_h: float = 6.0
+    max_voyage_h: float = 0.0
 
     def __post_init__(self) -> None:
         _check(
@@ -216,6 +224,8 @@ class QLearningSettings:
                 "episodes": ("int", 1, 10_000_000),
                 "cell_nm": ("float", 0.01, 10_000.0),
                 "cells_across": ("int", 1, 10_001),
+                "time_bucket_h": ("float", 0.0, 10_000.0, True),
+                "max_voyage_h": ("float", 0.0, 100_000.0),
             },
         )
 
