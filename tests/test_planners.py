@@ -8,6 +8,7 @@ the zones on densified tracks, and closed forms for the track similarity.
 
 from __future__ import annotations
 
+import csv
 import json
 from dataclasses import replace
 
@@ -17,6 +18,7 @@ import pytest
 import shapely
 
 from pyroute_rel import scenario_from_mapping
+from pyroute_rel.cli.planners import PLANNER_FILES
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.geodesy import gc_densify
 from pyroute_rel.obstacles.land import points_on_land
@@ -278,16 +280,73 @@ def test_planner_and_compare_commands(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["planner"] == "qlearning" and out["reached"] and out["feasible"]
     assert out["voyage_time_h"] == pytest.approx(out["planner_voyage_time_h"], rel=1e-12)
-    assert sorted(p.name for p in (tmp_path / "q").iterdir()) == ["summary.json", "track.csv"]
+    assert sorted(p.name for p in (tmp_path / "q").iterdir()) == sorted(PLANNER_FILES)
     assert main(["route", str(path), "--planner", "dp", "--json", "--quiet", "--out", str(tmp_path / "dp")]) == 0
     dp = json.loads(capsys.readouterr().out)
     assert "planner" not in dp
-    code = main(["compare", str(tmp_path / "dp" / "route.csv"), str(tmp_path / "q" / "track.csv"), "--json"])
+    code = main(["compare", str(tmp_path / "dp" / "route.csv"), str(tmp_path / "q" / "route.csv"), "--json"])
     assert code == 0
     cmp = json.loads(capsys.readouterr().out)
     assert cmp["max_cross_track_nm"] >= cmp["mean_cross_track_nm"] >= 0.0
-    assert main(["compare", str(tmp_path / "nope.csv"), str(tmp_path / "q" / "track.csv")]) == 2
+    assert main(["compare", str(tmp_path / "nope.csv"), str(tmp_path / "q" / "route.csv")]) == 2
     assert "error" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["qlearning", "dqn"])
+def test_planner_outputs_are_the_evaluators_track(kind, tmp_path, capsys):
+    """``route --planner X --out DIR`` writes what a DP route writes, from the evaluator's re-timing of the track:
+    the GPX reads back as the track and its times, the CSV's times are the evaluator's."""
+    from pyroute_rel.cli import main
+    from pyroute_rel.evaluate import read_track
+    from pyroute_rel.times import iso_utc
+
+    table = {**SMALL, "planner": {**TINY_LEARNERS, "kind": kind}}
+    (tmp_path / "s.toml").write_text(_toml(table))
+    sc = scenario_from_mapping(table)
+    ev = evaluate.evaluate_track(sc, plan(sc).points())  # the same seed: the same track
+    assert main(["route", str(tmp_path / "s.toml"), "--quiet", "--out", str(tmp_path / "o")]) == 0
+    assert "route.gpx" in capsys.readouterr().out
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == sorted(PLANNER_FILES)
+    gpx = read_track(tmp_path / "o" / "route.gpx")
+    assert np.allclose(gpx.lon_deg, ev.track[:, 0], atol=1e-6) and np.allclose(gpx.lat_deg, ev.track[:, 1], atol=1e-6)
+    assert [iso_utc(t) for t in gpx.time] == [iso_utc(t) for t in ev.time]
+    with open(tmp_path / "o" / "route.csv", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["time_utc"] for r in rows] == [iso_utc(t) for t in ev.time]
+    assert np.allclose([float(r["elapsed_h"]) for r in rows], ev.elapsed_h, rtol=0, atol=1e-6)
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["planner"] == kind and summary["voyage_time_h"] == pytest.approx(ev.voyage_time_h, rel=1e-12)
+    geo = json.loads((tmp_path / "o" / "route.geojson").read_text())
+    assert len(geo["features"]) >= 1
+
+
+def _toml(table: dict) -> str:
+    """A scenario table as TOML (the few value types SMALL and TINY_LEARNERS use)."""
+
+    def value(v: object) -> str:
+        return json.dumps(v) if not isinstance(v, bool) else str(v).lower()
+
+    lines: list[str] = []
+
+    def put(name: str, t: dict) -> None:
+        plain = {
+            k: v
+            for k, v in t.items()
+            if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict))
+        }
+        lines.append(f"[{name}]")
+        lines.extend(f"{k} = {value(v)}" for k, v in plain.items())
+        for k, v in t.items():
+            if isinstance(v, dict):
+                put(f"{name}.{k}", v)
+            elif isinstance(v, list) and v and isinstance(v[0], dict):
+                for item in v:
+                    lines.append(f"[[{name}.{k}]]")
+                    lines.extend(f"{kk} = {value(vv)}" for kk, vv in item.items())
+
+    for name, t in table.items():
+        put(name, t)
+    return "\n".join(lines) + "\n"
 
 
 def test_planning_problem_refuses_what_only_the_dp_routes():
