@@ -25,7 +25,7 @@ from pyroute_rel.obstacles.land import points_on_land
 from pyroute_rel.planners.base import PlannedTrack, Planner, PlanningProblem
 from pyroute_rel.planners.mcts import MCTSPlanner
 from pyroute_rel.planners.plan import get_planner, plan
-from pyroute_rel.planners.qlearning import QLearningPlanner, cell_states, graph_states
+from pyroute_rel.planners.qlearning import QLearningPlanner, cell_states, graph_states, shortest_time
 from pyroute_rel.planners.settings import PLANNERS, DQNSettings, MCTSSettings, QLearningSettings, parse_planner
 from pyroute_rel.similarity import track_similarity
 
@@ -120,6 +120,7 @@ def test_qlearning_on_cells_finds_dijkstras_route():
                 g.add_edge(s, int(tab.target[a]), weight=float(tab.static_cost[a]))
     ref = nx.dijkstra_path(g, tab.start, tab.goal)
     ref_h = nx.dijkstra_path_length(g, tab.start, tab.goal)
+    assert shortest_time(tab) == pytest.approx(ref_h, rel=1e-12)
     track = QLearningPlanner().plan(problem)
     assert track.reached and track.stats["model_voyage_time_h"] == pytest.approx(ref_h, rel=1e-12)
     assert np.allclose(track.lon_deg, tab.lon_deg[ref]) and np.allclose(track.lat_deg, tab.lat_deg[ref])
@@ -365,4 +366,6 @@ def test_graph_states_are_the_dp_graph():
     g = problem.grid.to_networkx()
     assert tab.n_states == g.number_of_nodes()
     assert QLearningSettings().space == "graph" and MCTSSettings().final == "visits"
+    # scipy's Dijkstra on the table's costs is the DP's voyage (the DP is exact on its graph)
+    assert shortest_time(tab) == pytest.approx(sc.route().voyage_time_h, rel=1e-12)
     _ = MCTSPlanner

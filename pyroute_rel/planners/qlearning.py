@@ -71,6 +71,7 @@ __all__ = [
     "cell_states",
     "train_q",
     "greedy_path",
+    "shortest_time",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -484,6 +485,26 @@ def greedy_path(tab: TabularProblem, q: FloatArray, lattice: CostLattice | None 
     return path, reached
 
 
+def shortest_time(tab: TabularProblem) -> float:
+    """The least time from the start to the finish on a static tabular problem (Dijkstra, scipy) [h]: what
+    Q-learning with ``gamma = 1`` converges to (``inf`` when the finish cannot be reached)."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    if tab.static_cost is None:
+        raise ValueError("shortest_time needs a static problem (static_cost)")
+    ok = np.isfinite(tab.static_cost)
+    src = np.repeat(np.arange(tab.n_states), np.diff(tab.ptr))[ok]
+    dst, w = tab.target[ok], tab.static_cost[ok]
+    order = np.lexsort((w, dst, src))  # parallel actions: keep the least time (a sparse matrix would add them)
+    src, dst, w = src[order], dst[order], w[order]
+    first = np.ones(src.size, dtype=bool)
+    first[1:] = (src[1:] != src[:-1]) | (dst[1:] != dst[:-1])
+    # a zero time would read as no edge: nudged up
+    g = csr_matrix((np.maximum(w[first], 1e-12), (src[first], dst[first])), shape=(tab.n_states, tab.n_states))
+    return float(dijkstra(g, indices=tab.start, min_only=True)[tab.goal])
+
+
 class QLearningPlanner:
     """Tabular Q-learning (Jing et al. 2021) on the rank digraph or the grid of cells (see the module notes)."""
 
@@ -527,6 +548,8 @@ class QLearningPlanner:
             "model_voyage_time_h": model_h,
             "history": [[e, h] for e, h in history],
         }
+        if tab.static_cost is not None:
+            stats["optimum_h"] = shortest_time(tab)
         if tab.rank_node is not None:
             stats["nodes"] = tab.rank_node[path[1:-1], 1].tolist() if reached else []
         return PlannedTrack(self.name, lon, lat, elapsed, reached, stats)
