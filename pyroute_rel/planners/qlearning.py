@@ -276,6 +276,23 @@ class CostLattice:
             self.pool = np.empty(max(1024, tab.target.size))
             self.size = 0
 
+    @classmethod
+    def at_group_times(cls, tab: TabularProblem, group_times_h: FloatArray) -> CostLattice:
+        """Every action costed once, leaving at its group's time ``group_times_h[g]`` [h]: a static table (one
+        vectorised cost per group)."""
+        lat = cls(tab, 1.0, 1.0)
+        t0 = _time.perf_counter()
+        pool = np.empty(tab.target.size)
+        for g in range(lat.first_action.size - 1):
+            lo, hi = int(lat.first_action[g]), int(lat.first_action[g + 1])
+            if hi > lo:
+                pool[lo:hi] = tab.cost(np.arange(lo, hi), float(group_times_h[g]))
+        lat.bucket_h = math.inf
+        lat.slot = lat.first_action[:-1].reshape(-1, 1).copy()
+        lat.pool, lat.size = pool, pool.size
+        lat.fills, lat.seconds = lat.slot.shape[0], _time.perf_counter() - t0
+        return lat
+
     def fill(self, g: int, b: int) -> None:
         """Cost group ``g``'s actions for bucket ``b``: at the bucket's middle (and, with timed zones, forbidden
         where a zone blocks them at its start or end)."""
@@ -407,6 +424,7 @@ def train_q(
     progress: bool = False,
     checkpoints: int = 0,
     lattice: CostLattice | None = None,
+    q0: FloatArray | None = None,
 ) -> tuple[FloatArray, list[tuple[int, float]]]:
     """One-step Q-learning with an epsilon-greedy policy over the actions that may be taken (see the module notes).
 
@@ -422,6 +440,7 @@ def train_q(
     checkpoints : Record the greedy route's time after this many evenly spaced episodes.
     lattice : The costed actions (default a new :class:`CostLattice` with the settings' ``time_bucket_h`` and a
         horizon of ``max_voyage_h``).
+    q0 : Q-table to start from (default zeros); it is not changed.
 
     Returns
     -------
@@ -429,7 +448,7 @@ def train_q(
     problem's costs after evenly spaced episodes: ``[(episode, time_h), ...]`` (``inf`` while it fails to arrive).
     """
     lat = lattice or CostLattice(tab, settings.time_bucket_h, settings.max_voyage_h or DEFAULT_HORIZON_H)
-    q = np.zeros(tab.target.size)
+    q = np.zeros(tab.target.size) if q0 is None else np.array(q0, dtype=float)
     n_ep = settings.episodes
     marks = sorted(set(np.linspace(1, n_ep, checkpoints).round().astype(int).tolist())) if checkpoints else []
     stops = sorted(set(marks) | set(np.linspace(0, n_ep, 101).round().astype(int).tolist()[1:]))
@@ -461,20 +480,30 @@ def train_q(
 def _greedy(tab: TabularProblem, q: FloatArray, lattice: CostLattice) -> tuple[IntArray, bool, float]:
     """The greedy policy from the start over the actions that may be taken: states visited, whether it reached the
     finish (it stops at a dead end or a loop), and its time in the lattice's costs [h] (inf unless it arrived)."""
+    path, reached, t, _ = _greedy_timed(tab, q, lattice)
+    return path, reached, t
+
+
+def _greedy_timed(
+    tab: TabularProblem, q: FloatArray, lattice: CostLattice
+) -> tuple[IntArray, bool, float, list[float]]:
+    """:func:`_greedy` and the time at each state visited [h]."""
     path, seen, s, t = [tab.start], {tab.start}, tab.start, 0.0
+    times_at = [0.0]
     while s != tab.goal:
         lo = int(tab.ptr[s])
         times = lattice.times(s, t)
         allowed = np.isfinite(times)
         if not allowed.any():
-            return np.asarray(path, dtype=np.intp), False, float("inf")
+            return np.asarray(path, dtype=np.intp), False, float("inf"), times_at
         i = int(np.argmax(np.where(allowed, q[lo : lo + times.size], -np.inf)))
         s, t = int(tab.target[lo + i]), t + float(times[i])
         if s in seen:
-            return np.asarray(path, dtype=np.intp), False, float("inf")
+            return np.asarray(path, dtype=np.intp), False, float("inf"), times_at
         path.append(s)
+        times_at.append(t)
         seen.add(s)
-    return np.asarray(path, dtype=np.intp), True, t
+    return np.asarray(path, dtype=np.intp), True, t, times_at
 
 
 def greedy_path(tab: TabularProblem, q: FloatArray, lattice: CostLattice | None = None) -> tuple[IntArray, bool]:
@@ -505,6 +534,67 @@ def shortest_time(tab: TabularProblem) -> float:
     return float(dijkstra(g, indices=tab.start, min_only=True)[tab.goal])
 
 
+def _nominal_group_times(problem: PlanningProblem, tab: TabularProblem) -> FloatArray:
+    """Each group's time for the first pass: its states' mean distance from the start at the polar's mean speed
+    [h]."""
+    polar = np.asarray(problem.problem.polar.speed_kn, dtype=float)
+    v = float(np.mean(polar[polar > 0]))
+    d_nm = geodesy.distance_nm(tab.lon_deg[0], tab.lat_deg[0], tab.lon_deg, tab.lat_deg)
+    groups = tab.groups()
+    return np.array([d_nm[a:b].mean() / v if b > a else 0.0 for a, b in zip(groups[:-1], groups[1:], strict=True)])
+
+
+def _route_group_times(tab: TabularProblem, path: IntArray, times_at: list[float], previous: FloatArray) -> FloatArray:
+    """Each group's time on a greedy route: when the route first enters it, interpolated between the groups it
+    enters; groups after the last one entered keep ``previous`` shifted by the route's lateness there [h]."""
+    groups = tab.groups()
+    g_of = np.searchsorted(groups, np.asarray(path), side="right") - 1
+    first: dict[int, float] = {}
+    for g, t in zip(g_of.tolist(), times_at, strict=True):
+        first.setdefault(int(g), float(t))
+    gs = np.array(sorted(first))
+    ts = np.array([first[g] for g in gs])
+    out = np.interp(np.arange(previous.size), gs, ts)
+    after = np.arange(previous.size) > gs[-1]
+    out[after] = previous[after] + (ts[-1] - previous[gs[-1]])
+    return out
+
+
+def _train_in_passes(
+    problem: PlanningProblem,
+    tab: TabularProblem,
+    s: QLearningSettings,
+    rng: np.random.Generator,
+    progress: bool,
+    checkpoints: int,
+) -> tuple[FloatArray, list[tuple[int, float]], CostLattice, list[float], float, int]:
+    """Time-varying costs in ``time_passes`` passes (see the module notes): each pass costs every action at its
+    group's time and learns on that static table from the last pass's Q; the greedy route is sailed exactly
+    (:meth:`~pyroute_rel.planners.base.PlanningProblem.retime`) and the next pass's group times are when it reaches
+    each group. Returns the Q of the pass whose route was fastest, the history, that pass's lattice, each pass's
+    route's exact voyage time [h] (inf when it did not arrive), the seconds spent costing and the groups costed."""
+    times = _nominal_group_times(problem, tab)
+    q: FloatArray | None = None
+    history: list[tuple[int, float]] = []
+    passes: list[float] = []
+    seconds, fills = 0.0, 0
+    best: tuple[float, FloatArray, CostLattice] | None = None
+    for k in range(s.time_passes):
+        lattice = CostLattice.at_group_times(tab, times)
+        seconds, fills = seconds + lattice.seconds, fills + lattice.fills
+        q, hist = train_q(tab, s, rng, progress=progress, checkpoints=checkpoints, lattice=lattice, q0=q)
+        history += [(k * s.episodes + e, h) for e, h in hist]
+        path, reached, _, _ = _greedy_timed(tab, q, lattice)
+        sailed, _ok = problem.retime(tab.lon_deg[path], tab.lat_deg[path])  # the route's exact times
+        voyage = float(sailed[-1]) if reached else math.inf
+        passes.append(voyage)
+        if best is None or voyage < best[0]:
+            best = (voyage, q, lattice)
+        times = _route_group_times(tab, path, sailed.tolist(), times)
+    assert best is not None
+    return best[1], history, best[2], passes, seconds, fills
+
+
 class QLearningPlanner:
     """Tabular Q-learning (Jing et al. 2021) on the rank digraph or the grid of cells (see the module notes)."""
 
@@ -525,25 +615,28 @@ class QLearningPlanner:
         seed = problem.settings.seed if self.seed is None else self.seed
         t0 = _time.perf_counter()
         tab = graph_states(problem) if s.space == "graph" else cell_states(problem, s)
-        lattice = CostLattice(tab, s.time_bucket_h, _horizon_h(problem, s))
-        built = _time.perf_counter() - t0
-        q, history = train_q(
-            tab, s, np.random.default_rng(seed), progress=progress, checkpoints=checkpoints, lattice=lattice
-        )
-        trained = _time.perf_counter() - t0
+        tabled = _time.perf_counter() - t0
+        rng = np.random.default_rng(seed)
+        passes: list[float] = []
+        if tab.static_cost is not None or s.time_costing == "buckets":
+            lattice = CostLattice(tab, s.time_bucket_h, _horizon_h(problem, s))
+            q, history = train_q(tab, s, rng, progress=progress, checkpoints=checkpoints, lattice=lattice)
+            seconds, fills = lattice.seconds, lattice.fills
+        else:
+            q, history, lattice, passes, seconds, fills = _train_in_passes(problem, tab, s, rng, progress, checkpoints)
         path, reached, model_h = _greedy(tab, q, lattice)
         lon, lat = tab.lon_deg[path], tab.lat_deg[path]
         elapsed, _ = problem.retime(lon, lat)
         stats = {
             "space": s.space,
-            "episodes": s.episodes,
+            "episodes": s.episodes * max(1, len(passes)),
             "states": tab.n_states,
             "actions": int(tab.target.size),
-            "static": tab.static_cost is not None,
-            "lattice_fills": lattice.fills,
-            "actions_costed": int(lattice.size),
-            "costing_s": built + lattice.seconds,
-            "training_s": trained,
+            "time_costing": "static" if tab.static_cost is not None else s.time_costing,
+            "lattice_fills": fills,
+            "costing_s": tabled + seconds,
+            "pass_voyage_times_h": passes,
+            "training_s": _time.perf_counter() - t0,
             "runtime_s": _time.perf_counter() - t0,
             "model_voyage_time_h": model_h,
             "history": [[e, h] for e, h in history],
