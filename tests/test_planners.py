@@ -369,3 +369,66 @@ def test_graph_states_are_the_dp_graph():
     # scipy's Dijkstra on the table's costs is the DP's voyage (the DP is exact on its graph)
     assert shortest_time(tab) == pytest.approx(sc.route().voyage_time_h, rel=1e-12)
     _ = MCTSPlanner
+
+
+def _veering_problem(**qlearning: object) -> PlanningProblem:
+    """SMALL's course in a wind that veers from north to east over two days and freshens (gridded, time-varying)."""
+    from pyroute_rel.weather import GriddedWeather, WeatherField
+
+    t0 = np.datetime64("2018-06-01T00:00", "ns")
+    times = t0 + np.arange(9) * np.timedelta64(6, "h")
+    lon, lat = np.arange(-16.0, -9.9, 1.0), np.arange(41.0, 47.1, 1.0)
+    frac = np.linspace(0.0, 1.0, times.size)[:, None, None] * np.ones((1, lat.size, lon.size))
+    speed = 5.0 + 5.0 * frac  # [m/s]
+    from_deg = 90.0 * frac  # north, then east
+    u = -speed * np.sin(np.radians(from_deg))
+    v = -speed * np.cos(np.radians(from_deg))
+    w = GriddedWeather(
+        [
+            WeatherField(n, x.astype(np.float32), lon, lat, times, source="test", variable=n)
+            for n, x in (("wind_u_ms", u), ("wind_v_ms", v))
+        ]
+    )
+    sc = scenario_from_mapping({**SMALL, "failure": {}, "weather": {"kind": "uniform", "tws_kn": 10.0, "twd_deg": 0.0}})
+    base = PlanningProblem.of(sc)
+    settings = replace(base.settings, qlearning=QLearningSettings(gamma=1.0, **qlearning))  # type: ignore[arg-type]
+    return PlanningProblem(sc, base.grid, replace(base.problem, weather=w), settings)
+
+
+def test_qlearning_in_time_varying_weather_sails_its_route_exactly():
+    """Costing passes: the track's times are its exact sailing (the DP's arc costs leg after leg), its voyage the
+    fastest pass's, and no faster than the DP on the same graph (exact there)."""
+    from pyroute_rel.route import route_on_grid
+
+    problem = _veering_problem(episodes=400, time_passes=2)
+    assert not problem.problem.weather.steady
+    track = QLearningPlanner().plan(problem)
+    exact, ok = problem.retime(track.lon_deg, track.lat_deg)
+    assert ok and track.reached and np.allclose(track.elapsed_h, exact, rtol=1e-12)
+    assert track.stats["time_costing"] == "passes" and len(track.stats["pass_voyage_times_h"]) == 2
+    assert track.voyage_time_h == pytest.approx(min(track.stats["pass_voyage_times_h"]), rel=1e-12)
+    dp = route_on_grid(problem.grid, problem.problem)
+    assert track.voyage_time_h >= dp.voyage_time_h - 1e-9
+
+
+def test_cost_lattice_buckets_cost_at_the_bucket_middle():
+    """``time_costing = "buckets"``: a state's times at t are its actions costed at the middle of t's bucket, those
+    after the horizon are forbidden."""
+    from pyroute_rel.planners.qlearning import CostLattice
+
+    problem = _veering_problem(time_costing="buckets", time_bucket_h=4.0)
+    tab = graph_states(problem)
+    lat = CostLattice(tab, 4.0, 40.0)
+    for s, t in ((0, 0.3), (9, 13.9), (9, 12.0), (20, 33.0)):
+        acts = np.arange(tab.ptr[s], tab.ptr[s + 1])
+        expect = problem.problem.costs(*_arc_ends(problem, tab, acts), (t // 4.0 + 0.5) * 4.0).time_h
+        assert np.array_equal(lat.times(s, t), expect)
+    assert np.isinf(lat.times(9, 41.0)).all()
+    assert lat.fills == 3  # (the start, bucket 0), (the nodes of rank 1, bucket 3), (those of rank 2, bucket 8)
+
+
+def _arc_ends(problem: PlanningProblem, tab: object, acts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The end points of the tabular problem's actions (the start, the nodes and the finish)."""
+    src = np.repeat(np.arange(tab.n_states), np.diff(tab.ptr))[acts]  # type: ignore[attr-defined]
+    dst = tab.target[acts]  # type: ignore[attr-defined]
+    return tab.lon_deg[src], tab.lat_deg[src], tab.lon_deg[dst], tab.lat_deg[dst]  # type: ignore[attr-defined]
