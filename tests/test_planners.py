@@ -293,7 +293,7 @@ def test_planner_and_compare_commands(tmp_path, capsys):
     assert "error" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("kind", ["qlearning", "dqn"])
+@pytest.mark.parametrize("kind", ["qlearning", pytest.param("dqn", marks=pytest.mark.slow)])
 def test_planner_outputs_are_the_evaluators_track(kind, tmp_path, capsys):
     """``route --planner X --out DIR`` writes what a DP route writes, from the evaluator's re-timing of the track:
     the GPX reads back as the track and its times, the CSV's times are the evaluator's."""
