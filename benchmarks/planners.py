@@ -2,7 +2,9 @@
 
 Run: ``python benchmarks/planners.py [--quick] [--only NAME ...] [--json FILE] [--figure FILE]``.
 
-Courses: the paper's control course at apf 1 and at apf 0.5, the ERA5 example (time-varying gridded weather; its
+Courses: a 110 nm course in the control weather with a patch of 4.5 m waves on its great circle at apf 0.5, which
+Jing et al.'s published 10 x 10 grid of 10 nm cells covers (a 10 x 11 DP grid), the paper's control course at apf 1
+and at apf 0.5, the ERA5 example (time-varying gridded weather; its
 data are made by ``examples/make_era5_example.py`` when missing) and the real course with land, a coastal margin and
 a fishing zone (``examples/microtransat_real_course.toml`` from its start line's middle to its finish, since the
 other planners route point to point). Each planner's track is re-timed by the evaluator; the table gives the voyage
@@ -80,7 +82,21 @@ def courses() -> dict[str, object]:
     real["route"].pop("finish_line")
     real["route"]["start"] = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0]
     real["grid"] = {"n_ranks": N_RANKS}
+    jing = {  # 110 nm: Jing et al.'s 10 x 10 grid of 10 nm cells covers it; a 4.5 m wave patch on the great circle
+        "route": {"start": [-12.0, 45.0], "finish": [-13.7916, 43.6903], "departure": "2018-06-01T00:00:00Z"},
+        "grid": {"layout": "square", "n_ranks": 10, "n_nodes": 11},
+        "weather": {
+            "kind": "uniform",
+            "tws_kn": 15.0,
+            "twd_deg": 0.0,
+            "hs_m": 1.0,
+            "patch": [{"lon": [-13.15, -12.65], "lat": [44.15, 44.55], "hs_m": 4.5}],
+        },
+        "failure": {"model": "dickson2018", "apf": 0.5},
+        "avoid": {"land": False},
+    }
     return {
+        "published grid: 110 nm, 10 x 10 cells of 10 nm": scenario_from_mapping(jing, source="benchmarks/planners.py"),
         "control course, apf 1": control.with_options(apf=1.0),
         "control course, apf 0.5": control.with_options(apf=0.5),
         "ERA5 example": load_scenario(EXAMPLES / "microtransat_era5.toml").with_options(n_ranks=N_RANKS),
@@ -115,6 +131,8 @@ def _work(r: dict) -> str:
     text = "-" if r["iterations"] is None else f"{r['iterations']}"
     if r.get("episodes_to_final") is not None:
         text += f" (final from {r['episodes_to_final']})"
+    if r.get("pass_voyage_times_h"):
+        text += "; passes " + " / ".join("-" if t is None else f"{t:.1f}" for t in r["pass_voyage_times_h"]) + " h"
     if r.get("own_optimum_h") is not None:
         text += f"; own optimum {r['own_optimum_h']:.2f} h"
     return text

@@ -112,6 +112,9 @@ class Comparison:
                         st.get("history", []), st.get("model_voyage_time_h", np.inf)
                     ),
                     "own_optimum_h": st.get("optimum_h"),
+                    "pass_voyage_times_h": [
+                        None if not np.isfinite(t) else t for t in st.get("pass_voyage_times_h", [])
+                    ],
                     "mean_cross_track_nm": None if r.similarity is None else r.similarity.mean_cross_track_nm,
                     "max_cross_track_nm": None if r.similarity is None else r.similarity.max_cross_track_nm,
                 }
