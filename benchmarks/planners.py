@@ -133,8 +133,9 @@ def _work(r: dict) -> str:
         text += f" (final from {r['episodes_to_final']})"
     if r.get("pass_voyage_times_h"):
         text += "; passes " + " / ".join("-" if t is None else f"{t:.1f}" for t in r["pass_voyage_times_h"]) + " h"
-    if r.get("own_optimum_h") is not None:
-        text += f"; own optimum {r['own_optimum_h']:.2f} h"
+    opt = r.get("own_optimum_h")
+    if opt is not None:
+        text += f"; own optimum {opt:.2f} h" if opt < float("inf") else "; no route on its grid"
     return text
 
 
