@@ -1,22 +1,26 @@
-"""MCTS-UCT, tabular Q-learning and a DQN against the exact DP on four courses (issue 22).
+"""MCTS-UCT, tabular Q-learning and a DQN against the exact DP on five courses (issue 22).
 
-Run: ``python benchmarks/planners.py [--quick] [--only NAME ...] [--json FILE] [--figure FILE]``.
+Run: ``python benchmarks/planners.py [--quick] [--only WORD ...] [--planners WORD ...] [--json FILE]
+[--figure FILE]``.
 
 Courses: a 110 nm course in the control weather with a patch of 4.5 m waves on its great circle at apf 0.5, which
 Jing et al.'s published 10 x 10 grid of 10 nm cells covers (a 10 x 11 DP grid), the paper's control course at apf 1
-and at apf 0.5, the ERA5 example (time-varying gridded weather; its
-data are made by ``examples/make_era5_example.py`` when missing) and the real course with land, a coastal margin and
-a fishing zone (``examples/microtransat_real_course.toml`` from its start line's middle to its finish, since the
-other planners route point to point). Each planner's track is re-timed by the evaluator; the table gives the voyage
-time, the gap to the DP on the scenario's grid and to the DP refined in two corridors, whether the track arrives
-and is feasible, runtime and training time, work done (MCTS iterations, training voyages, arcs costed) and the
-track's mean and largest distance from the DP's.
+and at apf 0.5, the ERA5 example (time-varying gridded weather; its data are made by
+``examples/make_era5_example.py`` when missing) and the real course with land, a coastal margin and a fishing zone
+(``examples/microtransat_real_course.toml`` from its start line's middle to its finish, since the other planners
+route point to point). Each planner's track is re-timed by the evaluator; the table gives the voyage time, the gap
+to the DP on the scenario's grid and to the DP refined in two corridors, whether the track arrives and is feasible,
+runtime and training time, work done (MCTS iterations, training voyages, arcs costed; for Q-learning the episode
+from which its route stayed the final one and its own graph's optimum) and the track's mean and largest distance
+from the DP's.
 
-The planners' settings here are cut down from the published ones so that the comparison runs in about ten minutes
-per course on a free core (stated in :data:`SETTINGS`): the published 15 000 MCTS iterations per 1 h decision
-would take days in Python on a 700 h voyage. ``--quick`` uses smaller settings still (those of
-``examples/planners_comparison.py``). Timings are machine-dependent; the first line times fixed workloads
-(``machine ...``, ``benchmarks/run.py``'s calibration) so runs can be compared.
+The settings (:data:`SETTINGS`) give each planner the budget it needs to arrive where it can (Q-learning: gamma = 1
+and 100 000 episodes; a DQN trained on 100 voyages), plus Jing et al.'s published settings on cells; MCTS keeps
+Barde's settings but the iterations per decision and the rollout horizon (15 000 iterations with rollouts to
+arrival would take hours per course). A course takes about 5 to 15 minutes on a free core, most of it the DQN's
+training and MCTS. ``--quick`` uses smaller settings. Timings are machine-dependent; the first line times fixed
+workloads (``machine ...``, ``benchmarks/run.py``'s calibration) and the second gives the load average, so runs can
+be compared.
 """
 
 from __future__ import annotations
