@@ -47,13 +47,23 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import geodesy
+from ..errors import ScenarioError
 from ..progress import progress_bar
 from ..units import KM_PER_NM
 from .base import PlannedTrack, PlanningProblem
 from .qlearning import TabularProblem, graph_states
 from .settings import MCTSSettings
 
-__all__ = ["MCTSPlanner", "State", "Moves"]
+__all__ = [
+    "MCTSPlanner",
+    "State",
+    "Moves",
+    "weather_mode",
+    "time_limits",
+    "kernel_inputs",
+    "plan_lattice",
+    "python_decision",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -174,19 +184,25 @@ class _Node:
     moves: dict[Any, Moves] = field(default_factory=dict)
 
 
+def time_limits(problem: PlanningProblem, s: MCTSSettings) -> tuple[float, float, float]:
+    """The top speed over ground [kn] (the problem's speed bound, else the polar's largest), TimeMin (the great
+    circle at that speed) [h] and TimeMax (``max_voyage_h``, else three times the great circle at the polar's mean
+    speed) [h]."""
+    gc_nm = problem.great_circle_km() / KM_PER_NM
+    bound = problem.problem.speed_bound_kn() or float(np.max(problem.problem.polar.speed_kn))
+    polar = problem.problem.polar.speed_kn
+    mean = float(np.mean(polar[polar > 0])) if np.any(polar > 0) else bound
+    return bound, gc_nm / bound, s.max_voyage_h or 3.0 * gc_nm / mean
+
+
 class _Search:
     """UCT from a root (see the module notes)."""
 
     def __init__(self, sim: Any, problem: PlanningProblem, s: MCTSSettings, rng: np.random.Generator) -> None:
         self.sim, self.p, self.s, self.rng = sim, problem, s, rng
-        gc_nm = problem.great_circle_km() / KM_PER_NM
-        bound = problem.problem.speed_bound_kn() or float(np.max(problem.problem.polar.speed_kn))
-        self.top_kn = bound
-        self.time_min = gc_nm / bound
-        polar = problem.problem.polar.speed_kn
-        mean = float(np.mean(polar[polar > 0])) if np.any(polar > 0) else bound
-        self.time_max = s.max_voyage_h or 3.0 * gc_nm / mean
-        self.members: list[Any] = list(problem.members) or [None]
+        self.top_kn, self.time_min, self.time_max = time_limits(problem, s)
+        mode = weather_mode(s, problem, engine="python")
+        self.members: list[Any] = list(problem.members) if mode == "members" else [None]
 
     def reward(self, date: float) -> float:
         if not math.isfinite(date):
@@ -258,6 +274,29 @@ class _Search:
         return state.t_h
 
 
+def weather_mode(s: MCTSSettings, problem: PlanningProblem, *, engine: str = "lattice") -> str:
+    """The weather the search samples: ``s.weather``, with ``"auto"`` resolved: ``"forecast"`` without members,
+    else ``"perturbed"`` (published) with the lattice engine and ``"members"`` with the Python one."""
+    if s.weather != "auto":
+        return s.weather
+    if not problem.members:
+        return "forecast"
+    return "perturbed" if engine == "lattice" else "members"
+
+
+def _pick(moves: Moves, visits: dict[int, float], headings: FloatArray, bearing: float) -> int | None:
+    """The action to sail among ``moves`` (sailed exactly): the one with the highest score, ties (and actions the
+    search never tried) broken towards the finish's bearing; None when there are no moves."""
+    if not moves.actions:
+        return None
+
+    def key(a: int) -> tuple[float, float]:
+        off = 0.0 if a >= headings.size else float(geodesy.angle_diff_deg(headings[a], bearing))
+        return (visits.get(a, 0.0), -off)
+
+    return max(moves.actions, key=key)
+
+
 class MCTSPlanner:
     """MCTS-UCT with a receding horizon (Barde 2023; see the module notes)."""
 
@@ -273,6 +312,13 @@ class MCTSPlanner:
         problem.check_simple_course(self.name)
         s = self.settings or problem.settings.mcts
         seed = problem.settings.seed if self.seed is None else self.seed
+        if s.engine == "lattice" and not s.graph:
+            return plan_lattice(problem, s, seed, progress=progress)
+        mode = weather_mode(s, problem, engine="python")
+        if mode == "members" and not problem.members:
+            raise ScenarioError("[planner.mcts].weather = 'members' needs ensemble members (there are none)")
+        if mode == "perturbed":
+            raise ScenarioError("[planner.mcts].weather = 'perturbed' needs engine = 'lattice'")
         rng = np.random.default_rng(seed)
         t0 = _time.perf_counter()
         sim: Any = _GraphSim(problem, s) if s.graph else _HeadingSim(problem, s)
@@ -314,3 +360,112 @@ class MCTSPlanner:
         if s.graph and state.done:
             stats["nodes"] = [int(st.node - 1) % problem.grid.n_nodes for st in track[1:-1]]
         return PlannedTrack(self.name, lon, lat, np.array([st.t_h for st in track]), state.done, stats)
+
+
+def kernel_inputs(problem: PlanningProblem, s: MCTSSettings, lattice: Any) -> tuple[Any, ...]:
+    """The headings [deg], the polar tables and the scalar parameters (:data:`~.mcts_kernel.PARAMS`) of the
+    compiled search of ``problem`` over ``lattice``."""
+    from ..polar import MIN_SPEED_KN
+    from .mcts_kernel import PARAMS
+
+    top, t_min, t_max = time_limits(problem, s)
+    pol = problem.problem.polar
+    values = {
+        "lon0": lattice.lon0,
+        "lat0": lattice.lat0,
+        "dlon": lattice.spacing_deg,
+        "dlat": lattice.spacing_deg,
+        "slice_h": lattice.slice_h,
+        "step_h": s.step_h,
+        "nogo_min": s.nogo_min_deg,
+        "nogo_max": s.nogo_max_deg,
+        "finish_lon": problem.finish[0],
+        "finish_lat": problem.finish[1],
+        "time_max": t_max,
+        "time_min": t_min,
+        "reward_c": s.reward_c,
+        "top_kn": top,
+        "rollout_h": s.rollout_h,
+        "cp": s.exploration,
+        "min_speed": MIN_SPEED_KN,
+        "forbid_beyond": float(problem.problem.beyond == "forbid"),
+        "perturbed": float(lattice.perturbed),
+    }
+    params = np.array([values[k] for k in PARAMS], dtype=np.float64)
+    tables = tuple(np.ascontiguousarray(t, dtype=np.float64) for t in (pol.twa_deg, pol.tws_kn, pol.speed_kn))
+    return np.arange(s.headings) * (360.0 / s.headings), tables, params
+
+
+def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progress: bool = False) -> PlannedTrack:
+    """The receding-horizon MCTS with the compiled search (``engine = "lattice"``): a new tree per decision over
+    the problem on a lattice; the action sailed is the most visited (or best) among those that may be sailed
+    exactly (:meth:`_HeadingSim.moves`)."""
+    from .mcts_kernel import search
+    from .mcts_lattice import build_lattice
+
+    t0 = _time.perf_counter()
+    mode = weather_mode(s, problem)
+    _, _, t_max = time_limits(problem, s)
+    headings = np.arange(s.headings) * (360.0 / s.headings)
+    lattice = build_lattice(
+        problem,
+        headings,
+        spacing_deg=s.lattice_deg,
+        slice_h=s.lattice_h,
+        until_h=t_max + s.step_h,
+        weather=mode,
+        sigma_scale=s.sigma_scale,
+    )
+    headings, tables, params = kernel_inputs(problem, s, lattice)
+    built = _time.perf_counter() - t0
+    rng = np.random.SeedSequence(seed).generate_state(2, dtype=np.uint64)
+    sim = _HeadingSim(problem, s)
+    state = State(*problem.start, 0.0)
+    track, decisions, blind, searched = [state], 0, 0, 0.0
+    bar = progress_bar(None, enabled=progress, desc="mcts", unit="decision")
+    while not state.done and state.t_h <= t_max:
+        t1 = _time.perf_counter()
+        root = np.array([state.lon, state.lat, state.t_h])
+        visits, _, best = search(
+            root, s.iterations, headings, lattice.weather, lattice.okh, lattice.open, tables, params, rng
+        )
+        searched += _time.perf_counter() - t1
+        score = dict(enumerate((best if s.final == "best" else visits).tolist()))
+        moves = sim.moves(state, None)  # the craft sails in the scenario's weather, every leg costed exactly
+        bearing = float(geodesy.initial_bearing_deg(state.lon, state.lat, *problem.finish))
+        a = _pick(moves, score, headings, bearing)
+        if a is None:
+            break
+        blind += score.get(a, 0.0) == 0.0
+        state = moves.get(a)  # type: ignore[assignment]
+        track.append(state)
+        decisions += 1
+        bar.update(1)
+    bar.close()
+    stats = {
+        "iterations": s.iterations,
+        "decisions": decisions,
+        "iterations_total": s.iterations * decisions,
+        "runtime_s": _time.perf_counter() - t0,
+        "training_s": 0.0,
+        "graph": False,
+        "engine": "lattice",
+        "weather": mode,
+        "lattice_s": built,
+        "search_s": searched,
+        "iterations_per_s": s.iterations * decisions / searched if searched > 0 else 0.0,
+        "unsearched_decisions": int(blind),
+    }
+    lon, lat = np.array([st.lon for st in track]), np.array([st.lat for st in track])
+    return PlannedTrack("mcts", lon, lat, np.array([st.t_h for st in track]), state.done, stats)
+
+
+def python_decision(problem: PlanningProblem, s: MCTSSettings, seed: int) -> dict[int, int]:
+    """The visits of each root action after one decision's search from the start with the Python engine (the
+    heading space), e.g. to time it against the compiled search."""
+    sim = _HeadingSim(problem, s)
+    search = _Search(sim, problem, s, np.random.default_rng(seed))
+    root = _Node(states=dict.fromkeys(range(len(search.members)), State(*problem.start, 0.0)))
+    for _ in range(s.iterations):
+        search.iterate(root)
+    return {a: child.n for a, child in root.children.items()}

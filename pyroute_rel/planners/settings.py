@@ -19,6 +19,12 @@ defaults.
     max_voyage_h = 0.0   # give up after this long [h] (0: 3 x the great circle at the polar's mean speed)
     graph = false        # true: search the rank digraph's arcs instead of headings (for checks against the DP)
     final = "visits"     # sail the most visited action ("best": the one with the best reward below it)
+    weather = "auto"     # "forecast", "members" (one per iteration), "perturbed" (N(mean, sigma^2) per step);
+                         # "auto": "perturbed" from the members' spread when there are members, else "forecast"
+    sigma_scale = 1.0    # "perturbed": the wind error's standard deviation times this (0: the mean weather)
+    engine = "lattice"   # "lattice": compiled search over the problem sampled on a lattice; "python": reference
+    lattice_deg = 0.25   # lattice spacing [deg] ("lattice")
+    lattice_h = 6.0      # time between lattice slices [h] ("lattice")
 
     [planner.qlearning]  # Jing et al. (2021): tabular Q-learning
     space = "graph"      # "graph": states = rank-digraph nodes, actions = arcs; "cells": 8-neighbour grid of cells
@@ -87,6 +93,10 @@ __all__ = [
 PLANNERS = ("dp", "mcts", "qlearning", "dqn")
 #: Spaces tabular Q-learning works in.
 QLEARNING_SPACES = ("graph", "cells")
+#: How MCTS samples the weather (``"auto"``: ``"perturbed"`` with members, else ``"forecast"``).
+MCTS_WEATHER = ("auto", "forecast", "members", "perturbed")
+#: The MCTS engines: compiled over a lattice, or the Python reference.
+MCTS_ENGINES = ("lattice", "python")
 
 
 def _number(value: Any, where: str, lo: float, hi: float, *, lo_open: bool = False) -> float:
@@ -146,6 +156,19 @@ class MCTSSettings:
         the DP's graph, for checks against the DP.
     final : The action sailed after a decision's search: ``"visits"`` the most visited (published) or ``"best"``
         the one below which the best reward was found (exact once the tree holds every path).
+    weather : How the search samples the weather: ``"forecast"`` the scenario's; ``"members"`` one ensemble member
+        per iteration; ``"perturbed"`` each wind component drawn from N(mean, sigma^2) at each step (Barde), sigma
+        from the members' spread, or without members from
+        :class:`~pyroute_rel.monte_carlo.MonteCarloSettings`' forecast error; ``"auto"`` (default): ``"perturbed"``
+        when there are members (published), else ``"forecast"``.
+    sigma_scale : In ``"perturbed"`` weather, multiplies the standard deviation of the wind error (1: as stated
+        under ``weather``; 0: no noise, the same search as the mean weather) [-].
+    engine : ``"lattice"`` (default): the compiled search (:mod:`~pyroute_rel.planners.mcts_kernel`) over the
+        problem sampled on a lattice (:mod:`~pyroute_rel.planners.mcts_lattice`), a new tree per decision;
+        ``"python"``: the reference search with every step costed exactly, keeping the subtree (weather with
+        currents needs it; no ``"perturbed"``). ``graph = true`` always searches with the Python engine.
+    lattice_deg : Spacing of the lattice [deg].
+    lattice_h : Time between the lattice's slices [h] (one slice when nothing changes in time).
     """
 
     iterations: int = 15_000
@@ -159,6 +182,11 @@ class MCTSSettings:
     max_voyage_h: float = 0.0
     graph: bool = False
     final: str = "visits"
+    weather: str = "auto"
+    sigma_scale: float = 1.0
+    engine: str = "lattice"
+    lattice_deg: float = 0.25
+    lattice_h: float = 6.0
 
     def __post_init__(self) -> None:
         _check(
@@ -176,6 +204,11 @@ class MCTSSettings:
                 "max_voyage_h": ("float", 0.0, 100_000.0),
                 "graph": ("bool",),
                 "final": ("choice", ("visits", "best")),
+                "weather": ("choice", MCTS_WEATHER),
+                "sigma_scale": ("float", 0.0, 100.0),
+                "engine": ("choice", MCTS_ENGINES),
+                "lattice_deg": ("float", 0.01, 5.0),
+                "lattice_h": ("float", 0.1, 1000.0),
             },
         )
         if self.nogo_min_deg >= self.nogo_max_deg:
@@ -183,6 +216,8 @@ class MCTSSettings:
                 f"[planner.mcts].nogo_min_deg must be below nogo_max_deg (got {self.nogo_min_deg:g} and "
                 f"{self.nogo_max_deg:g})"
             )
+        if self.engine == "python" and self.weather == "perturbed" and not self.graph:
+            raise ScenarioError("[planner.mcts].weather = 'perturbed' needs engine = 'lattice' (got engine 'python')")
 
 
 @dataclass(frozen=True)
