@@ -48,7 +48,7 @@ from pyroute_rel.planners.settings import parse_planner  # noqa: E402
 #: the budget each needs to arrive (gamma = 1, many more episodes; a DQN trained on 100 voyages).
 SETTINGS = {
     "full": [
-        ("mcts", "mcts", {"mcts": {"iterations": 20, "step_h": 24.0, "rollout_h": 72.0}}),
+        ("mcts (1000 it./decision, rollout 24 h)", "mcts", {"mcts": {"iterations": 1000, "rollout_h": 24.0}}),
         ("qlearning (graph, gamma 1, 100k episodes)", "qlearning", {"qlearning": {"episodes": 100_000, "gamma": 1.0}}),
         ("qlearning (cells, published)", "qlearning", {"qlearning": {"space": "cells"}}),
         (
