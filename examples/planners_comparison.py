@@ -1,7 +1,7 @@
 """MCTS-UCT, tabular Q-learning and a DQN against the DP on the paper's control course at apf 0.5 (issue 22).
 
-Run: ``python examples/planners_comparison.py [--out DIR | --figures]`` (a few minutes). Writes
-``planners_control.png`` (a map of every track, labelled with the evaluator's voyage times) and
+Run: ``python examples/planners_comparison.py [--out DIR | --figures]`` (about ten minutes, most of it the DQN's
+training). Writes ``planners_control.png`` (a map of every track, labelled with the evaluator's voyage times) and
 ``planners_control.json`` (the table's rows). The full comparison on four courses is ``python benchmarks/planners.py``.
 """
 
@@ -20,16 +20,17 @@ from pyroute_rel.planners.settings import parse_planner
 
 HERE = Path(__file__).resolve().parent
 
-#: Each planner's settings: cut down from the published ones so that the example runs in minutes.
+#: Each planner's settings: those of the README's table (benchmarks/planners.py), except MCTS, cut down.
 RUNS = [
     ("mcts", "mcts", {"mcts": {"iterations": 10, "step_h": 24.0, "rollout_h": 48.0}}),
-    ("qlearning (graph)", "qlearning", {"qlearning": {"episodes": 500, "gamma": 1.0}}),
+    ("qlearning (graph)", "qlearning", {"qlearning": {"episodes": 100_000, "gamma": 1.0}}),
+    ("qlearning (cells, published)", "qlearning", {"qlearning": {"space": "cells"}}),
     (
-        "qlearning (cells)",
+        "qlearning (60 nm cells)",
         "qlearning",
-        {"qlearning": {"space": "cells", "cell_nm": 120.0, "cells_across": 11, "episodes": 1000, "gamma": 1.0}},
+        {"qlearning": {"space": "cells", "cell_nm": 60.0, "cells_across": 21, "gamma": 1.0, "episodes": 100_000}},
     ),
-    ("dqn", "dqn", {"dqn": {"episodes": 5, "step_h": 24.0, "hidden": [32]}}),
+    ("dqn", "dqn", {"dqn": {"episodes": 100, "step_h": 12.0}}),
 ]
 
 

@@ -8,6 +8,7 @@ the zones on densified tracks, and closed forms for the track similarity.
 
 from __future__ import annotations
 
+import csv
 import json
 from dataclasses import replace
 
@@ -17,13 +18,14 @@ import pytest
 import shapely
 
 from pyroute_rel import scenario_from_mapping
+from pyroute_rel.cli.planners import PLANNER_FILES
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.geodesy import gc_densify
 from pyroute_rel.obstacles.land import points_on_land
 from pyroute_rel.planners.base import PlannedTrack, Planner, PlanningProblem
 from pyroute_rel.planners.mcts import MCTSPlanner
 from pyroute_rel.planners.plan import get_planner, plan
-from pyroute_rel.planners.qlearning import QLearningPlanner, cell_states, graph_states
+from pyroute_rel.planners.qlearning import QLearningPlanner, cell_states, graph_states, shortest_time
 from pyroute_rel.planners.settings import PLANNERS, DQNSettings, MCTSSettings, QLearningSettings, parse_planner
 from pyroute_rel.similarity import track_similarity
 
@@ -118,6 +120,7 @@ def test_qlearning_on_cells_finds_dijkstras_route():
                 g.add_edge(s, int(tab.target[a]), weight=float(tab.static_cost[a]))
     ref = nx.dijkstra_path(g, tab.start, tab.goal)
     ref_h = nx.dijkstra_path_length(g, tab.start, tab.goal)
+    assert shortest_time(tab) == pytest.approx(ref_h, rel=1e-12)
     track = QLearningPlanner().plan(problem)
     assert track.reached and track.stats["model_voyage_time_h"] == pytest.approx(ref_h, rel=1e-12)
     assert np.allclose(track.lon_deg, tab.lon_deg[ref]) and np.allclose(track.lat_deg, tab.lat_deg[ref])
@@ -278,16 +281,73 @@ def test_planner_and_compare_commands(tmp_path, capsys):
     out = json.loads(capsys.readouterr().out)
     assert out["planner"] == "qlearning" and out["reached"] and out["feasible"]
     assert out["voyage_time_h"] == pytest.approx(out["planner_voyage_time_h"], rel=1e-12)
-    assert sorted(p.name for p in (tmp_path / "q").iterdir()) == ["summary.json", "track.csv"]
+    assert sorted(p.name for p in (tmp_path / "q").iterdir()) == sorted(PLANNER_FILES)
     assert main(["route", str(path), "--planner", "dp", "--json", "--quiet", "--out", str(tmp_path / "dp")]) == 0
     dp = json.loads(capsys.readouterr().out)
     assert "planner" not in dp
-    code = main(["compare", str(tmp_path / "dp" / "route.csv"), str(tmp_path / "q" / "track.csv"), "--json"])
+    code = main(["compare", str(tmp_path / "dp" / "route.csv"), str(tmp_path / "q" / "route.csv"), "--json"])
     assert code == 0
     cmp = json.loads(capsys.readouterr().out)
     assert cmp["max_cross_track_nm"] >= cmp["mean_cross_track_nm"] >= 0.0
-    assert main(["compare", str(tmp_path / "nope.csv"), str(tmp_path / "q" / "track.csv")]) == 2
+    assert main(["compare", str(tmp_path / "nope.csv"), str(tmp_path / "q" / "route.csv")]) == 2
     assert "error" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("kind", ["qlearning", pytest.param("dqn", marks=pytest.mark.slow)])
+def test_planner_outputs_are_the_evaluators_track(kind, tmp_path, capsys):
+    """``route --planner X --out DIR`` writes what a DP route writes, from the evaluator's re-timing of the track:
+    the GPX reads back as the track and its times, the CSV's times are the evaluator's."""
+    from pyroute_rel.cli import main
+    from pyroute_rel.evaluate import read_track
+    from pyroute_rel.times import iso_utc
+
+    table = {**SMALL, "planner": {**TINY_LEARNERS, "kind": kind}}
+    (tmp_path / "s.toml").write_text(_toml(table))
+    sc = scenario_from_mapping(table)
+    ev = evaluate.evaluate_track(sc, plan(sc).points())  # the same seed: the same track
+    assert main(["route", str(tmp_path / "s.toml"), "--quiet", "--out", str(tmp_path / "o")]) == 0
+    assert "route.gpx" in capsys.readouterr().out
+    assert sorted(p.name for p in (tmp_path / "o").iterdir()) == sorted(PLANNER_FILES)
+    gpx = read_track(tmp_path / "o" / "route.gpx")
+    assert np.allclose(gpx.lon_deg, ev.track[:, 0], atol=1e-6) and np.allclose(gpx.lat_deg, ev.track[:, 1], atol=1e-6)
+    assert [iso_utc(t) for t in gpx.time] == [iso_utc(t) for t in ev.time]
+    with open(tmp_path / "o" / "route.csv", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["time_utc"] for r in rows] == [iso_utc(t) for t in ev.time]
+    assert np.allclose([float(r["elapsed_h"]) for r in rows], ev.elapsed_h, rtol=0, atol=1e-6)
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["planner"] == kind and summary["voyage_time_h"] == pytest.approx(ev.voyage_time_h, rel=1e-12)
+    geo = json.loads((tmp_path / "o" / "route.geojson").read_text())
+    assert len(geo["features"]) >= 1
+
+
+def _toml(table: dict) -> str:
+    """A scenario table as TOML (the few value types SMALL and TINY_LEARNERS use)."""
+
+    def value(v: object) -> str:
+        return json.dumps(v) if not isinstance(v, bool) else str(v).lower()
+
+    lines: list[str] = []
+
+    def put(name: str, t: dict) -> None:
+        plain = {
+            k: v
+            for k, v in t.items()
+            if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict))
+        }
+        lines.append(f"[{name}]")
+        lines.extend(f"{k} = {value(v)}" for k, v in plain.items())
+        for k, v in t.items():
+            if isinstance(v, dict):
+                put(f"{name}.{k}", v)
+            elif isinstance(v, list) and v and isinstance(v[0], dict):
+                for item in v:
+                    lines.append(f"[[{name}.{k}]]")
+                    lines.extend(f"{kk} = {value(vv)}" for kk, vv in item.items())
+
+    for name, t in table.items():
+        put(name, t)
+    return "\n".join(lines) + "\n"
 
 
 def test_planning_problem_refuses_what_only_the_dp_routes():
@@ -306,4 +366,69 @@ def test_graph_states_are_the_dp_graph():
     g = problem.grid.to_networkx()
     assert tab.n_states == g.number_of_nodes()
     assert QLearningSettings().space == "graph" and MCTSSettings().final == "visits"
+    # scipy's Dijkstra on the table's costs is the DP's voyage (the DP is exact on its graph)
+    assert shortest_time(tab) == pytest.approx(sc.route().voyage_time_h, rel=1e-12)
     _ = MCTSPlanner
+
+
+def _veering_problem(**qlearning: object) -> PlanningProblem:
+    """SMALL's course in a wind that veers from north to east over two days and freshens (gridded, time-varying)."""
+    from pyroute_rel.weather import GriddedWeather, WeatherField
+
+    t0 = np.datetime64("2018-06-01T00:00", "ns")
+    times = t0 + np.arange(9) * np.timedelta64(6, "h")
+    lon, lat = np.arange(-16.0, -9.9, 1.0), np.arange(41.0, 47.1, 1.0)
+    frac = np.linspace(0.0, 1.0, times.size)[:, None, None] * np.ones((1, lat.size, lon.size))
+    speed = 5.0 + 5.0 * frac  # [m/s]
+    from_deg = 90.0 * frac  # north, then east
+    u = -speed * np.sin(np.radians(from_deg))
+    v = -speed * np.cos(np.radians(from_deg))
+    w = GriddedWeather(
+        [
+            WeatherField(n, x.astype(np.float32), lon, lat, times, source="test", variable=n)
+            for n, x in (("wind_u_ms", u), ("wind_v_ms", v))
+        ]
+    )
+    sc = scenario_from_mapping({**SMALL, "failure": {}, "weather": {"kind": "uniform", "tws_kn": 10.0, "twd_deg": 0.0}})
+    base = PlanningProblem.of(sc)
+    settings = replace(base.settings, qlearning=QLearningSettings(gamma=1.0, **qlearning))  # type: ignore[arg-type]
+    return PlanningProblem(sc, base.grid, replace(base.problem, weather=w), settings)
+
+
+def test_qlearning_in_time_varying_weather_sails_its_route_exactly():
+    """Costing passes: the track's times are its exact sailing (the DP's arc costs leg after leg), its voyage the
+    fastest pass's, and no faster than the DP on the same graph (exact there)."""
+    from pyroute_rel.route import route_on_grid
+
+    problem = _veering_problem(episodes=400, time_passes=2)
+    assert not problem.problem.weather.steady
+    track = QLearningPlanner().plan(problem)
+    exact, ok = problem.retime(track.lon_deg, track.lat_deg)
+    assert ok and track.reached and np.allclose(track.elapsed_h, exact, rtol=1e-12)
+    assert track.stats["time_costing"] == "passes" and len(track.stats["pass_voyage_times_h"]) == 2
+    assert track.voyage_time_h == pytest.approx(min(track.stats["pass_voyage_times_h"]), rel=1e-12)
+    dp = route_on_grid(problem.grid, problem.problem)
+    assert track.voyage_time_h >= dp.voyage_time_h - 1e-9
+
+
+def test_cost_lattice_buckets_cost_at_the_bucket_middle():
+    """``time_costing = "buckets"``: a state's times at t are its actions costed at the middle of t's bucket, those
+    after the horizon are forbidden."""
+    from pyroute_rel.planners.qlearning import CostLattice
+
+    problem = _veering_problem(time_costing="buckets", time_bucket_h=4.0)
+    tab = graph_states(problem)
+    lat = CostLattice(tab, 4.0, 40.0)
+    for s, t in ((0, 0.3), (9, 13.9), (9, 12.0), (20, 33.0)):
+        acts = np.arange(tab.ptr[s], tab.ptr[s + 1])
+        expect = problem.problem.costs(*_arc_ends(problem, tab, acts), (t // 4.0 + 0.5) * 4.0).time_h
+        assert np.array_equal(lat.times(s, t), expect)
+    assert np.isinf(lat.times(9, 41.0)).all()
+    assert lat.fills == 3  # (the start, bucket 0), (the nodes of rank 1, bucket 3), (those of rank 2, bucket 8)
+
+
+def _arc_ends(problem: PlanningProblem, tab: object, acts: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The end points of the tabular problem's actions (the start, the nodes and the finish)."""
+    src = np.repeat(np.arange(tab.n_states), np.diff(tab.ptr))[acts]  # type: ignore[attr-defined]
+    dst = tab.target[acts]  # type: ignore[attr-defined]
+    return tab.lon_deg[src], tab.lat_deg[src], tab.lon_deg[dst], tab.lat_deg[dst]  # type: ignore[attr-defined]

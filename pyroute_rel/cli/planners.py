@@ -8,8 +8,6 @@ measure as every other track.
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import json
 import time
 from collections.abc import Callable
@@ -19,15 +17,18 @@ from typing import Any
 
 __all__ = ["add_compare_parser", "route_with_planner", "PLANNER_FILES"]
 
-#: Files ``route --planner ... --out DIR`` writes.
-PLANNER_FILES = ("summary.json", "track.csv")
+#: Files ``route --planner ... --out DIR`` writes: those of a DP route (``pyroute_rel.outputs``) but
+#: ``forbidden.geojson`` (the arcs the DP found forbidden); only ``summary.json`` when a leg cannot be sailed.
+PLANNER_FILES = ("route.geojson", "route.gpx", "route.csv", "summary.json", "route.png")
 
 
-def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any, dict[str, Any]]:
+def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any, Any, dict[str, Any]]:
     from ..evaluate import evaluate_track
-    from ..planners.plan import plan
+    from ..planners.base import PlanningProblem
+    from ..planners.plan import get_planner, track_route
 
-    planned = plan(scenario, kind=kind, progress=progress)
+    problem = PlanningProblem.of(scenario)
+    planned = get_planner(kind).plan(problem, progress=progress)
     ev = evaluate_track(scenario, planned.points())
     summary = {
         "planner": kind,
@@ -39,12 +40,38 @@ def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any
     if not planned.reached:
         summary["feasible"] = False
         summary["reason"] = summary.get("reason") or "not_reached"
-    return planned, ev, summary
+    return planned, ev, track_route(problem, planned, ev), summary
+
+
+def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
+    """Write the planner's files (all or none); the names written."""
+    from ..files import write_together
+    from ..outputs import to_csv, to_geojson, to_gpx
+    from ..plot import plot_route
+
+    text = json.dumps(summary, indent=1)
+    writers: dict[str, Callable[[Path], object]] = {
+        "summary.json": lambda p: Path(p).write_text(text, encoding="utf-8")
+    }
+    if route is not None:
+        title = f"{summary['planner']}: {route.voyage_time_h:.1f} h (re-timed by the evaluator)"
+        writers.update(
+            {
+                "route.geojson": lambda p: Path(p).write_text(json.dumps(to_geojson(route), indent=1), "utf-8"),
+                "route.gpx": lambda p: Path(p).write_text(to_gpx(route), encoding="utf-8"),
+                "route.csv": lambda p: Path(p).write_text(to_csv(route), encoding="utf-8"),
+                "route.png": lambda p: plot_route(route, path=p, title=title),
+            }
+        )
+    write_together(out, writers, option="--out")
+    for name in set(PLANNER_FILES) - set(writers):  # from an earlier run whose track could be sailed: stale now
+        (Path(out) / name).unlink(missing_ok=True)
+    return [n for n in PLANNER_FILES if n in writers]
 
 
 def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> int:
     """Plan the scenario with ``args.planner`` (or its ``[planner].kind``), re-time the track, print and write it."""
-    from ..files import check_out_dir, write_together
+    from ..files import check_out_dir
 
     kind = args.planner or scenario.planner.kind
     scenario = replace(scenario, planner=replace(scenario.planner, kind=kind))
@@ -53,25 +80,11 @@ def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> in
 
         raise ScenarioError("--departures routes with the DP only (leave out --planner or use --planner dp)")
     if args.out is not None:
-        check_out_dir(args.out)
-    planned, ev, summary = _planner_summary(scenario, kind, progress=not args.quiet)
+        check_out_dir(args.out, files=PLANNER_FILES)
+    planned, ev, route, summary = _planner_summary(scenario, kind, progress=not args.quiet)
     elapsed = time.perf_counter() - t0
     summary["runtime_s"] = elapsed
-    if args.out is not None:
-        text = json.dumps(summary, indent=1)
-        rows = io.StringIO()
-        w = csv.writer(rows, lineterminator="\n")
-        w.writerow(["lon", "lat", "time", "planner_elapsed_h"])
-        for (lo, la), t, h in zip(ev.track, ev.time, planned.elapsed_h, strict=True):
-            w.writerow([f"{lo:.6f}", f"{la:.6f}", "" if str(t) == "NaT" else f"{t}Z", f"{h:.6f}"])
-        write_together(
-            args.out,
-            {
-                "summary.json": lambda p: Path(p).write_text(text, encoding="utf-8"),
-                "track.csv": lambda p: Path(p).write_text(rows.getvalue(), encoding="utf-8"),
-            },
-            option="--out",
-        )
+    written = _write(args.out, route, summary) if args.out is not None else []
     if args.json:
         print(json.dumps(summary))
         return 0
@@ -85,12 +98,12 @@ def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> in
         f"distance         {ev.distance_nm:.1f} nm",
         f"feasible         {summary['feasible']}" + (f" ({summary['reason']})" if summary["reason"] else ""),
         f"failure          max leg p_f {ev.max_failure_probability:.3f}, "
-        f"voyage p_f {ev.voyage_failure_probability:.3f}",
+        f"voyage p_f {ev.voyage_failure_probability + 0.0:.3f}",  # no -0.000
         f"work             {_work(st)}",
         f"runtime          {elapsed:.2f} s",
     ]
     if args.out is not None:
-        lines.append(f"outputs          {Path(args.out)}/ ({', '.join(PLANNER_FILES)})")
+        lines.append(f"outputs          {Path(args.out)}/ ({', '.join(written)})")
     print("\n".join(lines))
     return 0
 

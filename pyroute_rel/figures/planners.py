@@ -67,7 +67,7 @@ def _panel(ax: Any, comp: Comparison) -> None:
         if np.isfinite(v) and not r.feasible:
             what += ", infeasible"
         colour = COLOURS.get(r.label.split()[0], None)
-        style = "-" if "cells" not in r.label else ":"
+        style = "--" if "published" in r.label else ":" if "cells" in r.label else "-"
         ax.plot(x, y, style, color=colour, lw=1.6 if r.label == "dp" else 1.1, label=f"{r.label}: {what}")
     ax.plot(*sc.start, "o", color="black", ms=4)
     ax.plot(*sc.finish, "s", color="black", ms=4)

@@ -22,7 +22,23 @@ from .settings import PLANNERS, PlannerSettings
 if TYPE_CHECKING:
     from ..scenario import Scenario
 
-__all__ = ["PlannerRun", "Comparison", "compare_planners"]
+__all__ = ["PlannerRun", "Comparison", "compare_planners", "episodes_to_final"]
+
+#: Q-learning's greedy route is checked after this many evenly spaced episodes (per costing pass).
+CHECKPOINTS = 100
+
+
+def episodes_to_final(history: list[list[float]] | list[tuple[int, float]], final_h: float) -> int | None:
+    """The first checkpoint from which Q-learning's greedy route time stays at ``final_h`` [h] to the end
+    (``history``: ``[(episode, time_h), ...]``), or None without a history or when it never arrived."""
+    if not history or not np.isfinite(final_h):
+        return None
+    first = None
+    for episode, t in reversed(history):
+        if not np.isclose(t, final_h, rtol=1e-12, atol=0.0):
+            break
+        first = int(episode)
+    return first
 
 
 @dataclass(frozen=True)
@@ -92,6 +108,13 @@ class Comparison:
                     "runtime_s": st.get("runtime_s"),
                     "training_s": st.get("training_s", 0.0),
                     "iterations": st.get("iterations_total", st.get("episodes", st.get("arcs_evaluated"))),
+                    "episodes_to_final": episodes_to_final(
+                        st.get("history", []), st.get("model_voyage_time_h", np.inf)
+                    ),
+                    "own_optimum_h": st.get("optimum_h"),
+                    "pass_voyage_times_h": [
+                        None if not np.isfinite(t) else t for t in st.get("pass_voyage_times_h", [])
+                    ],
                     "mean_cross_track_nm": None if r.similarity is None else r.similarity.mean_cross_track_nm,
                     "max_cross_track_nm": None if r.similarity is None else r.similarity.max_cross_track_nm,
                 }
@@ -126,7 +149,11 @@ def compare_planners(
     for label, kind, settings in todo:
         sc = replace(scenario, planner=replace(settings, kind=kind))
         t0 = _time.perf_counter()
-        track = get_planner(kind).plan(PlanningProblem.of(sc), progress=progress)
+        planner = get_planner(kind)
+        if kind == "qlearning":  # the greedy route after each hundredth of the episodes: when it was found
+            track = planner.plan(PlanningProblem.of(sc), progress=progress, checkpoints=CHECKPOINTS)  # type: ignore[call-arg]
+        else:
+            track = planner.plan(PlanningProblem.of(sc), progress=progress)
         track.stats.setdefault("runtime_s", _time.perf_counter() - t0)
         ev = evaluate_track(scenario, track.points())
         sim = track_similarity(

@@ -39,6 +39,7 @@ Mannocci and Bologna (2021): a DQN sailing the Vendee Globe 2020/21 (wind image,
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import time as _time
@@ -299,6 +300,23 @@ def _episode(env: _Env, learner: _Learner, eps: float) -> bool:
     return c.done
 
 
+def _epsilon(s: DQNSettings, episode: int) -> float:
+    """Exploration rate of a training voyage: from ``epsilon`` down to ``epsilon_final`` linearly over the voyages."""
+    if s.episodes <= 1:
+        return s.epsilon
+    return s.epsilon + (s.epsilon_final - s.epsilon) * episode / (s.episodes - 1)
+
+
+def _one_thread() -> Any:
+    """Run the network's small matrix products on one thread: BLAS threads on a busy machine cost more than they
+    bring for 64-row batches."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a dependency of scikit-learn
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1)
+
+
 def train(
     problem: PlanningProblem, s: DQNSettings, seed: int, *, progress: bool = False
 ) -> tuple[QNetwork, dict[str, Any]]:
@@ -310,7 +328,7 @@ def train(
     learner = _new_learner(s, 2 * s.image_cells**2 + N_STATE, rng, seed)
     bar = progress_bar(s.episodes, enabled=progress, desc="dqn training", unit="voyage")
     arrived = skipped = 0
-    for _ in range(s.episodes):
+    for episode in range(s.episodes):
         offset = float(rng.uniform(0.0, s.departure_spread_h)) if s.departure_spread_h else 0.0
         shifted = replace(
             problem,
@@ -318,7 +336,7 @@ def train(
         )
         env = _Env(shifted, s, members[int(rng.integers(len(members)))], time_max)
         try:
-            arrived += _episode(env, learner, s.epsilon)
+            arrived += _episode(env, learner, _epsilon(s, episode))
         except PyrouteError:  # e.g. a departure the weather does not cover: that voyage only
             skipped += 1
         bar.update(1)
@@ -361,7 +379,8 @@ class DQNPlanner:
         net = QNetwork.load(path, s) if path is not None and path.is_file() else None
         info: dict[str, Any] = {"loaded": net is not None}
         if net is None:
-            net, more = train(problem, s, seed, progress=progress)
+            with _one_thread():
+                net, more = train(problem, s, seed, progress=progress)
             info.update(more)
             if path is not None:
                 net.save(path, s)

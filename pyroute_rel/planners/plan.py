@@ -5,15 +5,19 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from ..errors import ScenarioError, brief, check_flag, check_instance
 from .base import PlannedTrack, Planner, PlanningProblem
 from .settings import PLANNERS
 
 if TYPE_CHECKING:
+    from ..evaluate import Evaluation
+    from ..route import Route
     from ..scenario import Scenario
     from ..weather import WeatherSource
 
-__all__ = ["get_planner", "plan"]
+__all__ = ["get_planner", "plan", "track_route"]
 
 
 def get_planner(kind: str) -> Planner:
@@ -71,3 +75,45 @@ def plan(
     settings = scenario.planner if kind is None else replace(scenario.planner, kind=kind)
     problem = PlanningProblem.of(scenario, settings=settings, members=members)
     return get_planner(settings.kind).plan(problem, progress=progress)
+
+
+def track_route(problem: PlanningProblem, planned: PlannedTrack, evaluation: Evaluation) -> Route | None:
+    """A planner's track as a :class:`~pyroute_rel.route.Route`, so the DP's outputs (map, GPX, CSV, GeoJSON:
+    :mod:`pyroute_rel.outputs`, :func:`pyroute_rel.plot.plot_route`) write it: the evaluator's re-timed track, its
+    legs and exposure, on the scenario's grid and problem; None when a leg cannot be sailed (no times after it).
+
+    The route's ``dp`` is empty (no arc was costed by the DP: every node unreached) and its ``nodes`` are the
+    planner's nodes on the grid (Q-learning on the graph) or none.
+    """
+    from ..route import Route
+    from ..solve import DPResult
+
+    if not np.all(np.isfinite(evaluation.elapsed_h)):
+        return None
+    grid = problem.grid
+    shape = (grid.n_ranks, grid.n_nodes)
+    empty = DPResult(
+        arrival_h=np.full(shape, np.inf),
+        back=np.full(shape, -1, dtype=np.intp),
+        finish_h=float(evaluation.voyage_time_h),
+        finish_back=-1,
+        arcs_evaluated=0,
+        arcs_forbidden=0,
+        forbidden_by_reason={},
+        dead_rank=None,
+    )
+    nodes = planned.stats.get("nodes") or []
+    return Route(
+        lon_deg=np.asarray(evaluation.track[:, 0], dtype=float),
+        lat_deg=np.asarray(evaluation.track[:, 1], dtype=float),
+        elapsed_h=np.asarray(evaluation.elapsed_h, dtype=float),
+        departure=np.datetime64(evaluation.departure, "s"),
+        legs=evaluation.legs,
+        nodes=np.asarray(nodes, dtype=np.intp),
+        grid=grid,
+        dp=empty,
+        problem=problem.problem,
+        meta=dict(evaluation.meta),
+        zones=tuple(problem.scenario.avoid.zones),
+        exposure_by_criterion_h=dict(evaluation.exposure_by_criterion_h),
+    )

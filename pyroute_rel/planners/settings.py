@@ -34,6 +34,10 @@ defaults.
     episodes = 3000
     cell_nm = 10.0       # side of a cell [nm] ("cells")
     cells_across = 10    # cells across the course ("cells")
+    time_costing = "passes"  # time-varying weather: "passes" (each rank at the route's time) or "buckets"
+    time_passes = 3      # "passes": costing and learning passes
+    time_bucket_h = 6.0  # "buckets": moves costed at the middle of their 6 h bucket
+    max_voyage_h = 0.0   # moves after this are not actions [h] (0: 3 x the great circle at the polar's mean speed)
 
     [planner.dqn]        # Mannocci & Bologna (2021): DQN over a local wind image
     episodes = 200
@@ -44,6 +48,7 @@ defaults.
     learning_rate = 0.001
     gamma = 0.99
     epsilon = 0.2
+    epsilon_final = 0.05 # exploration falls linearly to this over the training voyages
     batch = 64
     replay = 20000
     target_every = 200   # learning steps between copies of the Q-network into the target network
@@ -229,6 +234,14 @@ class QLearningSettings:
     episodes : Training episodes (3000 iterations published) [-].
     cell_nm : Side of a cell (10 nm published) [nm].
     cells_across : Cells across the course (10 published) [-].
+    time_costing : How moves are costed in time-varying weather (or with zones that have time windows; not
+        published: the paper's weather is steady): ``"passes"`` every action once per pass at the time the last
+        pass's route reaches its rank (its rows of cells), ``time_passes`` passes; ``"buckets"`` at the middle of
+        its time bucket of ``time_bucket_h``, a (group, bucket) costed when first needed.
+    time_passes : Passes of ``"passes"`` [-].
+    time_bucket_h : Width of a time bucket of ``"buckets"`` [h].
+    max_voyage_h : Moves starting this long after departure are not actions (the time lattice's extent) [h]; 0:
+        three times the great circle at the polar's mean speed.
     """
 
     space: str = "graph"
@@ -238,6 +251,10 @@ class QLearningSettings:
     episodes: int = 3000
     cell_nm: float = 10.0
     cells_across: int = 10
+    time_costing: str = "passes"
+    time_passes: int = 3
+    time_bucket_h: float = 6.0
+    max_voyage_h: float = 0.0
 
     def __post_init__(self) -> None:
         _check(
@@ -251,6 +268,10 @@ class QLearningSettings:
                 "episodes": ("int", 1, 10_000_000),
                 "cell_nm": ("float", 0.01, 10_000.0),
                 "cells_across": ("int", 1, 10_001),
+                "time_costing": ("choice", ("passes", "buckets")),
+                "time_passes": ("int", 1, 100),
+                "time_bucket_h": ("float", 0.0, 10_000.0, True),
+                "max_voyage_h": ("float", 0.0, 100_000.0),
             },
         )
 
@@ -268,7 +289,9 @@ class DQNSettings:
     hidden : Sizes of the Q-network's hidden layers [-].
     learning_rate : Adam's step size [-].
     gamma : Discount factor [-].
-    epsilon : Exploration rate while training [-].
+    epsilon : Exploration rate of the first training voyage [-].
+    epsilon_final : Exploration rate of the last training voyage; it falls linearly from :attr:`epsilon` in
+        between (not in the paper; equal to ``epsilon`` for a constant rate) [-].
     batch : Transitions per learning step [-].
     replay : Capacity of the experience replay [transitions].
     target_every : Learning steps between copies of the Q-network into the target network [-].
@@ -287,6 +310,7 @@ class DQNSettings:
     learning_rate: float = 1e-3
     gamma: float = 0.99
     epsilon: float = 0.2
+    epsilon_final: float = 0.05
     batch: int = 64
     replay: int = 20_000
     target_every: int = 200
@@ -307,6 +331,7 @@ class DQNSettings:
                 "learning_rate": ("float", 0.0, 1.0, True),
                 "gamma": ("float", 0.0, 1.0, True),
                 "epsilon": ("float", 0.0, 1.0),
+                "epsilon_final": ("float", 0.0, 1.0),
                 "batch": ("int", 1, 100_000),
                 "replay": ("int", 1, 10_000_000),
                 "target_every": ("int", 1, 10_000_000),
