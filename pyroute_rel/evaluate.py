@@ -39,6 +39,7 @@ import numpy.typing as npt
 from . import geodesy
 from .cost import REASONS, ArcCosts, ArcGeometry, arc_geometry, geometry_costs
 from .errors import ScenarioError, TrackError, brief, check_numbers, check_path
+from .exposure import combined_failure_probability
 from .files import brief_path, read_regular_bytes
 from .route import Legs, track_legs
 from .times import iso_utc
@@ -745,9 +746,7 @@ class Evaluation:
     @property
     def voyage_failure_probability(self) -> float:
         """Probability of failure over the legs sailed, ``1 - prod(1 - p_fail_leg)`` [-]."""
-        p = self.legs.p_fail_leg[np.isfinite(self.legs.p_fail_leg)]
-        with np.errstate(divide="ignore"):
-            return float(-np.expm1(np.sum(np.log1p(-p))))
+        return combined_failure_probability(self.legs.p_fail_leg)
 
     def summary(self) -> dict[str, Any]:
         """The JSON of ``pyroute-rel evaluate --json``: the keys of :meth:`Route.summary

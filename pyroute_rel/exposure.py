@@ -85,6 +85,22 @@ def failure_probability(total_hazard: npt.ArrayLike) -> FloatArray:
     return np.asarray(0.0 - np.expm1(-np.asarray(total_hazard, dtype=float)), dtype=float)  # 0, not -0, at no hazard
 
 
+def combined_failure_probability(p_fail_leg: npt.ArrayLike) -> float:
+    """Probability of failure over a sequence of legs, ``1 - prod(1 - p_fail_leg)`` [-], summed as hazards
+    (``log1p``) so that small probabilities keep their digits; legs whose probability is not finite (not sailed)
+    are left out, and a leg with ``p_fail_leg = 1`` makes it 1.
+
+    >>> combined_failure_probability([0.2, 0.2])  # 1 - 0.8 ** 2
+    0.36
+    >>> combined_failure_probability([0.0, float("nan")])  # 0, not -0
+    0.0
+    """
+    p = np.asarray(p_fail_leg, dtype=float).ravel()
+    p = p[np.isfinite(p)]
+    with np.errstate(divide="ignore"):  # log1p(-1) = -inf: certain failure
+        return float(0.0 - np.expm1(np.sum(np.log1p(-p))))
+
+
 @dataclass(frozen=True)
 class LegExposure:
     """What each leg of a route adds to the voyage's failure probability.

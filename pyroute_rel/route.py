@@ -23,7 +23,7 @@ import numpy.typing as npt
 from . import geodesy
 from .cost import REASONS, ArcCosts, arc_quantities
 from .errors import NoFeasibleRouteError, ScenarioError, check_flag, check_instance
-from .exposure import LegExposure, leg_exposure
+from .exposure import LegExposure, combined_failure_probability, leg_exposure
 from .manoeuvre import TrackManoeuvres
 from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, grid_geometry, leg_manoeuvres
 from .times import hours_after, iso_utc
@@ -287,8 +287,7 @@ class Route:
     def voyage_failure_probability(self) -> float:
         """Probability of failure over the voyage, ``1 - exp(-sum of the legs' hazards)`` [-] (see the module
         notes): ``1 - prod(1 - p_fail_leg)``."""
-        with np.errstate(divide="ignore"):  # a leg with p_fail_leg = 1: log1p(-1) = -inf, certain failure
-            return float(0.0 - np.expm1(np.sum(np.log1p(-self.legs.p_fail_leg))))  # 0, not -0, with no hazard
+        return combined_failure_probability(self.legs.p_fail_leg)
 
     @property
     def touches_edge(self) -> bool:
