@@ -80,6 +80,12 @@ __all__ = [
     "run_sweep",
     "read_runs",
     "MAX_RUNS",
+    "auto_engine",
+    "run_batch",
+    "task_batches",
+    "WORKER_ENV",
+    "AUTO_MIN_RUNS",
+    "MAX_BATCH_RUNS",
 ]
 
 #: Engines of :func:`run_sweep`.
