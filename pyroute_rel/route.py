@@ -415,12 +415,27 @@ def route_on_grid(
     return build_route(grid, problem, result)
 
 
+def _dp_elapsed(result: DPResult) -> FloatArray:
+    """The DP's time at each point of its path but the last [h after departure] (0 at the start), where each leg
+    leaves after its wait: the departure times :func:`~pyroute_rel.solve.leg_manoeuvres` costs the legs from."""
+    nodes = result.path()
+    ranks = np.arange(len(nodes))
+    if result.labels is not None:
+        sides = result.path_sides()
+        arrival = result.labels.arrival_h[ranks, nodes, sides[:-1]]
+    else:
+        arrival = result.arrival_h[ranks, nodes]
+    return np.concatenate([[0.0], arrival])
+
+
 def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
-    """Turn a DP result into a Route, recomputing every leg from its end points."""
+    """Turn a DP result into a Route, recomputing every leg from its end points: all legs in one vectorised call
+    from the DP's arrival times, checked against the legs' own chain of arrivals
+    (:func:`~pyroute_rel.solve.leg_manoeuvres`)."""
     nodes = result.path()
     waits = result.waits()
     lon, lat = result.points(grid)
-    elapsed, costs, manoeuvres = leg_manoeuvres(problem, lon, lat, waits)
+    elapsed, costs, manoeuvres = leg_manoeuvres(problem, lon, lat, waits, elapsed_guess_h=_dp_elapsed(result))
     legs, exposure = track_legs(problem, lon, lat, elapsed, waits, costs)
     meta: dict[str, Any] = {
         "apf": float(problem.apf),

@@ -1336,48 +1336,92 @@ def leg_costs(
 
 
 def leg_manoeuvres(
-    problem: RoutingProblem, lon_deg: FloatArray, lat_deg: FloatArray, waits: npt.ArrayLike | None = None
+    problem: RoutingProblem,
+    lon_deg: FloatArray,
+    lat_deg: FloatArray,
+    waits: npt.ArrayLike | None = None,
+    *,
+    elapsed_guess_h: npt.ArrayLike | None = None,
 ) -> tuple[FloatArray, ArcCosts, TrackManoeuvres]:
     """:func:`leg_costs` and the manoeuvres along the legs (:func:`pyroute_rel.manoeuvre.track_manoeuvres`): the
     side of each leg from the wind at its first weather sample when it leaves, a manoeuvre where the side changes
-    (from ``problem.initial_side`` for the first leg), whose penalty delays the leg's arrival as in the DP."""
+    (from ``problem.initial_side`` for the first leg), whose penalty delays the leg's arrival as in the DP.
+
+    In time-varying weather a leg leaves when the previous one arrives, so the legs are costed in order. With
+    ``elapsed_guess_h`` (the time at each point but the last [h], e.g. the DP's arrival times), every leg is costed
+    in one vectorised call from the guessed times; the legs' chain of arrivals is then recomputed from those costs,
+    and the legs after the first point whose guess is not exactly its arrival are costed again from the corrected
+    times (a few passes, then one leg at a time): the numbers are those of costing the legs one by one.
+    """
     lon, lat = np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float)
     n_legs = len(lon) - 1
     wait = np.zeros(n_legs) if waits is None else np.asarray(waits, dtype=float)
-    elapsed = np.zeros(n_legs + 1)
-    times = np.empty(n_legs)
-    p_f = np.empty(n_legs)
-    reason = np.empty(n_legs, dtype=np.uint8)
-    side = np.zeros(n_legs, dtype=np.int8)
-    twa = np.zeros(n_legs)
-    tws = np.zeros(n_legs)
     geom = arc_geometry(lon[:-1], lat[:-1], lon[1:], lat[1:], samples=problem.samples)
     penalties = problem.manoeuvres if problem.sides else None
-    prev = problem.initial_side
     if bool(problem.weather.steady) and problem.time_step_h is None:
+        elapsed = np.zeros(n_legs + 1)
         c = problem.costs(lon[:-1], lat[:-1], lon[1:], lat[1:], np.zeros(n_legs))
         times, p_f, reason = c.time_h, c.p_f, c.reason
         side, twa, tws = _first_sample_wind(problem, geom, np.zeros(n_legs))
-        pen = track_manoeuvres(side, twa, tws, penalties, initial_side=prev).penalty_h
+        pen = track_manoeuvres(side, twa, tws, penalties, initial_side=problem.initial_side).penalty_h
         if penalties is None:
             elapsed[1:] = np.cumsum(times)
         else:
             for i in range(n_legs):  # the DP's order of additions: (departure + sailing) + penalty
                 elapsed[i + 1] = (elapsed[i] + times[i]) + pen[i]
-    else:
-        for i in range(n_legs):
-            t0 = elapsed[i] + wait[i]
-            c = problem.costs(lon[i], lat[i], lon[i + 1], lat[i + 1], t0)
-            times[i], p_f[i], reason[i] = float(c.time_h), float(c.p_f), int(c.reason)
-            one = ArcGeometry(geom.lon_deg[i : i + 1], geom.lat_deg[i : i + 1], geom.course_deg[i : i + 1], geom.seg_nm)
-            s_i, twa_i, tws_i = _first_sample_wind(problem, one, np.array([t0]))
-            side[i], twa[i], tws[i] = s_i[0], twa_i[0], tws_i[0]
-            pen_i = track_manoeuvres(side[i : i + 1], twa[i : i + 1], tws[i : i + 1], penalties, initial_side=prev)
-            prev = int(side[i])
-            if penalties is None:
-                elapsed[i + 1] = problem.arrive(t0 + times[i])
-            else:
-                elapsed[i + 1] = problem.arrive((t0 + times[i]) + pen_i.penalty_h[0])
+        man = track_manoeuvres(side, twa, tws, penalties, initial_side=problem.initial_side)
+        return elapsed, ArcCosts(time_h=times, p_f=p_f, reason=reason), man
+    guess = None if elapsed_guess_h is None else np.asarray(elapsed_guess_h, dtype=float)
+    if guess is not None and guess.shape != (n_legs,):
+        raise ScenarioError(f"leg_manoeuvres: elapsed_guess_h must hold {n_legs} times [h] (got shape {guess.shape})")
+    return _timed_legs(problem, lon, lat, geom, wait, guess, penalties)
+
+
+#: Vectorised passes of :func:`leg_manoeuvres` from guessed departure times before it costs one leg at a time.
+GUESS_PASSES = 3
+
+
+def _timed_legs(
+    problem: RoutingProblem,
+    lon: FloatArray,
+    lat: FloatArray,
+    geom: ArcGeometry,
+    wait: FloatArray,
+    guess: FloatArray | None,
+    penalties: ManoeuvrePenalties | None,
+) -> tuple[FloatArray, ArcCosts, TrackManoeuvres]:
+    """Legs in time-varying weather: legs ``< done`` are costed at their true departure; each pass costs the legs
+    from ``done`` on (all of them from the guessed times, or only leg ``done``) and extends the chain of arrivals."""
+    n_legs = len(lon) - 1
+    elapsed = np.zeros(n_legs + 1)
+    times, p_f = np.empty(n_legs), np.empty(n_legs)
+    reason = np.empty(n_legs, dtype=np.uint8)
+    side, twa, tws = np.zeros(n_legs, dtype=np.int8), np.zeros(n_legs), np.zeros(n_legs)
+    if guess is not None:
+        guess = guess.copy()
+        guess[0] = 0.0  # the first leg leaves at the departure whatever the guess
+    done, passes = 0, 0
+    while done < n_legs:
+        many = guess is not None and passes < GUESS_PASSES
+        idx = np.arange(done, n_legs if many else done + 1)
+        t0 = (guess[idx] if many else np.full(1, elapsed[done])) + wait[idx]  # guess[done] == elapsed[done]
+        passes += many
+        c = problem.costs(lon[idx], lat[idx], lon[idx + 1], lat[idx + 1], t0)
+        times[idx], p_f[idx], reason[idx] = c.time_h, c.p_f, c.reason
+        one = ArcGeometry(geom.lon_deg[idx], geom.lat_deg[idx], geom.course_deg[idx], geom.seg_nm)
+        side[idx], twa[idx], tws[idx] = _first_sample_wind(problem, one, t0)
+        pen = track_manoeuvres(side, twa, tws, penalties, initial_side=problem.initial_side).penalty_h
+        stop = n_legs
+        for i in idx:  # the legs' chain: exact up to the first leg costed from a wrong time
+            t = elapsed[i] + wait[i]
+            elapsed[i + 1] = (
+                problem.arrive(t + times[i]) if penalties is None else problem.arrive((t + times[i]) + pen[i])
+            )
+            if stop == n_legs and i + 1 < n_legs and (not many or elapsed[i + 1] != guess[i + 1]):
+                stop = i + 1
+        done = stop
+        if many:
+            guess = elapsed[:-1].copy()  # the next pass's departures: exact up to ``done``
     man = track_manoeuvres(side, twa, tws, penalties, initial_side=problem.initial_side)
     return elapsed, ArcCosts(time_h=times, p_f=p_f, reason=reason), man
 

@@ -9,11 +9,14 @@ file; so a row equals that route. :func:`run_sweep` returns a :class:`pyarrow.Ta
 constraints or the weather does not cover the departure; ``error`` with the one-line message of any other user
 error), voyage time, distance, arrival, failure probabilities, arcs, runtime and the track's file.
 
-Engines: ``"inline"`` (this process; the default), ``"processes"`` (a local process pool) and ``"dask"``
-(:mod:`distributed`: a running scheduler's address, or a ``LocalCluster`` of ``workers`` processes). Every process
-keeps the weather it opened (:mod:`pyroute_rel.weather.cache`) and the grids it built for its later runs. On dask
-a task that fails unexpectedly (an internal error, a worker lost) is run again by dask (``retries``); a user error
-is a row, never retried.
+Engines: ``"auto"`` (the default: this process for fewer than :data:`AUTO_MIN_RUNS` runs or on one CPU, else a
+process pool of one process per CPU, :func:`auto_engine`), ``"inline"`` (this process), ``"processes"`` (a local
+process pool) and ``"dask"`` (:mod:`distributed`: a running scheduler's address, or a ``LocalCluster`` of
+``workers`` processes). Every process keeps the weather it opened (:mod:`pyroute_rel.weather.cache`) and the grids
+it built for its later runs. Worker processes run one thread each (:data:`WORKER_ENV`), and their tasks are
+batches of runs of the same member and grid (:func:`task_batches`). Failures are retried a bounded number of times
+(``retries``): a run's internal error in its worker, a task whose worker died by the engine (dask's ``retries``;
+the process pool is restarted and the unfinished batches resubmitted); a user error is a row, never retried.
 
 Output (``out``): ``runs.parquet/``, a Parquet dataset folder: each batch of finished runs is one part file,
 written whole (a temporary name, then a rename), so a sweep that is killed keeps every batch it wrote;
@@ -77,10 +80,16 @@ __all__ = [
     "run_sweep",
     "read_runs",
     "MAX_RUNS",
+    "auto_engine",
+    "run_batch",
+    "task_batches",
+    "WORKER_ENV",
+    "AUTO_MIN_RUNS",
+    "MAX_BATCH_RUNS",
 ]
 
 #: Engines of :func:`run_sweep`.
-ENGINES = ("inline", "processes", "dask")
+ENGINES = ("auto", "inline", "processes", "dask")
 #: Most runs one sweep may hold.
 MAX_RUNS = 1_000_000
 #: Files larger than this are keyed by size, modification time and their first and last MB instead of their whole
@@ -619,22 +628,97 @@ def _inline(todo: Sequence[tuple[str, Run]]) -> Iterator[dict[str, Any]]:
             yield _internal_row(run, key, exc)
 
 
-def _worker_init() -> None:
-    os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads on top
+#: Environment of worker processes (a process pool, a dask ``LocalCluster``): one thread each, also in the BLAS,
+#: OpenMP and numba thread pools, since the workers already use every core.
+WORKER_ENV = {
+    "PYROUTE_REL_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "NUMBA_NUM_THREADS": "1",
+}
+_PINNED: list[Any] = []
 
 
-def _processes(todo: Sequence[tuple[str, Run]], workers: int) -> Iterator[dict[str, Any]]:
+def _pin_threads() -> None:
+    """One thread in this worker process: :data:`WORKER_ENV` for what reads it later, and the BLAS/OpenMP pools
+    already loaded limited to 1 (``threadpoolctl``) for a ``dask worker`` started without that environment."""
+    if _PINNED:
+        return
+    os.environ.update(WORKER_ENV)
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - installed with scikit-learn/numpy stacks; the env still applies
+        _PINNED.append(None)
+        return
+    _PINNED.append(threadpool_limits(limits=1))  # kept: the limit holds while the process lives
+
+
+def run_batch(batch: Sequence[tuple[str, Run]], retries: int = 0) -> list[dict[str, Any]]:
+    """Route a batch of runs in this (worker) process, one thread: the rows of :func:`run_one`.
+
+    A run that raises an internal error is tried again up to ``retries`` times here, then is an internal-error row
+    (not recorded in the output, so a later sweep tries it again). The batch of an engine's task: runs of the same
+    member and grid are batched together, so a worker opens their weather and builds their grid once.
+    """
+    _pin_threads()
+    rows = []
+    for key, run in batch:
+        for attempt in range(retries + 1):
+            try:
+                rows.append(run_one(run, key))
+                break
+            except Exception as exc:
+                if attempt == retries:
+                    rows.append(_internal_row(run, key, exc))
+    return rows
+
+
+#: Most runs in one task of the process-pool and dask engines (tasks of about a second each are batched up to this
+#: many runs: fewer, larger tasks, still about 4 per worker or more for balance).
+MAX_BATCH_RUNS = 8
+
+
+def task_batches(todo: Sequence[tuple[str, Run]], workers: int) -> list[list[tuple[str, Run]]]:
+    """The runs of an engine's tasks: sorted by scenario, member and grid (so that a task's runs share their weather
+    and grid), split into batches of at most :data:`MAX_BATCH_RUNS` runs and about ``len(todo) / (4 workers)``.
+
+    >>> runs = [("k%d" % i, Run("s.toml", member=i % 3)) for i in range(10)]
+    >>> [[k for k, _ in b] for b in task_batches(runs, 1)]
+    [['k0', 'k3', 'k6'], ['k9', 'k1', 'k4'], ['k7', 'k2', 'k5'], ['k8']]
+    """
+    order = sorted(todo, key=lambda kr: (kr[1].scenario, -1 if kr[1].member is None else kr[1].member, kr[1].grid))
+    size = max(1, min(MAX_BATCH_RUNS, math.ceil(len(order) / (4 * max(1, workers)))))
+    return [order[i : i + size] for i in range(0, len(order), size)]
+
+
+def _processes(todo: Sequence[tuple[str, Run]], workers: int, retries: int) -> Iterator[dict[str, Any]]:
+    """A local pool of ``workers`` processes. A worker that dies breaks the pool: a new pool is started and every
+    batch not finished is submitted again, at most ``retries`` times per batch (then its runs are internal-error
+    rows); an internal error of a run is tried again in its worker (:func:`run_batch`)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures.process import BrokenProcessPool
 
     ctx = multiprocessing.get_context("forkserver")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init) as pool:
-        futures = {pool.submit(run_one, run, key): (key, run) for key, run in todo}
-        for fut in as_completed(futures):
-            try:
-                yield fut.result()
-            except Exception as exc:
-                yield _internal_row(futures[fut][1], futures[fut][0], exc)
+    pending = {i: (b, 0) for i, b in enumerate(task_batches(todo, workers))}
+    while pending:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pin_threads) as pool:
+            futures = {pool.submit(run_batch, b, retries): i for i, (b, _) in pending.items()}
+            for fut in as_completed(futures):
+                i = futures[fut]
+                batch, tries = pending[i]
+                try:
+                    rows = fut.result()
+                except BrokenProcessPool as exc:  # its worker (or another) died: again in a new pool
+                    if tries < retries:
+                        pending[i] = (batch, tries + 1)
+                        continue
+                    rows = [_internal_row(run, key, exc) for key, run in batch]
+                except Exception as exc:  # pragma: no cover - run_batch records run errors itself
+                    rows = [_internal_row(run, key, exc) for key, run in batch]
+                del pending[i]
+                yield from rows
 
 
 def _dask_client(scheduler: str | None, workers: int | None, timeout_s: float) -> Any:
@@ -652,7 +736,7 @@ def _dask_client(scheduler: str | None, workers: int | None, timeout_s: float) -
         threads_per_worker=1,
         processes=True,
         dashboard_address=None,
-        env={"PYROUTE_REL_THREADS": "1"},
+        env=dict(WORKER_ENV),
     )
     return Client(cluster, set_as_default=False)
 
@@ -664,20 +748,47 @@ def _dask(
 
     client = _dask_client(scheduler, workers, timeout_s)
     try:
+        n_workers = workers or max(1, len(client.scheduler_info().get("workers", {})))
+        batches = task_batches(todo, n_workers)
         futures = {
-            client.submit(run_one, run, key, key=f"pyroute-rel-run-{key}", pure=False, retries=retries): (key, run)
-            for key, run in todo
+            client.submit(
+                run_batch, b, retries, key=f"pyroute-rel-runs-{b[0][0]}-{len(b)}", pure=False, retries=retries
+            ): b
+            for b in batches
         }
         for fut in as_completed(futures, loop=client.loop):
             try:
-                yield fut.result()
+                yield from fut.result()
             except Exception as exc:  # failed retries + 1 times (or its workers died): recorded, not in the files
-                yield _internal_row(futures[fut][1], futures[fut][0], exc)
+                yield from (_internal_row(run, key, exc) for key, run in futures[fut])
     finally:
         cluster = client.cluster
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+#: With ``engine="auto"``: sweeps of fewer runs than this are routed in this process (starting worker processes,
+#: importing and opening the weather in each, costs several seconds), larger ones in a local pool of one process
+#: per CPU this process may use (in this process when there is one CPU).
+AUTO_MIN_RUNS = 16
+
+
+def _cpus() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def auto_engine(n_runs: int, cpus: int | None = None) -> tuple[str, int | None]:
+    """The engine ``"auto"`` chooses for ``n_runs`` runs on ``cpus`` CPUs (default: this process's): ``("inline",
+    None)`` below :data:`AUTO_MIN_RUNS` runs or on one CPU, else ``("processes", cpus)``.
+
+    >>> auto_engine(10, 2), auto_engine(240, 2), auto_engine(240, 1)
+    (('inline', None), ('processes', 2), ('inline', None))
+    """
+    cpus = _cpus() if cpus is None else cpus
+    if n_runs < AUTO_MIN_RUNS or cpus < 2:
+        return "inline", None
+    return "processes", cpus
 
 
 def _engine_rows(
@@ -689,10 +800,13 @@ def _engine_rows(
     retries: int,
     timeout_s: float,
 ) -> Iterator[dict[str, Any]]:
+    if engine == "auto":
+        engine, chosen = auto_engine(len(todo))
+        workers = workers or chosen
     if engine == "inline":
         return _inline(todo)
     if engine == "processes":
-        return _processes(todo, workers or 2)
+        return _processes(todo, workers or 2, retries)
     return _dask(todo, scheduler, workers, retries, timeout_s)
 
 
@@ -732,7 +846,7 @@ def _check_run_options(runs: Any, out: Any, progress: Any, log: Any, flush_s: An
 def run_sweep(
     runs: Iterable[Run],
     *,
-    engine: str = "inline",
+    engine: str = "auto",
     workers: int | None = None,
     scheduler: str | None = None,
     out: str | Path | None = None,
@@ -749,11 +863,14 @@ def run_sweep(
     ----------
     runs : The runs (:class:`Run`; :func:`load_sweep` gives a specification's). Runs with the same key are routed
         once.
-    engine : ``"inline"`` (this process), ``"processes"`` (a local pool of ``workers`` processes, default 2) or
-        ``"dask"`` (``scheduler``'s cluster, else a ``LocalCluster`` of ``workers`` processes, default 1).
+    engine : ``"auto"`` (:func:`auto_engine`: inline below :data:`AUTO_MIN_RUNS` runs to route or on one CPU, else
+        processes, one per CPU or ``workers``), ``"inline"`` (this process), ``"processes"`` (a local pool of
+        ``workers`` processes, default 2) or ``"dask"`` (``scheduler``'s cluster, else a ``LocalCluster`` of
+        ``workers`` processes, default 1). The rows do not depend on the engine.
     out : Output folder: runs already recorded there are not routed again; each finished batch (``batch`` runs or
         ``flush_s`` seconds [s], whichever first) is written at once (see the module notes).
-    retries : How often dask runs a task again after an unexpected failure (a user error is never retried).
+    retries : How often a run is tried again after an internal error, and a task after its worker died (dask's
+        ``retries``; the process pool is restarted); a user error is never retried.
     progress : Show a progress bar (runs done, failed, rate) on stderr.
     log : Called with one line of news, e.g. ``"12 done, 228 to run"``.
     batch, flush_s : A part file is written every ``batch`` finished runs, or ``flush_s`` [s] after the last one.

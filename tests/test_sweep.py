@@ -209,6 +209,82 @@ def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(
     assert _comparable(read_runs(out)) == _comparable(uninterrupted[2])
 
 
+@pytest.mark.slow
+def test_a_killed_pool_worker_loses_no_run(ensemble, uninterrupted, tmp_path) -> None:
+    """SIGKILL one process of the local pool mid-sweep: the pool is restarted, the unfinished batches run again, and
+    the table equals the uninterrupted inline one, without an internal error."""
+    import psutil
+
+    spec_path = _spec(tmp_path, ensemble, BODY)
+    out = tmp_path / "pool"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--engine", "processes"]
+    sweep = subprocess.Popen(
+        [*cmd, "--workers", "2", "--out", str(out), "--batch", "1", "--quiet", "--json"],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while len(_parts(out)) < 1 and sweep.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        me = psutil.Process(sweep.pid)
+        workers = [p for p in me.children(recursive=True) if p.ppid() != sweep.pid]  # the forkserver's children
+        assert sweep.poll() is None and len(_parts(out)) < 12 and workers  # mid-sweep
+        workers[0].send_signal(signal.SIGKILL)
+        stdout, stderr = sweep.communicate(timeout=180)
+    finally:
+        sweep.kill()
+        sweep.wait()
+    assert sweep.returncode == 0, stderr
+    rows = json.loads(stdout)["runs"]
+    assert len(rows) == 12 and not any(r["message"].startswith("internal error") for r in rows)
+    assert _comparable(read_runs(out)) == _comparable(uninterrupted[2])
+
+
+def test_a_run_that_keeps_failing_is_retried_a_bounded_number_of_times(ensemble, monkeypatch) -> None:
+    """An internal error is tried ``retries`` more times in its worker, then is an internal-error row; a user
+    error is a row at once, never retried."""
+    import pyroute_rel.sweep as sweep_module
+
+    calls = []
+
+    def flaky(run, key=""):
+        calls.append(key)
+        if run.member == 0:
+            raise RuntimeError("a bug")
+        return {"key": key, "status": "error", "message": "user error"}
+
+    monkeypatch.setattr(sweep_module, "run_one", flaky)
+    monkeypatch.setattr(sweep_module, "_PINNED", [None])  # this test process keeps its threads
+    runs = [("a", Run(str(ensemble), member=0)), ("b", Run(str(ensemble), member=1))]
+    rows = sweep_module.run_batch(runs, retries=2)
+    assert calls == ["a", "a", "a", "b"]
+    assert rows[0]["message"] == "internal error: RuntimeError: a bug" and rows[0]["_internal"]
+    assert rows[1] == {"key": "b", "status": "error", "message": "user error"}
+
+
+def test_auto_engine_uses_the_cores_for_large_sweeps_only() -> None:
+    from pyroute_rel.sweep import AUTO_MIN_RUNS, auto_engine
+
+    assert auto_engine(AUTO_MIN_RUNS - 1, 8) == ("inline", None)
+    assert auto_engine(AUTO_MIN_RUNS, 8) == ("processes", 8)
+    assert auto_engine(10 * AUTO_MIN_RUNS, 1) == ("inline", None)
+
+
+def test_task_batches_group_members_and_cover_every_run_once() -> None:
+    from pyroute_rel.sweep import MAX_BATCH_RUNS, task_batches
+
+    todo = [(f"k{i}", Run("s.toml", member=i % 5, apf=float(i))) for i in range(103)]
+    for workers in (1, 2, 7, 200):
+        batches = task_batches(todo, workers)
+        flat = [k for b in batches for k, _ in b]
+        assert sorted(flat) == sorted(k for k, _ in todo)
+        assert max(len(b) for b in batches) <= MAX_BATCH_RUNS
+        assert len(batches) >= min(len(todo), 4 * workers) // MAX_BATCH_RUNS
+        members = [r.member for b in batches for _, r in b]
+        assert members == sorted(members)  # a member's runs are consecutive: batches share their weather
+
+
 @pytest.mark.parametrize(
     ("body", "expected"),
     [

@@ -61,13 +61,19 @@ def add_sweep_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], N
     s.add_argument("--plot", help="PNG to write the plot to (default: sweep.png in --out; none without --out)")
     s.add_argument(
         "--engine",
-        choices=("inline", "processes", "dask"),
-        help="where runs are routed: inline (this process; the default), processes (a local pool of --workers), "
-        "dask (--scheduler's cluster, or a LocalCluster of --workers; the default with either)",
+        choices=("auto", "inline", "processes", "dask"),
+        help="where runs are routed: auto (the default: this process below 16 runs to route or on one CPU, else "
+        "a local pool of one process per CPU), inline (this process), processes (a local pool of --workers), "
+        "dask (--scheduler's cluster, or a LocalCluster of --workers one thread each; the default with either)",
     )
     s.add_argument("--workers", type=int, help="worker processes (a dask LocalCluster unless --engine processes)")
     s.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="address of a running dask scheduler")
-    s.add_argument("--retries", type=int, default=2, help="dask runs a failed task again this often (default 2)")
+    s.add_argument(
+        "--retries",
+        type=int,
+        default=2,
+        help="a run with an internal error, or a task whose worker died, is tried again this often (default 2)",
+    )
     s.add_argument(
         "--batch",
         type=int,
@@ -106,7 +112,7 @@ def _spec_table(args: argparse.Namespace) -> tuple[dict[str, Any], Path, str]:
 def _engine(args: argparse.Namespace) -> str:
     if args.engine is not None:
         return str(args.engine)
-    return "dask" if args.scheduler is not None or args.workers is not None else "inline"
+    return "dask" if args.scheduler is not None or args.workers is not None else "auto"
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
