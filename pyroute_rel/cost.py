@@ -536,7 +536,10 @@ def _sample_and_cost(
     o, weather = options, options.weather
     wind = None
     if prepared is not None:
-        wanted = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ()) if timing else None
+        # pass 1 needs the wind, the current (and Hs for a wave loss); pass 2 also what the failure model judges
+        wanted: tuple[str, ...] = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ())
+        if not timing and o.failure is not None:
+            wanted += tuple(sorted(o.failure.weather_fields - set(wanted)))
         offset_h = None if time_h is None else np.where(np.isfinite(time_h), time_h, 0.0)
         cond = weather.sample_at(prepared, o.departure, offset_h=offset_h, fields=wanted)
         if o.wave_loss is None and not {"current_u_ms", "current_v_ms"} & weather.fields:

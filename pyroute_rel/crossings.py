@@ -157,7 +157,13 @@ def split_fractions(a_xyz: FloatArray, b_xyz: FloatArray, bounds: Boundaries | N
     >>> split_fractions(a, b, bounds).round(6).tolist()
     [[0.5]]
     """
-    omega, u = _frame(a_xyz, b_xyz)
+    return _split_fractions(a_xyz, b_xyz, bounds, *_frame(a_xyz, b_xyz))
+
+
+def _split_fractions(
+    a_xyz: FloatArray, b_xyz: FloatArray, bounds: Boundaries | None, omega: FloatArray, u: FloatArray
+) -> FloatArray:
+    """:func:`split_fractions` with the arcs' :func:`_frame` known."""
     lon0, lat0 = _lonlat(a_xyz)
     lon1, lat1 = _lonlat(b_xyz)
     parts = []
@@ -545,7 +551,7 @@ def arc_extremes(
     judge = _Judge(departure, weather, polar, failure, float(apf), beyond, speed_factor)
     bounds = getattr(weather, "boundaries", None)
     omega, u = _frame(a_xyz, b_xyz)
-    arc, s0, s1 = _pieces(split_fractions(a_xyz, b_xyz, bounds))
+    arc, s0, s1 = _pieces(_split_fractions(a_xyz, b_xyz, bounds, omega, u))
     r = np.array([NUDGE, 0.5, 1.0 - NUDGE])
     f = s0[:, None] + (s1 - s0)[:, None] * r
     t = None if weather.steady else _times(t0_h, time_h, arc, f)
