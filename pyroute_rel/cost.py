@@ -588,6 +588,12 @@ def _arc_totals(
     return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason, fired_bits=arc_fired)
 
 
+def _flag(mask: Any, reason: str) -> Any:
+    """``REASONS[reason]`` where ``mask`` is true, else 0, as uint8 (a view of the mask times the flag: no int64
+    temporary)."""
+    return np.asarray(mask, dtype=bool).view(np.uint8) * np.uint8(REASONS[reason])
+
+
 #: Conditions the timing pass of time-varying weather needs (with a wave speed loss, ``hs_m`` too).
 _TIMING_FIELDS = ("tws_kn", "twd_deg", "current_u_ms", "current_v_ms")
 
@@ -617,7 +623,7 @@ def _sample_costs(
         crab = steer(cond, course_deg, polar, beyond=beyond, speed_factor=1.0 if factor is None else factor)
         heading, twa, v, sog = crab.heading_deg, crab.twa_deg, crab.boat_speed_kn, crab.sog_kn
         cannot = ~crab.ok & np.isfinite(v) & (v > 0)  # the boat sails, but no heading holds the course
-        reason |= np.where(cannot, REASONS["current"], 0).astype(np.uint8)
+        reason |= _flag(cannot, "current")
     else:
         if wind is not None:
             twa, v = wind
@@ -628,13 +634,14 @@ def _sample_costs(
             v = v * factor
         sog = v
     sog = np.where(sog >= MIN_SPEED_KN, sog, np.where(np.isnan(sog), np.nan, 0.0))
-    v = np.where(v >= MIN_SPEED_KN, v, np.where(np.isnan(v), np.nan, 0.0))
+    # without a current the speed over ground is the boat speed: the same numbers, computed once
+    v = np.where(v >= MIN_SPEED_KN, v, np.where(np.isnan(v), np.nan, 0.0)) if current else sog
     missing = ~np.isfinite(cond.tws_kn) | ~np.isfinite(cond.twd_deg)
     if current:
         missing |= ~np.isfinite(cond.current_u_ms) | ~np.isfinite(cond.current_v_ms)
-    reason |= np.where(~missing & ~(v > 0), REASONS["polar"], 0).astype(np.uint8)
+    reason |= _flag(~missing & ~(v > 0), "polar")
     if current:
-        reason |= np.where(~missing & (v > 0) & ~(sog > 0), REASONS["current"], 0).astype(np.uint8)
+        reason |= _flag(~missing & (v > 0) & ~(sog > 0), "current")
     fired = None
     if failure is not None:
         # only what the model uses; TWA is already known
@@ -658,7 +665,7 @@ def _sample_costs(
                 fired = failure.fired_bits_flat.take(flat)
     else:
         p = np.zeros(course_deg.shape)
-    reason |= np.where(missing, REASONS["weather"], 0).astype(np.uint8)
+    reason |= _flag(missing, "weather")
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         dt = seg_nm / sog
     dt = np.where(reason != 0, np.inf, dt)
