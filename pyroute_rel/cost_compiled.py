@@ -95,11 +95,13 @@ def _wind_kernel(
     dt_out,
 ):  # type: ignore[no-untyped-def]  # pragma: no cover
     """One point at a time: fold TWA, bilinear polar, then ``seg / speed`` or ``inf`` (missing wind, no speed)
-    (:mod:`pyroute_rel.polar_compiled`), in the numpy path's order of operations; point ``k`` sails
-    ``seg[k // every]``."""
-    for k in range(tws.size):
-        a = fold_twa(twd[k], course[k])
-        twa_out[k] = a
-        v = speed_kn(a, tws[k], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
-        v_out[k] = v
-        dt_out[k] = sub_time(seg[k // every], v, tws[k], twd[k], min_speed)[0]
+    (:mod:`pyroute_rel.polar_compiled`), in the numpy path's order of operations; points ``i * every`` to
+    ``(i + 1) * every - 1`` sail ``seg[i]``."""
+    for i in range(tws.size // every):  # arc by arc (no division per point)
+        s = seg[i]
+        for k in range(i * every, (i + 1) * every):
+            a = fold_twa(twd[k], course[k])
+            twa_out[k] = a
+            v = speed_kn(a, tws[k], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
+            v_out[k] = v
+            dt_out[k] = sub_time(s, v, tws[k], twd[k], min_speed)[0]

@@ -184,15 +184,17 @@ def _meridian_crossings(a: FloatArray, u: FloatArray, omega: FloatArray, lon_deg
     """Fractions where arcs cross the meridians ``lon_deg`` (n, k) [deg] (NaN: none): the arc meets the meridian's
     plane, normal ``(-sin L, cos L, 0)``, at ``tan t = -(a.n) / (u.n)``, once in ``[0, pi)``."""
     lon = np.radians(lon_deg)
-    nx, ny = -np.sin(lon), np.cos(lon)
+    sin_lon, cos_lon = np.sin(lon), np.cos(lon)
+    nx, ny = -sin_lon, cos_lon
     an = a[:, 0:1] * nx + a[:, 1:2] * ny
     un = u[:, 0:1] * nx + u[:, 1:2] * ny
     t = np.arctan2(-an, un) % np.pi
     om = omega[:, None]
     # the crossing must be on the meridian's half, not its antimeridian
-    px = a[:, 0:1] * np.cos(t) + u[:, 0:1] * np.sin(t)
-    py = a[:, 1:2] * np.cos(t) + u[:, 1:2] * np.sin(t)
-    same = px * np.cos(lon) + py * np.sin(lon) > 0.0
+    cos_t, sin_t = np.cos(t), np.sin(t)
+    px = a[:, 0:1] * cos_t + u[:, 0:1] * sin_t
+    py = a[:, 1:2] * cos_t + u[:, 1:2] * sin_t
+    same = px * cos_lon + py * sin_lon > 0.0
     with np.errstate(invalid="ignore", divide="ignore"):
         f = t / om
     return np.where((t > 0.0) & (t < om) & same & np.isfinite(lon_deg), f, np.nan)
@@ -356,7 +358,9 @@ def _box_max(
     best = np.full(reach[0].shape[:-1], -np.inf)
     bits = np.zeros(best.shape, dtype=np.uint32)
     for flat, idx in enumerate(itertools.product(*(range(n) for n in shape))):
-        ok = np.logical_and.reduce([r[..., i] for r, i in zip(reach, idx, strict=True)])
+        ok = reach[0][..., idx[0]]
+        for r, i in zip(reach[1:], idx[1:], strict=True):  # pairwise: no stacked copy of the masks
+            ok = ok & r[..., i]
         p = float(p_flat[flat])
         np.maximum(best, np.where(ok, p, -np.inf), out=best)
         if p > apf:
