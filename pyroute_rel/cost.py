@@ -536,7 +536,10 @@ def _sample_and_cost(
     o, weather = options, options.weather
     wind = None
     if prepared is not None:
-        wanted = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ()) if timing else None
+        # pass 1 needs the wind, the current (and Hs for a wave loss); pass 2 also what the failure model judges
+        wanted: tuple[str, ...] = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ())
+        if not timing and o.failure is not None:
+            wanted += tuple(sorted(o.failure.weather_fields - set(wanted)))
         offset_h = None if time_h is None else np.where(np.isfinite(time_h), time_h, 0.0)
         cond = weather.sample_at(prepared, o.departure, offset_h=offset_h, fields=wanted)
         if o.wave_loss is None and not {"current_u_ms", "current_v_ms"} & weather.fields:
@@ -585,6 +588,12 @@ def _arc_totals(
     return ArcCosts(time_h=time_h, p_f=arc_p, reason=arc_reason, fired_bits=arc_fired)
 
 
+def _flag(mask: Any, reason: str) -> Any:
+    """``REASONS[reason]`` where ``mask`` is true, else 0, as uint8 (a view of the mask times the flag: no int64
+    temporary)."""
+    return np.asarray(mask, dtype=bool).view(np.uint8) * np.uint8(REASONS[reason])
+
+
 #: Conditions the timing pass of time-varying weather needs (with a wave speed loss, ``hs_m`` too).
 _TIMING_FIELDS = ("tws_kn", "twd_deg", "current_u_ms", "current_v_ms")
 
@@ -614,7 +623,7 @@ def _sample_costs(
         crab = steer(cond, course_deg, polar, beyond=beyond, speed_factor=1.0 if factor is None else factor)
         heading, twa, v, sog = crab.heading_deg, crab.twa_deg, crab.boat_speed_kn, crab.sog_kn
         cannot = ~crab.ok & np.isfinite(v) & (v > 0)  # the boat sails, but no heading holds the course
-        reason |= np.where(cannot, REASONS["current"], 0).astype(np.uint8)
+        reason |= _flag(cannot, "current")
     else:
         if wind is not None:
             twa, v = wind
@@ -625,13 +634,14 @@ def _sample_costs(
             v = v * factor
         sog = v
     sog = np.where(sog >= MIN_SPEED_KN, sog, np.where(np.isnan(sog), np.nan, 0.0))
-    v = np.where(v >= MIN_SPEED_KN, v, np.where(np.isnan(v), np.nan, 0.0))
+    # without a current the speed over ground is the boat speed: the same numbers, computed once
+    v = np.where(v >= MIN_SPEED_KN, v, np.where(np.isnan(v), np.nan, 0.0)) if current else sog
     missing = ~np.isfinite(cond.tws_kn) | ~np.isfinite(cond.twd_deg)
     if current:
         missing |= ~np.isfinite(cond.current_u_ms) | ~np.isfinite(cond.current_v_ms)
-    reason |= np.where(~missing & ~(v > 0), REASONS["polar"], 0).astype(np.uint8)
+    reason |= _flag(~missing & ~(v > 0), "polar")
     if current:
-        reason |= np.where(~missing & (v > 0) & ~(sog > 0), REASONS["current"], 0).astype(np.uint8)
+        reason |= _flag(~missing & (v > 0) & ~(sog > 0), "current")
     fired = None
     if failure is not None:
         # only what the model uses; TWA is already known
@@ -655,7 +665,7 @@ def _sample_costs(
                 fired = failure.fired_bits_flat.take(flat)
     else:
         p = np.zeros(course_deg.shape)
-    reason |= np.where(missing, REASONS["weather"], 0).astype(np.uint8)
+    reason |= _flag(missing, "weather")
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         dt = seg_nm / sog
     dt = np.where(reason != 0, np.inf, dt)

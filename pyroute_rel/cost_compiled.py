@@ -55,25 +55,53 @@ def sail_wind(
     """
     check_beyond(beyond)
     shape = np.broadcast_shapes(tws_kn.shape, twd_deg.shape, course_deg.shape, seg_nm.shape)
-    # contiguous, writable float64 everywhere: one compiled signature (a read-only array would be another)
-    flat = [
-        np.require(np.broadcast_to(a, shape), np.float64, ("C", "W")).reshape(-1)
-        for a in (tws_kn, twd_deg, course_deg, seg_nm)
-    ]
+    # contiguous, writable float64 everywhere (one compiled signature: a read-only array would be another); an
+    # input of the full shape is passed as it is when it already is that (no copy), and the sub-segment lengths
+    # of shape (..., 1) (one per arc, the geometry's) are passed once per arc, each used for ``every`` points
+    flat = [_flat(a, shape) for a in (tws_kn, twd_deg, course_deg)]
+    every = 1
+    if shape and seg_nm.shape == shape[:-1] + (1,) and shape[-1] > 1:
+        seg, every = np.require(seg_nm, np.float64, ("C", "W")).reshape(-1), shape[-1]
+    else:
+        seg = _flat(seg_nm, shape)
     twa, v, dt = (np.empty(flat[0].size) for _ in range(3))
-    _wind_kernel(*flat, *polar_compiled.tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)  # type: ignore[call-arg]
+    _wind_kernel(*flat, seg, every, *polar_compiled.tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)  # type: ignore[call-arg]
     return twa.reshape(shape), v.reshape(shape), dt.reshape(shape)
+
+
+def _flat(a: FloatArray, shape: tuple[int, ...]) -> FloatArray:
+    """``a`` broadcast to ``shape`` as a contiguous, writable float64 vector (copied only if it is not one)."""
+    if a.shape != shape:
+        a = np.broadcast_to(a, shape)  # read-only: np.require copies it
+    return np.require(a, np.float64, ("C", "W")).reshape(-1)
 
 
 @numba.njit(nogil=True, cache=True)
 def _wind_kernel(
-    tws, twd, course, seg, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed, twa_out, v_out, dt_out
+    tws,
+    twd,
+    course,
+    seg,
+    every,
+    twa_tab,
+    tws_tab,
+    speed_tab,
+    twa_inv,
+    tws_inv,
+    forbid,
+    min_speed,
+    twa_out,
+    v_out,
+    dt_out,
 ):  # type: ignore[no-untyped-def]  # pragma: no cover
     """One point at a time: fold TWA, bilinear polar, then ``seg / speed`` or ``inf`` (missing wind, no speed)
-    (:mod:`pyroute_rel.polar_compiled`), in the numpy path's order of operations."""
-    for k in range(tws.size):
-        a = fold_twa(twd[k], course[k])
-        twa_out[k] = a
-        v = speed_kn(a, tws[k], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
-        v_out[k] = v
-        dt_out[k] = sub_time(seg[k], v, tws[k], twd[k], min_speed)[0]
+    (:mod:`pyroute_rel.polar_compiled`), in the numpy path's order of operations; points ``i * every`` to
+    ``(i + 1) * every - 1`` sail ``seg[i]``."""
+    for i in range(tws.size // every):  # arc by arc (no division per point)
+        s = seg[i]
+        for k in range(i * every, (i + 1) * every):
+            a = fold_twa(twd[k], course[k])
+            twa_out[k] = a
+            v = speed_kn(a, tws[k], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
+            v_out[k] = v
+            dt_out[k] = sub_time(s, v, tws[k], twd[k], min_speed)[0]

@@ -157,7 +157,13 @@ def split_fractions(a_xyz: FloatArray, b_xyz: FloatArray, bounds: Boundaries | N
     >>> split_fractions(a, b, bounds).round(6).tolist()
     [[0.5]]
     """
-    omega, u = _frame(a_xyz, b_xyz)
+    return _split_fractions(a_xyz, b_xyz, bounds, *_frame(a_xyz, b_xyz))
+
+
+def _split_fractions(
+    a_xyz: FloatArray, b_xyz: FloatArray, bounds: Boundaries | None, omega: FloatArray, u: FloatArray
+) -> FloatArray:
+    """:func:`split_fractions` with the arcs' :func:`_frame` known."""
     lon0, lat0 = _lonlat(a_xyz)
     lon1, lat1 = _lonlat(b_xyz)
     parts = []
@@ -178,15 +184,17 @@ def _meridian_crossings(a: FloatArray, u: FloatArray, omega: FloatArray, lon_deg
     """Fractions where arcs cross the meridians ``lon_deg`` (n, k) [deg] (NaN: none): the arc meets the meridian's
     plane, normal ``(-sin L, cos L, 0)``, at ``tan t = -(a.n) / (u.n)``, once in ``[0, pi)``."""
     lon = np.radians(lon_deg)
-    nx, ny = -np.sin(lon), np.cos(lon)
+    sin_lon, cos_lon = np.sin(lon), np.cos(lon)
+    nx, ny = -sin_lon, cos_lon
     an = a[:, 0:1] * nx + a[:, 1:2] * ny
     un = u[:, 0:1] * nx + u[:, 1:2] * ny
     t = np.arctan2(-an, un) % np.pi
     om = omega[:, None]
     # the crossing must be on the meridian's half, not its antimeridian
-    px = a[:, 0:1] * np.cos(t) + u[:, 0:1] * np.sin(t)
-    py = a[:, 1:2] * np.cos(t) + u[:, 1:2] * np.sin(t)
-    same = px * np.cos(lon) + py * np.sin(lon) > 0.0
+    cos_t, sin_t = np.cos(t), np.sin(t)
+    px = a[:, 0:1] * cos_t + u[:, 0:1] * sin_t
+    py = a[:, 1:2] * cos_t + u[:, 1:2] * sin_t
+    same = px * cos_lon + py * sin_lon > 0.0
     with np.errstate(invalid="ignore", divide="ignore"):
         f = t / om
     return np.where((t > 0.0) & (t < om) & same & np.isfinite(lon_deg), f, np.nan)
@@ -223,17 +231,22 @@ def _pieces(fractions: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray, Fl
 def _points(
     a: FloatArray, u: FloatArray, omega: FloatArray, arc: npt.NDArray[np.intp], f: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Lon, lat [deg] and course [deg] at fractions ``f`` (shape (m, r)) of arcs ``arc`` (m,)."""
+    """Lon, lat [deg] and course [deg] at fractions ``f`` (shape (m, r)) of arcs ``arc`` (m,).
+
+    Component by component (numpy's arithmetic over a last axis of 3 costs more than the numbers), each the same
+    operations on the same values as the vector form ``p = a cos(t) + u sin(t)``, ``v = u cos(t) - a sin(t)``."""
     t = f * omega[arc][:, None]
-    c, s = np.cos(t)[..., None], np.sin(t)[..., None]
-    aa, uu = a[arc][:, None, :], u[arc][:, None, :]
-    p = aa * c + uu * s
-    v = uu * c - aa * s  # direction of travel
-    lon, lat = _lonlat(p)
+    c, s = np.cos(t), np.sin(t)
+    aa, uu = a[arc], u[arc]
+    ax, ay, az = (aa[:, i, None] for i in range(3))
+    ux, uy, uz = (uu[:, i, None] for i in range(3))
+    x, y, z = ax * c + ux * s, ay * c + uy * s, az * c + uz * s
+    vx, vy, vz = ux * c - ax * s, uy * c - ay * s, uz * c - az * s  # direction of travel
+    lon, lat = np.degrees(np.arctan2(y, x)), np.degrees(np.arcsin(np.clip(z, -1.0, 1.0)))
     lr = np.radians(lon)
-    east = -np.sin(lr) * v[..., 0] + np.cos(lr) * v[..., 1]
-    x, y, z = p[..., 0], p[..., 1], p[..., 2]
-    north = v[..., 2] * np.sqrt(x * x + y * y) - z * (np.cos(lr) * v[..., 0] + np.sin(lr) * v[..., 1])
+    sin_lr, cos_lr = np.sin(lr), np.cos(lr)
+    east = -sin_lr * vx + cos_lr * vy
+    north = vz * np.sqrt(x * x + y * y) - z * (cos_lr * vx + sin_lr * vy)
     return lon, lat, geodesy.bearing_deg(east, north)
 
 
@@ -256,7 +269,7 @@ def _quantities(judge: _Judge, lon: FloatArray, lat: FloatArray, course: FloatAr
     if w.steady or t_h is None:
         cond: Conditions = w.sample(lon, lat, judge.departure)
     else:
-        cond = w.sample(lon, lat, hours_after(judge.departure, t_h))
+        cond = _sample_fields(w, lon, lat, hours_after(judge.departure, t_h), judge.failure)
     heading = course
     if cond.has_current:
         factor = 1.0 if judge.speed_factor is None else judge.speed_factor(cond.hs_m)
@@ -270,6 +283,20 @@ def _quantities(judge: _Judge, lon: FloatArray, lat: FloatArray, course: FloatAr
             value = (value - heading + 180.0) % 360.0 - 180.0
         out[name] = (value, bool(relative))
     return out
+
+
+def _sample_fields(
+    weather: WeatherSource, lon: FloatArray, lat: FloatArray, time: npt.NDArray[np.datetime64], failure: FailureModel
+) -> Conditions:
+    """``weather.sample(lon, lat, time)``, with only the fields the failure model judges (and the current) where
+    the source can sample some fields alone (``sample_at``: the same numbers, fewer fields interpolated); every
+    field where there is a current (the crab heading needs the wind)."""
+    sample_at = getattr(weather, "sample_at", None)
+    if sample_at is None:
+        return weather.sample(lon, lat, time)
+    fields = {QUANTITY_FIELDS[name][0] for name in failure.quantities} | {"current_u_ms", "current_v_ms"}
+    cond: Conditions = sample_at(weather.prepare(lon, lat), time, fields=fields)  # type: ignore[attr-defined]
+    return weather.sample(lon, lat, time) if cond.has_current else cond
 
 
 def _ranges(values: FloatArray, relative: bool) -> tuple[FloatArray, FloatArray]:
@@ -331,7 +358,9 @@ def _box_max(
     best = np.full(reach[0].shape[:-1], -np.inf)
     bits = np.zeros(best.shape, dtype=np.uint32)
     for flat, idx in enumerate(itertools.product(*(range(n) for n in shape))):
-        ok = np.logical_and.reduce([r[..., i] for r, i in zip(reach, idx, strict=True)])
+        ok = reach[0][..., idx[0]]
+        for r, i in zip(reach[1:], idx[1:], strict=True):  # pairwise: no stacked copy of the masks
+            ok = ok & r[..., i]
         p = float(p_flat[flat])
         np.maximum(best, np.where(ok, p, -np.inf), out=best)
         if p > apf:
@@ -526,7 +555,7 @@ def arc_extremes(
     judge = _Judge(departure, weather, polar, failure, float(apf), beyond, speed_factor)
     bounds = getattr(weather, "boundaries", None)
     omega, u = _frame(a_xyz, b_xyz)
-    arc, s0, s1 = _pieces(split_fractions(a_xyz, b_xyz, bounds))
+    arc, s0, s1 = _pieces(_split_fractions(a_xyz, b_xyz, bounds, omega, u))
     r = np.array([NUDGE, 0.5, 1.0 - NUDGE])
     f = s0[:, None] + (s1 - s0)[:, None] * r
     t = None if weather.steady else _times(t0_h, time_h, arc, f)

@@ -319,3 +319,67 @@ def test_forbidden_arcs_are_exactly_those_that_enter_the_patch():
                 entering.add((k, int(d if k < grid.n_ranks else c), int(src[d, c])))
     assert len(listed) > 100
     assert listed == entering
+
+
+@pytest.mark.parametrize("current", [False, True])
+def test_pieces_sample_only_the_judged_fields_with_the_same_numbers(current):
+    """The pieces of time-varying gridded weather are sampled for the failure model's fields (and the current)
+    only: those fields equal ``weather.sample``'s at the same points and times, bit for bit; with a current every
+    field is sampled (the crab heading needs the wind)."""
+    xr = pytest.importorskip("xarray")
+    from pyroute_rel.crossings import _sample_fields
+    from pyroute_rel.weather.readers import weather_from_dataset
+
+    rng = np.random.default_rng(3)
+    lon, lat = np.arange(-20.0, -9.99, 0.5), np.arange(38.0, 47.01, 0.5)
+    time = DEPARTURE + np.arange(5) * np.timedelta64(6, "h")
+    dims = ("time", "latitude", "longitude")
+    shape = (time.size, lat.size, lon.size)
+    data = {
+        "u10": (dims, rng.normal(0.0, 6.0, shape), {"units": "m s**-1"}),
+        "v10": (dims, rng.normal(0.0, 6.0, shape), {"units": "m s**-1"}),
+        "swh": (dims, rng.uniform(0.5, 5.0, shape), {"units": "m"}),
+        "mwd": (dims, rng.uniform(0.0, 360.0, shape), {"units": "Degree true"}),
+    }
+    if current:
+        data["uo"] = (dims, rng.normal(0.0, 0.3, shape), {"units": "m s**-1"})
+        data["vo"] = (dims, rng.normal(0.0, 0.3, shape), {"units": "m s**-1"})
+    w = weather_from_dataset(xr.Dataset(data, coords={"time": time, "latitude": lat, "longitude": lon}))
+    plon, plat = rng.uniform(-19.9, -10.1, (50, 3)), rng.uniform(38.1, 46.9, (50, 3))
+    t = DEPARTURE + (rng.uniform(0.0, 23.0, (50, 3)) * 3.6e6).astype("timedelta64[ms]")
+    got = _sample_fields(w, plon, plat, t, MODEL)
+    want = w.sample(plon, plat, t)
+    assert want.has_current == current
+    names = ["hs_m", "wave_dir_deg", "current_u_ms", "current_v_ms"]
+    if current:
+        names += ["tws_kn", "twd_deg", "wave_period_s"]
+    for name in names:
+        np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+    if not current:  # the wind was not sampled
+        assert np.isnan(got.tws_kn).all()
+
+
+def test_piece_points_component_by_component_equal_the_vector_form():
+    """The pieces' points and courses, computed component by component, are the vector form's ``p = a cos(t) +
+    u sin(t)``, ``v = u cos(t) - a sin(t)`` (written out here) bit for bit, on arcs anywhere on the sphere."""
+    from pyroute_rel import geodesy
+    from pyroute_rel.crossings import _frame, _points
+
+    rng = np.random.default_rng(11)
+    n = 5000
+    a = geodesy.to_xyz(rng.uniform(-180, 180, n), rng.uniform(-89, 89, n))
+    b = geodesy.to_xyz(rng.uniform(-180, 180, n), rng.uniform(-89, 89, n))
+    omega, u = _frame(a, b)
+    arc = rng.integers(0, n, 8000)
+    f = rng.uniform(0.0, 1.0, (arc.size, 3))
+    t = f * omega[arc][:, None]
+    c, s = np.cos(t)[..., None], np.sin(t)[..., None]
+    p = a[arc][:, None, :] * c + u[arc][:, None, :] * s
+    v = u[arc][:, None, :] * c - a[arc][:, None, :] * s
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    lon, lat = np.degrees(np.arctan2(y, x)), np.degrees(np.arcsin(np.clip(z, -1.0, 1.0)))
+    lr = np.radians(lon)
+    east = -np.sin(lr) * v[..., 0] + np.cos(lr) * v[..., 1]
+    north = v[..., 2] * np.sqrt(x * x + y * y) - z * (np.cos(lr) * v[..., 0] + np.sin(lr) * v[..., 1])
+    for got, want in zip(_points(a, u, omega, arc, f), (lon, lat, geodesy.bearing_deg(east, north)), strict=True):
+        np.testing.assert_array_equal(got, want)

@@ -291,6 +291,36 @@ def test_compiled_wind_kernel_is_bit_identical_to_numpy(seed, polar_name, beyond
     np.testing.assert_array_equal(speed, boat_speed_kn(polar, twa, tws, beyond=beyond))
 
 
+@pytest.mark.parametrize("shape", [(7, 5, 4), (3, 1), (6,)])
+def test_compiled_wind_kernel_per_arc_lengths_equal_broadcast_ones(shape) -> None:
+    """Sub-segment lengths given once per arc (shape (..., 1), passed to the kernel without a copy) give the
+    numbers of the same lengths broadcast to every sample, and non-contiguous or read-only inputs those of
+    contiguous copies."""
+    from pyroute_rel.cost_compiled import sail_wind
+
+    polar = get_polar("maribot_vane")
+    rng = np.random.default_rng(7)
+    tws = rng.uniform(0.0, 30.0, shape)
+    twd = rng.uniform(0.0, 360.0, shape)
+    course = rng.uniform(0.0, 360.0, (2,) + shape)[1]  # a view of a bigger array
+    seg = rng.uniform(0.0, 40.0, shape[:-1] + (1,))
+    full = np.ascontiguousarray(np.broadcast_to(seg, shape))
+    got = sail_wind(tws, np.broadcast_to(twd, shape), course, seg, polar)
+    want = sail_wind(tws.copy(), twd.copy(), np.ascontiguousarray(course), full, polar)
+    for g, w in zip(got, want, strict=True):
+        assert g.shape == shape
+        np.testing.assert_array_equal(g, w)
+    # and the numpy kernel's times with the broadcast lengths
+    from pyroute_rel.cost import _sample_costs
+    from pyroute_rel.weather import Conditions
+
+    nan, zero = np.full(shape, np.nan), np.zeros(shape)
+    cond = Conditions(
+        tws_kn=tws, twd_deg=twd, hs_m=nan, wave_dir_deg=nan, wave_period_s=nan, current_u_ms=zero, current_v_ms=zero
+    )
+    np.testing.assert_array_equal(got[2], _sample_costs(cond, course, full, polar, None, 1.0, "clamp")[0])
+
+
 @pytest.mark.parametrize("current", [(0.0, 0.0), (0.4, -0.3)])
 @pytest.mark.parametrize("wave_loss", [None, WaveLoss(hs_m=(0.0, 2.0, 6.0), factor=(1.0, 0.9, 0.3))])
 def test_gridded_uniform_field_costs_like_the_uniform_source(current, wave_loss, monkeypatch) -> None:
