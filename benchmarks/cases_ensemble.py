@@ -105,8 +105,10 @@ sc = member_scenario(path, 0)
 track = np.column_stack([np.linspace(-14.0, -26.0, 161), np.linspace(31.0, 22.0, 161)])
 monte_carlo(sc, track, runs=10, seed=0)  # warm: the compiled kernels
 t, res = best_of(lambda: monte_carlo(sc, track, runs=1000, seed=0), n=3)
-print(json.dumps({"seconds": t, "runs": res.n_runs, "legs": 160, "mean_h": float(np.mean(res.voyage_time_h)),
-                  "peak_rss_mb": rss_mb()}))
+v = np.asarray(res.voyage_time_h)
+ok = np.isfinite(v)  # a run whose track meets p_f > apf (or no data) has no voyage time
+print(json.dumps({"seconds": t, "runs": res.n_runs, "legs": 160, "arriving": float(ok.mean()),
+                  "mean_h_arriving": float(v[ok].mean()) if ok.any() else None, "peak_rss_mb": rss_mb()}))
 """,
         1.0,
         "1000 Monte-Carlo runs of a 160-leg track over a time-varying gridded member (issue 19: under 1 s)",
