@@ -46,7 +46,7 @@ def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any
 def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
     """Write the planner's files (all or none); the names written."""
     from ..files import write_together
-    from ..outputs import to_csv, to_geojson, to_gpx
+    from ..outputs import OUTPUT_FILES, to_csv, to_geojson, to_gpx
     from ..plot import plot_route
 
     text = json.dumps(summary, indent=1)
@@ -64,7 +64,8 @@ def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
             }
         )
     write_together(out, writers, option="--out")
-    for name in set(PLANNER_FILES) - set(writers):  # from an earlier run whose track could be sailed: stale now
+    # from an earlier run whose track could be sailed, or a DP route's forbidden arcs: stale now
+    for name in (set(PLANNER_FILES) | set(OUTPUT_FILES)) - set(writers):
         (Path(out) / name).unlink(missing_ok=True)
     return [n for n in PLANNER_FILES if n in writers]
 
