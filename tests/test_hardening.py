@@ -883,3 +883,9 @@ def test_mean_of_no_member_files_is_refused(given: object, tmp_path: Path) -> No
     with pytest.raises(ScenarioError, match="member_files must be a list of one or more weather files"):
         mean_of_files(given, tmp_path / "mean.nc")  # type: ignore[arg-type]
     assert not (tmp_path / "mean.nc").exists()
+
+
+def test_ensemble_workers_error_names_the_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(["ensemble", str(EXAMPLE), "--workers", "0", "--quiet"], capsys)
+    assert code == 2 and out == ""
+    assert "--workers must be a whole number >= 1 (got 0)" in err and len(err.strip().splitlines()) == 1
