@@ -889,3 +889,25 @@ def test_ensemble_workers_error_names_the_option(tmp_path: Path, capsys: pytest.
     code, out, err = run(["ensemble", str(EXAMPLE), "--workers", "0", "--quiet"], capsys)
     assert code == 2 and out == ""
     assert "--workers must be a whole number >= 1 (got 0)" in err and len(err.strip().splitlines()) == 1
+
+
+def _strict_json(text: str) -> object:
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"not JSON: {constant}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+@pytest.mark.slow
+def test_tradeoff_json_is_strict_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The control course's fastest route meets p_f = 1 (hazard inf): printed and written as null, not Infinity."""
+    out = tmp_path / "t"
+    code, stdout, err = run(
+        ["tradeoff", str(EXAMPLE), "--n-ranks", "12", "--quiet", "--json", "--out", str(out)], capsys
+    )
+    assert code == 0, err
+    doc = _strict_json(stdout)
+    assert _strict_json((out / "tradeoff.json").read_text()) == doc
+    pf = [p["max_failure_probability"] for p in doc["front"]]  # type: ignore[index]
+    hazards = [p["hazard"] for p in doc["front"]]  # type: ignore[index]
+    assert 1.0 in pf and [h is None for h in hazards] == [x == 1.0 for x in pf]
