@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ScenarioError
+from .errors import ScenarioError, brief
 from .files import brief_path, read_regular_bytes
 from .scenario import SCENARIO_MAX_BYTES, Scenario, scenario_from_mapping
 
@@ -172,6 +172,8 @@ def mean_of_files(member_files: Sequence[str | Path], out: str | Path) -> Path:
     """
     import xarray as xr
 
+    if isinstance(member_files, str | Path) or not member_files:
+        raise ScenarioError(f"member_files must be a list of one or more weather files (got {brief(member_files)})")
     paths = [Path(f) for f in member_files]
     total: xr.Dataset | None = None
     ref: xr.Dataset | None = None

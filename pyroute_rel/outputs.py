@@ -40,6 +40,7 @@ __all__ = [
     "to_csv",
     "turning_points",
     "write_outputs",
+    "finite_or_null",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -345,7 +346,7 @@ def write_outputs(
     check_instance(route, Route, "route", OutputError)
     check_out_dir(out_dir, option="out_dir")
     plot = check_flag(plot, "plot", OutputError)
-    summary = _finite_or_null(route.summary())
+    summary = finite_or_null(route.summary())
     if extra is not None:
         check_instance(extra, Mapping, "extra", OutputError, expected="a dict of JSON values")
         for key, value in extra.items():
@@ -396,12 +397,12 @@ def _json_value(value: Any, where: str) -> Any:
     raise OutputError(f"{where} cannot be written to JSON (got {brief(value)}, a {type(value).__name__})")
 
 
-def _finite_or_null(value: Any) -> Any:
-    """The route's summary with every non-finite float as None (JSON null): NaN is not JSON."""
+def finite_or_null(value: Any) -> Any:
+    """A summary with every non-finite float as None (JSON null): NaN and infinity are not JSON."""
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {k: _finite_or_null(v) for k, v in value.items()}
+        return {k: finite_or_null(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_finite_or_null(v) for v in value]
+        return [finite_or_null(v) for v in value]
     return value

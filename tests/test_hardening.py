@@ -846,3 +846,68 @@ def test_departures_out_of_order_are_routed_in_the_order_given(capsys: pytest.Ca
     code, out, err = run([*_route(str(EXAMPLE)), "--departures", ",".join(given), "--json"], capsys)
     assert code == 0, err
     assert [row["departure"] for row in json.loads(out)["departures"]] == given
+
+
+# --------------------------------------------------------------------------------------------------
+# session 8 adversarial pass: Monte-Carlo options of `evaluate`, the mean of member files
+# --------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--speed-tau", "-3"], "--speed-tau set the Monte-Carlo runs: add --monte-carlo N"),  # ignored before
+        (["--kappa", "0.1", "--wind-sd", "2"], "--kappa, --wind-sd set the Monte-Carlo runs"),
+        (["--monte-carlo", "5", "--speed-tau", "nan"], "--speed-tau: Monte-Carlo tau_speed_h must be > 0 [h]"),
+        (["--monte-carlo", "5", "--speed-tau", "0"], "--speed-tau: Monte-Carlo tau_speed_h must be > 0 [h]"),
+        (["--monte-carlo", "5", "--wind-growth", "-1"], "--wind-growth: Monte-Carlo growth_ms_per_h must be"),
+        (["--monte-carlo", "0"], "--monte-carlo needs a whole number of runs >= 1 (got 0)"),
+    ],
+)
+def test_evaluate_monte_carlo_options_are_checked_first(
+    args: list[str], expected: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Refused before the scenario or the track is read (the track does not exist), naming the option; nothing
+    written to --out."""
+    out = tmp_path / "out"
+    code, stdout, err = run(["evaluate", str(EXAMPLE), str(tmp_path / "none.gpx"), *args, "--out", str(out)], capsys)
+    assert code == 2 and stdout == ""
+    assert expected in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("given", [[], (), "m0.nc"])
+def test_mean_of_no_member_files_is_refused(given: object, tmp_path: Path) -> None:
+    """An empty list was an AssertionError, a single name was read letter by letter ('m', '0', ...)."""
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.members import mean_of_files
+
+    with pytest.raises(ScenarioError, match="member_files must be a list of one or more weather files"):
+        mean_of_files(given, tmp_path / "mean.nc")  # type: ignore[arg-type]
+    assert not (tmp_path / "mean.nc").exists()
+
+
+def test_ensemble_workers_error_names_the_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(["ensemble", str(EXAMPLE), "--workers", "0", "--quiet"], capsys)
+    assert code == 2 and out == ""
+    assert "--workers must be a whole number >= 1 (got 0)" in err and len(err.strip().splitlines()) == 1
+
+
+def _strict_json(text: str) -> object:
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"not JSON: {constant}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+@pytest.mark.slow
+def test_tradeoff_json_is_strict_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The control course's fastest route meets p_f = 1 (hazard inf): printed and written as null, not Infinity."""
+    out = tmp_path / "t"
+    code, stdout, err = run(
+        ["tradeoff", str(EXAMPLE), "--n-ranks", "12", "--quiet", "--json", "--out", str(out)], capsys
+    )
+    assert code == 0, err
+    doc = _strict_json(stdout)
+    assert _strict_json((out / "tradeoff.json").read_text()) == doc
+    pf = [p["max_failure_probability"] for p in doc["front"]]  # type: ignore[index]
+    hazards = [p["hazard"] for p in doc["front"]]  # type: ignore[index]
+    assert 1.0 in pf and [h is None for h in hazards] == [x == 1.0 for x in pf]

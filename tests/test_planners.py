@@ -321,6 +321,44 @@ def test_planner_outputs_are_the_evaluators_track(kind, tmp_path, capsys):
     assert len(geo["features"]) >= 1
 
 
+def test_planner_out_into_a_dp_routes_folder_leaves_no_dp_file(tmp_path, capsys):
+    """A planner's files written over a DP route's: the DP's forbidden.geojson (arcs the DP found forbidden, which
+    says nothing of the planner's track) is removed, not left beside the planner's route."""
+    from pyroute_rel.cli import main
+    from pyroute_rel.outputs import OUTPUT_FILES
+
+    table = {**SMALL, "planner": {**TINY_LEARNERS, "kind": "qlearning"}}
+    (tmp_path / "s.toml").write_text(_toml(table))
+    out = tmp_path / "o"
+    assert main(["route", str(tmp_path / "s.toml"), "--planner", "dp", "--quiet", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(OUTPUT_FILES)
+    assert main(["route", str(tmp_path / "s.toml"), "--quiet", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in out.iterdir()) == sorted(PLANNER_FILES)
+    assert json.loads((out / "summary.json").read_text())["planner"] == "qlearning"
+
+
+@pytest.mark.slow
+def test_planner_summary_is_strict_json(tmp_path, capsys):
+    """A learner that does not reach the finish has model_voyage_time_h inf: printed and written as null."""
+    from pathlib import Path
+
+    from pyroute_rel.cli import main
+
+    def refuse(constant):
+        raise AssertionError(f"not JSON: {constant}")
+
+    control = Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml"
+    text = control.read_text() + '\n[planner]\nkind = "qlearning"\n[planner.qlearning]\nepisodes = 1\n'
+    (tmp_path / "s.toml").write_text(text)
+    args = ["route", str(tmp_path / "s.toml"), "--n-ranks", "12", "--quiet", "--json", "--out", str(tmp_path / "o")]
+    assert main(args) == 0
+    printed = json.loads(capsys.readouterr().out, parse_constant=refuse)
+    assert json.loads((tmp_path / "o" / "summary.json").read_text(), parse_constant=refuse)["planner"] == "qlearning"
+    stats = printed["planner_stats"]
+    assert not printed["reached"] and stats["model_voyage_time_h"] is None
+
+
 def _toml(table: dict) -> str:
     """A scenario table as TOML (the few value types SMALL and TINY_LEARNERS use)."""
 

@@ -60,6 +60,10 @@ def _cmd_ensemble(args: argparse.Namespace) -> int:
     from ..ensemble import parse_risk, route_ensemble
 
     risk = parse_risk(args.risk)  # before the work
+    if args.workers is not None and args.workers < 1:
+        from ..errors import ScenarioError
+
+        raise ScenarioError(f"--workers must be a whole number >= 1 (got {args.workers})")
     if args.out is not None:
         from ..files import check_out_dir
 

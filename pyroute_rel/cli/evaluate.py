@@ -65,6 +65,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from ..evaluate import evaluate_track, read_track
     from ..scenario import load_scenario
 
+    _check_monte_carlo_options(args)
     if args.out is not None:
         from ..files import check_out_dir
 
@@ -91,6 +92,35 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     else:
         print(_text(ev, summary))
     return EXIT_OK
+
+
+#: The Monte-Carlo options and the :class:`~pyroute_rel.monte_carlo.MonteCarloSettings` field each sets.
+MONTE_CARLO_OPTIONS = {
+    "kappa": ("--kappa", "kappa"),
+    "speed_tau": ("--speed-tau", "tau_speed_h"),
+    "polar_sd": ("--polar-sd", "polar_sd"),
+    "wind_sd": ("--wind-sd", "sigma0_ms"),
+    "wind_growth": ("--wind-growth", "growth_ms_per_h"),
+}
+
+
+def _check_monte_carlo_options(args: argparse.Namespace) -> None:
+    """Refuse, before any work, a Monte-Carlo option without ``--monte-carlo N`` (it would be silently ignored)
+    and a bad value, naming the option."""
+    from ..errors import ScenarioError
+    from ..monte_carlo import MonteCarloSettings
+
+    given = {k: v for k, v in MONTE_CARLO_OPTIONS.items() if getattr(args, k) is not None}
+    if args.monte_carlo is not None and args.monte_carlo < 1:
+        raise ScenarioError(f"--monte-carlo needs a whole number of runs >= 1 (got {args.monte_carlo})")
+    if given and args.monte_carlo is None:
+        names = ", ".join(option for option, _ in given.values())
+        raise ScenarioError(f"{names} set the Monte-Carlo runs: add --monte-carlo N (or leave them out)")
+    for key, (option, field) in given.items():
+        try:
+            MonteCarloSettings(**{field: getattr(args, key)})
+        except ScenarioError as exc:
+            raise ScenarioError(f"{option}: {exc}") from None
 
 
 def _member(text: str) -> int | str:

@@ -46,10 +46,10 @@ def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any
 def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
     """Write the planner's files (all or none); the names written."""
     from ..files import write_together
-    from ..outputs import to_csv, to_geojson, to_gpx
+    from ..outputs import OUTPUT_FILES, to_csv, to_geojson, to_gpx
     from ..plot import plot_route
 
-    text = json.dumps(summary, indent=1)
+    text = json.dumps(summary, indent=1, allow_nan=False)
     writers: dict[str, Callable[[Path], object]] = {
         "summary.json": lambda p: Path(p).write_text(text, encoding="utf-8")
     }
@@ -64,7 +64,8 @@ def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
             }
         )
     write_together(out, writers, option="--out")
-    for name in set(PLANNER_FILES) - set(writers):  # from an earlier run whose track could be sailed: stale now
+    # from an earlier run whose track could be sailed, or a DP route's forbidden arcs: stale now
+    for name in (set(PLANNER_FILES) | set(OUTPUT_FILES)) - set(writers):
         (Path(out) / name).unlink(missing_ok=True)
     return [n for n in PLANNER_FILES if n in writers]
 
@@ -72,6 +73,7 @@ def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
 def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> int:
     """Plan the scenario with ``args.planner`` (or its ``[planner].kind``), re-time the track, print and write it."""
     from ..files import check_out_dir
+    from ..outputs import finite_or_null
 
     kind = args.planner or scenario.planner.kind
     scenario = replace(scenario, planner=replace(scenario.planner, kind=kind))
@@ -84,6 +86,7 @@ def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> in
     planned, ev, route, summary = _planner_summary(scenario, kind, progress=not args.quiet)
     elapsed = time.perf_counter() - t0
     summary["runtime_s"] = elapsed
+    summary = finite_or_null(summary)  # e.g. planner_stats.model_voyage_time_h inf when not reached: not JSON
     written = _write(args.out, route, summary) if args.out is not None else []
     if args.json:
         print(json.dumps(summary))

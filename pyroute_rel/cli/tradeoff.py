@@ -62,6 +62,7 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
 
 def _cmd_tradeoff(args: argparse.Namespace) -> int:
     from ..files import check_out_dir, write_together
+    from ..outputs import finite_or_null
     from ..scenario import load_scenario
 
     t0 = time.perf_counter()
@@ -78,14 +79,17 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     doc = _document(result, args.front)
     doc["refine"] = args.refine
     doc["runtime_s"] = time.perf_counter() - t0
+    text = json.dumps(finite_or_null(doc), allow_nan=False)  # a hazard is inf where a leg meets p_f = 1: null
     if args.out is not None:
         figures = _figures(result, args.front)
         writers: dict[str, Callable[[Path], object]] = {
             name: (lambda p, f=fig: f.savefig(p, format="png")) for name, fig in figures.items()
         }
-        writers["tradeoff.json"] = lambda p: p.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+        writers["tradeoff.json"] = lambda p: p.write_text(
+            json.dumps(json.loads(text), indent=1) + "\n", encoding="utf-8"
+        )
         write_together(args.out, writers, option="--out")
-    print(json.dumps(doc) if args.json else _text(doc, args.out))
+    print(text if args.json else _text(doc, args.out))
     return 0
 
 
