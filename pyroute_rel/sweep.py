@@ -703,7 +703,8 @@ def _processes(todo: Sequence[tuple[str, Run]], workers: int, retries: int) -> I
     ctx = multiprocessing.get_context("forkserver")
     pending = {i: (b, 0) for i, b in enumerate(task_batches(todo, workers))}
     while pending:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_pin_threads) as pool:
+        n = min(workers, len(pending))  # never more processes than batches to run
+        with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_pin_threads) as pool:
             futures = {pool.submit(run_batch, b, retries): i for i, (b, _) in pending.items()}
             for fut in as_completed(futures):
                 i = futures[fut]
