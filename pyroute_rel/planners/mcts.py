@@ -366,6 +366,7 @@ def kernel_inputs(problem: PlanningProblem, s: MCTSSettings, lattice: Any) -> tu
     """The headings [deg], the polar tables and the scalar parameters (:data:`~.mcts_kernel.PARAMS`) of the
     compiled search of ``problem`` over ``lattice``."""
     from ..polar import MIN_SPEED_KN
+    from ..polar_compiled import tables as polar_tables
     from .mcts_kernel import PARAMS
 
     top, t_min, t_max = time_limits(problem, s)
@@ -392,8 +393,7 @@ def kernel_inputs(problem: PlanningProblem, s: MCTSSettings, lattice: Any) -> tu
         "perturbed": float(lattice.perturbed),
     }
     params = np.array([values[k] for k in PARAMS], dtype=np.float64)
-    tables = tuple(np.ascontiguousarray(t, dtype=np.float64) for t in (pol.twa_deg, pol.tws_kn, pol.speed_kn))
-    return np.arange(s.headings) * (360.0 / s.headings), tables, params
+    return np.arange(s.headings) * (360.0 / s.headings), polar_tables(pol), params
 
 
 def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progress: bool = False) -> PlannedTrack:
