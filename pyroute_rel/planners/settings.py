@@ -74,6 +74,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
@@ -87,6 +88,8 @@ __all__ = [
     "DQNSettings",
     "PlannerSettings",
     "parse_planner",
+    "check_fields",
+    "FINITE",
 ]
 
 #: The planners by name: the exact DP and the three sampled or learned planners.
@@ -99,15 +102,24 @@ MCTS_WEATHER = ("auto", "forecast", "members", "perturbed")
 MCTS_ENGINES = ("lattice", "python")
 
 
-def _number(value: Any, where: str, lo: float, hi: float, *, lo_open: bool = False) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(float(value))
+#: The largest finite float: the upper end of a range that refuses only the infinite.
+FINITE = sys.float_info.max
+
+
+def _number(value: Any, where: str, lo: float, hi: float, *, lo_open: bool = False, expected: str = "") -> float:
+    ok = not isinstance(value, bool) and isinstance(value, numbers.Real)
     if ok:
-        x = float(value)
-        ok = (x > lo if lo_open else x >= lo) and x <= hi
+        try:
+            x = float(value)
+        except OverflowError:  # a whole number beyond the floats
+            x = math.nan
+        ok = (x > lo if lo_open else x >= lo) and x <= hi  # False for NaN
     if not ok:
         bracket = "(" if lo_open else "["
-        raise ScenarioError(f"{where} must be a number in {bracket}{lo:g}, {hi:g}] (got {brief(value)})")
-    return float(value)
+        raise ScenarioError(
+            f"{where} must be {expected or f'a number in {bracket}{lo:g}, {hi:g}]'} (got {brief(value)})"
+        )
+    return x
 
 
 def _whole(value: Any, where: str, lo: int, hi: int) -> int:
@@ -116,24 +128,48 @@ def _whole(value: Any, where: str, lo: int, hi: int) -> int:
     return int(value)
 
 
-def _check(obj: Any, table: str, limits: Mapping[str, tuple[Any, ...]]) -> None:
-    """Check every field of a settings dataclass against ``limits`` (name -> (kind, lo, hi[, lo_open]))."""
+def check_fields(obj: Any, limits: Mapping[str, tuple[Any, ...]], *, where: str) -> None:
+    """Check the fields of a frozen settings dataclass, in the order of ``limits``, raising a one-line
+    :class:`~pyroute_rel.errors.ScenarioError` that names the first bad one as ``where + name``; numbers are stored
+    back as ``int`` or ``float``.
+
+    Parameters
+    ----------
+    obj : The settings (``object.__setattr__`` stores the checked values).
+    limits : Field name -> its rule: ``("int", lo, hi)`` a whole number in [lo, hi]; ``("float", lo, hi)`` a real
+        number in [lo, hi] (NaN never; ``hi = inf`` takes the infinite, :data:`FINITE` does not), with optional
+        ``lo_open`` (``(lo, hi]``) and the phrase of what is expected (default ``"a number in [lo, hi]"``);
+        ``("bool",)``; ``("choice", options)`` one of the strings ``options``; ``("str",)`` a file name.
+    where : What the message names a field with: ``"[planner.mcts]."`` gives ``"[planner.mcts].iterations"``.
+
+    Examples
+    --------
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class Noise:
+    ...     sd: float = 1.0
+    >>> check_fields(Noise(sd=-2), {"sd": ("float", 0.0, FINITE, False, "a finite number >= 0")}, where="Noise ")
+    Traceback (most recent call last):
+    ...
+    pyroute_rel.errors.ScenarioError: Noise sd must be a finite number >= 0 (got -2)
+    """
     for name, spec in limits.items():
         value = getattr(obj, name)
-        where = f"[planner.{table}].{name}"
+        at = f"{where}{name}"
         if spec[0] == "int":
-            object.__setattr__(obj, name, _whole(value, where, spec[1], spec[2]))
+            object.__setattr__(obj, name, _whole(value, at, spec[1], spec[2]))
         elif spec[0] == "float":
-            object.__setattr__(obj, name, _number(value, where, spec[1], spec[2], lo_open=len(spec) > 3))
+            lo_open, expected = (spec[3:] + (False, ""))[:2]
+            object.__setattr__(obj, name, _number(value, at, spec[1], spec[2], lo_open=lo_open, expected=expected))
         elif spec[0] == "bool":
             if not isinstance(value, bool):
-                raise ScenarioError(f"{where} must be true or false (got {brief(value)})")
+                raise ScenarioError(f"{at} must be true or false (got {brief(value)})")
         elif spec[0] == "choice":
             if not isinstance(value, str) or value not in spec[1]:
-                raise ScenarioError(f"{where} must be one of {list(spec[1])} (got {brief(value)})")
+                raise ScenarioError(f"{at} must be one of {list(spec[1])} (got {brief(value)})")
         elif spec[0] == "str":
             if not isinstance(value, str):
-                raise ScenarioError(f"{where} must be a file name (a string) (got {brief(value)})")
+                raise ScenarioError(f"{at} must be a file name (a string) (got {brief(value)})")
 
 
 @dataclass(frozen=True)
@@ -189,9 +225,8 @@ class MCTSSettings:
     lattice_h: float = 6.0
 
     def __post_init__(self) -> None:
-        _check(
+        check_fields(
             self,
-            "mcts",
             {
                 "iterations": ("int", 1, 10_000_000),
                 "exploration": ("float", 0.0, 100.0),
@@ -210,6 +245,7 @@ class MCTSSettings:
                 "lattice_deg": ("float", 0.01, 5.0),
                 "lattice_h": ("float", 0.1, 1000.0),
             },
+            where="[planner.mcts].",
         )
         if self.nogo_min_deg >= self.nogo_max_deg:
             raise ScenarioError(
@@ -257,9 +293,8 @@ class QLearningSettings:
     max_voyage_h: float = 0.0
 
     def __post_init__(self) -> None:
-        _check(
+        check_fields(
             self,
-            "qlearning",
             {
                 "space": ("choice", QLEARNING_SPACES),
                 "alpha": ("float", 0.0, 1.0, True),
@@ -273,6 +308,7 @@ class QLearningSettings:
                 "time_bucket_h": ("float", 0.0, 10_000.0, True),
                 "max_voyage_h": ("float", 0.0, 100_000.0),
             },
+            where="[planner.qlearning].",
         )
 
 
@@ -320,9 +356,8 @@ class DQNSettings:
     departure_spread_h: float = 72.0
 
     def __post_init__(self) -> None:
-        _check(
+        check_fields(
             self,
-            "dqn",
             {
                 "episodes": ("int", 1, 1_000_000),
                 "step_h": ("float", 0.0, 48.0, True),
@@ -340,6 +375,7 @@ class DQNSettings:
                 "model": ("str",),
                 "departure_spread_h": ("float", 0.0, 100_000.0),
             },
+            where="[planner.dqn].",
         )
         hidden = self.hidden
         if (
