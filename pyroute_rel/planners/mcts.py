@@ -312,11 +312,10 @@ class MCTSPlanner:
         problem.check_simple_course(self.name)
         s = self.settings or problem.settings.mcts
         seed = problem.settings.seed if self.seed is None else self.seed
+        problem.check_members(s.weather)
         if s.engine == "lattice" and not s.graph:
             return plan_lattice(problem, s, seed, progress=progress)
         mode = weather_mode(s, problem, engine="python")
-        if mode == "members" and not problem.members:
-            raise ScenarioError("[planner.mcts].weather = 'members' needs ensemble members (there are none)")
         if mode == "perturbed":
             raise ScenarioError("[planner.mcts].weather = 'perturbed' needs engine = 'lattice'")
         rng = np.random.default_rng(seed)

@@ -48,7 +48,7 @@ defaults.
     learning_rate = 0.001
     gamma = 0.99
     epsilon = 0.2
-    epsilon_final = 0.05 # exploration falls linearly to this over the training voyages
+    epsilon_final = 0.05 # exploration falls linearly to this (at most epsilon) over the training voyages
     batch = 64
     replay = 20000
     target_every = 200   # learning steps between copies of the Q-network into the target network
@@ -90,6 +90,7 @@ __all__ = [
     "parse_planner",
     "check_fields",
     "FINITE",
+    "unused_settings",
 ]
 
 #: The planners by name: the exact DP and the three sampled or learned planners.
@@ -326,8 +327,8 @@ class DQNSettings:
     learning_rate : Adam's step size [-].
     gamma : Discount factor [-].
     epsilon : Exploration rate of the first training voyage [-].
-    epsilon_final : Exploration rate of the last training voyage; it falls linearly from :attr:`epsilon` in
-        between (not in the paper; equal to ``epsilon`` for a constant rate) [-].
+    epsilon_final : Exploration rate of the last training voyage, at most :attr:`epsilon`; it falls linearly from
+        :attr:`epsilon` in between (not in the paper; equal to ``epsilon`` for a constant rate) [-].
     batch : Transitions per learning step [-].
     replay : Capacity of the experience replay [transitions].
     target_every : Learning steps between copies of the Q-network into the target network [-].
@@ -377,6 +378,11 @@ class DQNSettings:
             },
             where="[planner.dqn].",
         )
+        if self.epsilon_final > self.epsilon:
+            raise ScenarioError(
+                f"[planner.dqn].epsilon_final must be at most epsilon: exploration falls from epsilon to epsilon_final "
+                f"(got epsilon_final {self.epsilon_final:g} and epsilon {self.epsilon:g})"
+            )
         hidden = self.hidden
         if (
             isinstance(hidden, str | bytes)
@@ -421,6 +427,48 @@ class PlannerSettings:
 
 
 _TABLES = {"mcts": MCTSSettings, "qlearning": QLearningSettings, "dqn": DQNSettings}
+
+#: Settings of a planner's table that only some of its modes use: (table, setting, mode setting, the modes that use
+#: it). ``sigma_scale`` with ``weather = "auto"`` is not listed: "auto" is "perturbed" when there are members.
+MODE_SETTINGS = (
+    ("mcts", "lattice_deg", "engine", ("lattice",)),
+    ("mcts", "lattice_h", "engine", ("lattice",)),
+    ("mcts", "sigma_scale", "weather", ("perturbed", "auto")),
+    ("qlearning", "cell_nm", "space", ("cells",)),
+    ("qlearning", "cells_across", "space", ("cells",)),
+    ("qlearning", "time_passes", "time_costing", ("passes",)),
+    ("qlearning", "time_bucket_h", "time_costing", ("buckets",)),
+)
+
+
+def unused_settings(settings: PlannerSettings) -> list[str]:
+    """What the scenario's planner (``settings.kind``) will not use of its own table: each setting changed from its
+    default that the table's mode leaves unused (:data:`MODE_SETTINGS`; MCTS with ``graph = true`` searches with
+    the Python engine, so the lattice's settings too), one line each. The other planners' tables are not looked at
+    (a scenario may hold every planner's settings).
+
+    >>> unused_settings(parse_planner({"kind": "qlearning", "qlearning": {"cell_nm": 60.0}, "mcts": {"lattice_h": 3}}))
+    ["[planner.qlearning].cell_nm = 60.0 is not used: it applies to space = 'cells' (the table has space = 'graph')"]
+    """
+    kind = settings.kind
+    if kind not in _TABLES:
+        return []
+    table = getattr(settings, kind)
+    default = _TABLES[kind]()
+    out = []
+    for name, setting, mode, modes in MODE_SETTINGS:
+        if name != kind or getattr(table, setting) == getattr(default, setting):
+            continue
+        value = getattr(table, setting)
+        used = getattr(table, mode)
+        graph = mode == "engine" and table.graph  # the graph search is the Python engine's
+        if used not in modes or graph:
+            wanted = " or ".join(repr(m) for m in modes if m != "auto")
+            out.append(
+                f"[planner.{kind}].{setting} = {value!r} is not used: it applies to {mode} = {wanted} "
+                f"(the table has {'graph = true' if graph else f'{mode} = {used!r}'})"
+            )
+    return out
 
 
 def parse_planner(raw: Any) -> PlannerSettings:
