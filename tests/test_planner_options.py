@@ -18,10 +18,10 @@ from pathlib import Path
 import pytest
 
 from pyroute_rel import scenario_from_mapping
-from pyroute_rel.cli import main
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.planners.plan import plan
 from pyroute_rel.planners.settings import MODE_SETTINGS, parse_planner, unused_settings
+from tests.test_hardening import run
 
 COURSE = """[route]
 start = [-12.0, 45.0]
@@ -47,15 +47,6 @@ CHOICES = {
     "space": ("graph", "cells"),
     "time_costing": ("passes", "buckets"),
 }
-
-
-def run(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    try:
-        code = main(args)
-    except SystemExit as exc:  # argparse's usage errors
-        code = int(exc.code or 0)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def scenario_file(tmp_path: Path, planner: str = "") -> Path:
