@@ -188,7 +188,8 @@ def _add_route_parser(sub: Any) -> None:
         "--planner",
         choices=("dp", "mcts", "qlearning", "dqn"),
         help="who plans the track: dp (default, the exact DP), mcts, qlearning or dqn (overrides [planner].kind; "
-        "the evaluator re-times their tracks; --out then writes summary.json and track.csv)",
+        "the evaluator re-times their tracks; --out writes the same files from the re-timed track, without "
+        "forbidden.geojson; --departures, --refine and --prune are the DP's)",
     )
     r.add_argument(
         "--out",
