@@ -1,0 +1,186 @@
+"""Issue 18 acceptance, the parts tests/test_sweep.py does not reach: rows over grids (with a refinement), polars and
+failure models equal `pyroute-rel route --json` on the scenario file edited by hand; the progress bar counts the runs
+done and failed and shows the rate; `route --departures` routes through the sweep library; the printed table has a
+row per run."""
+
+from __future__ import annotations
+
+import functools
+import io
+import json
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+from pyroute_rel.cli.main import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: A fast scenario: steady wind, one wave patch that dickson2018 at apf 0.5 forbids (so the failure model matters).
+SCENARIO = """[route]
+start = [-12.0, 45.0]
+finish = [-20.0, 40.0]
+departure = "2018-06-01T00:00:00Z"
+
+[grid]
+n_ranks = 12
+
+[boat]
+polar = "maribot_vane"
+
+[avoid]
+land = false
+
+[weather]
+kind = "uniform"
+tws_kn = 15.0
+twd_deg = 0.0
+hs_m = 1.0
+
+[[weather.patch]]
+lon = [-17.0, -15.0]
+lat = [41.0, 44.0]
+hs_m = 4.5
+
+[failure]
+model = "dickson2018"
+apf = 0.5
+"""
+
+
+def _slow_polar(path: Path) -> Path:
+    """The shipped maribot_vane polar with every speed times 0.8, written as text (another boat)."""
+    rows = (ROOT / "examples" / "maribot_vane.pol").read_text().splitlines()
+    out = [rows[0]]
+    for line in rows[1:]:
+        cells = line.split("\t")
+        out.append("\t".join([cells[0], *(f"{0.8 * float(c):g}" for c in cells[1:])]))
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+def _edited(folder: Path, row: dict, polar_file: Path) -> Path:
+    """The scenario with the row's grid, polar and failure model written in by text (independently of the sweep)."""
+    grid = json.loads(row["grid"])
+    text = SCENARIO.replace("n_ranks = 12", "\n".join(f"{k} = {v}" for k, v in grid.items()))
+    if row["polar"] != "maribot_vane":
+        assert row["polar"] == str(polar_file)
+        text = text.replace('polar = "maribot_vane"', f'polar = "{polar_file.name}"')
+    text = text.replace('model = "dickson2018"', f'model = "{row["failure_model"]}"')
+    if row["failure_model"] == "none":
+        text = text.replace("apf = 0.5\n", "")
+    path = folder / f"edited_{row['key']}.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.slow
+def test_rows_over_grids_polars_and_failure_models_equal_single_routes(tmp_path: Path, capsys) -> None:
+    """8 runs (2 grids, one refined; 2 polars; 2 failure models): each row's voyage time within 1e-9 h of `route
+    --json` on the edited file, the same track point by point; and every dimension changes the result."""
+    from pyroute_rel.sweep import read_runs
+
+    (tmp_path / "s.toml").write_text(SCENARIO)
+    polar = _slow_polar(tmp_path / "slow.pol")
+    (tmp_path / "spec.toml").write_text(
+        '[sweep]\nscenario = "s.toml"\ngrids = [{n_ranks = 10}, {n_ranks = 14, refine = 1}]\n'
+        'polars = ["maribot_vane", "slow.pol"]\nfailure_models = ["dickson2018", "none"]\n'
+    )
+    out = tmp_path / "out"
+    assert main(["sweep", str(tmp_path / "spec.toml"), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    rows = read_runs(out).to_pylist()
+    assert len(rows) == 8 and {r["status"] for r in rows} == {"ok"}
+    assert "8 runs: 8 routed, 0 without a route" in printed
+    assert sum(1 for line in printed.splitlines() if " ok " in f" {line} ") == 8  # the table: a line per run
+    for row in rows:
+        code = main(["route", str(_edited(tmp_path, row, polar)), "--json", "--quiet"])
+        single_text, err = capsys.readouterr()
+        assert code == 0, err
+        single = json.loads(single_text)
+        assert abs(row["voyage_time_h"] - single["voyage_time_h"]) <= 1e-9
+        assert row["arrival"] == single["arrival"] and row["arcs"] == single["arcs"]["evaluated"]
+        assert row["max_failure_probability"] == single["max_failure_probability"]
+        if "refine" in single:
+            assert row["grid_voyage_time_h"] == single["refine"]["grid_voyage_time_h"]
+        else:
+            assert row["grid_voyage_time_h"] is None
+        track = json.loads((out / row["track"]).read_text())
+        assert track["geometry"]["coordinates"] == [[p["lon"], p["lat"]] for p in single["track"]]
+    for column, values in (("grid", 2), ("polar", 2), ("failure_model", 2)):
+        assert len({r[column] for r in rows}) == values
+        # two runs that differ in this setting alone route differently
+        for r in rows:
+            twins = [s for s in rows if s[column] != r[column] and all(
+                s[c] == r[c] for c in ("grid", "polar", "failure_model") if c != column)]  # fmt: skip
+            assert len(twins) == 1
+            if column != "failure_model" or r["polar"] == "maribot_vane":
+                assert twins[0]["voyage_time_h"] != r["voyage_time_h"] or twins[0]["track"] != r["track"], column
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.slow
+def test_progress_bar_shows_runs_done_failed_and_rate(tmp_path: Path, monkeypatch) -> None:
+    """On a terminal the sweep's bar counts the runs (n/total), the failed ones (a user error and a run without a
+    route) and the rate; quiet when not a terminal."""
+    from pyroute_rel.sweep import Run, run_sweep
+
+    (tmp_path / "s.toml").write_text(SCENARIO)
+    s = str(tmp_path / "s.toml")
+    stormy = SCENARIO.replace("lon = [-17.0, -15.0]\nlat = [41.0, 44.0]", "lon = [-13.0, -11.0]\nlat = [44.0, 46.0]")
+    (tmp_path / "stormy_start.toml").write_text(stormy)
+    runs = [
+        Run(s, polar=str(tmp_path / "missing.pol")),  # a user error: status error
+        Run(str(tmp_path / "stormy_start.toml")),  # 4.5 m waves at the start, apf 0.5: no route
+        Run(s, grid=(("n_ranks", 8),)),
+        Run(s, grid=(("n_ranks", 9),)),
+        Run(s, grid=(("n_ranks", 10),)),
+    ]
+    import tqdm as tqdm_package
+
+    # every update drawn (not only every 0.1 s), so that the last counts are on the stream however fast the runs
+    monkeypatch.setattr(tqdm_package, "tqdm", functools.partial(tqdm_package.tqdm, mininterval=0.0))
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    table = run_sweep(runs, progress=True)
+    statuses = table.column("status").to_pylist()
+    assert statuses[:2] == ["error", "no_route"] and statuses[2:] == ["ok"] * 3
+    text = term.getvalue()
+    assert "sweep" in text and "5/5" in text
+    assert re.search(r"failed 2", text), text
+    assert re.search(r"\d(\.\d+)?(run/s|s/run)", text), text
+    quiet = _Terminal()
+    monkeypatch.setattr(sys, "stderr", quiet)
+    run_sweep(runs[2:3], progress=False)
+    assert quiet.getvalue() == ""
+
+
+def test_route_departures_is_a_use_of_the_sweep_library(monkeypatch, capsys) -> None:
+    """`route --departures` routes each departure with pyroute_rel.sweep.run_one (one call per departure, the
+    departure and the command's options in the Run) and prints the sweep's figures."""
+    import pyroute_rel.sweep as sweep
+
+    calls: list[sweep.Run] = []
+    rows: list[dict] = []
+    real = sweep.run_one
+
+    def spy(run, key=""):
+        calls.append(run)
+        rows.append(real(run, key))
+        return rows[-1]
+
+    monkeypatch.setattr(sweep, "run_one", spy)
+    control = ROOT / "examples" / "microtransat_control.toml"
+    deps = ["2018-06-01T00:00:00Z", "2018-06-02T06:00:00Z"]
+    assert main(["route", str(control), "--n-ranks", "10", "--quiet", "--json", "--departures", ",".join(deps)]) == 0
+    printed = json.loads(capsys.readouterr().out)["departures"]
+    assert [c.departure for c in calls] == deps
+    assert all(dict(c.options).get("n_ranks") == 10 for c in calls)
+    assert [p["voyage_time_h"] for p in printed] == [r["voyage_time_h"] for r in rows]
+    assert [p["arrival"] for p in printed] == [r["arrival"] for r in rows]
