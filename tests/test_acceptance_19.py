@@ -125,7 +125,7 @@ def _with_member(path: Path, k: int) -> Path:
 
 
 @pytest.mark.slow
-def test_a_list_of_files_as_members(tmp_path: Path) -> None:
+def test_a_list_of_files_as_members(tmp_path: Path, capsys) -> None:
     """`--member-files`: member k's route is `route` on a scenario whose weather is file k alone; the regret entries
     recompute with `evaluate` in that scenario; the diagonal is zero."""
     make = load_example("make_ensemble_example")
@@ -155,6 +155,10 @@ def test_a_list_of_files_as_members(tmp_path: Path) -> None:
             if ev.feasible:
                 assert res.regret_h[i, j] == pytest.approx(ev.voyage_time_h - res.routes[j].voyage_time_h, abs=1e-9)
         assert res.regret_h[i, i] == pytest.approx(0.0, abs=1e-9)
+    argv = ["ensemble", str(scenario), "--member-files", *map(str, files), "--no-mean", "--workers", "1"]
+    assert main([*argv, "--risk", "worst", "--json", "--quiet"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    assert cli["time_h"] == res.time_h.tolist() and cli["chosen"]["name"] == res.names[res.chosen]
 
 
 @settings(max_examples=100, deadline=None)
@@ -303,3 +307,36 @@ def test_the_example_script_makes_a_20_member_ensemble_and_its_figures(tmp_path:
     best = np.flatnonzero(np.isclose(frac, frac.min(), rtol=0.0, atol=1e-12))
     assert s["chosen"]["name"] == s["candidates"][best[np.argmin(risk[best])]]["name"]
     assert s["chosen"]["risk"] == "cvar:0.9" and f"chosen: {s['chosen']['name']}" in run.stdout
+
+
+@pytest.mark.slow
+def test_evaluate_in_a_member_the_mean_and_monte_carlo_from_the_members_spread(tmp_path: Path, capsys) -> None:
+    """`evaluate --member K` sails member K's weather, `--member mean` the ensemble mean (as the library does on
+    the member's scenario); Monte Carlo with --member takes the wind error from the members' spread: identical
+    members and no boat noise give every run the deterministic time; members that differ give a spread."""
+    from pyroute_rel.members import mean_scenario, member_scenario
+
+    track = tmp_path / "t.csv"
+    lon, lat = np.linspace(-14.0, -22.0, 9), np.linspace(31.0, 25.0, 9)
+    track.write_text("lon,lat\n" + "".join(f"{a},{b}\n" for a, b in zip(lon, lat, strict=True)))
+    points = np.loadtxt(track, delimiter=",", skiprows=1)
+    (tmp_path / "same").mkdir()
+    (tmp_path / "wide").mkdir()
+    same = write_ensemble_scenario(tmp_path / "same", n_members=3, spread=0.0)
+    wide = write_ensemble_scenario(tmp_path / "wide", n_members=4, spread=1.0)
+    for member, scenario in ((2, member_scenario(wide, 2)), ("mean", mean_scenario(wide))):
+        assert main(["evaluate", str(wide), str(track), "--member", str(member), "--json"]) == 0
+        got = json.loads(capsys.readouterr().out)
+        ref = evaluate_track(scenario, points)
+        assert got["voyage_time_h"] == ref.voyage_time_h and got["arrival"] == str(ref.arrival)[:19] + "Z"
+    mc_args = ["--member", "1", "--monte-carlo", "40", "--seed", "2", "--kappa", "0", "--json"]
+    assert main(["evaluate", str(same), str(track), *mc_args]) == 0
+    got = json.loads(capsys.readouterr().out)
+    mc = got["monte_carlo"]
+    assert mc["settings"]["wind_spread"] == "ensemble members"
+    assert mc["arrival_h"]["p5"] == mc["arrival_h"]["worst"] == mc["deterministic_h"] == got["voyage_time_h"]
+    assert main(["evaluate", str(wide), str(track), *mc_args]) == 0
+    mc = json.loads(capsys.readouterr().out)["monte_carlo"]
+    spread = mc["arrival_h"]
+    assert mc["settings"]["wind_spread"] == "ensemble members" and spread["p50"] is not None
+    assert spread["p5"] < spread["p50"]
