@@ -220,3 +220,40 @@ def test_workers_alone_start_a_dask_local_cluster_with_the_inline_rows(tmp_path:
             k: v for k, v in row.items() if k not in ("runtime_s", "track")
         }
         assert (out / other["track"]).is_file()
+
+
+def test_a_runs_key_follows_every_file_it_reads(tmp_path: Path) -> None:
+    """Re-running skips a run only when nothing it reads changed: the key changes with the scenario file, a polar
+    file (the scenario's or the run's), a zones file and a failure-model file, and not when another file changes."""
+    import shutil
+
+    from pyroute_rel.sweep import Run, run_key
+
+    shutil.copy(ROOT / "failure_models" / "dickson2018.toml", tmp_path / "model.toml")
+    shutil.copy(ROOT / "failure_models" / "dickson2018.bif", tmp_path / "dickson2018.bif")
+    _slow_polar(tmp_path / "boat.pol")
+    _slow_polar(tmp_path / "other.pol")
+    zone = {"type": "Polygon", "coordinates": [[[-16, 41], [-15, 41], [-15, 42], [-16, 42], [-16, 41]]]}
+    (tmp_path / "zone.geojson").write_text(json.dumps({"type": "Feature", "geometry": zone, "properties": {}}))
+    text = SCENARIO.replace('polar = "maribot_vane"', 'polar = "boat.pol"').replace(
+        "land = false", 'land = false\nzones = ["zone.geojson"]'
+    )
+    text = text.replace('model = "dickson2018"', 'model = "model.toml"')
+    (tmp_path / "s.toml").write_text(text)
+    (tmp_path / "unrelated.txt").write_text("a")
+    run = Run(str(tmp_path / "s.toml"))
+    other_polar = Run(str(tmp_path / "s.toml"), polar=str(tmp_path / "other.pol"))
+    keys = [run_key(run), run_key(other_polar)]
+
+    def touch(name: str) -> None:
+        with open(tmp_path / name, "a") as fh:
+            fh.write("\n# edited\n" if name.endswith((".toml", ".pol")) else " ")
+
+    (tmp_path / "unrelated.txt").write_text("b")
+    assert [run_key(run), run_key(other_polar)] == keys
+    for name, changes in (("boat.pol", [True, False]), ("other.pol", [False, True]), ("zone.geojson", [True, True]),
+                          ("model.toml", [True, True]), ("s.toml", [True, True])):  # fmt: skip
+        touch(name)
+        now = [run_key(run), run_key(other_polar)]
+        assert [a != b for a, b in zip(now, keys, strict=True)] == changes, name
+        keys = now
