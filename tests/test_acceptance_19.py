@@ -361,3 +361,27 @@ def test_polar_scaling_divides_each_runs_time_by_its_factor() -> None:
     s = det / runs
     assert abs(s.mean() - 1.0) < 4.0 * 0.05 / math.sqrt(s.size)
     assert s.std(ddof=1) == pytest.approx(0.05, rel=0.05)
+
+
+@pytest.mark.slow
+def test_the_spread_of_the_monte_carlo_mean_shrinks_as_one_over_root_n() -> None:
+    """The rate itself: over 40 seeds, the variance of the N-run mean is sigma^2 / N, so its ratio between N = 25
+    and N = 400 is 16. The ratio of two sample variances of 40 values each has a log standard deviation of about
+    sqrt(2 * 2 / 39) = 0.32: the test allows 16 within a factor exp(3 * 0.32) = 2.6 (6.1 to 42, a 3-sigma band).
+    Draws shared between runs (a mean that does not converge) give a ratio near 1; draws shared between seeds give
+    variances near 0."""
+    from pyroute_rel import scenario_from_mapping
+    from pyroute_rel.monte_carlo import MonteCarloSettings, monte_carlo
+
+    sc = scenario_from_mapping({
+        "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0], "departure": "2018-06-01T00:00:00Z"},
+        "weather": {"kind": "uniform", "tws_kn": 15.0, "twd_deg": 0.0},
+        "avoid": {"land": False}, "failure": {"model": "none"},
+    })  # fmt: skip
+    track = np.column_stack([np.linspace(-12.0, -20.0, 21), np.linspace(45.0, 40.0, 21)])
+    noisy = MonteCarloSettings(sigma0_ms=2.0, growth_ms_per_h=0.0, kappa=0.2, polar_sd=0.025)
+    means = {n: [monte_carlo(sc, track, runs=n, seed=1000 * n + s, settings=noisy).voyage_time_h.mean()
+                 for s in range(40)] for n in (25, 400)}  # fmt: skip
+    assert all(np.isfinite(m).all() for m in means.values())
+    ratio = np.var(means[25], ddof=1) / np.var(means[400], ddof=1)
+    assert 16.0 / 2.6 < ratio < 16.0 * 2.6, ratio
