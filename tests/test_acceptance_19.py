@@ -385,3 +385,19 @@ def test_the_spread_of_the_monte_carlo_mean_shrinks_as_one_over_root_n() -> None
     assert all(np.isfinite(m).all() for m in means.values())
     ratio = np.var(means[25], ddof=1) / np.var(means[400], ddof=1)
     assert 16.0 / 2.6 < ratio < 16.0 * 2.6, ratio
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="open gap (reported): evaluate_track does not charge [boat] tack/gybe penalties, so re-timing a route "
+    "of a boat with manoeuvre penalties gives its time without them",
+)
+def test_retiming_a_route_with_manoeuvre_penalties_gives_its_figures(tmp_path: Path) -> None:
+    """Issue 19: re-timing a routed track gives the route's own figures, also for a boat whose tacks cost time (the
+    beat example, on a coarser grid: its route tacks)."""
+    text = (ROOT / "examples" / "microtransat_beat.toml").read_text().replace("n_ranks = 160", "n_ranks = 30")
+    (tmp_path / "beat.toml").write_text(text)
+    route = load_scenario(tmp_path / "beat.toml").route()
+    assert route.manoeuvres.tacks > 0 and route.manoeuvres.penalty_h.sum() > 0.0
+    ev = evaluate_track(load_scenario(tmp_path / "beat.toml"), np.column_stack([route.lon_deg, route.lat_deg]))
+    assert ev.voyage_time_h == pytest.approx(route.voyage_time_h, rel=1e-12)
