@@ -257,3 +257,25 @@ def test_a_runs_key_follows_every_file_it_reads(tmp_path: Path) -> None:
         now = [run_key(run), run_key(other_polar)]
         assert [a != b for a, b in zip(now, keys, strict=True)] == changes, name
         keys = now
+
+
+@pytest.mark.slow
+def test_departure_planning_from_a_scenario_alone_prints_the_table_and_plots(tmp_path: Path, capsys) -> None:
+    """`sweep SCENARIO --departures START,END,STEP_H --plot FILE`: a table row per departure (in order, each with
+    its voyage time) and the plot, its top panel drawing those voyage times against departure; nothing else
+    written."""
+    from matplotlib.image import imread
+
+    (tmp_path / "s.toml").write_text(SCENARIO)
+    plot = tmp_path / "plan.png"
+    argv = ["sweep", str(tmp_path / "s.toml"), "--departures", "2018-06-01T00:00Z,2018-06-01T12:00Z,6"]
+    assert main([*argv, "--plot", str(plot), "--quiet"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    rows = [line.split() for line in lines if line.startswith("2018-")]
+    assert [r[0] for r in rows] == ["2018-06-01T00:00:00Z", "2018-06-01T06:00:00Z", "2018-06-01T12:00:00Z"]
+    assert all(r[1] == "ok" and float(r[2]) > 0 for r in rows)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.png", "s.toml"]
+    assert imread(plot).shape[0] > 300
+    assert main([*argv, "--json", "--quiet"]) == 0
+    runs = json.loads(capsys.readouterr().out)["runs"]
+    assert [f"{r['voyage_time_h']:.2f}" for r in runs] == [r[2] for r in rows]
