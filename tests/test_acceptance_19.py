@@ -274,6 +274,7 @@ def test_monte_carlo_histogram_counts_the_runs_that_arrive() -> None:
     assert sum(b.get_height() for b in bars[0]) == 293  # every run that arrives, once
     assert sum(b.get_height() for b in bars[1]) == 33  # those meeting p_f > apf
     assert [ln.get_xdata()[0] for ln in ax.lines] == [198.0]
+    assert "293 of 300 runs arrived" in ax.get_legend_handles_labels()[1]  # the 7 that did not are said
     assert ax.get_xlabel() == "voyage time [h]"
 
 
