@@ -161,6 +161,7 @@ def test_progress_bar_shows_runs_done_failed_and_rate(tmp_path: Path, monkeypatc
     assert quiet.getvalue() == ""
 
 
+@pytest.mark.slow
 def test_route_departures_is_a_use_of_the_sweep_library(monkeypatch, capsys) -> None:
     """`route --departures` routes each departure with pyroute_rel.sweep.run_one (one call per departure, the
     departure and the command's options in the Run) and prints the sweep's figures."""
