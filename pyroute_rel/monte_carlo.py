@@ -390,11 +390,17 @@ def _sail_runs(
     scale: FloatArray,
     kappa: float,
 ) -> tuple[FloatArray, FloatArray]:
-    """Every run sailed leg after leg: (voyage time [h] per run, p_f per run and leg)."""
+    """Every run sailed leg after leg: (voyage time [h] per run, p_f per run and leg). A boat with manoeuvre
+    penalties is charged each tack and gybe as :func:`~pyroute_rel.evaluate.sail_tracks` charges it, the side of
+    each leg found in the run's wind."""
+    from .manoeuvre import charge_manoeuvres
+    from .solve import first_sample_wind
+
     runs, n_legs = eta.shape
     lon, lat = track.lon_deg, track.lat_deg
     elapsed = np.zeros(runs)
     p_f = np.full((runs, n_legs), np.nan)
+    side = np.full(runs, -1 if problem.initial_side is None else int(problem.initial_side), dtype=np.int8)
     for k in range(n_legs):
         go = np.isfinite(elapsed)
         if not go.any():
@@ -425,7 +431,13 @@ def _sail_runs(
         ratio = np.where(np.isfinite(ratio), np.maximum(ratio, 0.1), 1.0)
         t = t / ratio
         p_f[idx, k] = c.p_f
-        elapsed[idx] = problem.arrive(elapsed[idx] + t)
+        if not problem.sides:
+            elapsed[idx] = problem.arrive(elapsed[idx] + t)
+            continue
+        now, twa, tws = first_sample_wind(replace(problem, weather=weather), geom, elapsed[idx])  # type: ignore[arg-type]
+        _, pen = charge_manoeuvres(now, twa, tws, side[idx], problem.manoeuvres)
+        side[idx] = now
+        elapsed[idx] = problem.arrive((elapsed[idx] + t) + pen)
     return elapsed, p_f
 
 
