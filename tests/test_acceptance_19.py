@@ -388,11 +388,6 @@ def test_the_spread_of_the_monte_carlo_mean_shrinks_as_one_over_root_n() -> None
     assert 16.0 / 2.6 < ratio < 16.0 * 2.6, ratio
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="open gap (reported): evaluate_track does not charge [boat] tack/gybe penalties, so re-timing a route "
-    "of a boat with manoeuvre penalties gives its time without them",
-)
 def test_retiming_a_route_with_manoeuvre_penalties_gives_its_figures(tmp_path: Path) -> None:
     """Issue 19: re-timing a routed track gives the route's own figures, also for a boat whose tacks cost time (the
     beat example, on a coarser grid: its route tacks)."""

@@ -4,6 +4,7 @@ time-varying weather; Monte Carlo without noise equals it; every member's sailin
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 
@@ -140,3 +141,21 @@ def test_evaluate_json_reports_the_manoeuvres(beat, tmp_path: Path, capsys: pyte
     out = json.loads(capsys.readouterr().out)
     assert out["manoeuvres"]["tacks"] == route.manoeuvres.tacks
     assert out["voyage_time_h"] == route.voyage_time_h
+
+
+def test_evaluation_csv_has_the_route_csv_manoeuvre_columns(beat, tmp_path: Path) -> None:
+    """``evaluate --out`` writes the same side / manoeuvre / penalty columns as the route's ``route.csv``."""
+    import csv
+
+    from pyroute_rel.outputs import to_csv
+
+    sc, route = beat
+    track = tmp_path / "r.csv"
+    track.write_text(to_csv(route))
+    assert main(["evaluate", str(sc.source), str(track), "--out", str(tmp_path / "e"), "--quiet"]) == 0
+    got = list(csv.DictReader(io.StringIO((tmp_path / "e" / "evaluation.csv").read_text())))
+    want = list(csv.DictReader(io.StringIO(to_csv(route))))
+    assert len(got) == len(want)
+    for name in ("leg_side", "leg_manoeuvre", "leg_manoeuvre_h"):
+        assert [r[name] for r in got] == [r[name] for r in want], name
+    assert sum(r["leg_manoeuvre"] == "tack" for r in got) == route.manoeuvres.tacks > 0

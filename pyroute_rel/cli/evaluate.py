@@ -175,16 +175,20 @@ def _write(ev: Any, summary: dict[str, Any], out: str, mc: Any = None) -> None:
 
 def _csv(ev: Any) -> str:
     """One row per track point; leg columns describe the leg that starts at the point (as ``route.csv``)."""
+    from ..outputs import MANOEUVRE_FIELDS, manoeuvre_cells
     from ..route import LEG_FIELDS
     from ..times import iso_utc
 
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["index", "lon_deg", "lat_deg", "time_utc", "elapsed_h", *(f"leg_{k}" for k in LEG_FIELDS), "blocked"])
+    leg_columns = [f"leg_{k}" for k in (*LEG_FIELDS, *MANOEUVRE_FIELDS)]
+    w.writerow(["index", "lon_deg", "lat_deg", "time_utc", "elapsed_h", *leg_columns, "blocked"])
     n = ev.track.shape[0]
     for i in range(n):
         last = i == n - 1
         legs = ["" if last or not math.isfinite(ev.legs[k][i]) else f"{ev.legs[k][i]:.6g}" for k in LEG_FIELDS]
+        sailed = not last and math.isfinite(ev.elapsed_h[i + 1])
+        legs += manoeuvre_cells(ev.manoeuvres if sailed else None, i)
         t = ev.time[i]
         w.writerow(
             [
