@@ -1233,7 +1233,11 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
     failure_arcs = live & (reason & REASONS["failure"] != 0)
     if problem.failure is not None and failure_arcs.any():
         counts = _criteria_counts(grid, problem, k, t0, failure_arcs)
-        crit = ", ".join(f"{name} on {n} arcs" for name, n in counts.items() if n)
+        # the criteria are counted at the arcs' samples at their departure: an arc refused for conditions met
+        # later along it, or between samples, is counted without its criterion
+        crit = ", ".join(f"{name} on {n} arcs" for name, n in counts.items() if n) or (
+            f"on {int(failure_arcs.sum())} arcs, conditions met along them as sailed"
+        )
         parts.append(f"failure model {problem.failure.name!r} (p_f > apf {problem.apf:g}: {crit})")
     labels = {
         "polar": "no boat speed in the polar",

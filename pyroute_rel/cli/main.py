@@ -300,7 +300,7 @@ def _route(args: argparse.Namespace) -> int:
 
 def _departure_sweep(args: argparse.Namespace, options: dict[str, Any]) -> int:
     """Route one scenario for several departure times (planning): a table, or JSON with --json. A thin use of
-    :mod:`pyroute_rel.sweep` (one run per departure, in this process)."""
+    :mod:`pyroute_rel.sweep` (one run per departure, on the sweep's default engine: a process pool from 16 runs)."""
     from ..errors import NoFeasibleRouteError
     from ..scenario import parse_departure
     from ..sweep import Run, run_sweep
