@@ -62,7 +62,7 @@ from .polar import MIN_SPEED_KN, Polar, check_beyond
 from .progress import progress_bar
 from .times import hours_after
 from .units import KN_PER_MS
-from .weather import Conditions, WeatherSource
+from .weather import Conditions, UniformWeather, WeatherSource
 
 __all__ = [
     "DPResult",
@@ -946,20 +946,18 @@ def _compiled_step(
     rank_step`): the weather sampled here, at the arcs the step asks for (with pruning, only those it costs), the
     rest there. None when the weather turns out to have a current there (NaN included): the numpy path then costs
     the rank."""
-    from .dp_compiled import rank_step
+    from .dp_compiled import BoxWind, rank_step
 
     shape = valid.shape + (geom.samples,)
 
     def full(a: npt.NDArray[Any], to: tuple[int, ...]) -> npt.NDArray[Any]:  # no copy where it has the shape
         return a if a.shape == to else np.broadcast_to(a, to)
 
-    def wind(pick: npt.NDArray[np.intp] | None) -> tuple[FloatArray, FloatArray] | None:
-        lon, lat = full(geom.lon_deg, shape), full(geom.lat_deg, shape)
-        if pick is not None:  # the arcs' rows of (nodes * arcs, samples): a view where the geometry has the shape
-            lon, lat = (np.take(a.reshape(-1, shape[-1]), pick, axis=0) for a in (lon, lat))
-        cond = problem.weather.sample(lon, lat, problem.departure)
-        return None if cond.has_current else (cond.tws_kn, cond.twd_deg)
-
+    wind: Callable[[npt.NDArray[np.intp] | None], tuple[FloatArray, FloatArray] | None] | BoxWind
+    if type(problem.weather) is UniformWeather:  # its wind sampled in the kernel
+        wind = BoxWind(*problem.weather.wind_boxes(), full(geom.lon_deg, shape), full(geom.lat_deg, shape))
+    else:
+        wind = _sampler(problem, geom, shape)
     prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
     step = rank_step(
         wind, full(geom.course_deg, shape), full(geom.seg_nm[..., 0], valid.shape), t_prev, full(src, valid.shape),
@@ -975,6 +973,25 @@ def _compiled_step(
     tally.by_reason["weather"] += step.no_wind
     src_best = np.take_along_axis(src, step.j_best, axis=1)
     return step.t_best, src_best, np.asarray(prev_sides, dtype=np.intp)[step.c_best], None
+
+
+def _sampler(
+    problem: RoutingProblem, geom: ArcGeometry, shape: tuple[int, ...]
+) -> Callable[[npt.NDArray[np.intp] | None], tuple[FloatArray, FloatArray] | None]:
+    """:func:`_compiled_step`'s wind at the arcs ``pick`` (flat indices node * arcs + arc) or every arc (None),
+    sampled by the weather: None where it has a current."""
+
+    def full(a: npt.NDArray[Any], to: tuple[int, ...]) -> npt.NDArray[Any]:  # no copy where it has the shape
+        return a if a.shape == to else np.broadcast_to(a, to)
+
+    def wind(pick: npt.NDArray[np.intp] | None) -> tuple[FloatArray, FloatArray] | None:
+        lon, lat = full(geom.lon_deg, shape), full(geom.lat_deg, shape)
+        if pick is not None:  # the arcs' rows of (nodes * arcs, samples): a view where the geometry has the shape
+            lon, lat = (np.take(a.reshape(-1, shape[-1]), pick, axis=0) for a in (lon, lat))
+        cond = problem.weather.sample(lon, lat, problem.departure)
+        return None if cond.has_current else (cond.tws_kn, cond.twd_deg)
+
+    return wind
 
 
 def _tally_columns(tally: _Tally, cols: list[tuple[Any, ...]], failure: FailureModel | None) -> None:
