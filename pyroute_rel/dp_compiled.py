@@ -282,60 +282,97 @@ def _boxed_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     :func:`_rest_arcs` and :func:`_best_of_lists` do between samplings), the first earliest arrival kept.
     ``counts``: live, costed, forbidden, no speed, missing wind arcs (added to)."""
     n_dst, width = seg.shape
-    samples = course.shape[2]
     speeds, cols, ratio, amax = _columns(tws0, values, twa_tab, tws_tab, speed_tab, tws_inv, forbid)
     amin = twa_tab[0] if twa_tab[0] > 0.0 else -np.inf
-    low = np.empty(4)
-    idx = np.empty(4, dtype=np.intp)
     lower = np.empty(width)  # each arc's bound, NaN where not live or among the first four
-    rest = np.empty(width, dtype=np.intp)
+    t0s = np.empty(width)  # each arc's departure
+    pick = np.empty(width, dtype=np.intp)
     times = np.empty(width)
     flags = np.empty(width, dtype=np.uint8)
-    live = 0
+    tally = np.zeros(5, dtype=np.int64)
     for d in range(n_dst):
-        n = 0
-        for a in range(width):
-            lower[a] = np.nan
-            if not valid[d, a]:
-                continue
-            t0 = t_prev[src[d, a], 0]
-            if not np.isfinite(t0):
-                continue
-            live += 1
-            lw = t0 + seg[d, a] * samples / bound
-            lower[a] = lw
-            if n == 4 and not lw < low[3]:
-                continue
-            q = min(n, 3)
-            while q > 0 and lw < low[q - 1]:
-                if q < 4:
-                    low[q] = low[q - 1]
-                    idx[q] = idx[q - 1]
-                q -= 1
-            low[q] = lw
-            idx[q] = a
-            n = min(n + 1, 4)
-        # cost the picked arcs in a loop of their own (no branch between them: their latencies overlap), then
-        # keep the best
-        for q in range(n):
-            lower[idx[q]] = np.nan
-        _cost_boxed(idx, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
+        n = _bounds(t_prev, src, valid, seg, course.shape[2], bound, d, lower, t0s, pick)
+        tally[0] += n
+        n = _first_four(lower, n, pick)
+        for q in range(n):  # cost the picked arcs in a loop of their own (their latencies overlap), then compare
+            lower[pick[q]] = np.nan
+        _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
                     amin, amax, min_speed, times, flags)  # fmt: skip
-        best = np.inf
-        jb = 0
-        for q in range(n):
-            best, jb = _keep_best(t_prev, src, d, idx[q], times[q], flags[q], best, jb, counts)
+        best, jb = _best_picked(pick, n, t0s, times, flags, np.inf, 0, tally)
         m = 0
         for a in range(width):  # the rest are pruned against the best over the first four only (as the numpy path)
-            rest[m] = a
+            pick[m] = a
             m += lower[a] <= best
-        _cost_boxed(rest, m, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
+        _cost_boxed(pick, m, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
                     amin, amax, min_speed, times, flags)  # fmt: skip
-        for q in range(m):
-            best, jb = _keep_best(t_prev, src, d, rest[q], times[q], flags[q], best, jb, counts)
-        t_best[d, 0] = best
-        j_best[d, 0] = jb
-    counts[0] += live
+        t_best[d, 0], j_best[d, 0] = _best_picked(pick, m, t0s, times, flags, best, jb, tally)
+    counts += tally
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _bounds(t_prev, src, valid, seg, samples, bound, d, lower, t0s, live):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Node ``d``'s arcs: departure ``t0s`` and lower bound ``lower`` (``t0 + length / bound``; NaN where not live),
+    and the live ones in order in ``live``; returns their number."""
+    n = 0
+    for a in range(lower.size):
+        t0 = t_prev[src[d, a], 0] if valid[d, a] else np.nan
+        t0s[a] = t0
+        ok = np.isfinite(t0)
+        lower[a] = t0 + seg[d, a] * samples / bound if ok else np.nan
+        live[n] = a
+        n += ok
+    return n
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _first_four(lower, n, live):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The four of the ``n`` arcs ``live`` of smallest ``lower`` (ties: the first), in increasing order, into
+    ``live[:4]``; returns how many (fewer where fewer are live)."""
+    m = min(n, 4)
+    i0 = i1 = i2 = i3 = -1
+    l0 = l1 = l2 = l3 = np.inf
+    for q in range(n):
+        a = live[q]
+        lw = lower[a]
+        if q >= 4 and not lw < l3:
+            continue
+        if q < 4 or lw < l3:  # insert: shift the larger ones up
+            if q < 1 or lw < l0:
+                i0, i1, i2, i3 = a, i0, i1, i2
+                l0, l1, l2, l3 = lw, l0, l1, l2
+            elif q < 2 or lw < l1:
+                i1, i2, i3 = a, i1, i2
+                l1, l2, l3 = lw, l1, l2
+            elif q < 3 or lw < l2:
+                i2, i3 = a, i2
+                l2, l3 = lw, l2
+            else:
+                i3 = a
+                l3 = lw
+    for q, a in enumerate((i0, i1, i2, i3)):
+        if q < m:
+            live[q] = a
+    return m
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _best_picked(pick, n, t0s, times, flags, best, jb, tally):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The better of (``best``, ``jb``) and the earliest arrival ``t0s[a] + times[q]`` over the arcs ``a = pick[q]``
+    (``q < n``) that can be sailed (first of equal ones: lowest index), and the arcs counted into ``tally[1:]``
+    (costed, forbidden, no speed, missing wind)."""
+    for q in range(n):
+        f = flags[q]
+        tally[1] += 1
+        if f != 0:
+            tally[2] += 1
+            tally[3] += f & 1
+            tally[4] += (f >> 1) & 1
+        else:
+            a = pick[q]
+            tot = t0s[a] + times[q]
+            if tot < best or (tot == best and a < jb):
+                best, jb = tot, a
+    return best, jb
 
 
 def _pruned_step(  # type: ignore[no-untyped-def]
