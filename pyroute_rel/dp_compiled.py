@@ -84,7 +84,20 @@ class RankStep(NamedTuple):
 
 
 def _c(a: npt.ArrayLike, dtype: type = np.float64) -> npt.NDArray:
+    if isinstance(a, np.ndarray) and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable:
+        return a  # what np.require returns, without its cost (a rank asks for a dozen)
     return np.require(a, dtype, ("C", "W"))
+
+
+_TABLES: list[tuple[Polar, tuple[FloatArray, FloatArray, FloatArray, float, float]]] = []
+
+
+def _tables(polar: Polar) -> tuple[FloatArray, FloatArray, FloatArray, float, float]:
+    """:func:`~pyroute_rel.polar_compiled.tables` of the polar, kept for the last polar seen (the DP asks once per
+    rank; a :class:`~pyroute_rel.polar.Polar` does not change)."""
+    if not _TABLES or _TABLES[0][0] is not polar:
+        _TABLES[:] = [(polar, polar_compiled.tables(polar))]
+    return _TABLES[0][1]
 
 
 def rank_step(
@@ -131,7 +144,7 @@ def rank_step(
     """
     n_dst = seg_nm.shape[0]
     n_out = 1 if penalties is None else 2
-    tables = polar_compiled.tables(polar)
+    tables = _tables(polar)
     forbid = beyond == "forbid"
     course, seg, tp = _c(course_deg), _c(seg_nm), _c(t_prev)
     src, valid = _c(src, np.intp), _c(valid, np.bool_)
@@ -286,14 +299,14 @@ def _boxed_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     amin = twa_tab[0] if twa_tab[0] > 0.0 else -np.inf
     lower = np.empty(width)  # each arc's bound, NaN where not live or among the first four
     t0s = np.empty(width)  # each arc's departure
-    pick = np.empty(width, dtype=np.intp)
+    pick = np.empty(max(width, 4), dtype=np.intp)
     times = np.empty(width)
     flags = np.empty(width, dtype=np.uint8)
     tally = np.zeros(5, dtype=np.int64)
     for d in range(n_dst):
-        n = _bounds(t_prev, src, valid, seg, course.shape[2], bound, d, lower, t0s, pick)
-        tally[0] += n
-        n = _first_four(lower, n, pick)
+        live = _bounds(t_prev, src, valid, seg, course.shape[2], bound, d, lower, t0s, pick)
+        tally[0] += live
+        n = min(live, 4)
         for q in range(n):  # cost the picked arcs in a loop of their own (their latencies overlap), then compare
             lower[pick[q]] = np.nan
         _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
@@ -310,49 +323,36 @@ def _boxed_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
 
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
-def _bounds(t_prev, src, valid, seg, samples, bound, d, lower, t0s, live):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _bounds(t_prev, src, valid, seg, samples, bound, d, lower, t0s, first):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Node ``d``'s arcs: departure ``t0s`` and lower bound ``lower`` (``t0 + length / bound``; NaN where not live),
-    and the live ones in order in ``live``; returns their number."""
+    and the four live ones of smallest bound (ties: the first) in increasing order in ``first[:4]``; returns the
+    number of live arcs."""
     n = 0
+    i0 = i1 = i2 = i3 = -1
+    l0 = l1 = l2 = l3 = np.inf
     for a in range(lower.size):
         t0 = t_prev[src[d, a], 0] if valid[d, a] else np.nan
         t0s[a] = t0
         ok = np.isfinite(t0)
-        lower[a] = t0 + seg[d, a] * samples / bound if ok else np.nan
-        live[n] = a
+        lw = t0 + seg[d, a] * samples / bound if ok else np.nan
+        lower[a] = lw
         n += ok
-    return n
-
-
-@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
-def _first_four(lower, n, live):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """The four of the ``n`` arcs ``live`` of smallest ``lower`` (ties: the first), in increasing order, into
-    ``live[:4]``; returns how many (fewer where fewer are live)."""
-    m = min(n, 4)
-    i0 = i1 = i2 = i3 = -1
-    l0 = l1 = l2 = l3 = np.inf
-    for q in range(n):
-        a = live[q]
-        lw = lower[a]
-        if q >= 4 and not lw < l3:
-            continue
-        if q < 4 or lw < l3:  # insert: shift the larger ones up
-            if q < 1 or lw < l0:
+        if lw < l3:  # among the four so far (NaN never): insert it after the ones it does not beat
+            if lw < l0:
                 i0, i1, i2, i3 = a, i0, i1, i2
                 l0, l1, l2, l3 = lw, l0, l1, l2
-            elif q < 2 or lw < l1:
+            elif lw < l1:
                 i1, i2, i3 = a, i1, i2
                 l1, l2, l3 = lw, l1, l2
-            elif q < 3 or lw < l2:
+            elif lw < l2:
                 i2, i3 = a, i2
                 l2, l3 = lw, l2
             else:
                 i3 = a
                 l3 = lw
     for q, a in enumerate((i0, i1, i2, i3)):
-        if q < m:
-            live[q] = a
-    return m
+        first[q] = a
+    return n
 
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")

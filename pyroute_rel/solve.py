@@ -723,6 +723,9 @@ class _Pricing:
     cost_hook: Callable[[int, ArcCosts], None] | None
     memo: dict[int, tuple[ArcCosts, Any]] = field(default_factory=dict)
     compiled: bool = False
+    #: With the compiled step on uniform weather: its wind (:meth:`~pyroute_rel.weather.UniformWeather.wind_boxes`),
+    #: sampled in the kernel.
+    wind_boxes: tuple[float, float, FloatArray, FloatArray] | None = None
 
     @classmethod
     def of(
@@ -753,8 +756,14 @@ class _Pricing:
         )
         if compiled:  # the compiled step prunes side labels too (each label against its own best)
             prune = bound is not None and bound > 0.0
+        boxes = problem.weather.wind_boxes() if compiled and type(problem.weather) is UniformWeather else None
         return cls(
-            problem=problem, bound_kn=bound if prune else None, lazy=lazy, cost_hook=cost_hook, compiled=compiled
+            problem=problem,
+            bound_kn=bound if prune else None,
+            lazy=lazy,
+            cost_hook=cost_hook,
+            compiled=compiled,
+            wind_boxes=boxes,
         )
 
     def price(self, arcs: _RankArcs, t0: FloatArray, *, first: bool, from_side: int = -1) -> _Priced:
@@ -906,7 +915,7 @@ def _rank_step(
     src, valid = grid.pattern(k)
     geom = grid_geometry(grid, k, problem.samples)
     if pricing.compiled:
-        done = _compiled_step(problem, src, valid, geom, t_prev, prev_sides, pricing.bound_kn, tally)
+        done = _compiled_step(problem, src, valid, geom, t_prev, prev_sides, pricing, tally)
         if done is not None:
             return done
     cols = []
@@ -939,7 +948,7 @@ def _compiled_step(
     geom: ArcGeometry,
     t_prev: FloatArray,
     prev_sides: tuple[int, ...],
-    bound_kn: float | None,
+    pricing: _Pricing,
     tally: _Tally,
 ) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], None] | None:
     """:func:`_rank_step` of a steady wind-only problem in compiled code (:func:`pyroute_rel.dp_compiled.
@@ -954,10 +963,11 @@ def _compiled_step(
         return a if a.shape == to else np.broadcast_to(a, to)
 
     wind: Callable[[npt.NDArray[np.intp] | None], tuple[FloatArray, FloatArray] | None] | BoxWind
-    if type(problem.weather) is UniformWeather:  # its wind sampled in the kernel
-        wind = BoxWind(*problem.weather.wind_boxes(), full(geom.lon_deg, shape), full(geom.lat_deg, shape))
+    if pricing.wind_boxes is not None:  # uniform weather: its wind sampled in the kernel
+        wind = BoxWind(*pricing.wind_boxes, full(geom.lon_deg, shape), full(geom.lat_deg, shape))
     else:
         wind = _sampler(problem, geom, shape)
+    bound_kn = pricing.bound_kn
     prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
     step = rank_step(
         wind, full(geom.course_deg, shape), full(geom.seg_nm[..., 0], valid.shape), t_prev, full(src, valid.shape),
