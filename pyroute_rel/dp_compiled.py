@@ -10,12 +10,16 @@ see ``RoutingProblem.prune``), the arrival from each source label with the time 
 arrival at each label -- without a temporary array per step. Its results are bit-identical to the numpy path's
 (arrival times, back-pointers, labels, counts; property-tested).
 
-Two kernels share the per-arc arithmetic:
+Three ways through a rank share the per-arc arithmetic:
 
-- with one label per node and pruning (the paper's square grid), the weather is sampled only where an arc is costed,
-  as the numpy path's pruning does: the four arcs of smallest bound into each node first, then the arcs whose bound
-  does not exceed the best of them (on the square 160 x 160 grid 0.89 M of 4.07 M arcs), in three short kernels
-  between which the caller samples the wind at the picked arcs;
+- with one label per node and pruning (the paper's square grid) on uniform weather (a :class:`BoxWind`: one wind
+  everywhere but in patches), the whole rank is one compiled call, :func:`_boxed_rank`: per node the bounds of its
+  arcs, the four of smallest bound costed, then the arcs whose bound does not exceed the best of them (on the square
+  160 x 160 grid 0.89 M of 4.07 M arcs), the wind sampled in the kernel and the polar's interpolation along its
+  wind-speed axis done once per wind speed (the same arithmetic as
+  :func:`~pyroute_rel.polar_compiled.speed_kn`);
+- with pruning on other weather, the weather is sampled only where an arc is costed, as the numpy path's pruning
+  does, in three short kernels between which the caller samples the wind at the picked arcs;
 - otherwise (side labels, or no pruning) the wind is sampled at every arc and one kernel does the rank.
 
 Kernels take contiguous, writable arrays (one compiled signature each). numba is imported only by problems this
