@@ -10,12 +10,16 @@ see ``RoutingProblem.prune``), the arrival from each source label with the time 
 arrival at each label -- without a temporary array per step. Its results are bit-identical to the numpy path's
 (arrival times, back-pointers, labels, counts; property-tested).
 
-Two kernels share the per-arc arithmetic:
+Three ways through a rank share the per-arc arithmetic:
 
-- with one label per node and pruning (the paper's square grid), the weather is sampled only where an arc is costed,
-  as the numpy path's pruning does: the four arcs of smallest bound into each node first, then the arcs whose bound
-  does not exceed the best of them (on the square 160 x 160 grid 0.89 M of 4.07 M arcs), in three short kernels
-  between which the caller samples the wind at the picked arcs;
+- with one label per node and pruning (the paper's square grid) on uniform weather (a :class:`BoxWind`: one wind
+  everywhere but in patches), the whole rank is one compiled call, :func:`_boxed_rank`: per node the bounds of its
+  arcs, the four of smallest bound costed, then the arcs whose bound does not exceed the best of them (on the square
+  160 x 160 grid 0.89 M of 4.07 M arcs), the wind sampled in the kernel and the polar's interpolation along its
+  wind-speed axis done once per wind speed (the same arithmetic as
+  :func:`~pyroute_rel.polar_compiled.speed_kn`);
+- with pruning on other weather, the weather is sampled only where an arc is costed, as the numpy path's pruning
+  does, in three short kernels between which the caller samples the wind at the picked arcs;
 - otherwise (side labels, or no pruning) the wind is sampled at every arc and one kernel does the rank.
 
 Kernels take contiguous, writable arrays (one compiled signature each). numba is imported only by problems this
@@ -34,9 +38,9 @@ import numpy.typing as npt
 from . import polar_compiled
 from .manoeuvre import ManoeuvrePenalties
 from .polar import MIN_SPEED_KN, Polar
-from .polar_compiled import fold_twa, speed_kn, sub_time
+from .polar_compiled import cell, fold_twa, speed_kn, sub_time
 
-__all__ = ["RankStep", "rank_step"]
+__all__ = ["BoxWind", "RankStep", "rank_step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -44,6 +48,24 @@ IntArray = npt.NDArray[np.intp]
 #: ``node * arcs + arc``: shape (n, samples)) or of every arc (None: shape (nodes, arcs, samples)); None when the
 #: weather has a current there (the compiled step does not model it).
 WindSampler = Callable[[IntArray | None], tuple[FloatArray, FloatArray] | None]
+
+
+class BoxWind(NamedTuple):
+    """Wind that is one value everywhere but inside lon/lat boxes (a later box wins where two overlap), at the arcs'
+    sample points: :class:`~pyroute_rel.weather.uniform.UniformWeather`'s wind
+    (:meth:`~pyroute_rel.weather.uniform.UniformWeather.wind_boxes`), sampled in the kernel as the weather samples
+    it, value for value."""
+
+    #: The wind everywhere outside the boxes: speed [kn] and direction (from) [deg].
+    tws_kn: float
+    twd_deg: float
+    #: Rows ``(lon_min, lon_max, lat_min, lat_max)`` [deg] of the boxes (closed), shape (boxes, 4).
+    boxes: FloatArray
+    #: The speed [kn] and direction [deg] inside each box (NaN: the box leaves it as it is), shape (boxes, 2).
+    values: FloatArray
+    #: The arcs' sample points [deg], shape (nodes, arcs, samples) (the geometry's ``lon_deg``, ``lat_deg``).
+    lon_deg: FloatArray
+    lat_deg: FloatArray
 
 
 class RankStep(NamedTuple):
@@ -66,11 +88,24 @@ class RankStep(NamedTuple):
 
 
 def _c(a: npt.ArrayLike, dtype: type = np.float64) -> npt.NDArray:
+    if isinstance(a, np.ndarray) and a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable:
+        return a  # what np.require returns, without its cost (a rank asks for a dozen)
     return np.require(a, dtype, ("C", "W"))
 
 
+_TABLES: list[tuple[Polar, tuple[FloatArray, FloatArray, FloatArray, float, float]]] = []
+
+
+def _tables(polar: Polar) -> tuple[FloatArray, FloatArray, FloatArray, float, float]:
+    """:func:`~pyroute_rel.polar_compiled.tables` of the polar, kept for the last polar seen (the DP asks once per
+    rank; a :class:`~pyroute_rel.polar.Polar` does not change)."""
+    if not _TABLES or _TABLES[0][0] is not polar:
+        _TABLES[:] = [(polar, polar_compiled.tables(polar))]
+    return _TABLES[0][1]
+
+
 def rank_step(
-    wind: WindSampler,
+    wind: WindSampler | BoxWind,
     course_deg: FloatArray,
     seg_nm: FloatArray,
     t_prev: FloatArray,
@@ -88,7 +123,8 @@ def rank_step(
     Parameters
     ----------
     wind : Samples the wind at the arcs (:data:`WindSampler`): at the arcs costed only, when pruning one label per
-        node; else at every arc.
+        node; else at every arc. Or a :class:`BoxWind`, sampled in compiled code (with pruning and one label per
+        node, the whole rank is one compiled call).
     course_deg : Great-circle course at the arcs' samples [deg], shape (nodes, arcs, samples).
     seg_nm : Sub-segment length of each arc [nm], shape (nodes, arcs) (the geometry's ``seg_nm[..., 0]``).
     t_prev : Arrival at each label of the previous rank [h] (inf: not reached), shape (source nodes, source labels).
@@ -112,7 +148,7 @@ def rank_step(
     """
     n_dst = seg_nm.shape[0]
     n_out = 1 if penalties is None else 2
-    tables = polar_compiled.tables(polar)
+    tables = _tables(polar)
     forbid = beyond == "forbid"
     course, seg, tp = _c(course_deg), _c(seg_nm), _c(t_prev)
     src, valid = _c(src, np.intp), _c(valid, np.bool_)
@@ -120,11 +156,19 @@ def rank_step(
     j_best = np.empty((n_dst, n_out), dtype=np.intp)
     c_best = np.zeros((n_dst, n_out), dtype=np.intp)
     counts = np.zeros(5, dtype=np.int64)
-    if n_out == 1 and tp.shape[1] == 1 and bound_kn is not None:
+    boxed = isinstance(wind, BoxWind)
+    if n_out == 1 and tp.shape[1] == 1 and bound_kn is not None and boxed:
+        assert isinstance(wind, BoxWind)
+        _boxed_rank(  # type: ignore[call-arg]
+            tp, src, valid, seg, course, _c(wind.lon_deg), _c(wind.lat_deg), float(bound_kn), wind.tws_kn,
+            wind.twd_deg, wind.boxes, wind.values, *tables, forbid, MIN_SPEED_KN, t_best, j_best, counts,
+        )  # fmt: skip
+    elif n_out == 1 and tp.shape[1] == 1 and bound_kn is not None:
+        assert not isinstance(wind, BoxWind)
         if not _pruned_step(wind, course, seg, tp, src, valid, tables, forbid, float(bound_kn), t_best, j_best, counts):
             return None
     else:
-        sampled = wind(None)
+        sampled = _box_sampled(wind, course.shape) if isinstance(wind, BoxWind) else wind(None)
         if sampled is None:
             return None
         tws, twd = (_c(a).reshape(-1, course.shape[2]) for a in sampled)
@@ -138,6 +182,201 @@ def rank_step(
             t_best, j_best, c_best, counts,
         )  # fmt: skip
     return RankStep(t_best, j_best, c_best, *(int(n) for n in counts))
+
+
+def _box_sampled(wind: BoxWind, shape: tuple[int, ...]) -> tuple[FloatArray, FloatArray]:
+    """The wind of a :class:`BoxWind` at every sample point, shape ``shape`` (nodes, arcs, samples)."""
+    lon = _c(np.broadcast_to(wind.lon_deg, shape))
+    lat = _c(np.broadcast_to(wind.lat_deg, shape))
+    tws, twd = np.empty(shape), np.empty(shape)
+    _box_wind_all(lon.reshape(-1), lat.reshape(-1), wind.tws_kn, wind.twd_deg, wind.boxes, wind.values,
+                  tws.reshape(-1), twd.reshape(-1))  # fmt: skip
+    return tws, twd
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _box_wind(lon, lat, tws, twd, boxes, values):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The wind at one point: ``tws``, ``twd`` overridden by each box holding the point (closed; in order) that
+    sets them (not NaN), as :meth:`~pyroute_rel.weather.uniform.UniformWeather.sample` does."""
+    for p in range(boxes.shape[0]):
+        if lon >= boxes[p, 0] and lon <= boxes[p, 1] and lat >= boxes[p, 2] and lat <= boxes[p, 3]:
+            if values[p, 0] == values[p, 0]:
+                tws = values[p, 0]
+            if values[p, 1] == values[p, 1]:
+                twd = values[p, 1]
+    return tws, twd
+
+
+@numba.njit(nogil=True, cache=True)
+def _box_wind_all(lon, lat, tws0, twd0, boxes, values, tws, twd):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`_box_wind` at every point of the flat arrays ``lon``, ``lat``, into ``tws``, ``twd``."""
+    for i in range(lon.size):
+        tws[i], twd[i] = _box_wind(lon[i], lat[i], tws0, twd0, boxes, values)
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _columns(tws0, values, twa_tab, tws_tab, speed_tab, tws_inv, forbid):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """What :func:`~pyroute_rel.polar_compiled.speed_kn` computes from the wind speed alone, for each speed a
+    :class:`BoxWind` has (row 0: ``tws0``, row p + 1: box p's, or ``tws0`` where it sets none): the table
+    interpolated along its TWS axis (a speed per TWA row [kn], ``speed_kn``'s arithmetic), the factor below the
+    first column (1 where it does not apply: ``v * 1.0`` is ``v``) and the largest TWA sailed (the last row with
+    ``forbid``, -inf where ``forbid`` and the speed is beyond the last column, else inf)."""
+    n = values.shape[0] + 1
+    n_tws = tws_tab.size
+    speeds = np.empty(n)
+    cols = np.empty((n, twa_tab.size))
+    ratio = np.ones(n)
+    amax = np.full(n, np.inf)
+    for k in range(n):
+        w = tws0 if k == 0 or values[k - 1, 0] != values[k - 1, 0] else values[k - 1, 0]
+        speeds[k] = w
+        j = cell(w, tws_tab, tws_inv)
+        fw = (w - tws_tab[j]) / (tws_tab[j + 1] - tws_tab[j])
+        fw = min(max(fw, 0.0), 1.0)
+        gw = 1.0 - fw
+        for r in range(twa_tab.size):
+            c = r * n_tws + j
+            cols[k, r] = speed_tab[c] * gw + speed_tab[c + 1] * fw
+        if tws_tab[0] > 0.0 and w < tws_tab[0]:
+            ratio[k] = w / tws_tab[0]
+        if forbid:
+            amax[k] = -np.inf if w > tws_tab[n_tws - 1] else twa_tab[twa_tab.size - 1]
+    return speeds, cols, ratio, amax
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _boxed_time(d, a, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio, amin,
+                amax, min_speed):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+    """:func:`_arc_time` of arc (d, a) with the wind of a :class:`BoxWind` at its samples, from :func:`_columns`
+    (``amin``: the smallest TWA sailed, -inf where the table's first row is at 0 deg): the same numbers as
+    :func:`~pyroute_rel.polar_compiled.speed_kn` (where it gives NaN or 0 this gives NaN or 0, both below
+    ``min_speed``), the TWS part computed once per wind speed. The speeds of a :class:`BoxWind` are finite."""
+    total = 0.0
+    flags = 0
+    for s in range(course.shape[2]):
+        k = 0
+        wd = twd0
+        for p in range(boxes.shape[0]):  # _box_wind, the speed as the row of ``cols``
+            if lon[d, a, s] >= boxes[p, 0] and lon[d, a, s] <= boxes[p, 1]:
+                if lat[d, a, s] >= boxes[p, 2] and lat[d, a, s] <= boxes[p, 3]:
+                    if values[p, 0] == values[p, 0]:
+                        k = p + 1
+                    if values[p, 1] == values[p, 1]:
+                        wd = values[p, 1]
+        ang = fold_twa(wd, course[d, a, s])
+        i = cell(ang, twa_tab, twa_inv)
+        fa = (ang - twa_tab[i]) / (twa_tab[i + 1] - twa_tab[i])
+        fa = min(max(fa, 0.0), 1.0)
+        v = (cols[k, i + 1] * fa - cols[k, i] * (fa - 1.0)) * ratio[k]
+        if ang < amin or ang > amax[k]:
+            v = 0.0
+        dt, f = sub_time(seg, v, speeds[k], wd, min_speed)
+        flags |= f
+        total = dt if s == 0 else total + dt
+    if flags != 0:
+        total = np.inf
+    return total, flags
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio, amin,
+                amax, min_speed, times, flags):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+    """:func:`_boxed_time` of the arcs ``pick[:n]`` into node ``d``, into ``times`` and ``flags``."""
+    for q in range(n):
+        a = pick[q]
+        times[q], flags[q] = _boxed_time(d, a, course, lon, lat, seg[d, a], twd0, boxes, values, twa_tab, twa_inv,
+                                         speeds, cols, ratio, amin, amax, min_speed)  # fmt: skip
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _boxed_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
+    t_prev, src, valid, seg, course, lon, lat, bound, tws0, twd0, boxes, values, twa_tab, tws_tab, speed_tab, twa_inv,
+    tws_inv, forbid, min_speed, t_best, j_best, counts,
+):  # fmt: skip
+    """One rank with one label per node and pruning, the wind of a :class:`BoxWind`, in one pass over the nodes: per
+    node its four live arcs of smallest lower bound (``t0 + length / bound``; ties: lowest index) costed, then every
+    other live arc whose bound does not exceed the best arrival over those four (what :func:`_first_arcs`,
+    :func:`_rest_arcs` and :func:`_best_of_lists` do between samplings), the first earliest arrival kept.
+    ``counts``: live, costed, forbidden, no speed, missing wind arcs (added to)."""
+    n_dst, width = seg.shape
+    speeds, cols, ratio, amax = _columns(tws0, values, twa_tab, tws_tab, speed_tab, tws_inv, forbid)
+    amin = twa_tab[0] if twa_tab[0] > 0.0 else -np.inf
+    lower = np.empty(width)  # each arc's bound, NaN where not live or among the first four
+    t0s = np.empty(width)  # each arc's departure
+    pick = np.empty(max(width, 4), dtype=np.intp)
+    times = np.empty(width)
+    flags = np.empty(width, dtype=np.uint8)
+    tally = np.zeros(5, dtype=np.int64)
+    for d in range(n_dst):
+        live = _bounds(t_prev, src, valid, seg, course.shape[2], bound, d, lower, t0s, pick)
+        tally[0] += live
+        n = min(live, 4)
+        for q in range(n):  # cost the picked arcs in a loop of their own (their latencies overlap), then compare
+            lower[pick[q]] = np.nan
+        _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
+                    amin, amax, min_speed, times, flags)  # fmt: skip
+        best, jb = _best_picked(pick, n, t0s, times, flags, np.inf, 0, tally)
+        m = 0
+        for a in range(width):  # the rest are pruned against the best over the first four only (as the numpy path)
+            pick[m] = a
+            m += lower[a] <= best
+        _cost_boxed(pick, m, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
+                    amin, amax, min_speed, times, flags)  # fmt: skip
+        t_best[d, 0], j_best[d, 0] = _best_picked(pick, m, t0s, times, flags, best, jb, tally)
+    counts += tally
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _bounds(t_prev, src, valid, seg, samples, bound, d, lower, t0s, first):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Node ``d``'s arcs: departure ``t0s`` and lower bound ``lower`` (``t0 + length / bound``; NaN where not live),
+    and the four live ones of smallest bound (ties: the first) in increasing order in ``first[:4]``; returns the
+    number of live arcs."""
+    n = 0
+    i0 = i1 = i2 = i3 = -1
+    l0 = l1 = l2 = l3 = np.inf
+    for a in range(lower.size):
+        t0 = t_prev[src[d, a], 0] if valid[d, a] else np.nan
+        t0s[a] = t0
+        ok = np.isfinite(t0)
+        lw = t0 + seg[d, a] * samples / bound if ok else np.nan
+        lower[a] = lw
+        n += ok
+        if lw < l3:  # among the four so far (NaN never): insert it after the ones it does not beat
+            if lw < l0:
+                i0, i1, i2, i3 = a, i0, i1, i2
+                l0, l1, l2, l3 = lw, l0, l1, l2
+            elif lw < l1:
+                i1, i2, i3 = a, i1, i2
+                l1, l2, l3 = lw, l1, l2
+            elif lw < l2:
+                i2, i3 = a, i2
+                l2, l3 = lw, l2
+            else:
+                i3 = a
+                l3 = lw
+    for q, a in enumerate((i0, i1, i2, i3)):
+        first[q] = a
+    return n
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _best_picked(pick, n, t0s, times, flags, best, jb, tally):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The better of (``best``, ``jb``) and the earliest arrival ``t0s[a] + times[q]`` over the arcs ``a = pick[q]``
+    (``q < n``) that can be sailed (first of equal ones: lowest index), and the arcs counted into ``tally[1:]``
+    (costed, forbidden, no speed, missing wind)."""
+    for q in range(n):
+        f = flags[q]
+        tally[1] += 1
+        if f != 0:
+            tally[2] += 1
+            tally[3] += f & 1
+            tally[4] += (f >> 1) & 1
+        else:
+            a = pick[q]
+            tot = t0s[a] + times[q]
+            if tot < best or (tot == best and a < jb):
+                best, jb = tot, a
+    return best, jb
 
 
 def _pruned_step(  # type: ignore[no-untyped-def]

@@ -62,7 +62,7 @@ from .polar import MIN_SPEED_KN, Polar, check_beyond
 from .progress import progress_bar
 from .times import hours_after
 from .units import KN_PER_MS
-from .weather import Conditions, WeatherSource
+from .weather import Conditions, UniformWeather, WeatherSource
 
 __all__ = [
     "DPResult",
@@ -724,6 +724,9 @@ class _Pricing:
     cost_hook: Callable[[int, ArcCosts], None] | None
     memo: dict[int, tuple[ArcCosts, Any]] = field(default_factory=dict)
     compiled: bool = False
+    #: With the compiled step on uniform weather: its wind (:meth:`~pyroute_rel.weather.UniformWeather.wind_boxes`),
+    #: sampled in the kernel.
+    wind_boxes: tuple[float, float, FloatArray, FloatArray] | None = None
 
     @classmethod
     def of(
@@ -754,8 +757,14 @@ class _Pricing:
         )
         if compiled:  # the compiled step prunes side labels too (each label against its own best)
             prune = bound is not None and bound > 0.0
+        boxes = problem.weather.wind_boxes() if compiled and type(problem.weather) is UniformWeather else None
         return cls(
-            problem=problem, bound_kn=bound if prune else None, lazy=lazy, cost_hook=cost_hook, compiled=compiled
+            problem=problem,
+            bound_kn=bound if prune else None,
+            lazy=lazy,
+            cost_hook=cost_hook,
+            compiled=compiled,
+            wind_boxes=boxes,
         )
 
     def price(self, arcs: _RankArcs, t0: FloatArray, *, first: bool, from_side: int = -1) -> _Priced:
@@ -907,7 +916,7 @@ def _rank_step(
     src, valid = grid.pattern(k)
     geom = grid_geometry(grid, k, problem.samples)
     if pricing.compiled:
-        done = _compiled_step(problem, src, valid, geom, t_prev, prev_sides, pricing.bound_kn, tally)
+        done = _compiled_step(problem, src, valid, geom, t_prev, prev_sides, pricing, tally)
         if done is not None:
             return done
     cols = []
@@ -940,27 +949,26 @@ def _compiled_step(
     geom: ArcGeometry,
     t_prev: FloatArray,
     prev_sides: tuple[int, ...],
-    bound_kn: float | None,
+    pricing: _Pricing,
     tally: _Tally,
 ) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], None] | None:
     """:func:`_rank_step` of a steady wind-only problem in compiled code (:func:`pyroute_rel.dp_compiled.
     rank_step`): the weather sampled here, at the arcs the step asks for (with pruning, only those it costs), the
     rest there. None when the weather turns out to have a current there (NaN included): the numpy path then costs
     the rank."""
-    from .dp_compiled import rank_step
+    from .dp_compiled import BoxWind, rank_step
 
     shape = valid.shape + (geom.samples,)
 
     def full(a: npt.NDArray[Any], to: tuple[int, ...]) -> npt.NDArray[Any]:  # no copy where it has the shape
         return a if a.shape == to else np.broadcast_to(a, to)
 
-    def wind(pick: npt.NDArray[np.intp] | None) -> tuple[FloatArray, FloatArray] | None:
-        lon, lat = full(geom.lon_deg, shape), full(geom.lat_deg, shape)
-        if pick is not None:  # the arcs' rows of (nodes * arcs, samples): a view where the geometry has the shape
-            lon, lat = (np.take(a.reshape(-1, shape[-1]), pick, axis=0) for a in (lon, lat))
-        cond = problem.weather.sample(lon, lat, problem.departure)
-        return None if cond.has_current else (cond.tws_kn, cond.twd_deg)
-
+    wind: Callable[[npt.NDArray[np.intp] | None], tuple[FloatArray, FloatArray] | None] | BoxWind
+    if pricing.wind_boxes is not None:  # uniform weather: its wind sampled in the kernel
+        wind = BoxWind(*pricing.wind_boxes, full(geom.lon_deg, shape), full(geom.lat_deg, shape))
+    else:
+        wind = _sampler(problem, geom, shape)
+    bound_kn = pricing.bound_kn
     prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
     step = rank_step(
         wind, full(geom.course_deg, shape), full(geom.seg_nm[..., 0], valid.shape), t_prev, full(src, valid.shape),
@@ -976,6 +984,25 @@ def _compiled_step(
     tally.by_reason["weather"] += step.no_wind
     src_best = np.take_along_axis(src, step.j_best, axis=1)
     return step.t_best, src_best, np.asarray(prev_sides, dtype=np.intp)[step.c_best], None
+
+
+def _sampler(
+    problem: RoutingProblem, geom: ArcGeometry, shape: tuple[int, ...]
+) -> Callable[[npt.NDArray[np.intp] | None], tuple[FloatArray, FloatArray] | None]:
+    """:func:`_compiled_step`'s wind at the arcs ``pick`` (flat indices node * arcs + arc) or every arc (None),
+    sampled by the weather: None where it has a current."""
+
+    def full(a: npt.NDArray[Any], to: tuple[int, ...]) -> npt.NDArray[Any]:  # no copy where it has the shape
+        return a if a.shape == to else np.broadcast_to(a, to)
+
+    def wind(pick: npt.NDArray[np.intp] | None) -> tuple[FloatArray, FloatArray] | None:
+        lon, lat = full(geom.lon_deg, shape), full(geom.lat_deg, shape)
+        if pick is not None:  # the arcs' rows of (nodes * arcs, samples): a view where the geometry has the shape
+            lon, lat = (np.take(a.reshape(-1, shape[-1]), pick, axis=0) for a in (lon, lat))
+        cond = problem.weather.sample(lon, lat, problem.departure)
+        return None if cond.has_current else (cond.tws_kn, cond.twd_deg)
+
+    return wind
 
 
 def _tally_columns(tally: _Tally, cols: list[tuple[Any, ...]], failure: FailureModel | None) -> None:

@@ -9,10 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import pyroute_rel.dp_compiled as dp_compiled
 import pyroute_rel.solve as solve
 from pyroute_rel.grid import make_grid
 from pyroute_rel.manoeuvre import ManoeuvrePenalties
-from pyroute_rel.weather import UniformWeather
+from pyroute_rel.polar import Polar
+from pyroute_rel.weather import Patch, UniformWeather
 from tests.test_properties import NaNBox
 from tests.test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weather
 
@@ -109,3 +111,67 @@ def test_compiled_step_on_corridors_equals_numpy(seed: int, monkeypatch: pytest.
     for c in seen:
         compiled, numpy_path = both(c, problem, monkeypatch)
         assert_same(compiled, numpy_path, counts=False)
+
+
+def _wind_patches(rng: np.random.Generator, n: int) -> tuple[Patch, ...]:
+    """``n`` overlapping patches about the course, each setting the wind's speed, its direction, both, or neither
+    (waves only)."""
+    which = [("tws_kn",), ("twd_deg",), ("tws_kn", "twd_deg"), ("hs_m",)]
+    out = []
+    for _ in range(n):
+        lo, la = float(rng.uniform(-55, -25)), float(rng.uniform(20, 38))
+        values = {"tws_kn": float(rng.uniform(0.5, 35)), "twd_deg": float(rng.uniform(0, 360)), "hs_m": 3.0}
+        keys = which[int(rng.integers(len(which)))]
+        out.append(Patch(lon=(lo, lo + rng.uniform(2, 15)), lat=(la, la + rng.uniform(2, 12)),
+                         values={k: values[k] for k in keys}))  # fmt: skip
+    return tuple(out)
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    samples=st.integers(1, 3),
+    beyond=st.sampled_from(["clamp", "forbid"]),
+    first_twa=st.sampled_from([0.0, 30.0]),
+    first_tws=st.sampled_from([0.0, 6.0]),
+)
+def test_uniform_wind_in_the_kernel_equals_numpy(
+    seed: int, samples: int, beyond: str, first_twa: float, first_tws: float
+) -> None:
+    """UniformWeather's wind sampled in the kernel (a pruned rank in one compiled call): patches setting the speed
+    only, the direction only, both or neither, overlapping; light air below the polar's first column (its speed
+    scaled down), a no-go zone below its first row, winds beyond its last column (forbidden or clamped): the numpy
+    path's arrivals and back-pointers, bit for bit, and that path was taken."""
+    rng = np.random.default_rng(seed)
+    twa = np.array([first_twa, 45.0, 60.0, 90.0, 120.0, 150.0, 180.0])
+    tws = np.array([first_tws, 10.0, 16.0, 24.0])
+    speed = rng.uniform(0.5, 8.0, (twa.size, tws.size))
+    polar = Polar(name="random", twa_deg=twa, tws_kn=tws, speed_kn=speed)
+    weather = UniformWeather(tws_kn=float(rng.uniform(1, 22)), twd_deg=float(rng.uniform(0, 360)),
+                             patches=_wind_patches(rng, int(rng.integers(0, 5))))  # fmt: skip
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=6, n_nodes=41, spacing_km=float(rng.uniform(30, 120)))
+    problem = solve.RoutingProblem(departure=DEP, weather=weather, polar=polar, samples=samples, beyond=beyond)
+    calls = []
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(dp_compiled, "_boxed_rank", lambda *a, f=dp_compiled._boxed_rank: calls.append(1) or f(*a))
+        compiled, numpy_path = both(grid, problem, mp)
+    # the arcs into ranks 1 to n_ranks (the finish: 41 a node, pruned), or up to the rank none reaches
+    assert len(calls) == (grid.n_ranks if compiled.dead_rank is None else compiled.dead_rank)
+    assert_same(compiled, numpy_path, counts=False)
+
+
+def test_box_wind_is_uniform_weathers() -> None:
+    """The wind the kernels sample from UniformWeather.wind_boxes is what UniformWeather.sample gives, at random
+    points, on the patches' edges and corners (closed boxes) and at NaN points."""
+    rng = np.random.default_rng(5)
+    weather = UniformWeather(tws_kn=12.0, twd_deg=80.0, patches=_wind_patches(rng, 6))
+    edges = np.array([v for p in weather.patches for v in (*p.lon, *p.lat)])
+    lon = np.concatenate([rng.uniform(-60, -10, 4000), rng.choice(edges, 500), [np.nan, 0.0]])
+    lat = np.concatenate([rng.uniform(15, 55, 4000), rng.choice(edges, 500), [0.0, np.nan]])
+    want = weather.sample(lon, lat, DEP)
+    tws0, twd0, boxes, values = weather.wind_boxes()
+    tws, twd = np.empty(lon.size), np.empty(lon.size)
+    dp_compiled._box_wind_all(lon, lat, tws0, twd0, boxes, values, tws, twd)
+    np.testing.assert_array_equal(tws, want.tws_kn)
+    np.testing.assert_array_equal(twd, want.twd_deg)
+    assert boxes.shape[0] == sum("tws_kn" in p.values or "twd_deg" in p.values for p in weather.patches)

@@ -148,6 +148,33 @@ class UniformWeather:
         cv = [abs(self.current_v_ms)] + [abs(p.values.get("current_v_ms", 0.0)) for p in self.patches]
         return float(math.hypot(max(cu), max(cv)))
 
+    def wind_boxes(self) -> tuple[float, float, FloatArray, FloatArray]:
+        """The wind alone, for samplers in compiled code: what :meth:`sample` gives for ``tws_kn`` and ``twd_deg``
+        is the first two values, overridden at a point by each of the boxes holding it (closed; in order) that sets
+        them.
+
+        Returns
+        -------
+        The speed [kn] and direction (from) [deg] outside the patches; the patches that set either, as rows
+        ``(lon_min, lon_max, lat_min, lat_max)`` [deg], shape (n, 4), and their ``(tws_kn, twd_deg)``, shape (n, 2)
+        (NaN: the patch leaves that one as it is).
+
+        Examples
+        --------
+        >>> w = UniformWeather(tws_kn=15.0, twd_deg=0.0, patches=(
+        ...     Patch(lon=(-45.0, -35.0), lat=(28.0, 38.0), values={"hs_m": 4.0}),
+        ...     Patch(lon=(-43.0, -37.0), lat=(30.0, 36.0), values={"twd_deg": 240.0})))
+        >>> tws, twd, boxes, values = w.wind_boxes()
+        >>> tws, twd, boxes.tolist(), values.tolist()
+        (15.0, 0.0, [[-43.0, -37.0, 30.0, 36.0]], [[nan, 240.0]])
+        """
+        wind = [p for p in self.patches if "tws_kn" in p.values or "twd_deg" in p.values]
+        boxes = np.array([[*p.lon, *p.lat] for p in wind], dtype=float).reshape(-1, 4)
+        values = np.array(
+            [[p.values.get("tws_kn", np.nan), p.values.get("twd_deg", np.nan)] for p in wind], dtype=float
+        ).reshape(-1, 2)
+        return float(self.tws_kn), float(self.twd_deg), boxes, values
+
     def sample(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> Conditions:
         """Sample the control field at points; ``time`` is accepted for the protocol and ignored.
 
