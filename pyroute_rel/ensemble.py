@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .cost import REASONS
 from .errors import (
     NoFeasibleRouteError,
     ScenarioError,
@@ -289,12 +290,35 @@ def _sail_in_members(
     def column(fn: Any) -> Any:
         return np.array([[fn(s) for s in per_member] for per_member in sailed]).T
 
+    over = column(_meets_p_f)
     return (
         column(lambda s: s.voyage_time_h),
         column(lambda s: s.max_p_f),
-        column(lambda s: any("p_f" in r for r in s.leg_reasons())),
-        column(lambda s: s.feasible),
+        over,
+        ~column(_stopped) & ~over,
         column(lambda s: bool(s.land.any())),
+    )
+
+
+#: Reason bits of a leg that cannot be sailed (:data:`pyroute_rel.evaluate.BLOCK_REASONS` ``no_speed``,
+#: ``current``, ``weather``).
+_STOP_BITS = np.uint8(REASONS["polar"] | REASONS["current"] | REASONS["weather"])
+
+
+def _meets_p_f(s: Any) -> bool:
+    """Whether a sailed track meets ``p_f > apf`` on a leg it sails (``"p_f"`` in its ``leg_reasons``)."""
+    with np.errstate(invalid="ignore"):
+        return bool(np.any(s.costs.p_f > s.apf))
+
+
+def _stopped(s: Any) -> bool:
+    """Whether a sailed track is blocked other than by ``p_f`` (a leg that cannot be sailed, land or a zone): with
+    :func:`_meets_p_f`, ``not Sailed.feasible``, without building its ``leg_reasons``."""
+    return (
+        not math.isfinite(s.voyage_time_h)
+        or bool(np.any(s.costs.reason & _STOP_BITS))
+        or bool(s.land.any())
+        or bool(s.zone.any())
     )
 
 
@@ -449,7 +473,8 @@ class EnsembleResult:
         chosen = self.chosen
         values = self.risk_values
         m = self.mean_index
-        beats = None if m is None else _num(values[m] - values[chosen])
+        with np.errstate(invalid="ignore"):  # inf - inf: neither has a finite risk
+            beats = None if m is None else _num(values[m] - values[chosen])
         return {
             "members": [
                 {
