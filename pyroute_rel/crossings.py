@@ -10,7 +10,10 @@ everything it crosses:
    equator (where the course along a great circle stops turning one way: elsewhere the course is monotonic along
    the arc, ``sin(course) cos(lat)`` being constant).
 2. **Ranges.** On each piece the conditions are sampled at both ends, nudged inside the piece by
-   :data:`NUDGE` of its length (a patch edge belongs to one side only), and at its middle; with continuous fields
+   :data:`NUDGE` of its length (a patch edge belongs to one side only), and at its middle; a crossing within
+   :data:`NUDGE` of the arc's end (a node or waypoint on a patch edge, found there to rounding) does not cut the arc,
+   so an arc that touches a patch only at an end is judged by its interior, as the cost function's samples judge it
+   (the box is closed, but a point of contact is not a stretch sailed in it); with continuous fields
    (grids, smooth sources) also where the parabola through those three values of each quantity has its extremum.
    Each quantity's range over the piece is taken from those values; an angle relative to the heading (apparent
    wave direction, TWA) is unwrapped before it is folded into [0, 180], so a piece whose relative angle passes 0 or
@@ -145,7 +148,7 @@ def _lines_in(values: FloatArray, lo: FloatArray, hi: FloatArray, period: float 
 
 def split_fractions(a_xyz: FloatArray, b_xyz: FloatArray, bounds: Boundaries | None) -> FloatArray:
     """Fractions along each arc (shape ``(n, k)``, sorted, NaN-padded) where it crosses a boundary line or the
-    equator, strictly between its ends.
+    equator, more than :data:`NUDGE` from its ends (a line through an end cuts nothing off).
 
     Parameters
     ----------
@@ -175,7 +178,12 @@ def _split_fractions(
         paral = _lines_in(np.asarray(bounds.lat_deg, float), la_lo, la_hi, None)
         parts += [_meridian_crossings(a_xyz, u, omega, merid), _parallel_crossings(a_xyz, u, omega, paral)]
     parts.append(_parallel_crossings(a_xyz, u, omega, np.zeros((omega.size, 1))))
-    s = np.sort(np.concatenate(parts, axis=1), axis=1)  # NaN last
+    s = np.concatenate(parts, axis=1)
+    # a line through an arc's end is met there, but rounding puts the crossing a hair inside the arc (1e-14, or
+    # 1e-7 where the arc grazes the line): a sliver piece sampled on the line itself, inside a closed patch box or
+    # not by chance. Crossings within NUDGE of an end cut nothing off: the end piece is judged by its interior.
+    with np.errstate(invalid="ignore"):
+        s = np.sort(np.where((s > NUDGE) & (s < 1.0 - NUDGE), s, np.nan), axis=1)  # NaN last
     width = int(np.isfinite(s).sum(axis=1).max()) if s.size else 0
     return s[:, :width]
 

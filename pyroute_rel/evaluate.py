@@ -41,7 +41,9 @@ from .cost import REASONS, ArcCosts, ArcGeometry, arc_geometry, geometry_costs
 from .errors import ScenarioError, TrackError, brief, check_numbers, check_path
 from .exposure import combined_failure_probability
 from .files import brief_path, read_regular_bytes
+from .manoeuvre import TrackManoeuvres, charge_manoeuvres
 from .route import Legs, track_legs
+from .solve import first_sample_wind
 from .times import iso_utc
 from .weather.base import Conditions
 
@@ -332,6 +334,9 @@ class Sailed:
         and ``reason`` NaN and 0 after it).
     land, zone : Which legs touch land (or the coastal margin) and an exclusion zone active when they are sailed.
     apf : The acceptable probability of failure the legs' ``p_f`` is held to.
+    manoeuvres : The side of each leg and the tack or gybe at its start, with the time it cost
+        (:class:`~pyroute_rel.manoeuvre.TrackManoeuvres`; penalties zero unless the boat has them; after a leg that
+        cannot be sailed: no manoeuvre).
     """
 
     lon_deg: FloatArray
@@ -341,6 +346,7 @@ class Sailed:
     land: npt.NDArray[np.bool_]
     zone: npt.NDArray[np.bool_]
     apf: float
+    manoeuvres: TrackManoeuvres | None = None
 
     @property
     def voyage_time_h(self) -> float:
@@ -417,6 +423,7 @@ def sail_tracks(
     tracks: Sequence[Track | npt.ArrayLike],
     *,
     avoid: Any = None,
+    manoeuvres: bool | None = None,
 ) -> list[Sailed]:
     """Sail tracks leg after leg in a problem's weather, vectorised over the tracks (the k-th legs of every track
     are costed together).
@@ -430,13 +437,16 @@ def sail_tracks(
     problem : Weather, polar, failure model, samples per leg, departure; its ``apf`` is the bound reported against.
     tracks : Tracks (:class:`Track` or (N, 2) arrays of lon, lat [deg]).
     avoid : Land and zones to test the legs against (:class:`~pyroute_rel.obstacles.mask.Avoid`), or None.
+    manoeuvres : Find the side of the wind of each leg and the tacks and gybes (:attr:`Sailed.manoeuvres`); None
+        (default): only when the problem's boat has manoeuvre penalties, which then delay each leg's arrival as
+        :func:`~pyroute_rel.solve.leg_manoeuvres` delays a route's.
 
     Returns
     -------
     list of Sailed
         One per track, in order.
     """
-    return sail_in_members([problem], tracks, avoid=avoid)[0]
+    return sail_in_members([problem], tracks, avoid=avoid, manoeuvres=manoeuvres)[0]
 
 
 def sail_in_members(
@@ -444,6 +454,7 @@ def sail_in_members(
     tracks: Sequence[Track | npt.ArrayLike],
     *,
     avoid: Any = None,
+    manoeuvres: bool | None = None,
 ) -> list[list[Sailed]]:
     """Sail every track in every problem's weather (e.g. every ensemble member's): ``out[j][i]`` is
     ``sail_tracks(problems[j], [tracks[i]])[0]``, the same numbers, computed together.
@@ -452,7 +463,7 @@ def sail_in_members(
     used). The k-th legs of every track in every weather are costed in one call (the weather answers each row from
     its own source); then each weather's legs are judged on every piece they cross
     (:func:`~pyroute_rel.crossings.arc_extremes`) in one call, all legs at once: the times do not depend on it
-    (``apf = 1`` refuses no leg), only the legs' ``p_f``.
+    (``apf = 1`` refuses no leg), only the legs' ``p_f``. ``manoeuvres``: as in :func:`sail_tracks`.
     """
     tr = [as_track(t) for t in tracks]
     n_m, n_c = len(problems), len(tr)
@@ -469,18 +480,26 @@ def sail_in_members(
     elapsed = np.where(np.arange(width + 1)[None, :] <= legs[:, None], 0.0, np.nan)
     time_h, p_f = np.full(has.shape, np.nan), np.full(has.shape, np.nan)
     reason = np.zeros(has.shape, dtype=np.uint8)
+    man = _Manoeuvres.of(first, has.shape, manoeuvres)
     if first.weather.steady and first.time_step_h is None:
         for j, problem in enumerate(problems):  # every leg at once, judged on its pieces in the same call
             rows = slice(j * n_c, (j + 1) * n_c)
             a, b, c_, d = lon1[:, :-1][has1], lat1[:, :-1][has1], lon1[:, 1:][has1], lat1[:, 1:][has1]
             c = replace(problem, apf=1.0, blocked=None).costs(a, b, c_, d, np.zeros(int(has1.sum())))
-            for arr, v in ((time_h, c.time_h), (p_f, c.p_f), (reason, c.reason)):
+            fill = [(time_h, c.time_h), (p_f, c.p_f), (reason, c.reason)]
+            if man is not None:  # the wind at each leg's first sample (steady: any time)
+                g = arc_geometry(a, b, c_, d, samples=first.samples)
+                fill += zip((man.side, man.twa, man.tws), first_sample_wind(problem, g, np.zeros(a.size)), strict=True)
+            for arr, v in fill:
                 block = arr[rows]
                 block[has1] = v
                 arr[rows] = block
-        elapsed[:, 1:] = np.where(has, np.cumsum(np.where(has, time_h, 0.0), axis=1), np.nan)
+        if man is None or man.penalties is None:
+            elapsed[:, 1:] = np.where(has, np.cumsum(np.where(has, time_h, 0.0), axis=1), np.nan)
+        if man is not None:
+            man.charge_tracks(has, time_h, elapsed)
     else:
-        _sail_legs(problems, n_c, lon, lat, has, elapsed, time_h, p_f, reason)
+        _sail_legs(problems, n_c, lon, lat, has, elapsed, time_h, p_f, reason, man)
         _judge_legs(problems, n_c, lon, lat, elapsed, time_h, p_f)
     land1 = None
     if avoid is not None and avoid.land:  # the same in every weather
@@ -494,9 +513,65 @@ def sail_in_members(
         out.append([])
         for i, t in enumerate(tr):
             r, n = j * n_c + i, int(n_legs[i])
-            out[j].append(_sailed(t, elapsed[r, : n + 1], time_h[r, :n], p_f[r, :n], reason[r, :n], land[r, :n],
-                                  zone[r, :n], float(problems[j].apf)))  # fmt: skip
+            sailed = _sailed(t, elapsed[r, : n + 1], time_h[r, :n], p_f[r, :n], reason[r, :n], land[r, :n],
+                             zone[r, :n], float(problems[j].apf))  # fmt: skip
+            out[j].append(sailed if man is None else replace(sailed, manoeuvres=man.track(r, n, sailed.elapsed_h)))
     return out
+
+
+@dataclass
+class _Manoeuvres:
+    """The side of the wind, true wind angle [deg] and wind speed [kn] at the first sample of every row's legs,
+    and the manoeuvres charged (``kind``, ``penalty_h``), filled as the legs are sailed."""
+
+    penalties: Any
+    initial_side: int
+    side: npt.NDArray[np.int8]
+    twa: FloatArray
+    tws: FloatArray
+    kind: npt.NDArray[np.int8]
+    penalty_h: FloatArray
+
+    @classmethod
+    def of(cls, problem: RoutingProblem, shape: tuple[int, int], wanted: bool | None) -> _Manoeuvres | None:
+        """The arrays for legs of ``shape`` (rows, legs), or None when they are not wanted (``wanted`` None: only
+        when the problem charges manoeuvres)."""
+        if not (problem.sides if wanted is None else wanted):
+            return None
+        return cls(
+            penalties=problem.manoeuvres if problem.sides else None,
+            initial_side=-1 if problem.initial_side is None else int(problem.initial_side),
+            side=np.zeros(shape, dtype=np.int8),
+            twa=np.full(shape, np.nan),
+            tws=np.full(shape, np.nan),
+            kind=np.zeros(shape, dtype=np.int8),
+            penalty_h=np.zeros(shape),
+        )
+
+    def charge(self, rows: npt.NDArray[np.intp], k: int) -> FloatArray:
+        """Charge leg ``k`` of ``rows`` (its wind known, the previous leg's side too) and return the penalties [h]."""
+        prev = self.side[rows, k - 1] if k else np.full(rows.size, self.initial_side, dtype=np.int8)
+        kind, pen = charge_manoeuvres(self.side[rows, k], self.twa[rows, k], self.tws[rows, k], prev, self.penalties)
+        self.kind[rows, k], self.penalty_h[rows, k] = kind, pen
+        return pen
+
+    def charge_tracks(self, has: npt.NDArray[np.bool_], time_h: FloatArray, elapsed: FloatArray) -> None:
+        """Steady weather: charge every leg and, with penalties, chain the arrivals as the DP adds them
+        ((departure + sailing) + penalty), in place."""
+        for k in range(has.shape[1]):
+            rows = np.flatnonzero(has[:, k])
+            pen = self.charge(rows, k)
+            if self.penalties is not None:
+                elapsed[rows, k + 1] = (elapsed[rows, k] + time_h[rows, k]) + pen
+
+    def track(self, r: int, n: int, elapsed_h: FloatArray) -> TrackManoeuvres:
+        """Row ``r``'s first ``n`` legs; legs from one that cannot be sailed on have no manoeuvre."""
+        sailed = np.isfinite(elapsed_h[1:])
+        return TrackManoeuvres(
+            side=self.side[r, :n].copy(),
+            kind=np.where(sailed, self.kind[r, :n], 0).astype(np.int8),
+            penalty_h=np.where(sailed, self.penalty_h[r, :n], 0.0),
+        )
 
 
 def _sailed(
@@ -531,9 +606,10 @@ def _sail_legs(
     time_h: FloatArray,
     p_f: FloatArray,
     reason: npt.NDArray[np.uint8],
+    man: _Manoeuvres | None = None,
 ) -> None:
     """Time-varying weather: the k-th legs of every row costed together (their samples' ``p_f``), leg after leg,
-    filling the arrays in place."""
+    filling the arrays in place; ``man``: each leg's side found at its departure and its manoeuvre charged."""
     first = problems[0]
     for k in range(has.shape[1]):
         go = has[:, k] & np.isfinite(elapsed[:, k])
@@ -555,7 +631,14 @@ def _sail_legs(
             workers=1 if len(problems) > 1 else None,  # threads split rows: the weather's rows must stay whole
         )
         time_h[rows, k], p_f[rows, k], reason[rows, k] = c.time_h, c.p_f, c.reason
-        elapsed[rows, k + 1] = first.arrive(t0 + c.time_h)
+        if man is None:
+            elapsed[rows, k + 1] = first.arrive(t0 + c.time_h)
+        else:
+            where = replace(first, weather=_rows_weather(problems, rows // n_c))
+            wind = first_sample_wind(where, geom, t0)
+            man.side[rows, k], man.twa[rows, k], man.tws[rows, k] = wind
+            pen = man.charge(rows, k)
+            elapsed[rows, k + 1] = first.arrive(t0 + c.time_h if man.penalties is None else (t0 + c.time_h) + pen)
         elapsed[has[:, k] & ~go, k + 1] = np.inf
 
 
@@ -647,6 +730,10 @@ class _MemberRows:
         lon, lat, t = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float), time)
         return _join([s.sample(lon[a:b], lat[a:b], t[a:b]) for s, a, b in self.parts])
 
+    def check_coverage(self, lon_range: Any, lat_range: Any, time_range: Any) -> None:
+        for s, _, _ in self.parts:
+            s.check_coverage(lon_range, lat_range, time_range)
+
 
 def _join(parts: Sequence[Conditions]) -> Conditions:
     """Conditions of consecutive row blocks joined along the first axis."""
@@ -705,6 +792,8 @@ class Evaluation:
     leg_reasons : Why each leg is blocked (a tuple of :data:`BLOCK_REASONS` names per leg, empty where it is not).
     exposure_by_criterion_h : Hours sailed where each criterion of the failure model fires [h].
     meta : Settings for the summary (apf, failure model, polar, samples per leg, scenario).
+    manoeuvres : Side of the wind of each leg and the tack or gybe at its start, with the time it cost
+        (:class:`~pyroute_rel.manoeuvre.TrackManoeuvres`; penalties zero unless the boat has them), as a route's.
 
     The voyage figures (``voyage_time_h``, ``distance_nm``, ``arrival``, ``max_failure_probability``,
     ``voyage_failure_probability``) are properties, documented below.
@@ -721,6 +810,7 @@ class Evaluation:
     leg_reasons: tuple[tuple[str, ...], ...]
     exposure_by_criterion_h: dict[str, float] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
+    manoeuvres: TrackManoeuvres | None = None
 
     @property
     def voyage_time_h(self) -> float:
@@ -765,6 +855,9 @@ class Evaluation:
             "max_failure_probability": self.max_failure_probability,
             "voyage_failure_probability": self.voyage_failure_probability,
             "exposure_by_criterion_h": dict(self.exposure_by_criterion_h),
+            "manoeuvres": {"tacks": 0, "gybes": 0, "penalty_h": 0.0}
+            if self.manoeuvres is None
+            else self.manoeuvres.summary(),
             **self.meta,
             "track": [
                 {
@@ -835,7 +928,7 @@ def evaluate_track(
     if departure is None and trk.time is not None:
         departure = trk.time[0]
     problem = evaluation_problem(scenario, departure=departure, apf=apf, samples=samples, weather=weather)
-    sailed = sail_tracks(problem, [trk], avoid=scenario.avoid)[0]
+    sailed = sail_tracks(problem, [trk], avoid=scenario.avoid, manoeuvres=True)[0]
     return describe(problem, sailed, meta={"scenario": scenario.source, "land": scenario.avoid.land})
 
 
@@ -875,6 +968,7 @@ def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | 
         blocked_leg=blocked,
         leg_reasons=tuple(reasons),
         exposure_by_criterion_h=exposure,
+        manoeuvres=sailed.manoeuvres,
         meta={
             "apf": float(problem.apf),
             "failure_model": None if problem.failure is None else problem.failure.name,

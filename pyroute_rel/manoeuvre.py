@@ -58,6 +58,7 @@ __all__ = [
     "manoeuvre_kind",
     "TrackManoeuvres",
     "track_manoeuvres",
+    "charge_manoeuvres",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -219,6 +220,27 @@ def track_manoeuvres(
     """
     s = np.asarray(side, dtype=np.int8)
     prev = np.concatenate([[s[0] if initial_side is None else initial_side], s[:-1]]) if s.size else s
-    kind = np.where(s != prev, manoeuvre_kind(twa_deg), NO_MANOEUVRE).astype(np.int8)
+    kind, pen = charge_manoeuvres(s, twa_deg, tws_kn, prev, penalties)
+    return TrackManoeuvres(side=s, kind=kind, penalty_h=pen)
+
+
+def charge_manoeuvres(
+    side: npt.ArrayLike,
+    twa_deg: npt.ArrayLike,
+    tws_kn: npt.ArrayLike,
+    prev_side: npt.ArrayLike,
+    penalties: ManoeuvrePenalties | None,
+) -> tuple[npt.NDArray[np.int8], FloatArray]:
+    """The manoeuvre at the start of legs on ``side`` (true wind angle [deg] and wind speed [kn] at their first
+    weather sample) after legs on ``prev_side`` (-1: none, or either side at no cost), and the time it costs [h]
+    (zero without ``penalties``). Element by element: legs of many tracks at once, or one leg of each.
+
+    >>> kind, pen = charge_manoeuvres([1, 0, 0], [45.0, 45.0, 150.0], [15.0] * 3, [-1, 1, 1], None)
+    >>> kind.tolist(), pen.tolist()
+    ([0, 1, 2], [0.0, 0.0, 0.0])
+    """
+    s = np.asarray(side)
+    prev = np.asarray(prev_side)
+    kind = np.where((prev >= 0) & (s != prev), manoeuvre_kind(twa_deg), NO_MANOEUVRE).astype(np.int8)
     pen = (penalties or ManoeuvrePenalties()).penalty_h(kind, tws_kn)
-    return TrackManoeuvres(side=s, kind=kind, penalty_h=np.asarray(pen, dtype=float))
+    return kind, np.asarray(pen, dtype=float)

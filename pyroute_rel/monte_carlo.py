@@ -54,6 +54,7 @@ import numpy.typing as npt
 from .cost import ArcGeometry, arc_geometry, geometry_costs
 from .errors import ScenarioError, brief, check_instance, check_numbers
 from .evaluate import Track, as_track, evaluation_problem, sail_tracks
+from .planners.settings import FINITE, check_fields
 from .units import KN_PER_MS
 from .weather.base import Conditions
 
@@ -77,6 +78,15 @@ FloatArray = npt.NDArray[np.float64]
 
 #: Most Monte-Carlo runs of one call (each run sails every leg: the run arrays hold runs x legs values).
 MAX_RUNS = 10_000_000
+
+
+_SPREAD = ("float", 0.0, FINITE, False, "a finite number >= 0")
+_TAU = ("float", 0.0, math.inf, True, "> 0 [h]")  # infinite: one error all along
+#: The rules of :class:`MonteCarloSettings`' numbers (:func:`~pyroute_rel.planners.settings.check_fields`).
+_LIMITS = {
+    **dict.fromkeys(("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "kappa", "polar_sd"), _SPREAD),
+    **dict.fromkeys(("tau_h", "tau_speed_h"), _TAU),
+}
 
 
 @dataclass(frozen=True)
@@ -106,14 +116,7 @@ class MonteCarloSettings:
     tau_speed_h: float = 12.0
 
     def __post_init__(self) -> None:
-        for name in ("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "kappa", "polar_sd"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not (isinstance(v, int | float) and math.isfinite(v) and v >= 0.0):
-                raise ScenarioError(f"Monte-Carlo {name} must be a finite number >= 0 (got {v!r})")
-        for name in ("tau_h", "tau_speed_h"):
-            tau = getattr(self, name)
-            if isinstance(tau, bool) or not (isinstance(tau, int | float) and tau > 0.0):
-                raise ScenarioError(f"Monte-Carlo {name} must be > 0 [h] (got {tau!r})")
+        check_fields(self, _LIMITS, where="Monte-Carlo ")
         if self.spread_ms is not None:
             spread = check_numbers(self.spread_ms, "Monte-Carlo spread_ms", ScenarioError, missing=False, unit="m/s")
             if spread.ndim != 1 or (spread < 0.0).any():
@@ -387,11 +390,17 @@ def _sail_runs(
     scale: FloatArray,
     kappa: float,
 ) -> tuple[FloatArray, FloatArray]:
-    """Every run sailed leg after leg: (voyage time [h] per run, p_f per run and leg)."""
+    """Every run sailed leg after leg: (voyage time [h] per run, p_f per run and leg). A boat with manoeuvre
+    penalties is charged each tack and gybe as :func:`~pyroute_rel.evaluate.sail_tracks` charges it, the side of
+    each leg found in the run's wind."""
+    from .manoeuvre import charge_manoeuvres
+    from .solve import first_sample_wind
+
     runs, n_legs = eta.shape
     lon, lat = track.lon_deg, track.lat_deg
     elapsed = np.zeros(runs)
     p_f = np.full((runs, n_legs), np.nan)
+    side = np.full(runs, -1 if problem.initial_side is None else int(problem.initial_side), dtype=np.int8)
     for k in range(n_legs):
         go = np.isfinite(elapsed)
         if not go.any():
@@ -422,7 +431,13 @@ def _sail_runs(
         ratio = np.where(np.isfinite(ratio), np.maximum(ratio, 0.1), 1.0)
         t = t / ratio
         p_f[idx, k] = c.p_f
-        elapsed[idx] = problem.arrive(elapsed[idx] + t)
+        if not problem.sides:
+            elapsed[idx] = problem.arrive(elapsed[idx] + t)
+            continue
+        now, twa, tws = first_sample_wind(replace(problem, weather=weather), geom, elapsed[idx])  # type: ignore[arg-type]
+        _, pen = charge_manoeuvres(now, twa, tws, side[idx], problem.manoeuvres)
+        side[idx] = now
+        elapsed[idx] = problem.arrive((elapsed[idx] + t) + pen)
     return elapsed, p_f
 
 

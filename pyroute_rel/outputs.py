@@ -26,7 +26,7 @@ import numpy.typing as npt
 from . import geodesy
 from .errors import OutputError, brief, check_flag, check_instance
 from .files import check_out_dir, write_together
-from .manoeuvre import KIND_NAMES, SIDE_NAMES
+from .manoeuvre import KIND_NAMES, SIDE_NAMES, TrackManoeuvres
 from .route import LEG_FIELDS, Route
 from .times import iso_utc
 from .units import KN_PER_MS
@@ -41,6 +41,8 @@ __all__ = [
     "turning_points",
     "write_outputs",
     "finite_or_null",
+    "MANOEUVRE_FIELDS",
+    "manoeuvre_cells",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -262,7 +264,7 @@ def to_csv(route: Route) -> str:
     )
     for i in range(len(route.lon_deg)):
         legs = [_fmt(route.legs[k][i]) if i < len(route.lon_deg) - 1 else "" for k in LEG_FIELDS]
-        legs += _manoeuvre_cells(route, i)
+        legs += manoeuvre_cells(route.manoeuvres, i)
         w.writerow(
             [
                 i,
@@ -281,9 +283,9 @@ def to_csv(route: Route) -> str:
 MANOEUVRE_FIELDS = ("side", "manoeuvre", "manoeuvre_h")
 
 
-def _manoeuvre_cells(route: Route, i: int) -> list[str]:
-    """The manoeuvre columns of the leg leaving track point ``i`` (empty after the last point)."""
-    m = route.manoeuvres
+def manoeuvre_cells(m: TrackManoeuvres | None, i: int) -> list[str]:
+    """The CSV's manoeuvre columns (:data:`MANOEUVRE_FIELDS`) of the leg leaving track point ``i`` (empty after the
+    last point, or without manoeuvres)."""
     if m is None or i >= m.side.size:
         return ["", "", ""]
     return [SIDE_NAMES[int(m.side[i])], KIND_NAMES[int(m.kind[i])], _fmt(m.penalty_h[i])]

@@ -71,6 +71,7 @@ __all__ = [
     "explain_infeasible",
     "leg_costs",
     "leg_manoeuvres",
+    "first_sample_wind",
     "label_min",
     "SideLabels",
     "path_costs",
@@ -708,7 +709,7 @@ def _arc_sides(problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray) -> tu
     """The side each arc is sailed on and the time a change of side onto it costs [h] (:mod:`pyroute_rel.manoeuvre`):
     from the wind at the arc's first sample, at its departure ``t0`` [h]."""
     assert problem.manoeuvres is not None
-    side, twa, tws = _first_sample_wind(problem, geom, t0)
+    side, twa, tws = first_sample_wind(problem, geom, t0)
     return side, problem.manoeuvres.penalty_h(manoeuvre_kind(twa), tws)
 
 
@@ -1232,7 +1233,11 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
     failure_arcs = live & (reason & REASONS["failure"] != 0)
     if problem.failure is not None and failure_arcs.any():
         counts = _criteria_counts(grid, problem, k, t0, failure_arcs)
-        crit = ", ".join(f"{name} on {n} arcs" for name, n in counts.items() if n)
+        # the criteria are counted at the arcs' samples at their departure: an arc refused for conditions met
+        # later along it, or between samples, is counted without its criterion
+        crit = ", ".join(f"{name} on {n} arcs" for name, n in counts.items() if n) or (
+            f"on {int(failure_arcs.sum())} arcs, conditions met along them as sailed"
+        )
         parts.append(f"failure model {problem.failure.name!r} (p_f > apf {problem.apf:g}: {crit})")
     labels = {
         "polar": "no boat speed in the polar",
@@ -1362,7 +1367,7 @@ def leg_manoeuvres(
         elapsed = np.zeros(n_legs + 1)
         c = problem.costs(lon[:-1], lat[:-1], lon[1:], lat[1:], np.zeros(n_legs))
         times, p_f, reason = c.time_h, c.p_f, c.reason
-        side, twa, tws = _first_sample_wind(problem, geom, np.zeros(n_legs))
+        side, twa, tws = first_sample_wind(problem, geom, np.zeros(n_legs))
         pen = track_manoeuvres(side, twa, tws, penalties, initial_side=problem.initial_side).penalty_h
         if penalties is None:
             elapsed[1:] = np.cumsum(times)
@@ -1409,7 +1414,7 @@ def _timed_legs(
         c = problem.costs(lon[idx], lat[idx], lon[idx + 1], lat[idx + 1], t0)
         times[idx], p_f[idx], reason[idx] = c.time_h, c.p_f, c.reason
         one = ArcGeometry(geom.lon_deg[idx], geom.lat_deg[idx], geom.course_deg[idx], geom.seg_nm)
-        side[idx], twa[idx], tws[idx] = _first_sample_wind(problem, one, t0)
+        side[idx], twa[idx], tws[idx] = first_sample_wind(problem, one, t0)
         pen = track_manoeuvres(side, twa, tws, penalties, initial_side=problem.initial_side).penalty_h
         stop = n_legs
         for i in idx:  # the legs' chain: exact up to the first leg costed from a wrong time
@@ -1426,7 +1431,7 @@ def _timed_legs(
     return elapsed, ArcCosts(time_h=times, p_f=p_f, reason=reason), man
 
 
-def _first_sample_wind(
+def first_sample_wind(
     problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray
 ) -> tuple[npt.NDArray[np.int8], FloatArray, FloatArray]:
     """Side, true wind angle [deg] and wind speed [kn] of each arc at its first weather sample, leaving at ``t0``."""

@@ -10,6 +10,7 @@ import pytest
 from scipy import integrate, stats
 
 from pyroute_rel import scenario_from_mapping
+from pyroute_rel.errors import ScenarioError
 from pyroute_rel.evaluate import evaluate_track
 from pyroute_rel.monte_carlo import MonteCarloSettings, expected_speed_factor, monte_carlo, wind_errors
 
@@ -99,3 +100,34 @@ def test_zero_speed_noise_is_the_deterministic_evaluation():
     ev = evaluate_track(sc, track)
     runs = monte_carlo(sc, track, runs=5, seed=1, settings=_speed_only(kappa=0.0, tau_speed_h=12.0))
     assert (runs.voyage_time_h == ev.voyage_time_h).all()
+
+
+_SCALARS = ("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "kappa", "polar_sd")
+
+
+@pytest.mark.parametrize("name", _SCALARS)
+@pytest.mark.parametrize("value", [-1.0, -1e-300, math.nan, math.inf, -math.inf, True, "1", None])
+def test_settings_refuse_a_bad_spread_naming_it(name, value):
+    """The noise sizes are finite numbers >= 0; the message names the setting and quotes the value."""
+    with pytest.raises(ScenarioError) as info:
+        MonteCarloSettings(**{name: value})
+    assert str(info.value) == f"Monte-Carlo {name} must be a finite number >= 0 (got {value!r})"
+
+
+@pytest.mark.parametrize("name", ["tau_h", "tau_speed_h"])
+@pytest.mark.parametrize("value", [0.0, -0.0, 0, -5.0, math.nan, -math.inf, False, "24", None])
+def test_settings_refuse_a_correlation_time_not_above_zero(name, value):
+    with pytest.raises(ScenarioError) as info:
+        MonteCarloSettings(**{name: value})
+    assert str(info.value) == f"Monte-Carlo {name} must be > 0 [h] (got {value!r})"
+
+
+def test_settings_take_zero_noise_and_any_positive_correlation_time():
+    """0 is no noise, an infinite correlation time a constant error (phi = 1), whole numbers are numbers."""
+    s = MonteCarloSettings(sigma0_ms=0, growth_ms_per_h=0.0, sigma_max_ms=1e300, kappa=0, polar_sd=0.0, tau_h=math.inf,
+                           tau_speed_h=1e-300)  # fmt: skip
+    assert s.describe_values() == {
+        "sigma0_ms": 0.0, "growth_ms_per_h": 0.0, "sigma_max_ms": 1e300, "tau_h": math.inf, "kappa": 0.0,
+        "polar_sd": 0.0, "tau_speed_h": 1e-300,
+    }  # fmt: skip
+    assert float(wind_errors(np.random.default_rng(1), 3, [1.0, 1.0], [0.0, 5.0], s.tau_h).std(axis=1).max()) == 0.0

@@ -20,10 +20,12 @@ from pyroute_rel.errors import ScenarioError
 from pyroute_rel.geodesy import gc_densify
 from pyroute_rel.obstacles.land import points_on_land
 from pyroute_rel.planners.mcts import MCTSPlanner
-from pyroute_rel.planners.mcts_kernel import PARAMS, search
+from pyroute_rel.planners.mcts_kernel import PARAMS, sailing_speeds, search
 from pyroute_rel.planners.plan import plan
 from pyroute_rel.planners.settings import parse_planner
-from pyroute_rel.polar import MIN_SPEED_KN, get_polar
+from pyroute_rel.polar import MIN_SPEED_KN, Polar, boat_speed_kn, get_polar
+from pyroute_rel.polar_compiled import speed_kn
+from pyroute_rel.polar_compiled import tables as polar_tables
 from pyroute_rel.units import KM_PER_NM
 
 evaluate = pytest.importorskip("pyroute_rel.evaluate")
@@ -79,8 +81,7 @@ def toy_inputs(cp: float) -> tuple:
         "perturbed": 0.0,
     }
     params = np.array([values[k] for k in PARAMS])
-    tables = tuple(np.ascontiguousarray(t, dtype=np.float64) for t in (polar.twa_deg, polar.tws_kn, polar.speed_kn))
-    return np.arange(8) * 45.0, (u, v, f, sig, sig), okh, open_, tables, params, polar
+    return np.arange(8) * 45.0, (u, v, f, sig, sig), okh, open_, polar_tables(polar), params, polar
 
 
 def _inside(lon: float, lat: float, half: float) -> bool:
@@ -305,3 +306,41 @@ def test_perturbed_weather_from_the_command_line(tmp_path, capsys):
     assert main(["route", str(path), "--planner", "mcts", "--quiet", "--out", str(tmp_path / "n")]) == 2
     err = capsys.readouterr().err
     assert "[planner.mcts].weather must be one of" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "polar",
+    [
+        get_polar("maribot_vane"),
+        # a first row above 0 deg (no-go below it), a first column above 0 kn (linear to 0 below it), a TWS axis
+        # longer than SHORT_AXIS (its cell guessed from the spacing) and uneven steps
+        Polar(
+            "long",
+            twa_deg=[30.0, 45.0, 60.0, 90.0, 120.0, 150.0, 170.0],
+            tws_kn=np.concatenate([[3.0], 4.5 + 1.5 * np.arange(24)]),
+            speed_kn=np.add.outer(np.linspace(1.0, 3.0, 7), np.sqrt(np.arange(25.0))),
+        ),
+    ],
+    ids=["maribot_vane", "long"],
+)
+@pytest.mark.parametrize("beyond", ["clamp", "forbid"])
+def test_the_search_sails_at_the_dp_polar_speeds(polar, beyond):
+    """The speeds the compiled search sails at equal the DP's compiled lookup and numpy's boat_speed_kn, bit for bit,
+    on every node of the table, next to them, between them, below the first row and column, beyond the last, at 0
+    and 180 deg, 0 kn and NaN."""
+
+    def around(axis, low, high):
+        mid = (axis[1:] + axis[:-1]) / 2.0
+        return np.concatenate(
+            [axis, np.nextafter(axis, -np.inf), np.nextafter(axis, np.inf), mid, [low, high, axis[-1] + 7.3, np.nan]]
+        )
+
+    twa = np.clip(around(polar.twa_deg, 0.0, 180.0), 0.0, 180.0)
+    tws = np.maximum(around(polar.tws_kn, 0.0, 60.0), 0.0)
+    a, w = (x.ravel() for x in np.meshgrid(twa, tws, indexing="ij"))
+    tabs = polar_tables(polar)
+    kernel = sailing_speeds(a, w, tabs, beyond == "forbid")
+    shared = np.array([speed_kn(x, y, *tabs, beyond == "forbid") for x, y in zip(a, w, strict=True)])
+    np.testing.assert_array_equal(kernel, shared)
+    np.testing.assert_array_equal(kernel, boat_speed_kn(polar, a, w, beyond=beyond))
+    assert np.isnan(kernel).any() and (kernel == 0.0).any() and (kernel > 0.0).any()

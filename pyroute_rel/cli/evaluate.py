@@ -47,7 +47,7 @@ def add_evaluate_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         "spread with --member) and boat-speed noise: the arrival distribution and the probability of meeting "
         "p_f > apf with its 95%% interval",
     )
-    e.add_argument("--seed", type=int, default=0, help="random seed of --monte-carlo (default 0)")
+    e.add_argument("--seed", type=int, help="random seed of --monte-carlo (default 0)")
     e.add_argument("--kappa", type=float, help="boat-speed variance per unit speed [kn] (default 0.2, Barde 2023)")
     e.add_argument(
         "--speed-tau", type=float, help="correlation time of the boat-speed noise [h] (default 12, an assumption)"
@@ -113,9 +113,11 @@ def _check_monte_carlo_options(args: argparse.Namespace) -> None:
     given = {k: v for k, v in MONTE_CARLO_OPTIONS.items() if getattr(args, k) is not None}
     if args.monte_carlo is not None and args.monte_carlo < 1:
         raise ScenarioError(f"--monte-carlo needs a whole number of runs >= 1 (got {args.monte_carlo})")
-    if given and args.monte_carlo is None:
-        names = ", ".join(option for option, _ in given.values())
+    if (given or args.seed is not None) and args.monte_carlo is None:
+        names = ", ".join([option for option, _ in given.values()] + ["--seed"] * (args.seed is not None))
         raise ScenarioError(f"{names} set the Monte-Carlo runs: add --monte-carlo N (or leave them out)")
+    if args.seed is not None and args.seed < 0:
+        raise ScenarioError(f"--seed must be a whole number >= 0 (got {args.seed})")
     for key, (option, field) in given.items():
         try:
             MonteCarloSettings(**{field: getattr(args, key)})
@@ -149,7 +151,8 @@ def _monte_carlo(args: argparse.Namespace, scenario: Any, track: Any) -> Any:
     if args.member is not None and args.wind_sd is None and args.wind_growth is None:
         spread = spread_from_members(args.scenario, track, departure=args.departure)
         settings = MonteCarloSettings(**{**settings.describe_values(), "spread_ms": spread})
-    return monte_carlo(scenario, track, runs=args.monte_carlo, seed=args.seed, settings=settings,
+    seed = 0 if args.seed is None else args.seed
+    return monte_carlo(scenario, track, runs=args.monte_carlo, seed=seed, settings=settings,
                        departure=args.departure)  # fmt: skip
 
 
@@ -172,16 +175,20 @@ def _write(ev: Any, summary: dict[str, Any], out: str, mc: Any = None) -> None:
 
 def _csv(ev: Any) -> str:
     """One row per track point; leg columns describe the leg that starts at the point (as ``route.csv``)."""
+    from ..outputs import MANOEUVRE_FIELDS, manoeuvre_cells
     from ..route import LEG_FIELDS
     from ..times import iso_utc
 
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["index", "lon_deg", "lat_deg", "time_utc", "elapsed_h", *(f"leg_{k}" for k in LEG_FIELDS), "blocked"])
+    leg_columns = [f"leg_{k}" for k in (*LEG_FIELDS, *MANOEUVRE_FIELDS)]
+    w.writerow(["index", "lon_deg", "lat_deg", "time_utc", "elapsed_h", *leg_columns, "blocked"])
     n = ev.track.shape[0]
     for i in range(n):
         last = i == n - 1
         legs = ["" if last or not math.isfinite(ev.legs[k][i]) else f"{ev.legs[k][i]:.6g}" for k in LEG_FIELDS]
+        sailed = not last and math.isfinite(ev.elapsed_h[i + 1])
+        legs += manoeuvre_cells(ev.manoeuvres if sailed else None, i)
         t = ev.time[i]
         w.writerow(
             [

@@ -188,7 +188,8 @@ def _add_route_parser(sub: Any) -> None:
         "--planner",
         choices=("dp", "mcts", "qlearning", "dqn"),
         help="who plans the track: dp (default, the exact DP), mcts, qlearning or dqn (overrides [planner].kind; "
-        "the evaluator re-times their tracks; --out then writes summary.json and track.csv)",
+        "the evaluator re-times their tracks; --out writes the same files from the re-timed track, without "
+        "forbidden.geojson; --departures, --refine and --prune are the DP's)",
     )
     r.add_argument(
         "--out",
@@ -299,7 +300,7 @@ def _route(args: argparse.Namespace) -> int:
 
 def _departure_sweep(args: argparse.Namespace, options: dict[str, Any]) -> int:
     """Route one scenario for several departure times (planning): a table, or JSON with --json. A thin use of
-    :mod:`pyroute_rel.sweep` (one run per departure, in this process)."""
+    :mod:`pyroute_rel.sweep` (one run per departure, on the sweep's default engine: a process pool from 16 runs)."""
     from ..errors import NoFeasibleRouteError
     from ..scenario import parse_departure
     from ..sweep import Run, run_sweep

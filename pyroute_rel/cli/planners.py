@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -72,22 +73,30 @@ def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
 
 def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> int:
     """Plan the scenario with ``args.planner`` (or its ``[planner].kind``), re-time the track, print and write it."""
+    from ..errors import ScenarioError
     from ..files import check_out_dir
     from ..outputs import finite_or_null
+    from ..planners.settings import unused_settings
 
     kind = args.planner or scenario.planner.kind
     scenario = replace(scenario, planner=replace(scenario.planner, kind=kind))
-    if args.departures is not None:
-        from ..errors import ScenarioError
-
-        raise ScenarioError("--departures routes with the DP only (leave out --planner or use --planner dp)")
+    dp_only = {"--departures": args.departures, "--refine": args.refine, "--prune": args.prune}
+    for option, value in dp_only.items():
+        if value is not None:
+            shown = "--no-prune" if value is False else option
+            raise ScenarioError(
+                f"{shown} applies to the DP only (leave it out, or use --planner dp; the planner is {kind})"
+            )
     if args.out is not None:
         check_out_dir(args.out, files=PLANNER_FILES)
+    notes = [*scenario.notes, *(f"{scenario.source}: {n}" for n in unused_settings(scenario.planner))]
     planned, ev, route, summary = _planner_summary(scenario, kind, progress=not args.quiet)
     elapsed = time.perf_counter() - t0
     summary["runtime_s"] = elapsed
     summary = finite_or_null(summary)  # e.g. planner_stats.model_voyage_time_h inf when not reached: not JSON
     written = _write(args.out, route, summary) if args.out is not None else []
+    for note in notes:  # as route's (with the result, even if --quiet)
+        print(f"pyroute-rel: note: {' '.join(note.split())}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
         return 0

@@ -130,7 +130,8 @@ def monte_carlo_histogram(result: MonteCarloResult, *, path: str | os.PathLike[s
     t = result.voyage_time_h
     finite = np.isfinite(t)
     bins = max(10, min(60, int(np.sqrt(finite.sum()))))
-    ax.hist(t[finite], bins=bins, color="0.6", label=f"{int(finite.sum())} runs")
+    arrived = f"{int(finite.sum())} runs" if finite.all() else f"{int(finite.sum())} of {t.size} runs arrived"
+    ax.hist(t[finite], bins=bins, color="0.6", label=arrived)
     over = finite & result.p_fail
     if over.any():
         ax.hist(t[over], bins=bins, range=(float(t[finite].min()), float(t[finite].max())), color=_CHOSEN,

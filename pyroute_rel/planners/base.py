@@ -122,6 +122,15 @@ class PlanningProblem:
                     f"has {what} (use the DP: --planner dp)"
                 )
 
+    def check_members(self, weather: str) -> None:
+        """Refuse MCTS's ``weather = "members"`` without members, naming the scenario's file."""
+        if weather == "members" and not self.members:
+            raise ScenarioError(
+                f"{self.scenario.source}: [planner.mcts].weather = 'members' needs ensemble members (there are none: "
+                "route --planner samples the scenario's weather alone; use 'perturbed', or pass members to "
+                "PlanningProblem.of)"
+            )
+
     @property
     def start(self) -> tuple[float, float]:
         """Start (lon, lat) [deg]."""

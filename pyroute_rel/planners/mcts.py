@@ -312,11 +312,10 @@ class MCTSPlanner:
         problem.check_simple_course(self.name)
         s = self.settings or problem.settings.mcts
         seed = problem.settings.seed if self.seed is None else self.seed
+        problem.check_members(s.weather)
         if s.engine == "lattice" and not s.graph:
             return plan_lattice(problem, s, seed, progress=progress)
         mode = weather_mode(s, problem, engine="python")
-        if mode == "members" and not problem.members:
-            raise ScenarioError("[planner.mcts].weather = 'members' needs ensemble members (there are none)")
         if mode == "perturbed":
             raise ScenarioError("[planner.mcts].weather = 'perturbed' needs engine = 'lattice'")
         rng = np.random.default_rng(seed)
@@ -366,6 +365,7 @@ def kernel_inputs(problem: PlanningProblem, s: MCTSSettings, lattice: Any) -> tu
     """The headings [deg], the polar tables and the scalar parameters (:data:`~.mcts_kernel.PARAMS`) of the
     compiled search of ``problem`` over ``lattice``."""
     from ..polar import MIN_SPEED_KN
+    from ..polar_compiled import tables as polar_tables
     from .mcts_kernel import PARAMS
 
     top, t_min, t_max = time_limits(problem, s)
@@ -392,8 +392,7 @@ def kernel_inputs(problem: PlanningProblem, s: MCTSSettings, lattice: Any) -> tu
         "perturbed": float(lattice.perturbed),
     }
     params = np.array([values[k] for k in PARAMS], dtype=np.float64)
-    tables = tuple(np.ascontiguousarray(t, dtype=np.float64) for t in (pol.twa_deg, pol.tws_kn, pol.speed_kn))
-    return np.arange(s.headings) * (360.0 / s.headings), tables, params
+    return np.arange(s.headings) * (360.0 / s.headings), polar_tables(pol), params
 
 
 def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progress: bool = False) -> PlannedTrack:

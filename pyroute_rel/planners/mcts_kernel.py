@@ -10,8 +10,8 @@ One step from ``(lon, lat, t)`` on heading ``h``:
 - the wind there, plus ``sigma * N(0, 1)`` per component in ``"perturbed"`` weather (one draw per step and
   component, as Barde samples the weather at each step);
 - the heading may be sailed when its true wind angle is within [``nogo_min``, ``nogo_max``], the failure model
-  allows it at the step's start, middle and end (as the DP judges a leg all along it), the polar (bilinear, as
-  :func:`~pyroute_rel.polar.boat_speed_kn`) times the wave factor gives at least
+  allows it at the step's start, middle and end (as the DP judges a leg all along it), the polar (the DP's own
+  lookup, :func:`pyroute_rel.polar_compiled.speed_kn`) times the wave factor gives at least
   :data:`~pyroute_rel.polar.MIN_SPEED_KN`, and the step's middle and end are in open cells;
 - the craft sails ``speed * step_h`` along the great circle (spherical Earth, as :mod:`pyroute_rel.geodesy`) and
   the step takes ``step_h``;
@@ -43,9 +43,10 @@ import math
 import numba
 import numpy as np
 
+from ..polar_compiled import speed_kn
 from ..units import EARTH_RADIUS_KM, KM_PER_NM
 
-__all__ = ["search", "PARAMS", "N_PARAMS"]
+__all__ = ["search", "sailing_speeds", "PARAMS", "N_PARAMS"]
 
 #: Names of the scalar parameters of :func:`search`, in the order of its ``params`` array.
 PARAMS = (
@@ -120,27 +121,23 @@ def _fold(a):  # type: ignore[no-untyped-def]  # pragma: no cover
 
 
 @numba.njit(inline="always", **_JIT)
-def _polar(twa, tws, twa_tab, tws_tab, speed_tab, forbid):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Bilinear polar speed [kn] (:func:`~pyroute_rel.polar.boat_speed_kn`'s rules)."""
-    n_a, n_w = twa_tab.size, tws_tab.size
-    i = 0
-    for m in range(1, n_a - 1):
-        i += twa_tab[m] <= twa
-    j = 0
-    for m in range(1, n_w - 1):
-        j += tws_tab[m] <= tws
-    fa = min(max((twa - twa_tab[i]) / (twa_tab[i + 1] - twa_tab[i]), 0.0), 1.0)
-    fw = min(max((tws - tws_tab[j]) / (tws_tab[j + 1] - tws_tab[j]), 0.0), 1.0)
-    low = speed_tab[i, j] * (1.0 - fw) + speed_tab[i, j + 1] * fw
-    high = speed_tab[i + 1, j] * (1.0 - fw) + speed_tab[i + 1, j + 1] * fw
-    v = high * fa + low * (1.0 - fa)
-    if tws_tab[0] > 0.0 and tws < tws_tab[0]:
-        v *= tws / tws_tab[0]
-    if twa_tab[0] > 0.0 and twa < twa_tab[0]:
-        v = 0.0
-    if forbid and (twa > twa_tab[n_a - 1] or tws > tws_tab[n_w - 1]):
-        v = 0.0
-    return v
+def _speed(twa, tws, polar, P):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Boat speed [kn] at ``twa`` [deg] in [0, 180] and ``tws`` [kn]: the DP's lookup
+    (:func:`pyroute_rel.polar_compiled.speed_kn`) in the tables of :func:`pyroute_rel.polar_compiled.tables`."""
+    return speed_kn(twa, tws, polar[0], polar[1], polar[2], polar[3], polar[4], P[_FORBID] != 0.0)
+
+
+@numba.njit(**_JIT)
+def sailing_speeds(twa, tws, polar, forbid):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The boat speeds [kn] the search sails at, at each true wind angle ``twa`` [deg] in [0, 180] and speed
+    ``tws`` [kn] (float64 arrays of one size), with the polar's ``tables`` (:func:`pyroute_rel.polar_compiled.tables`);
+    ``forbid``: 0 kn beyond the table (else clamp)."""
+    P = np.zeros(N_PARAMS)
+    P[_FORBID] = 1.0 if forbid else 0.0
+    out = np.empty(twa.size)
+    for n in range(twa.size):
+        out[n] = _speed(twa[n], tws[n], polar, P)
+    return out
 
 
 @numba.njit(inline="always", **_JIT)
@@ -219,7 +216,7 @@ def _try_heading(lon, lat, h, hdg, cond, m, W, okh, open_, polar, P):  # type: i
     twa = _fold(twd - hdg[h])
     if okh[m, min(k, okh.shape[1] - 1), j, i, h] == 0 or twa < P[_NOGO0] or twa > P[_NOGO1]:
         return False, lon, lat
-    speed = _polar(twa, tws, polar[0], polar[1], polar[2], P[_FORBID] != 0.0) * f
+    speed = _speed(twa, tws, polar, P) * f
     if not speed >= P[_VMIN]:
         return False, lon, lat
     dist = speed * P[_STEP]
@@ -241,7 +238,7 @@ def _finish_in_reach(lon, lat, dist, bearing, cond, hdg, m, okh, open_, polar, P
     if dist > P[_TOP] * P[_STEP]:  # out of reach at the top speed
         return math.inf
     h = int(bearing / (360.0 / hdg.size) + 0.5) % hdg.size  # the failure model's verdict of the nearest heading
-    speed = _polar(_fold(twd - bearing), tws, polar[0], polar[1], polar[2], P[_FORBID] != 0.0) * f
+    speed = _speed(_fold(twd - bearing), tws, polar, P) * f
     if not speed >= P[_VMIN] or dist > speed * P[_STEP] or okh[m, min(k, okh.shape[1] - 1), j, i, h] == 0:
         return math.inf
     if not _open(0.5 * (lon + P[_FLON]), 0.5 * (lat + P[_FLAT]), k, m, h, okh, open_, P):
@@ -395,7 +392,7 @@ def search(root, iterations, hdg, W, okh, open_, polar, P, rng):  # type: ignore
         array has its own number of time slices K (1: steady); past its last slice it is read at the last.
     okh : Whether the failure model allows each heading, uint8[M, K, NY, NX, H].
     open_ : Open cells, uint8[K, NY, NX].
-    polar : (twa table [deg], tws table [kn], speed table [kn] of shape (TWA, TWS)).
+    polar : The polar's tables, as :func:`pyroute_rel.polar_compiled.tables` gives them.
     P : The scalar parameters (:data:`PARAMS`), float64.
     rng : The two random streams, uint64[2] (advanced in place).
 

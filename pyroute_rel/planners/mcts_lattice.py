@@ -162,8 +162,7 @@ def build_lattice(
     """
     if weather not in WEATHER_MODES:
         raise ScenarioError(f"[planner.mcts].weather must be one of {list(WEATHER_MODES)} (got {weather!r})")
-    if weather == "members" and not pp.members:
-        raise ScenarioError("[planner.mcts].weather = 'members' needs ensemble members (there are none)")
+    pp.check_members(weather)
     headings = np.asarray(headings_deg, dtype=float)
     w, s, e, n = pp.box()
     lon_ax = w + spacing_deg * np.arange(int(np.floor((e - w) / spacing_deg)) + 2)

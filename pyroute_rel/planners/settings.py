@@ -48,7 +48,7 @@ defaults.
     learning_rate = 0.001
     gamma = 0.99
     epsilon = 0.2
-    epsilon_final = 0.05 # exploration falls linearly to this over the training voyages
+    epsilon_final = 0.05 # exploration falls linearly to this (at most epsilon) over the training voyages
     batch = 64
     replay = 20000
     target_every = 200   # learning steps between copies of the Q-network into the target network
@@ -74,6 +74,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
@@ -87,6 +88,9 @@ __all__ = [
     "DQNSettings",
     "PlannerSettings",
     "parse_planner",
+    "check_fields",
+    "FINITE",
+    "unused_settings",
 ]
 
 #: The planners by name: the exact DP and the three sampled or learned planners.
@@ -99,15 +103,24 @@ MCTS_WEATHER = ("auto", "forecast", "members", "perturbed")
 MCTS_ENGINES = ("lattice", "python")
 
 
-def _number(value: Any, where: str, lo: float, hi: float, *, lo_open: bool = False) -> float:
-    ok = not isinstance(value, bool) and isinstance(value, numbers.Real) and math.isfinite(float(value))
+#: The largest finite float: the upper end of a range that refuses only the infinite.
+FINITE = sys.float_info.max
+
+
+def _number(value: Any, where: str, lo: float, hi: float, *, lo_open: bool = False, expected: str = "") -> float:
+    ok = not isinstance(value, bool) and isinstance(value, numbers.Real)
     if ok:
-        x = float(value)
-        ok = (x > lo if lo_open else x >= lo) and x <= hi
+        try:
+            x = float(value)
+        except OverflowError:  # a whole number beyond the floats
+            x = math.nan
+        ok = (x > lo if lo_open else x >= lo) and x <= hi  # False for NaN
     if not ok:
         bracket = "(" if lo_open else "["
-        raise ScenarioError(f"{where} must be a number in {bracket}{lo:g}, {hi:g}] (got {brief(value)})")
-    return float(value)
+        raise ScenarioError(
+            f"{where} must be {expected or f'a number in {bracket}{lo:g}, {hi:g}]'} (got {brief(value)})"
+        )
+    return x
 
 
 def _whole(value: Any, where: str, lo: int, hi: int) -> int:
@@ -116,24 +129,48 @@ def _whole(value: Any, where: str, lo: int, hi: int) -> int:
     return int(value)
 
 
-def _check(obj: Any, table: str, limits: Mapping[str, tuple[Any, ...]]) -> None:
-    """Check every field of a settings dataclass against ``limits`` (name -> (kind, lo, hi[, lo_open]))."""
+def check_fields(obj: Any, limits: Mapping[str, tuple[Any, ...]], *, where: str) -> None:
+    """Check the fields of a frozen settings dataclass, in the order of ``limits``, raising a one-line
+    :class:`~pyroute_rel.errors.ScenarioError` that names the first bad one as ``where + name``; numbers are stored
+    back as ``int`` or ``float``.
+
+    Parameters
+    ----------
+    obj : The settings (``object.__setattr__`` stores the checked values).
+    limits : Field name -> its rule: ``("int", lo, hi)`` a whole number in [lo, hi]; ``("float", lo, hi)`` a real
+        number in [lo, hi] (NaN never; ``hi = inf`` takes the infinite, :data:`FINITE` does not), with optional
+        ``lo_open`` (``(lo, hi]``) and the phrase of what is expected (default ``"a number in [lo, hi]"``);
+        ``("bool",)``; ``("choice", options)`` one of the strings ``options``; ``("str",)`` a file name.
+    where : What the message names a field with: ``"[planner.mcts]."`` gives ``"[planner.mcts].iterations"``.
+
+    Examples
+    --------
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class Noise:
+    ...     sd: float = 1.0
+    >>> check_fields(Noise(sd=-2), {"sd": ("float", 0.0, FINITE, False, "a finite number >= 0")}, where="Noise ")
+    Traceback (most recent call last):
+    ...
+    pyroute_rel.errors.ScenarioError: Noise sd must be a finite number >= 0 (got -2)
+    """
     for name, spec in limits.items():
         value = getattr(obj, name)
-        where = f"[planner.{table}].{name}"
+        at = f"{where}{name}"
         if spec[0] == "int":
-            object.__setattr__(obj, name, _whole(value, where, spec[1], spec[2]))
+            object.__setattr__(obj, name, _whole(value, at, spec[1], spec[2]))
         elif spec[0] == "float":
-            object.__setattr__(obj, name, _number(value, where, spec[1], spec[2], lo_open=len(spec) > 3))
+            lo_open, expected = (spec[3:] + (False, ""))[:2]
+            object.__setattr__(obj, name, _number(value, at, spec[1], spec[2], lo_open=lo_open, expected=expected))
         elif spec[0] == "bool":
             if not isinstance(value, bool):
-                raise ScenarioError(f"{where} must be true or false (got {brief(value)})")
+                raise ScenarioError(f"{at} must be true or false (got {brief(value)})")
         elif spec[0] == "choice":
             if not isinstance(value, str) or value not in spec[1]:
-                raise ScenarioError(f"{where} must be one of {list(spec[1])} (got {brief(value)})")
+                raise ScenarioError(f"{at} must be one of {list(spec[1])} (got {brief(value)})")
         elif spec[0] == "str":
             if not isinstance(value, str):
-                raise ScenarioError(f"{where} must be a file name (a string) (got {brief(value)})")
+                raise ScenarioError(f"{at} must be a file name (a string) (got {brief(value)})")
 
 
 @dataclass(frozen=True)
@@ -189,9 +226,8 @@ class MCTSSettings:
     lattice_h: float = 6.0
 
     def __post_init__(self) -> None:
-        _check(
+        check_fields(
             self,
-            "mcts",
             {
                 "iterations": ("int", 1, 10_000_000),
                 "exploration": ("float", 0.0, 100.0),
@@ -210,6 +246,7 @@ class MCTSSettings:
                 "lattice_deg": ("float", 0.01, 5.0),
                 "lattice_h": ("float", 0.1, 1000.0),
             },
+            where="[planner.mcts].",
         )
         if self.nogo_min_deg >= self.nogo_max_deg:
             raise ScenarioError(
@@ -257,9 +294,8 @@ class QLearningSettings:
     max_voyage_h: float = 0.0
 
     def __post_init__(self) -> None:
-        _check(
+        check_fields(
             self,
-            "qlearning",
             {
                 "space": ("choice", QLEARNING_SPACES),
                 "alpha": ("float", 0.0, 1.0, True),
@@ -273,6 +309,7 @@ class QLearningSettings:
                 "time_bucket_h": ("float", 0.0, 10_000.0, True),
                 "max_voyage_h": ("float", 0.0, 100_000.0),
             },
+            where="[planner.qlearning].",
         )
 
 
@@ -290,8 +327,8 @@ class DQNSettings:
     learning_rate : Adam's step size [-].
     gamma : Discount factor [-].
     epsilon : Exploration rate of the first training voyage [-].
-    epsilon_final : Exploration rate of the last training voyage; it falls linearly from :attr:`epsilon` in
-        between (not in the paper; equal to ``epsilon`` for a constant rate) [-].
+    epsilon_final : Exploration rate of the last training voyage, at most :attr:`epsilon`; it falls linearly from
+        :attr:`epsilon` in between (not in the paper; equal to ``epsilon`` for a constant rate) [-].
     batch : Transitions per learning step [-].
     replay : Capacity of the experience replay [transitions].
     target_every : Learning steps between copies of the Q-network into the target network [-].
@@ -320,9 +357,8 @@ class DQNSettings:
     departure_spread_h: float = 72.0
 
     def __post_init__(self) -> None:
-        _check(
+        check_fields(
             self,
-            "dqn",
             {
                 "episodes": ("int", 1, 1_000_000),
                 "step_h": ("float", 0.0, 48.0, True),
@@ -340,7 +376,13 @@ class DQNSettings:
                 "model": ("str",),
                 "departure_spread_h": ("float", 0.0, 100_000.0),
             },
+            where="[planner.dqn].",
         )
+        if self.epsilon_final > self.epsilon:
+            raise ScenarioError(
+                f"[planner.dqn].epsilon_final must be at most epsilon: exploration falls from epsilon to epsilon_final "
+                f"(got epsilon_final {self.epsilon_final:g} and epsilon {self.epsilon:g})"
+            )
         hidden = self.hidden
         if (
             isinstance(hidden, str | bytes)
@@ -385,6 +427,48 @@ class PlannerSettings:
 
 
 _TABLES = {"mcts": MCTSSettings, "qlearning": QLearningSettings, "dqn": DQNSettings}
+
+#: Settings of a planner's table that only some of its modes use: (table, setting, mode setting, the modes that use
+#: it). ``sigma_scale`` with ``weather = "auto"`` is not listed: "auto" is "perturbed" when there are members.
+MODE_SETTINGS = (
+    ("mcts", "lattice_deg", "engine", ("lattice",)),
+    ("mcts", "lattice_h", "engine", ("lattice",)),
+    ("mcts", "sigma_scale", "weather", ("perturbed", "auto")),
+    ("qlearning", "cell_nm", "space", ("cells",)),
+    ("qlearning", "cells_across", "space", ("cells",)),
+    ("qlearning", "time_passes", "time_costing", ("passes",)),
+    ("qlearning", "time_bucket_h", "time_costing", ("buckets",)),
+)
+
+
+def unused_settings(settings: PlannerSettings) -> list[str]:
+    """What the scenario's planner (``settings.kind``) will not use of its own table: each setting changed from its
+    default that the table's mode leaves unused (:data:`MODE_SETTINGS`; MCTS with ``graph = true`` searches with
+    the Python engine, so the lattice's settings too), one line each. The other planners' tables are not looked at
+    (a scenario may hold every planner's settings).
+
+    >>> unused_settings(parse_planner({"kind": "qlearning", "qlearning": {"cell_nm": 60.0}, "mcts": {"lattice_h": 3}}))
+    ["[planner.qlearning].cell_nm = 60.0 is not used: it applies to space = 'cells' (the table has space = 'graph')"]
+    """
+    kind = settings.kind
+    if kind not in _TABLES:
+        return []
+    table = getattr(settings, kind)
+    default = _TABLES[kind]()
+    out = []
+    for name, setting, mode, modes in MODE_SETTINGS:
+        if name != kind or getattr(table, setting) == getattr(default, setting):
+            continue
+        value = getattr(table, setting)
+        used = getattr(table, mode)
+        graph = mode == "engine" and table.graph  # the graph search is the Python engine's
+        if used not in modes or graph:
+            wanted = " or ".join(repr(m) for m in modes if m != "auto")
+            out.append(
+                f"[planner.{kind}].{setting} = {value!r} is not used: it applies to {mode} = {wanted} "
+                f"(the table has {'graph = true' if graph else f'{mode} = {used!r}'})"
+            )
+    return out
 
 
 def parse_planner(raw: Any) -> PlannerSettings:
