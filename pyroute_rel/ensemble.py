@@ -4,7 +4,8 @@ Steps (:func:`route_ensemble`):
 
 1. **Route every member** (:func:`pyroute_rel.members.member_scenario`: the scenario with ``[weather] member = k``,
    so a member's route is exactly ``pyroute-rel route`` with that key), and the ensemble-mean field
-   (``member = "mean"``), in parallel on the local cores (one process per core, :mod:`concurrent.futures`).
+   (``member = "mean"``), in parallel on the local cores (one process per core, :mod:`concurrent.futures`) or on a
+   dask cluster (``engine="dask"``: :mod:`pyroute_rel.ensemble_dask`), each member in the next free process.
 2. **Candidates** are the members' routes plus the route on the ensemble mean (a member with no feasible route gives
    no candidate).
 3. **Sail every candidate in every member's weather** (:func:`pyroute_rel.evaluate.sail_tracks`, each leg costed as
@@ -45,6 +46,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .cost import REASONS
 from .errors import (
     NoFeasibleRouteError,
     ScenarioError,
@@ -70,6 +72,7 @@ __all__ = [
     "route_ensemble",
     "route_member",
     "regret_matrix",
+    "ENGINES",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -289,12 +292,35 @@ def _sail_in_members(
     def column(fn: Any) -> Any:
         return np.array([[fn(s) for s in per_member] for per_member in sailed]).T
 
+    over = column(_meets_p_f)
     return (
         column(lambda s: s.voyage_time_h),
         column(lambda s: s.max_p_f),
-        column(lambda s: any("p_f" in r for r in s.leg_reasons())),
-        column(lambda s: s.feasible),
+        over,
+        ~column(_stopped) & ~over,
         column(lambda s: bool(s.land.any())),
+    )
+
+
+#: Reason bits of a leg that cannot be sailed (:data:`pyroute_rel.evaluate.BLOCK_REASONS` ``no_speed``,
+#: ``current``, ``weather``).
+_STOP_BITS = np.uint8(REASONS["polar"] | REASONS["current"] | REASONS["weather"])
+
+
+def _meets_p_f(s: Any) -> bool:
+    """Whether a sailed track meets ``p_f > apf`` on a leg it sails (``"p_f"`` in its ``leg_reasons``)."""
+    with np.errstate(invalid="ignore"):
+        return bool(np.any(s.costs.p_f > s.apf))
+
+
+def _stopped(s: Any) -> bool:
+    """Whether a sailed track is blocked other than by ``p_f`` (a leg that cannot be sailed, land or a zone): with
+    :func:`_meets_p_f`, ``not Sailed.feasible``, without building its ``leg_reasons``."""
+    return (
+        not math.isfinite(s.voyage_time_h)
+        or bool(np.any(s.costs.reason & _STOP_BITS))
+        or bool(s.land.any())
+        or bool(s.zone.any())
     )
 
 
@@ -302,6 +328,16 @@ def _worker_init() -> None:
     os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads inside
     _CACHE.clear()
     _GRIDS.clear()
+
+
+#: Modules the worker processes' fork server imports before it forks them.
+_PRELOAD = (
+    "pyroute_rel.ensemble",
+    "pyroute_rel.cost_compiled",
+    "pyroute_rel.solve",
+    "pyroute_rel.evaluate",
+    "pyroute_rel.weather.readers",
+)
 
 
 def _warm_up() -> None:
@@ -325,11 +361,19 @@ class _Workers:
             import multiprocessing
 
             context = multiprocessing.get_context("forkserver")  # not fork: this process may run threads
+            # the server imports what a member's routing needs once, and forks the processes from it: they start
+            # with it imported (each importing it costs 1.5 processor seconds); ignored if the server already runs
+            context.set_forkserver_preload(["__main__", *_PRELOAD])
             self.pools = [
                 ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_worker_init) for _ in range(n)
             ]
             for p in self.pools:
                 p.submit(_warm_up)
+
+    @property
+    def size(self) -> int:
+        """Processes (1 for this process)."""
+        return max(len(self.pools), 1)
 
     def balanced(self, tasks: list[tuple[Any, ...]], fn: Any, bar: Any) -> tuple[list[Any], list[int]]:
         """``[fn(*t) for t in tasks]``, each task sent to the next free process, in order; with the process each
@@ -449,7 +493,8 @@ class EnsembleResult:
         chosen = self.chosen
         values = self.risk_values
         m = self.mean_index
-        beats = None if m is None else _num(values[m] - values[chosen])
+        with np.errstate(invalid="ignore"):  # inf - inf: neither has a finite risk
+            beats = None if m is None else _num(values[m] - values[chosen])
         return {
             "members": [
                 {
@@ -504,6 +549,10 @@ def regret_matrix(time_h: npt.ArrayLike, own_h: npt.ArrayLike, feasible: npt.Arr
         return np.where(ok, t - own, np.nan)
 
 
+#: Engines of :func:`route_ensemble`.
+ENGINES = ("auto", "inline", "processes", "dask")
+
+
 def route_ensemble(
     path: str | Path,
     *,
@@ -514,6 +563,9 @@ def route_ensemble(
     workers: int | None = None,
     options: dict[str, Any] | None = None,
     progress: bool = False,
+    engine: str = "auto",
+    scheduler: str | None = None,
+    connect_timeout_s: float = 10.0,
 ) -> EnsembleResult:
     """Route every member of a scenario's ensemble, sail every route in every member and choose by risk (see the
     module notes).
@@ -527,28 +579,33 @@ def route_ensemble(
     risk : The risk measure (:func:`parse_risk`).
     mean_field : Also route the ensemble-mean field (with ``member_files``, their mean:
         :func:`~pyroute_rel.members.mean_of_files`).
-    workers : Processes (default: the CPUs this process may use, :func:`~pyroute_rel.parallel.default_workers`;
-        1: in this process).
+    workers : Processes of the ``processes`` engine (default: the CPUs this process may use,
+        :func:`~pyroute_rel.parallel.default_workers`; 1: in this process), or of the ``dask`` engine's
+        ``LocalCluster`` (default the same).
     options : Scenario options for every member (:meth:`~pyroute_rel.scenario.Scenario.with_options`).
     progress : Show progress bars.
+    engine : Where members are routed and sailed: ``"auto"`` (the default: ``"dask"`` with a ``scheduler``, else
+        ``"processes"``), ``"inline"`` (this process), ``"processes"`` (local processes) or ``"dask"``
+        (``scheduler``'s cluster, else a ``LocalCluster`` of ``workers`` processes:
+        :mod:`pyroute_rel.ensemble_dask`). The result does not depend on the engine.
+    scheduler : Address of a running dask scheduler, ``tcp://HOST:PORT``.
+    connect_timeout_s : How long to try reaching ``scheduler`` (and to wait for a worker there) [s].
 
     Raises
     ------
     NoFeasibleRouteError
         When no member has a route.
     ScenarioError
-        When the scenario has no ensemble or ``members`` names members it does not have.
+        When the scenario has no ensemble, ``members`` names members it does not have, or the scheduler cannot be
+        reached.
     """
-    from .parallel import default_workers
-
     _check_ensemble_args(path, members, member_files, mean_field, workers, options, progress)
+    engine = _check_engine(engine, workers, scheduler, connect_timeout_s)
     r = parse_risk(risk) if isinstance(risk, str) else check_instance(risk, Risk, "risk", ScenarioError)
-    workers = default_workers() if workers is None else max(int(workers), 1)
-    if members is not None:
-        workers = min(workers, len(members) + int(mean_field))
     _CACHE.clear()  # the files may have changed since an earlier call in this process
     _GRIDS.clear()
-    pool = _Workers(workers)  # the processes start (and import) while this one reads the members' count
+    jobs = None if members is None else len(members) + int(bool(mean_field))
+    pool = _engine(engine, workers, scheduler, connect_timeout_s, jobs)  # starts while the members are counted
     try:
         n = member_count(path, member_files=member_files)
         chosen = list(range(n)) if members is None else [int(m) for m in members]
@@ -585,6 +642,41 @@ def _check_ensemble_args(
         check_instance(options, dict, "options", ScenarioError, expected="a dict of scenario options or None")
 
 
+def _check_engine(engine: Any, workers: int | None, scheduler: Any, connect_timeout_s: Any) -> str:
+    """The engine :func:`route_ensemble` uses (``"auto"`` resolved), its options checked: ScenarioError naming
+    the option."""
+    if not isinstance(engine, str) or engine not in ENGINES:
+        raise ScenarioError(f"engine must be one of {', '.join(ENGINES)} (got {brief(engine)})")
+    if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
+        raise ScenarioError(f"--scheduler must be a dask scheduler's address, tcp://HOST:PORT (got {brief(scheduler)})")
+    if scheduler is not None and engine not in ("auto", "dask"):
+        raise ScenarioError(f"--scheduler needs the dask engine (got engine {engine!r})")
+    if engine == "inline" and workers not in (None, 1):
+        raise ScenarioError(f"--workers {workers} needs the processes or dask engine (got engine 'inline')")
+    if scheduler is not None and workers is not None:
+        raise ScenarioError("--workers sets a LocalCluster's processes: give it or --scheduler, not both")
+    t = connect_timeout_s
+    if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t) or t <= 0:
+        raise ScenarioError(f"connect_timeout_s (--connect-timeout) must be a finite number > 0 [s] (got {brief(t)})")
+    if engine == "auto":
+        return "dask" if scheduler is not None else "processes"
+    return engine
+
+
+def _engine(engine: str, workers: int | None, scheduler: str | None, timeout_s: float, jobs: int | None) -> Any:
+    """The workers of an engine: :class:`_Workers` (local processes, or this process) or
+    :class:`~pyroute_rel.ensemble_dask.DaskWorkers`."""
+    from .parallel import default_workers
+
+    if engine == "dask":
+        from .ensemble_dask import DaskWorkers, dask_client
+
+        n = None if scheduler is not None else (workers or default_workers())
+        return DaskWorkers(dask_client(scheduler, workers=n, timeout_s=timeout_s), setup=_worker_init)
+    n = 1 if engine == "inline" else (default_workers() if workers is None else workers)
+    return _Workers(n if jobs is None else min(n, jobs))
+
+
 def _route_and_sail(
     path: str | Path,
     chosen: list[int],
@@ -592,7 +684,7 @@ def _route_and_sail(
     opts: dict[str, Any],
     with_mean: bool,
     r: Risk,
-    pool: _Workers,
+    pool: Any,
     progress: bool,
 ) -> EnsembleResult:
     """The two steps of :func:`route_ensemble`: route the members (and the mean, first: reading every member, it
@@ -615,7 +707,7 @@ def _route_and_sail(
     for m, w in zip(jobs, where, strict=True):
         if m != MEAN_NAME:
             held.setdefault(w, []).append(int(m))
-    n_w = max(len(pool.pools), 1)
+    n_w = pool.size
     tasks = [(p, held[w], files, opts, tracks, w == min(held)) if w in held else None for w in range(n_w)]
     bar = progress_bar(len(chosen), enabled=progress, desc="sailing in members", unit="member")
     sailed = pool.each(tasks, _sail_task)

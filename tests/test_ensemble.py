@@ -255,3 +255,36 @@ def test_ensemble_spread_is_zero_for_identical_members_and_positive_otherwise(tm
     wide = write_ensemble_scenario(tmp_path / "b", n_members=6, spread=1.0)
     s = spread_from_members(wide, track)
     assert (s > 0).all() and s.max() > 0.5  # [m/s]: the members' lows are displaced by degrees
+
+
+@pytest.mark.slow
+def test_sailed_flags_equal_the_leg_reasons(ensemble):
+    """The ensemble's p_f and feasibility flags of a sailed track equal ``Sailed.leg_reasons`` / ``feasible``, on
+    tracks that meet p_f > apf, cross land and leave the weather."""
+    from pyroute_rel.ensemble import _meets_p_f, _stopped
+    from pyroute_rel.evaluate import evaluation_problem, sail_in_members
+    from pyroute_rel.members import member_scenario
+
+    path, res = ensemble
+    scs = [member_scenario(path, m).with_options(apf=a) for m, a in ((0, 0.5), (1, 0.02), (2, 1e-6))]
+    tracks = [
+        *res.tracks,
+        np.array([[-14.0, 31.0], [-9.0, 31.5], [-6.0, 32.0]]),  # into Morocco
+        np.array([[-5.0, 40.0], [-2.0, 45.0], [3.0, 46.0]]),  # through Spain, off the file's east edge (0 E)
+    ]
+    avoid = scs[0].avoid
+    from dataclasses import replace
+
+    sailed = sail_in_members([evaluation_problem(sc) for sc in scs], tracks, avoid=replace(avoid, land=True))
+    seen = {"p_f": 0, "land": 0, "stop": 0, "ok": 0}
+    for per_member in sailed:
+        for s in per_member:
+            reasons = s.leg_reasons()
+            over = any("p_f" in r for r in reasons)
+            assert _meets_p_f(s) == over
+            assert (not _stopped(s) and not _meets_p_f(s)) == s.feasible
+            seen["p_f"] += over
+            seen["land"] += any("land" in r for r in reasons)
+            seen["stop"] += not np.isfinite(s.voyage_time_h)
+            seen["ok"] += s.feasible
+    assert all(seen.values()), seen  # every case met

@@ -49,7 +49,26 @@ def add_ensemble_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
     )
     e.add_argument("--risk", default="cvar:0.9", help="mean, pXX (e.g. p90), cvar:ALPHA (default cvar:0.9) or worst")
     e.add_argument("--no-mean", action="store_true", help="do not route the ensemble-mean field")
-    e.add_argument("--workers", type=int, help="processes (default: the CPUs available; 1: no child processes)")
+    e.add_argument(
+        "--engine",
+        choices=("auto", "inline", "processes", "dask"),
+        default="auto",
+        help="where members are routed and sailed: auto (the default: dask with --scheduler, else processes), "
+        "inline (this process), processes (local processes, --workers), dask (--scheduler's cluster, else a "
+        "LocalCluster of --workers processes, one thread each); the result does not depend on it",
+    )
+    e.add_argument(
+        "--workers",
+        type=int,
+        help="processes, or the dask LocalCluster's workers (default: the CPUs available; 1: no child processes)",
+    )
+    e.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="address of a running dask scheduler")
+    e.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=10.0,
+        help="how long to try reaching --scheduler and wait for a worker there [s] (default 10)",
+    )
     e.add_argument("--json", action="store_true", help="print the result as one JSON object")
     e.add_argument("--out", help=f"folder for {', '.join(ENSEMBLE_FILES)}")
     add_common(e)
@@ -76,6 +95,9 @@ def _cmd_ensemble(args: argparse.Namespace) -> int:
         mean_field=not args.no_mean,
         workers=args.workers,
         progress=not args.quiet,
+        engine=args.engine,
+        scheduler=args.scheduler,
+        connect_timeout_s=args.connect_timeout,
     )
     summary = result.summary()
     if args.out is not None:
