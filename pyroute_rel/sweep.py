@@ -83,6 +83,7 @@ __all__ = [
     "auto_engine",
     "run_batch",
     "task_batches",
+    "place_batches",
     "WORKER_ENV",
     "AUTO_MIN_RUNS",
     "MAX_BATCH_RUNS",
@@ -660,17 +661,24 @@ def run_batch(batch: Sequence[tuple[str, Run]], retries: int = 0) -> list[dict[s
     A run that raises an internal error is tried again up to ``retries`` times here, then is an internal-error row
     (not recorded in the output, so a later sweep tries it again). The batch of an engine's task: runs of the same
     member and grid are batched together, so a worker opens their weather and builds their grid once.
+
+    The weather files' dask arrays are read with dask's synchronous scheduler, in this thread: in a dask worker the
+    default would be the cluster itself, and a task waiting there for its weather's chunks secedes from the
+    worker's thread, so that the worker starts its next task, and the next, all at once.
     """
+    import dask
+
     _pin_threads()
     rows = []
-    for key, run in batch:
-        for attempt in range(retries + 1):
-            try:
-                rows.append(run_one(run, key))
-                break
-            except Exception as exc:
-                if attempt == retries:
-                    rows.append(_internal_row(run, key, exc))
+    with dask.config.set(scheduler="synchronous"):  # the weather's dask arrays: read here, not on the cluster
+        for key, run in batch:
+            for attempt in range(retries + 1):
+                try:
+                    rows.append(run_one(run, key))
+                    break
+                except Exception as exc:
+                    if attempt == retries:
+                        rows.append(_internal_row(run, key, exc))
     return rows
 
 
@@ -679,17 +687,53 @@ def run_batch(batch: Sequence[tuple[str, Run]], retries: int = 0) -> list[dict[s
 MAX_BATCH_RUNS = 8
 
 
+def _group(run: Run) -> tuple[str, int]:
+    """The runs that share their weather: same scenario and member (the grid is cheap to build again)."""
+    return run.scenario, -1 if run.member is None else run.member
+
+
 def task_batches(todo: Sequence[tuple[str, Run]], workers: int) -> list[list[tuple[str, Run]]]:
     """The runs of an engine's tasks: sorted by scenario, member and grid (so that a task's runs share their weather
-    and grid), split into batches of at most :data:`MAX_BATCH_RUNS` runs and about ``len(todo) / (4 workers)``.
+    and grid) and split into batches of at most :data:`MAX_BATCH_RUNS` runs and about ``len(todo) / (4 workers)``;
+    a batch never holds runs of two members (each member's runs are split into equal batches).
 
     >>> runs = [("k%d" % i, Run("s.toml", member=i % 3)) for i in range(10)]
     >>> [[k for k, _ in b] for b in task_batches(runs, 1)]
-    [['k0', 'k3', 'k6'], ['k9', 'k1', 'k4'], ['k7', 'k2', 'k5'], ['k8']]
+    [['k0', 'k3'], ['k6', 'k9'], ['k1', 'k4', 'k7'], ['k2', 'k5', 'k8']]
     """
-    order = sorted(todo, key=lambda kr: (kr[1].scenario, -1 if kr[1].member is None else kr[1].member, kr[1].grid))
+    order = sorted(todo, key=lambda kr: (*_group(kr[1]), kr[1].grid))
     size = max(1, min(MAX_BATCH_RUNS, math.ceil(len(order) / (4 * max(1, workers)))))
-    return [order[i : i + size] for i in range(0, len(order), size)]
+    batches = []
+    for _, runs in itertools.groupby(order, key=lambda kr: _group(kr[1])):
+        group = list(runs)
+        n = math.ceil(len(group) / size)
+        batches += [group[len(group) * i // n : len(group) * (i + 1) // n] for i in range(n)]
+    return batches
+
+
+def place_batches(
+    batches: Sequence[Sequence[tuple[str, Run]]], threads: Mapping[str, int]
+) -> list[tuple[Sequence[tuple[str, Run]], str | None]]:
+    """Each batch with the worker it should run on, so that each member's runs go to one worker: the members
+    (:func:`task_batches`' groups), largest first, each to the worker with the fewest runs per thread so far
+    (``threads``: worker address -> threads; no worker: None). The batches keep their order.
+
+    >>> b = [[("a", Run("s", member=0))] * 3, [("b", Run("s", member=1))] * 2, [("c", Run("s", member=2))] * 2]
+    >>> [w for _, w in place_batches(b, {"w1": 1, "w2": 1})]
+    ['w1', 'w2', 'w2']
+    """
+    groups: dict[tuple[str, int], int] = {}
+    for b in batches:
+        if b:
+            groups[_group(b[0][1])] = groups.get(_group(b[0][1]), 0) + len(b)
+    load = {w: 0.0 for w, n in threads.items() if n > 0}
+    where: dict[tuple[str, int], str | None] = {}
+    for g in sorted(groups, key=lambda g: -groups[g]):
+        w = min(load, key=lambda w: load[w] / threads[w], default=None)
+        where[g] = w
+        if w is not None:
+            load[w] += groups[g]
+    return [(b, where[_group(b[0][1])] if b else None) for b in batches]
 
 
 def _processes(todo: Sequence[tuple[str, Run]], workers: int, retries: int) -> Iterator[dict[str, Any]]:
@@ -749,14 +793,14 @@ def _dask(
 
     client = _dask_client(scheduler, workers, timeout_s)
     try:
-        n_workers = workers or max(1, len(client.scheduler_info().get("workers", {})))
-        batches = task_batches(todo, n_workers)
-        futures = {
-            client.submit(
-                run_batch, b, retries, key=f"pyroute-rel-runs-{b[0][0]}-{len(b)}", pure=False, retries=retries
-            ): b
-            for b in batches
-        }
+        threads = client.nthreads()  # worker address -> threads
+        placed = place_batches(task_batches(todo, workers or max(1, sum(threads.values()))), threads)
+        futures = {}
+        for i, (b, worker) in enumerate(placed):  # each member on one worker, others may take it (stealing, death)
+            where = {"workers": [worker], "allow_other_workers": True} if worker is not None else {}
+            key = f"pyroute-rel-runs-{b[0][0]}-{len(b)}"
+            fut = client.submit(run_batch, b, retries, key=key, pure=False, retries=retries, priority=-i, **where)
+            futures[fut] = b
         for fut in as_completed(futures, loop=client.loop):
             try:
                 yield from fut.result()
