@@ -802,8 +802,14 @@ def _dask(
     try:
         threads = client.nthreads()  # worker address -> threads
         placed = place_batches(task_batches(todo, workers or max(1, sum(threads.values()))), threads)
+        rank: list[int] = []
+        seen: dict[str | None, int] = {}
+        for _, worker in placed:  # submitted in turns, each worker's first task first: none idle meanwhile
+            rank.append(seen.get(worker, 0))
+            seen[worker] = rank[-1] + 1
         futures = {}
-        for i, (b, worker) in enumerate(placed):  # each member on one worker, others may take it (stealing, death)
+        for i in sorted(range(len(placed)), key=lambda i: (rank[i], i)):  # run in the order given: priority -i
+            b, worker = placed[i]  # each member on one worker; another may take it (when idle, or that one died)
             where = {"workers": [worker], "allow_other_workers": True} if worker is not None else {}
             key = f"pyroute-rel-runs-{b[0][0]}-{len(b)}"
             fut = client.submit(run_batch, b, retries, key=key, pure=False, retries=retries, priority=-i, **where)
