@@ -16,7 +16,8 @@ model, no land. The two grids are the default angular grid (160 ranks) and 80 ra
   under 30 %.
 - ``dask_1`` / ``dask_2``: a ``LocalCluster`` of 1 and 2 worker processes (one thread each, the sweep's
   ``WORKER_ENV``), started and warmed (imports) before the clock starts; wall time of ``run_sweep(...,
-  scheduler=...)`` and the workers' CPU time per route; target ``dask_1 / dask_2`` >= 1.7 (with an idle core each).
+  scheduler=...)``, the workers' CPU time per route and the weather files each worker read (one per member when
+  each member's tasks stay on one worker); target ``dask_1 / dask_2`` >= 1.7 (with an idle core each).
 
 ``--quick`` runs 2 departures x 3 members x 2 apf x 2 grids (24 routes), a smoke run whose targets are not judged;
 ``--members N`` routes the first N members only (24 routes each; targets not judged below 10). Timings depend on the
@@ -178,6 +179,13 @@ def _worker_cpu_s() -> float:
     return _cpu_s(resource.RUSAGE_SELF)
 
 
+def _weather_reads() -> int:
+    """Run on each dask worker after the sweep: how many weather files it read (the weather cache's misses)."""
+    from pyroute_rel.weather import cache
+
+    return int(cache.stats()["misses"])
+
+
 def _dask(runs, workers: int) -> dict:
     from distributed import Client, LocalCluster
 
@@ -192,8 +200,15 @@ def _dask(runs, workers: int) -> dict:
         table = run_sweep(runs, engine="dask", scheduler=cluster.scheduler_address)
         wall = time.perf_counter() - t0
         cpu = sum(client.run(_worker_cpu_s).values()) - cpu0
+        reads = sorted(client.run(_weather_reads).values())
     rows = table.to_pylist()
-    return {"workers": workers, "wall_s": wall, "cpu_s_per_route": cpu / len(rows), "table": _comparable(rows)}
+    return {
+        "workers": workers,
+        "wall_s": wall,
+        "cpu_s_per_route": cpu / len(rows),
+        "weather_reads": reads,
+        "table": _comparable(rows),
+    }
 
 
 def _show(name: str, report: dict) -> None:

@@ -14,9 +14,12 @@ process pool of one process per CPU, :func:`auto_engine`), ``"inline"`` (this pr
 process pool) and ``"dask"`` (:mod:`distributed`: a running scheduler's address, or a ``LocalCluster`` of
 ``workers`` processes). Every process keeps the weather it opened (:mod:`pyroute_rel.weather.cache`) and the grids
 it built for its later runs. Worker processes run one thread each (:data:`WORKER_ENV`), and their tasks are
-batches of runs of the same member and grid (:func:`task_batches`). Failures are retried a bounded number of times
-(``retries``): a run's internal error in its worker, a task whose worker died by the engine (dask's ``retries``;
-the process pool is restarted and the unfinished batches resubmitted); a user error is a row, never retried.
+batches of runs of the same member (:func:`task_batches`); on dask, all the batches of a member go to one worker
+(:func:`place_batches`, dask's worker restrictions, loose: another worker may take them when it would be idle, or
+when that worker dies), so that a member's weather is read by one worker only. Failures are retried a bounded
+number of times (``retries``): a run's internal error in its worker, a task whose worker died by the engine (dask's
+``retries``; the process pool is restarted and the unfinished batches resubmitted); a user error is a row, never
+retried.
 
 Output (``out``): ``runs.parquet/``, a Parquet dataset folder: each batch of finished runs is one part file,
 written whole (a temporary name, then a rename), so a sweep that is killed keeps every batch it wrote;
@@ -37,6 +40,7 @@ import math
 import os
 import time
 import uuid
+import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -47,6 +51,7 @@ from .config import SCHEMA, parse_departure, probability
 from .errors import (
     NoFeasibleRouteError,
     PyrouteError,
+    PyrouteWarning,
     ScenarioError,
     WeatherCoverageError,
     brief,
@@ -83,6 +88,7 @@ __all__ = [
     "auto_engine",
     "run_batch",
     "task_batches",
+    "place_batches",
     "WORKER_ENV",
     "AUTO_MIN_RUNS",
     "MAX_BATCH_RUNS",
@@ -620,12 +626,21 @@ def _internal_row(run: Run, key: str, exc: BaseException) -> dict[str, Any]:
     return row
 
 
-def _inline(todo: Sequence[tuple[str, Run]]) -> Iterator[dict[str, Any]]:
-    for key, run in todo:
+def _attempts(run: Run, key: str, retries: int) -> dict[str, Any]:
+    """The run's row, tried again up to ``retries`` times after an internal error (then an internal-error row, not
+    recorded in the files: a later sweep tries it again)."""
+    for attempt in range(retries + 1):
         try:
-            yield run_one(run, key)
-        except Exception as exc:  # a bug of ours: recorded in the result, not in the files
-            yield _internal_row(run, key, exc)
+            return run_one(run, key)
+        except Exception as exc:  # a bug of ours
+            if attempt == retries:
+                return _internal_row(run, key, exc)
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _inline(todo: Sequence[tuple[str, Run]], retries: int) -> Iterator[dict[str, Any]]:
+    for key, run in todo:
+        yield _attempts(run, key, retries)
 
 
 #: Environment of worker processes (a process pool, a dask ``LocalCluster``): one thread each, also in the BLAS,
@@ -660,18 +675,16 @@ def run_batch(batch: Sequence[tuple[str, Run]], retries: int = 0) -> list[dict[s
     A run that raises an internal error is tried again up to ``retries`` times here, then is an internal-error row
     (not recorded in the output, so a later sweep tries it again). The batch of an engine's task: runs of the same
     member and grid are batched together, so a worker opens their weather and builds their grid once.
+
+    The weather files' dask arrays are read with dask's synchronous scheduler, in this thread: in a dask worker the
+    default would be the cluster itself, and a task waiting there for its weather's chunks secedes from the
+    worker's thread, so that the worker starts its next task, and the next, all at once.
     """
+    import dask
+
     _pin_threads()
-    rows = []
-    for key, run in batch:
-        for attempt in range(retries + 1):
-            try:
-                rows.append(run_one(run, key))
-                break
-            except Exception as exc:
-                if attempt == retries:
-                    rows.append(_internal_row(run, key, exc))
-    return rows
+    with dask.config.set(scheduler="synchronous"):  # the weather's dask arrays: read here, not on the cluster
+        return [_attempts(run, key, retries) for key, run in batch]
 
 
 #: Most runs in one task of the process-pool and dask engines (tasks of about a second each are batched up to this
@@ -679,17 +692,53 @@ def run_batch(batch: Sequence[tuple[str, Run]], retries: int = 0) -> list[dict[s
 MAX_BATCH_RUNS = 8
 
 
+def _group(run: Run) -> tuple[str, int]:
+    """The runs that share their weather: same scenario and member (the grid is cheap to build again)."""
+    return run.scenario, -1 if run.member is None else run.member
+
+
 def task_batches(todo: Sequence[tuple[str, Run]], workers: int) -> list[list[tuple[str, Run]]]:
     """The runs of an engine's tasks: sorted by scenario, member and grid (so that a task's runs share their weather
-    and grid), split into batches of at most :data:`MAX_BATCH_RUNS` runs and about ``len(todo) / (4 workers)``.
+    and grid) and split into batches of at most :data:`MAX_BATCH_RUNS` runs and about ``len(todo) / (4 workers)``;
+    a batch never holds runs of two members (each member's runs are split into equal batches).
 
     >>> runs = [("k%d" % i, Run("s.toml", member=i % 3)) for i in range(10)]
     >>> [[k for k, _ in b] for b in task_batches(runs, 1)]
-    [['k0', 'k3', 'k6'], ['k9', 'k1', 'k4'], ['k7', 'k2', 'k5'], ['k8']]
+    [['k0', 'k3'], ['k6', 'k9'], ['k1', 'k4', 'k7'], ['k2', 'k5', 'k8']]
     """
-    order = sorted(todo, key=lambda kr: (kr[1].scenario, -1 if kr[1].member is None else kr[1].member, kr[1].grid))
+    order = sorted(todo, key=lambda kr: (*_group(kr[1]), kr[1].grid))
     size = max(1, min(MAX_BATCH_RUNS, math.ceil(len(order) / (4 * max(1, workers)))))
-    return [order[i : i + size] for i in range(0, len(order), size)]
+    batches = []
+    for _, runs in itertools.groupby(order, key=lambda kr: _group(kr[1])):
+        group = list(runs)
+        n = math.ceil(len(group) / size)
+        batches += [group[len(group) * i // n : len(group) * (i + 1) // n] for i in range(n)]
+    return batches
+
+
+def place_batches(
+    batches: Sequence[Sequence[tuple[str, Run]]], threads: Mapping[str, int]
+) -> list[tuple[Sequence[tuple[str, Run]], str | None]]:
+    """Each batch with the worker it should run on, so that each member's runs go to one worker: the members
+    (:func:`task_batches`' groups), largest first, each to the worker that would then have the fewest runs per
+    thread (``threads``: worker address -> threads; no worker: None). The batches keep their order.
+
+    >>> b = [[("a", Run("s", member=0))] * 3, [("b", Run("s", member=1))] * 2, [("c", Run("s", member=2))] * 2]
+    >>> [w for _, w in place_batches(b, {"w1": 1, "w2": 1})]
+    ['w1', 'w2', 'w2']
+    """
+    groups: dict[tuple[str, int], int] = {}
+    for b in batches:
+        if b:
+            groups[_group(b[0][1])] = groups.get(_group(b[0][1]), 0) + len(b)
+    load = {w: 0.0 for w, n in threads.items() if n > 0}
+    where: dict[tuple[str, int], str | None] = {}
+    for g in sorted(groups, key=lambda g: -groups[g]):
+        w = min(load, key=lambda w: (load[w] + groups[g]) / threads[w], default=None)
+        where[g] = w
+        if w is not None:
+            load[w] += groups[g]
+    return [(b, where[_group(b[0][1])] if b else None) for b in batches]
 
 
 def _processes(todo: Sequence[tuple[str, Run]], workers: int, retries: int) -> Iterator[dict[str, Any]]:
@@ -747,16 +796,24 @@ def _dask(
 ) -> Iterator[dict[str, Any]]:
     from distributed import as_completed
 
+    if scheduler is None:  # a LocalCluster: never more processes than batches to run
+        workers = min(workers or 1, len(task_batches(todo, workers or 1)))
     client = _dask_client(scheduler, workers, timeout_s)
     try:
-        n_workers = workers or max(1, len(client.scheduler_info().get("workers", {})))
-        batches = task_batches(todo, n_workers)
-        futures = {
-            client.submit(
-                run_batch, b, retries, key=f"pyroute-rel-runs-{b[0][0]}-{len(b)}", pure=False, retries=retries
-            ): b
-            for b in batches
-        }
+        threads = client.nthreads()  # worker address -> threads
+        placed = place_batches(task_batches(todo, workers or max(1, sum(threads.values()))), threads)
+        rank: list[int] = []
+        seen: dict[str | None, int] = {}
+        for _, worker in placed:  # submitted in turns, each worker's first task first: none idle meanwhile
+            rank.append(seen.get(worker, 0))
+            seen[worker] = rank[-1] + 1
+        futures = {}
+        for i in sorted(range(len(placed)), key=lambda i: (rank[i], i)):  # run in the order given: priority -i
+            b, worker = placed[i]  # each member on one worker; another may take it (when idle, or that one died)
+            where = {"workers": [worker], "allow_other_workers": True} if worker is not None else {}
+            key = f"pyroute-rel-runs-{b[0][0]}-{len(b)}"
+            fut = client.submit(run_batch, b, retries, key=key, pure=False, retries=retries, priority=-i, **where)
+            futures[fut] = b
         for fut in as_completed(futures, loop=client.loop):
             try:
                 yield from fut.result()
@@ -805,10 +862,24 @@ def _engine_rows(
         engine, chosen = auto_engine(len(todo))
         workers = workers or chosen
     if engine == "inline":
-        return _inline(todo)
+        return _inline(todo, retries)
     if engine == "processes":
-        return _processes(todo, workers or 2, retries)
+        return _processes(todo, _local_workers(workers or 2, "a pool"), retries)
+    if scheduler is None and workers is not None:
+        workers = _local_workers(workers, "a LocalCluster")
     return _dask(todo, scheduler, workers, retries, timeout_s)
+
+
+def _local_workers(workers: int, what: str) -> int:
+    """``workers`` processes on this machine, at most one per CPU this process may use (a warning when fewer)."""
+    cpus = _cpus()
+    if workers > cpus:
+        warnings.warn(
+            f"--workers {workers} is more than the {cpus} CPUs this process may use: {what} of {cpus} processes",
+            PyrouteWarning,
+            stacklevel=4,
+        )
+    return min(workers, cpus)
 
 
 def _check_engine(engine: str, workers: int | None, scheduler: str | None, retries: int, batch: int) -> None:
@@ -818,6 +889,10 @@ def _check_engine(engine: str, workers: int | None, scheduler: str | None, retri
         raise SweepError(f"--workers must be a whole number >= 1 (got {brief(workers)})")
     if scheduler is not None and engine != "dask":
         raise SweepError(f"--scheduler needs the dask engine (got engine {engine!r})")
+    if workers is not None and engine == "inline":
+        raise SweepError("--workers needs the processes, dask or auto engine (engine 'inline' routes in this process)")
+    if workers is not None and scheduler is not None:
+        raise SweepError("--workers starts a LocalCluster: not with --scheduler (the cluster's workers are used)")
     if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
         raise SweepError(f"--retries must be a whole number >= 0 (got {brief(retries)})")
     if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
@@ -868,6 +943,9 @@ def run_sweep(
         processes, one per CPU or ``workers``), ``"inline"`` (this process), ``"processes"`` (a local pool of
         ``workers`` processes, default 2) or ``"dask"`` (``scheduler``'s cluster, else a ``LocalCluster`` of
         ``workers`` processes, default 1). The rows do not depend on the engine.
+    workers : Processes of a local engine (not with ``"inline"`` nor with ``scheduler``: a SweepError); at most
+        one per CPU this process may use (more is a :class:`~pyroute_rel.errors.PyrouteWarning`, and the CPUs) and
+        one per task.
     out : Output folder: runs already recorded there are not routed again; each finished batch (``batch`` runs or
         ``flush_s`` seconds [s], whichever first) is written at once (see the module notes).
     retries : How often a run is tried again after an internal error, and a task after its worker died (dask's

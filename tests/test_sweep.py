@@ -283,6 +283,7 @@ def test_task_batches_group_members_and_cover_every_run_once() -> None:
         assert len(batches) >= min(len(todo), 4 * workers) // MAX_BATCH_RUNS
         members = [r.member for b in batches for _, r in b]
         assert members == sorted(members)  # a member's runs are consecutive: batches share their weather
+        assert all(len({r.member for _, r in b}) == 1 for b in batches)  # a batch is one member's (one worker's)
 
 
 @pytest.mark.parametrize(

@@ -66,7 +66,12 @@ def add_sweep_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], N
         "a local pool of one process per CPU), inline (this process), processes (a local pool of --workers), "
         "dask (--scheduler's cluster, or a LocalCluster of --workers one thread each; the default with either)",
     )
-    s.add_argument("--workers", type=int, help="worker processes (a dask LocalCluster unless --engine processes)")
+    s.add_argument(
+        "--workers",
+        type=int,
+        help="worker processes, at most one per CPU (a warning and the CPUs beyond): a dask LocalCluster, or the "
+        "pool of --engine processes or auto; not with --engine inline nor --scheduler",
+    )
     s.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="address of a running dask scheduler")
     s.add_argument(
         "--retries",
@@ -77,13 +82,10 @@ def add_sweep_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], N
     s.add_argument(
         "--batch",
         type=int,
-        default=32,
         help="with --out, write a part file every this many finished runs (or every 5 s): a killed sweep loses at "
         "most the runs of its last batch (default 32)",
     )
-    s.add_argument(
-        "--connect-timeout", type=float, default=10.0, help="how long to try reaching --scheduler [s] (default 10)"
-    )
+    s.add_argument("--connect-timeout", type=float, help="how long to try reaching --scheduler [s] (default 10)")
     s.add_argument("--json", action="store_true", help='print {"runs": [one object per run]} instead of a table')
     add_common(s)
     s.set_defaults(func=_cmd_sweep)
@@ -115,9 +117,24 @@ def _engine(args: argparse.Namespace) -> str:
     return "dask" if args.scheduler is not None or args.workers is not None else "auto"
 
 
+def _check_combinations(args: argparse.Namespace) -> None:
+    """Options that would do nothing with the others given: a one-line error naming the option."""
+    from ..sweep import SweepError
+
+    if args.batch is not None and args.out is None:
+        raise SweepError("--batch sets how often --out is written: it needs --out")
+    if args.connect_timeout is not None and args.scheduler is None:
+        raise SweepError("--connect-timeout is how long to try reaching --scheduler: it needs --scheduler")
+    if args.workers is not None and args.engine == "inline":
+        raise SweepError("--workers needs the processes, dask or auto engine (--engine inline routes in this process)")
+    if args.workers is not None and args.scheduler is not None:
+        raise SweepError("--workers starts a LocalCluster: not with --scheduler (the cluster's workers are used)")
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from ..sweep import SweepError, run_sweep, sweep_from_mapping
 
+    _check_combinations(args)
     table, base, source = _spec_table(args)
     try:
         runs = sweep_from_mapping(table, base_dir=base, source=source).runs
@@ -141,8 +158,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         scheduler=args.scheduler,
         out=args.out,
         retries=args.retries,
-        batch=args.batch,
-        connect_timeout_s=args.connect_timeout,
+        batch=32 if args.batch is None else args.batch,
+        connect_timeout_s=10.0 if args.connect_timeout is None else args.connect_timeout,
         progress=not args.quiet,
         log=None if args.quiet else lambda line: print(f"pyroute-rel: {line}", file=sys.stderr),
     )

@@ -1,0 +1,143 @@
+"""Sweep engines (pyroute_rel.sweep): on dask each member's runs go to one worker and its weather is read there, in
+the task, not as tasks of the cluster; option combinations that would do nothing are one-line errors; local engines
+start at most one process per CPU."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import warnings
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+from pyroute_rel.cli.main import main
+from pyroute_rel.errors import PyrouteWarning
+from pyroute_rel.sweep import Run, SweepError, place_batches, run_sweep, task_batches
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Columns that differ between two runs of the same sweep: the time it took.
+TIMING = ("runtime_s",)
+
+
+@pytest.fixture(scope="module")
+def ensemble(tmp_path_factory) -> Path:
+    """A 3-member ensemble (2 deg, 12-hourly, 40 days) and its scenario on 12 ranks."""
+    spec = importlib.util.spec_from_file_location("make_ensemble", ROOT / "benchmarks" / "make_ensemble.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    folder = tmp_path_factory.mktemp("ensemble")
+    return module.write_ensemble(folder, n_ranks=12, members=3, step_deg=2.0, step_h=12, days=40)
+
+
+def _runs(scenario: Path, members=(0, 1, 2)) -> list[Run]:
+    deps = ("2018-06-02T00:00:00Z", "2018-06-03T00:00:00Z")
+    return [Run(str(scenario), departure=d, member=m, apf=a) for m in members for a in (1.0, 0.02) for d in deps]
+
+
+def _comparable(table) -> list[dict]:
+    return sorted(({k: v for k, v in r.items() if k not in TIMING} for r in table.to_pylist()), key=lambda r: r["key"])
+
+
+@pytest.mark.slow
+def test_on_dask_each_member_runs_on_one_worker_and_reads_its_weather_in_the_task(ensemble) -> None:
+    """A LocalCluster of 2 workers: the task stream holds only the sweep's tasks (the weather's dask chunks were
+    once read as tasks of the cluster: tasks seceded and ran all at once on a one-thread worker), a worker runs one
+    task at a time, every task of a member ran on one worker unless the scheduler stole it (its stealing events),
+    both workers routed, and the table equals the inline engine's."""
+    from distributed import Client, LocalCluster, get_task_stream
+
+    from pyroute_rel.sweep import WORKER_ENV
+
+    runs = _runs(ensemble, members=(0, 1))
+    inline = run_sweep(runs, engine="inline")
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, env=dict(WORKER_ENV)
+        ) as cluster,
+        Client(cluster) as client,
+    ):
+        with get_task_stream(client) as stream:
+            table = run_sweep(runs, engine="dask", scheduler=cluster.scheduler_address)
+        stolen = {msg[1] for _, msg in client.get_events("stealing") if msg[0] == "confirm"}
+    assert _comparable(table) == _comparable(inline)
+    member = {r["key"]: r["member"] for r in table.to_pylist()}
+    assert stream.data and all(str(t["key"]).startswith("pyroute-rel-runs-") for t in stream.data)
+    workers, spans = defaultdict(set), defaultdict(list)
+    for t in stream.data:
+        first_run = str(t["key"]).split("-")[3]
+        if t["key"] not in stolen:
+            workers[member[first_run]].add(t["worker"])
+        spans[t["worker"]] += [(s["start"], s["stop"]) for s in t["startstops"] if s["action"] == "compute"]
+    assert all(len(w) == 1 for w in workers.values()), dict(workers)
+    assert len(set().union(*workers.values())) == 2 or stolen  # the two members were shared out
+    for intervals in spans.values():  # one task at a time: no task's middle falls in another task
+        middles = [(a + b) / 2 for a, b in intervals]
+        assert all(sum(a < m < b for a, b in intervals) == 1 for m in middles), intervals
+
+
+def test_members_are_placed_whole_on_the_least_loaded_worker() -> None:
+    """Against a brute force over every assignment of whole members to workers: the greedy placement (largest
+    member first, LPT) is within its published bound of the best makespan (4/3 - 1/(3m) on m equal workers, Graham
+    1969; 2m/(m + 1) on m workers of different speeds, Gonzalez, Ibarra and Sahni 1977: both <= 4/3 here), keeps
+    every batch of a member on one worker and keeps the batches' order."""
+    import itertools
+
+    sizes = [7, 5, 5, 4, 3, 3, 2]  # runs per member
+    todo = [(f"m{m}r{i}", Run("s.toml", member=m, apf=i / 10)) for m, n in enumerate(sizes) for i in range(n)]
+    for threads in ({"a": 1, "b": 1}, {"a": 1, "b": 1, "c": 1}, {"a": 2, "b": 1}):
+        batches = task_batches(todo, sum(threads.values()))
+        placed = place_batches(batches, threads)
+        assert [b for b, _ in placed] == batches
+        where = {b[0][1].member: w for b, w in placed}
+        assert all(w == where[b[0][1].member] for b, w in placed)  # a member on one worker
+        load = defaultdict(int)
+        for m, w in where.items():
+            load[w] += sizes[m]
+        got = max(load[w] / n for w, n in threads.items())
+        best = min(
+            max(sum(s for s, w in zip(sizes, assign, strict=True) if w == k) / n for k, n in threads.items())
+            for assign in itertools.product(list(threads), repeat=len(sizes))
+        )
+        assert got <= best * 4 / 3, (threads, got, best)
+    assert {w for _, w in place_batches(batches, {})} == {None}  # no worker yet: no restriction
+
+
+@pytest.mark.parametrize(
+    ("options", "named"),
+    [
+        (["--engine", "inline", "--workers", "2"], "--workers needs the processes, dask or auto engine"),
+        (["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"], "--workers starts a LocalCluster"),
+        (["--batch", "4"], "--batch sets how often --out is written: it needs --out"),
+        (["--connect-timeout", "3"], "--connect-timeout is how long to try reaching --scheduler"),
+        (["--engine", "processes", "--scheduler", "tcp://127.0.0.1:9"], "--scheduler needs the dask engine"),
+    ],
+)
+def test_options_that_would_do_nothing_are_one_line_errors(tmp_path, capsys, options, named) -> None:
+    control = ROOT / "examples" / "microtransat_control.toml"
+    assert main(["sweep", str(control), "--quiet", "--plot", str(tmp_path / "sweep.png"), *options]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and named in err, err
+    assert not any(tmp_path.iterdir())  # nothing written
+
+
+def test_the_library_refuses_the_same_combinations(ensemble) -> None:
+    runs = _runs(ensemble)[:1]
+    with pytest.raises(SweepError, match="--workers needs the processes, dask or auto engine"):
+        run_sweep(runs, engine="inline", workers=2)
+    with pytest.raises(SweepError, match="--workers starts a LocalCluster"):
+        run_sweep(runs, engine="dask", workers=2, scheduler="tcp://127.0.0.1:9")
+
+
+@pytest.mark.slow
+def test_a_local_pool_starts_at_most_one_process_per_cpu(ensemble) -> None:
+    """More workers than CPUs: one warning naming --workers and the CPUs, and the rows of the inline engine."""
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    runs = _runs(ensemble, members=(2,))
+    with pytest.warns(PyrouteWarning, match=rf"--workers {cpus + 1} is more than the {cpus} CPUs") as caught:
+        pooled = run_sweep(runs, engine="processes", workers=cpus + 1)
+    assert len([w for w in caught if issubclass(w.category, PyrouteWarning)]) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert _comparable(pooled) == _comparable(run_sweep(runs, engine="inline"))
