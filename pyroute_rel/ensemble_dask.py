@@ -6,7 +6,7 @@ free worker), then sailing every candidate route in the members a worker routed,
 weather). :class:`DaskWorkers` runs them on a cluster: a running scheduler's (``tcp://HOST:PORT``, e.g. ``dask
 scheduler`` and ``dask worker`` processes, one thread each), or a ``LocalCluster`` of worker processes, one thread
 each, started for the call (:func:`dask_client`, with the environment of a sweep's workers,
-:data:`pyroute_rel.sweep.WORKER_ENV`).
+:data:`pyroute_rel.cluster.WORKER_ENV`).
 
 A worker keeps each member's weather it read in its process from the member's routing to its sailing, as the local
 processes do; the weather is dropped on every worker when the call ends (and when the next call starts: a worker
@@ -17,87 +17,35 @@ results do not depend on where a task runs: they equal the local engine's.
 
 from __future__ import annotations
 
-import logging
 import os
-import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from .errors import ScenarioError
+from .cluster import close_client, dask_client
 
 __all__ = ["dask_client", "DaskWorkers"]
 
 
-def dask_client(
-    scheduler: str | None = None,
-    *,
-    workers: int | None = None,
-    timeout_s: float = 10.0,
-    error: type[Exception] = ScenarioError,
-) -> Any:
-    """A :class:`distributed.Client` of ``scheduler``'s cluster (``tcp://HOST:PORT``), or of a new
-    ``LocalCluster`` of ``workers`` processes (default 1), one thread each, with
-    :data:`pyroute_rel.sweep.WORKER_ENV`; closing the client (:func:`close_client`) closes that cluster.
-
-    Raises
-    ------
-    error
-        One line: distributed is not installed, the scheduler cannot be reached in ``timeout_s`` [s], or it has no
-        worker after that time.
-    """
-    from .sweep import WORKER_ENV
-
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError as exc:  # pragma: no cover - a dependency
-        raise error(f"the dask engine needs distributed: pip install distributed ({exc})") from None
-    if scheduler is None:
-        with warnings.catch_warnings():  # without a dashboard the scheduler still serves /metrics, by default on 8787
-            warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
-            cluster = LocalCluster(
-                n_workers=workers or 1,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=None,
-                env=dict(WORKER_ENV),
-                silence_logs=logging.ERROR,  # not the nannies' warnings when the cluster closes
-            )
-        return Client(cluster, set_as_default=False)
-    try:
-        client = Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise error(
-            f"--scheduler {scheduler}: cannot reach the dask scheduler ({' '.join(str(exc).split())})"
-        ) from None
-    try:
-        client.wait_for_workers(1, timeout=timeout_s)
-    except (OSError, TimeoutError) as exc:
-        client.close()
-        raise error(
-            f"--scheduler {scheduler}: the dask scheduler has no worker after {timeout_s:g} s ({exc})"
-        ) from None
-    return client
-
-
-def close_client(client: Any) -> None:
-    """Close a client of :func:`dask_client` and, when it started one, its ``LocalCluster``."""
-    cluster = client.cluster
-    client.close()
-    if cluster is not None:
-        cluster.close()
-
-
 def _located(fn: Callable[..., Any], *args: Any) -> tuple[Any, str]:
-    """``fn(*args)`` on a dask worker, with the worker's address."""
+    """``fn(*args)`` on a dask worker (:func:`_synchronous`), with the worker's address."""
     from distributed import get_worker
 
-    return fn(*args), str(get_worker().address)
+    return _synchronous(fn, *args), str(get_worker().address)
+
+
+def _synchronous(fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)`` with the weather files' dask arrays read by dask's synchronous scheduler, in this thread: in a
+    dask worker the default would be the cluster itself (see :func:`pyroute_rel.sweep.run_batch`)."""
+    import dask
+
+    with dask.config.set(scheduler="synchronous"):
+        return fn(*args)
 
 
 def _prepare_worker(setup: Callable[[], Any]) -> None:
-    """One thread in this worker process (:data:`pyroute_rel.sweep.WORKER_ENV`, for a ``dask worker`` started
+    """One thread in this worker process (:data:`pyroute_rel.cluster.WORKER_ENV`, for a ``dask worker`` started
     without it), then ``setup()``."""
-    from .sweep import WORKER_ENV
+    from .cluster import WORKER_ENV
 
     os.environ.update(WORKER_ENV)
     setup()
@@ -154,7 +102,9 @@ class DaskWorkers:
         futures = [
             None
             if t is None
-            else self.client.submit(fn, *t, pure=False, workers=[self.addresses[w]], allow_other_workers=True)
+            else self.client.submit(
+                _synchronous, fn, *t, pure=False, workers=[self.addresses[w]], allow_other_workers=True
+            )
             for w, t in enumerate(tasks)
         ]
         return [None if f is None else f.result() for f in futures]

@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from .cluster import WORKER_ENV, close_client
 from .config import SCHEMA, parse_departure, probability
 from .errors import (
     NoFeasibleRouteError,
@@ -285,6 +286,21 @@ def _file_or_name(name: str, base: Path) -> str:
     return str(p.resolve()) if p.is_file() else name
 
 
+def _check_loadable(models: list[str | None], polars: list[str | None]) -> None:
+    """Every failure model and polar a spec names loads (a shipped name or a readable file beside the spec): a
+    spec error now, not an error row in every run that uses it."""
+    from .failure import load_failure_model
+    from .polar import get_polar
+
+    for key, names, load in (("failure_models", models, load_failure_model), ("polars", polars, get_polar)):
+        for name in names:
+            if name is not None:
+                try:
+                    load(name)
+                except PyrouteError as exc:
+                    raise ScenarioError(f"[sweep].{key}: {exc}") from None
+
+
 def sweep_from_mapping(table: Mapping[str, Any], *, base_dir: str | Path = ".", source: str = "<sweep>") -> SweepSpec:
     """Validate a sweep specification given as mappings (the parsed TOML): see :func:`load_sweep`."""
     try:
@@ -325,6 +341,7 @@ def _sweep_from_mapping(table: Mapping[str, Any], base: Path) -> SweepSpec:
         if "polars" in raw
         else [None]
     )
+    _check_loadable(models, polars)
     grids = _nonempty_list(raw["grids"], "[sweep].grids", _grid_settings) if "grids" in raw else [()]
     n = len(deps) * len(members) * len(apfs) * len(models) * len(polars) * len(grids)
     if n > MAX_RUNS:
@@ -643,15 +660,6 @@ def _inline(todo: Sequence[tuple[str, Run]], retries: int) -> Iterator[dict[str,
         yield _attempts(run, key, retries)
 
 
-#: Environment of worker processes (a process pool, a dask ``LocalCluster``): one thread each, also in the BLAS,
-#: OpenMP and numba thread pools, since the workers already use every core.
-WORKER_ENV = {
-    "PYROUTE_REL_THREADS": "1",
-    "OMP_NUM_THREADS": "1",
-    "OPENBLAS_NUM_THREADS": "1",
-    "MKL_NUM_THREADS": "1",
-    "NUMBA_NUM_THREADS": "1",
-}
 _PINNED: list[Any] = []
 
 
@@ -772,23 +780,9 @@ def _processes(todo: Sequence[tuple[str, Run]], workers: int, retries: int) -> I
 
 
 def _dask_client(scheduler: str | None, workers: int | None, timeout_s: float) -> Any:
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError as exc:  # pragma: no cover - a dependency
-        raise SweepError(f"the dask engine needs distributed: pip install distributed ({exc})") from None
-    if scheduler is not None:
-        try:
-            return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise SweepError(f"--scheduler {scheduler}: cannot reach the dask scheduler ({_one_line(exc)})") from None
-    cluster = LocalCluster(
-        n_workers=workers or 1,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        env=dict(WORKER_ENV),
-    )
-    return Client(cluster, set_as_default=False)
+    from .cluster import dask_client
+
+    return dask_client(scheduler, workers=workers, timeout_s=timeout_s, error=SweepError)
 
 
 def _dask(
@@ -820,10 +814,7 @@ def _dask(
             except Exception as exc:  # failed retries + 1 times (or its workers died): recorded, not in the files
                 yield from (_internal_row(run, key, exc) for key, run in futures[fut])
     finally:
-        cluster = client.cluster
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        close_client(client)
 
 
 #: With ``engine="auto"``: sweeps of fewer runs than this are routed in this process (starting worker processes,

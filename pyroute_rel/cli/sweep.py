@@ -210,7 +210,9 @@ def _table_text(rows: list[dict[str, Any]]) -> str:
             line += f" {r['status']:<9} {r['message']}"
         lines.append(line)
     n_ok = sum(r["status"] == "ok" for r in rows)
-    lines.append(f"{len(rows)} runs: {n_ok} routed, {len(rows) - n_ok} without a route")
+    n_error = sum(r["status"] == "error" for r in rows)
+    failed = f", {n_error} failed (status error)" if n_error else ""
+    lines.append(f"{len(rows)} runs: {n_ok} routed, {len(rows) - n_ok - n_error} without a route{failed}")
     return "\n".join(lines)
 
 
