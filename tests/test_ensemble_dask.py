@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from dask_processes import dask_processes, free_port
 from test_evaluate import write_ensemble_scenario
 
 from pyroute_rel.cli import main
@@ -28,32 +28,11 @@ def local(tmp_path_factory: pytest.TempPathFactory):
     return path, route_ensemble(path, engine="inline", risk="cvar:0.75").summary()
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 @pytest.mark.slow
 def test_a_dask_cluster_gives_the_local_result(local) -> None:
     path, expected = local
-    port = _free_port()
-    address = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    procs = [
-        subprocess.Popen(
-            ["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )
-    ]  # fmt: skip
-    try:
-        for _ in range(2):
-            procs.append(
-                subprocess.Popen(
-                    ["dask", "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"],
-                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                )
-            )  # fmt: skip
+    with dask_processes(env) as (address, _):
         cmd = [sys.executable, "-m", "pyroute_rel.cli", "ensemble", str(path), "--risk", "cvar:0.75", "--json"]
         run = subprocess.run(
             [*cmd, "--scheduler", address, "--connect-timeout", "60", "--quiet"],
@@ -64,10 +43,6 @@ def test_a_dask_cluster_gives_the_local_result(local) -> None:
         # a second call on the same workers (which dropped the first call's weather) gives it again
         again = subprocess.run([*cmd, "--scheduler", address, "--quiet"], env=env, capture_output=True, text=True)
         assert again.returncode == 0 and json.loads(again.stdout) == json.loads(run.stdout), again.stderr
-    finally:
-        for p in procs:
-            p.kill()
-            p.wait()
 
 
 @pytest.mark.slow
@@ -86,7 +61,7 @@ def test_a_local_dask_cluster_gives_the_local_result(local) -> None:
 @pytest.mark.slow
 def test_an_unreachable_scheduler_is_a_one_line_error(local, capsys: pytest.CaptureFixture[str]) -> None:
     path, _ = local
-    argv = ["ensemble", str(path), "--scheduler", f"tcp://127.0.0.1:{_free_port()}", "--connect-timeout", "1"]
+    argv = ["ensemble", str(path), "--scheduler", f"tcp://127.0.0.1:{free_port()}", "--connect-timeout", "1"]
     assert main([*argv, "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "cannot reach the dask scheduler" in err, err

@@ -9,7 +9,6 @@ import json
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from dask_processes import dask_processes, free_port
 
 from pyroute_rel.cli.main import main
 from pyroute_rel.sweep import Run, departure_range, load_sweep, read_runs, run_key, run_sweep
@@ -161,31 +161,10 @@ def test_a_killed_sweep_resumes_to_the_uninterrupted_table(ensemble, uninterrupt
     assert "12 done, 0 to run" in captured.err and len(json.loads(captured.out)["runs"]) == 12
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 @pytest.mark.slow
 def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(ensemble, uninterrupted, tmp_path):
-    port = _free_port()
-    address = f"tcp://127.0.0.1:{port}"
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_THREADS": "1"}
-    procs = [
-        subprocess.Popen(
-            ["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )
-    ]  # fmt: skip
-    try:
-        for _ in range(2):
-            procs.append(
-                subprocess.Popen(
-                    ["dask", "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"],
-                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                )
-            )  # fmt: skip
+    with dask_processes(env) as (address, procs):
         spec_path = _spec(tmp_path, ensemble, BODY)
         out = tmp_path / "dask"
         cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--scheduler", address]
@@ -200,10 +179,6 @@ def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(
         procs[1].send_signal(signal.SIGKILL)  # a worker dies mid-sweep: its runs go to the other one
         stdout, stderr = sweep.communicate(timeout=120)
         assert sweep.returncode == 0, stderr
-    finally:
-        for p in procs:
-            p.kill()
-            p.wait()
     rows = json.loads(stdout)["runs"]
     assert len(rows) == 12 and not any(r["message"].startswith("internal error") for r in rows)
     assert _comparable(read_runs(out)) == _comparable(uninterrupted[2])
@@ -325,7 +300,7 @@ def test_bad_options_and_files_are_one_line_errors(ensemble, tmp_path, capsys) -
 
 @pytest.mark.slow
 def test_an_unreachable_scheduler_is_a_one_line_error(ensemble, tmp_path, capsys) -> None:
-    argv = ["sweep", str(ensemble), "--scheduler", f"tcp://127.0.0.1:{_free_port()}", "--connect-timeout", "1"]
+    argv = ["sweep", str(ensemble), "--scheduler", f"tcp://127.0.0.1:{free_port()}", "--connect-timeout", "1"]
     assert main([*argv, "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "cannot reach the dask scheduler" in err

@@ -1,0 +1,36 @@
+"""A dask cluster of separate processes for the engine tests: ``dask scheduler`` and ``dask worker`` started as
+command-line processes on the loopback interface, as a user would start them on a cluster."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+
+
+def free_port() -> int:
+    """A TCP port nothing listens on now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@contextmanager
+def dask_processes(env: Mapping[str, str], workers: int = 2) -> Iterator[tuple[str, list[subprocess.Popen]]]:
+    """A scheduler and ``workers`` one-thread workers (no nanny, no dashboard): yields the scheduler's address and
+    the processes (scheduler first), killed on exit."""
+    port = free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    quiet = {"env": dict(env), "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    procs = [subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+                              **quiet)]  # fmt: skip
+    try:
+        for _ in range(workers):
+            worker = ["dask", "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"]
+            procs.append(subprocess.Popen(worker, **quiet))
+        yield address, procs
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()
