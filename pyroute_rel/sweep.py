@@ -287,14 +287,14 @@ def _file_or_name(name: str, base: Path) -> str:
 
 
 def _check_loadable(models: list[str | None], polars: list[str | None]) -> None:
-    """Every failure model and polar a spec names loads (a shipped name or a readable file beside the spec): a
-    spec error now, not an error row in every run that uses it."""
+    """Every failure model and polar a spec names loads (a shipped name or a readable file beside the spec;
+    ``"none"``: no failure model): a spec error now, not an error row in every run that uses it."""
     from .failure import load_failure_model
     from .polar import get_polar
 
     for key, names, load in (("failure_models", models, load_failure_model), ("polars", polars, get_polar)):
         for name in names:
-            if name is not None:
+            if name is not None and not (key == "failure_models" and name.lower() == "none"):
                 try:
                     load(name)
                 except PyrouteError as exc:

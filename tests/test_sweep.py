@@ -273,7 +273,7 @@ def test_task_batches_group_members_and_cover_every_run_once() -> None:
         ("polar = ['x']", r"\[sweep\]: unknown key polar"),
         # a polar or failure model that does not load is the spec's error, not an error row in each of its runs
         ("polars = ['maribot_vane', 'missing.pol']", r"\[sweep\]\.polars: polar file 'missing.pol'.*not found"),
-        ("failure_models = ['nosuch']", r"\[sweep\]\.failure_models: failure model 'nosuch' not found"),
+        ("failure_models = ['none', 'nosuch']", r"\[sweep\]\.failure_models: failure model 'nosuch' not found"),
     ],
 )
 def test_bad_specifications_are_one_line_errors(ensemble, tmp_path, capsys, body, expected) -> None:
