@@ -10,7 +10,7 @@ see ``RoutingProblem.prune``), the arrival from each source label with the time 
 arrival at each label -- without a temporary array per step. Its results are bit-identical to the numpy path's
 (arrival times, back-pointers, labels, counts; property-tested).
 
-Three ways through a rank share the per-arc arithmetic:
+Four ways through a rank share the per-arc arithmetic:
 
 - with one label per node and pruning (the paper's square grid) on uniform weather (a :class:`BoxWind`: one wind
   everywhere but in patches), the whole rank is one compiled call, :func:`_boxed_rank`: per node the bounds of its
@@ -18,9 +18,14 @@ Three ways through a rank share the per-arc arithmetic:
   160 x 160 grid 0.89 M of 4.07 M arcs), the wind sampled in the kernel and the polar's interpolation along its
   wind-speed axis done once per wind speed (the same arithmetic as
   :func:`~pyroute_rel.polar_compiled.speed_kn`);
-- with pruning on other weather, the weather is sampled only where an arc is costed, as the numpy path's pruning
-  does, in three short kernels between which the caller samples the wind at the picked arcs;
-- otherwise (side labels, or no pruning) the wind is sampled at every arc and one kernel does the rank.
+- with side labels on uniform weather, the whole rank is one compiled call too, :func:`_boxed_sides_rank`: per node
+  the side of each arc (the wind at its first sample), and with pruning each side's four arcs of smallest bound
+  costed, then the arcs whose bound does not exceed their side's best (each label pruned against its own best), the
+  wind sampled as in :func:`_boxed_rank` and a manoeuvre's time computed once per wind speed;
+- with pruning and one label on other weather, the weather is sampled only where an arc is costed, as the numpy
+  path's pruning does, in three short kernels between which the caller samples the wind at the picked arcs;
+- otherwise (side labels or no pruning on other weather, or no pruning on uniform weather) the wind is sampled at
+  every arc and one kernel does the rank.
 
 Kernels take contiguous, writable arrays (one compiled signature each). numba is imported only by problems this
 path serves.
@@ -147,7 +152,7 @@ def rank_step(
     ----------
     wind : Samples the wind at the arcs (:data:`WindSampler`): at the arcs costed only, when pruning one label per
         node; else at every arc. Or a :class:`BoxWind`, sampled in compiled code (with pruning and one label per
-        node, the whole rank is one compiled call).
+        node, or with side labels, the whole rank is one compiled call).
     course_deg : Great-circle course at the arcs' samples [deg], shape (nodes, arcs, samples).
     seg_nm : Sub-segment length of each arc [nm], shape (nodes, arcs) (the geometry's ``seg_nm[..., 0]``).
     t_prev : Arrival at each label of the previous rank [h] (inf: not reached), shape (source nodes, source labels).
