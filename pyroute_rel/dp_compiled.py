@@ -10,7 +10,7 @@ see ``RoutingProblem.prune``), the arrival from each source label with the time 
 arrival at each label -- without a temporary array per step. Its results are bit-identical to the numpy path's
 (arrival times, back-pointers, labels, counts; property-tested).
 
-Three ways through a rank share the per-arc arithmetic:
+Four ways through a rank share the per-arc arithmetic:
 
 - with one label per node and pruning (the paper's square grid) on uniform weather (a :class:`BoxWind`: one wind
   everywhere but in patches), the whole rank is one compiled call, :func:`_boxed_rank`: per node the bounds of its
@@ -18,9 +18,14 @@ Three ways through a rank share the per-arc arithmetic:
   160 x 160 grid 0.89 M of 4.07 M arcs), the wind sampled in the kernel and the polar's interpolation along its
   wind-speed axis done once per wind speed (the same arithmetic as
   :func:`~pyroute_rel.polar_compiled.speed_kn`);
-- with pruning on other weather, the weather is sampled only where an arc is costed, as the numpy path's pruning
-  does, in three short kernels between which the caller samples the wind at the picked arcs;
-- otherwise (side labels, or no pruning) the wind is sampled at every arc and one kernel does the rank.
+- with side labels on uniform weather, the whole rank is one compiled call too, :func:`_boxed_sides_rank`: per node
+  the side of each arc (the wind at its first sample), and with pruning each side's four arcs of smallest bound
+  costed, then the arcs whose bound does not exceed their side's best (each label pruned against its own best), the
+  wind sampled as in :func:`_boxed_rank` and a manoeuvre's time computed once per wind speed;
+- with pruning and one label on other weather, the weather is sampled only where an arc is costed, as the numpy
+  path's pruning does, in three short kernels between which the caller samples the wind at the picked arcs;
+- otherwise (side labels or no pruning on other weather, or no pruning on uniform weather) the wind is sampled at
+  every arc and one kernel does the rank.
 
 Kernels take contiguous, writable arrays (one compiled signature each). numba is imported only by problems this
 path serves.
@@ -104,6 +109,29 @@ def _tables(polar: Polar) -> tuple[FloatArray, FloatArray, FloatArray, float, fl
     return _TABLES[0][1]
 
 
+_NO_PENALTIES = ManoeuvrePenalties()
+_PENALTIES: list[tuple[ManoeuvrePenalties, tuple[FloatArray, FloatArray, FloatArray, FloatArray]]] = []
+_SIDES: dict[tuple[int, ...], npt.NDArray[np.int64]] = {}
+
+
+def _penalty_tables(penalties: ManoeuvrePenalties) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The tack and gybe tables (wind speeds [kn], penalties [s]) as the kernels take them, kept for the last
+    penalties seen (a :class:`~pyroute_rel.manoeuvre.ManoeuvrePenalties` does not change)."""
+    if not _PENALTIES or _PENALTIES[0][0] is not penalties:
+        p = penalties
+        t = (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn, p.gybe_penalty_s)
+        _PENALTIES[:] = [(p, tuple(_c(np.asarray(a, dtype=float)) for a in t))]  # type: ignore[list-item]
+    return _PENALTIES[0][1]
+
+
+def _sides_array(from_sides: tuple[int, ...]) -> npt.NDArray[np.int64]:
+    """The source labels' sides as the kernels take them (the DP has three tuples: none, one side, both)."""
+    out = _SIDES.get(from_sides)
+    if out is None:
+        out = _SIDES[from_sides] = np.asarray(from_sides, dtype=np.int64)
+    return out
+
+
 def rank_step(
     wind: WindSampler | BoxWind,
     course_deg: FloatArray,
@@ -124,7 +152,7 @@ def rank_step(
     ----------
     wind : Samples the wind at the arcs (:data:`WindSampler`): at the arcs costed only, when pruning one label per
         node; else at every arc. Or a :class:`BoxWind`, sampled in compiled code (with pruning and one label per
-        node, the whole rank is one compiled call).
+        node, or with side labels, the whole rank is one compiled call).
     course_deg : Great-circle course at the arcs' samples [deg], shape (nodes, arcs, samples).
     seg_nm : Sub-segment length of each arc [nm], shape (nodes, arcs) (the geometry's ``seg_nm[..., 0]``).
     t_prev : Arrival at each label of the previous rank [h] (inf: not reached), shape (source nodes, source labels).
@@ -163,6 +191,13 @@ def rank_step(
             tp, src, valid, seg, course, _c(wind.lon_deg), _c(wind.lat_deg), float(bound_kn), wind.tws_kn,
             wind.twd_deg, wind.boxes, wind.values, *tables, forbid, MIN_SPEED_KN, t_best, j_best, counts,
         )  # fmt: skip
+    elif boxed and n_out == 2:
+        assert isinstance(wind, BoxWind) and penalties is not None
+        _boxed_sides_rank(  # type: ignore[call-arg]
+            tp, src, valid, seg, course, _c(wind.lon_deg), _c(wind.lat_deg), -1.0 if bound_kn is None else
+            float(bound_kn), wind.tws_kn, wind.twd_deg, wind.boxes, wind.values, *tables, forbid, MIN_SPEED_KN,
+            _sides_array(from_sides), *_penalty_tables(penalties), t_best, j_best, c_best, counts,
+        )  # fmt: skip
     elif n_out == 1 and tp.shape[1] == 1 and bound_kn is not None:
         assert not isinstance(wind, BoxWind)
         if not _pruned_step(wind, course, seg, tp, src, valid, tables, forbid, float(bound_kn), t_best, j_best, counts):
@@ -172,14 +207,10 @@ def rank_step(
         if sampled is None:
             return None
         tws, twd = (_c(a).reshape(-1, course.shape[2]) for a in sampled)
-        p = penalties or ManoeuvrePenalties()
-        pen = [
-            _c(np.asarray(t, dtype=float)) for t in (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn, p.gybe_penalty_s)
-        ]
         _rank_kernel(  # type: ignore[call-arg]
             tws, twd, course, seg, tp, src, valid, *tables, forbid, MIN_SPEED_KN,
-            -1.0 if bound_kn is None else float(bound_kn), np.asarray(from_sides, dtype=np.int64), *pen,
-            t_best, j_best, c_best, counts,
+            -1.0 if bound_kn is None else float(bound_kn), _sides_array(from_sides),
+            *_penalty_tables(penalties or _NO_PENALTIES), t_best, j_best, c_best, counts,
         )  # fmt: skip
     return RankStep(t_best, j_best, c_best, *(int(n) for n in counts))
 
@@ -377,6 +408,197 @@ def _best_picked(pick, n, t0s, times, flags, best, jb, tally):  # type: ignore[n
             if tot < best or (tot == best and a < jb):
                 best, jb = tot, a
     return best, jb
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _boxed_sides_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
+    t_prev, src, valid, seg, course, lon, lat, bound, tws0, twd0, boxes, values, twa_tab, tws_tab, speed_tab, twa_inv,
+    tws_inv, forbid, min_speed, from_sides, tack_x, tack_y, gybe_x, gybe_y, t_best, j_best, c_best, counts,
+):  # fmt: skip
+    """One rank with side labels (port, starboard), the wind of a :class:`BoxWind`, in one pass over the nodes: what
+    :func:`_rank_kernel` does with ``penalties``, arc for arc (the same arcs costed, the same arrivals and labels),
+    without sampling the wind at every arc. Per node each live arc's departures, lower bound and side (the wind at
+    its first sample), then with pruning (``bound`` > 0) per side the four live arcs of smallest bound costed, then
+    every other live arc whose bound does not exceed the best arrival over its side's four; without, every live arc.
+    ``counts``: live, costed, forbidden, no speed, missing wind arcs (added to)."""
+    n_dst, width = seg.shape
+    speeds, cols, ratio, amax = _columns(tws0, values, twa_tab, tws_tab, speed_tab, tws_inv, forbid)
+    amin = twa_tab[0] if twa_tab[0] > 0.0 else -np.inf
+    tack_h, gybe_h = np.empty(speeds.size), np.empty(speeds.size)
+    for k in range(speeds.size):  # what a change of side costs in each wind speed of the boxes (:func:`_change`)
+        w = speeds[k] if np.isfinite(speeds[k]) else 0.0
+        tack_h[k] = _interp(w, tack_x, tack_y) / 3600.0
+        gybe_h[k] = _interp(w, gybe_x, gybe_y) / 3600.0
+    lower = np.empty(width)  # each arc's bound, NaN where not live or among the first costed
+    t0s = np.empty((width, t_prev.shape[1]))  # its departure from each source label (inf: none)
+    side = np.zeros(width, dtype=np.int8)
+    pick = np.empty(max(width, 8), dtype=np.intp)
+    times = np.empty(max(width, 8))
+    flags = np.empty(max(width, 8), dtype=np.uint8)
+    best = np.empty(2)
+    jb = np.empty(2, dtype=np.intp)
+    cb = np.empty(2, dtype=np.intp)
+    tally = np.zeros(5, dtype=np.int64)
+    wind = (tws0, twd0, boxes, values, speeds, cols, ratio, amin, amax, tack_h, gybe_h)
+    for d in range(n_dst):
+        _box_sides(d, course, lon, lat, twd0, boxes, values, side)
+        live, n = _side_bounds(t_prev, src, valid, seg, course.shape[2], bound, d, lower, t0s, side, pick)
+        tally[0] += live
+        best[:] = np.inf
+        jb[:] = 0
+        cb[:] = 0
+        _cost_sides(pick, n, d, course, lon, lat, seg, wind, twa_tab, twa_inv, min_speed, times, flags, t0s, side,
+                    from_sides, best, jb, cb, tally)  # fmt: skip
+        b0 = best[0] if bound > 0.0 else np.inf  # the rest are pruned against their side's first four only
+        b1 = best[1] if bound > 0.0 else np.inf
+        m = 0
+        for a in range(width):
+            pick[m] = a
+            m += lower[a] <= (b1 if side[a] else b0)
+        _cost_sides(pick, m, d, course, lon, lat, seg, wind, twa_tab, twa_inv, min_speed, times, flags, t0s, side,
+                    from_sides, best, jb, cb, tally)  # fmt: skip
+        for s in range(2):
+            t_best[d, s], j_best[d, s], c_best[d, s] = best[s], jb[s], cb[s]
+    counts += tally
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _first_wind(d, a, lon, lat, twd0, boxes, values):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The wind of a :class:`BoxWind` at arc (d, a)'s first sample: the row of :func:`_columns` its speed is
+    (0: outside every box setting one) and its direction [deg] (:func:`_box_wind`)."""
+    k = 0
+    wd = twd0
+    for p in range(boxes.shape[0]):
+        if lon[d, a, 0] >= boxes[p, 0] and lon[d, a, 0] <= boxes[p, 1]:
+            if lat[d, a, 0] >= boxes[p, 2] and lat[d, a, 0] <= boxes[p, 3]:
+                if values[p, 0] == values[p, 0]:
+                    k = p + 1
+                if values[p, 1] == values[p, 1]:
+                    wd = values[p, 1]
+    return k, wd
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _wind_rel(x):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """``numpy.mod(x, 360.0)`` for ``x`` the wind direction less the course [deg]: where the wind lies clockwise of
+    the course, in [0, 360) (NaN in, NaN out). Within a turn either way, as courses and wind directions are,
+    without the division (``fmod`` is exact: ``x``, or ``x + 360`` rounded below 0)."""
+    y = x + 360.0 if x < 0.0 else x
+    if not (y >= 0.0 and y < 360.0):  # beyond a turn, NaN, or a tiny negative x that rounds to 360
+        y = np.mod(x, 360.0)
+    return y
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _box_sides(d, course, lon, lat, twd0, boxes, values, side):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Side of each arc into node ``d`` from the wind of a :class:`BoxWind` and the course at its first sample:
+    :func:`_sides`' (:func:`~pyroute_rel.manoeuvre.wind_side`'s) rule, value for value. A loop without a branch
+    (within a turn, :func:`_wind_rel`'s first case), then :func:`_wind_rel` again where an angle was not."""
+    width = side.size
+    odd = False
+    if boxes.shape[0] == 0:
+        for a in range(width):
+            x = twd0 - course[d, a, 0]
+            y = x + 360.0 if x < 0.0 else x
+            odd |= not (y >= 0.0 and y < 360.0)
+            side[a] = y < 180.0
+    else:
+        for a in range(width):
+            x = _first_wind(d, a, lon, lat, twd0, boxes, values)[1] - course[d, a, 0]
+            y = x + 360.0 if x < 0.0 else x
+            odd |= not (y >= 0.0 and y < 360.0)
+            side[a] = y < 180.0
+    if odd:
+        for a in range(width):
+            y = _wind_rel(_first_wind(d, a, lon, lat, twd0, boxes, values)[1] - course[d, a, 0])
+            side[a] = 1 if y < 180.0 or y != y else 0  # NaN: starboard
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _insert4(lw, a, l0, l1, l2, l3, i0, i1, i2, i3):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Arc ``a`` of bound ``lw`` into the four smallest bounds so far ``l0 <= l1 <= l2 <= l3`` (arcs ``i0`` to
+    ``i3``), after those it does not beat (ties: the first arc stays first); NaN never enters."""
+    if lw < l0:
+        return lw, l0, l1, l2, a, i0, i1, i2
+    if lw < l1:
+        return l0, lw, l1, l2, i0, a, i1, i2
+    if lw < l2:
+        return l0, l1, lw, l2, i0, i1, a, i2
+    if lw < l3:
+        return l0, l1, l2, lw, i0, i1, i2, a
+    return l0, l1, l2, l3, i0, i1, i2, i3
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _side_bounds(t_prev, src, valid, seg, samples, bound, d, lower, t0s, side, pick):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Node ``d``'s arcs: departure from each source label (one or two) ``t0s`` (inf: none) and lower bound
+    ``lower`` (``t0 + length / bound``, the earliest departure; NaN where not live); with pruning (``bound`` > 0)
+    the four live arcs of smallest bound on each ``side`` (ties: the first) into ``pick``, port's first, their bound
+    set to NaN. Returns the number of live arcs and of picked ones."""
+    two = t0s.shape[1] == 2
+    live = 0
+    i0 = i1 = i2 = i3 = j0 = j1 = j2 = j3 = -1
+    l0 = l1 = l2 = l3 = m0 = m1 = m2 = m3 = np.inf
+    for a in range(lower.size):
+        t0 = t1 = np.inf
+        if valid[d, a]:
+            t0 = t_prev[src[d, a], 0]
+            if two:
+                t1 = t_prev[src[d, a], 1]
+        t0s[a, 0] = t0
+        if two:
+            t0s[a, 1] = t1
+        tm = min(t0, t1)
+        if not np.isfinite(tm):
+            lower[a] = np.nan
+            continue
+        live += 1
+        if not bound > 0.0:
+            lower[a] = tm
+            continue
+        lw = (
+            tm + seg[d, a] * samples / bound
+        )  # min over the labels of t + bound: the same number (rounding is monotone)
+        lower[a] = lw
+        if side[a] == 0 and lw < l3:
+            l0, l1, l2, l3, i0, i1, i2, i3 = _insert4(lw, a, l0, l1, l2, l3, i0, i1, i2, i3)
+        elif side[a] == 1 and lw < m3:
+            m0, m1, m2, m3, j0, j1, j2, j3 = _insert4(lw, a, m0, m1, m2, m3, j0, j1, j2, j3)
+    n = 0
+    for a in (i0, i1, i2, i3, j0, j1, j2, j3):
+        if a >= 0:
+            pick[n] = a
+            lower[a] = np.nan
+            n += 1
+    return live, n
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _cost_sides(pick, n, d, course, lon, lat, seg, wind, twa_tab, twa_inv, min_speed, times, flags, t0s, side,
+                from_sides, best, jb, cb, tally):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+    """The arcs ``pick[:n]`` into node ``d`` costed (:func:`_cost_boxed`; ``wind``: the :class:`BoxWind`'s parts and
+    :func:`_boxed_sides_rank`'s tables) and counted into ``tally[1:]``; each label's (side's) earliest arrival
+    ``best`` over them and its arc ``jb`` and source label ``cb`` updated: first of equal ones in the order of
+    :func:`_best_labels` (source labels, then arcs), a change of side costing what :func:`_change` gives."""
+    _, twd0, boxes, values, speeds, cols, ratio, amin, amax, tack_h, gybe_h = wind
+    _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio, amin,
+                amax, min_speed, times, flags)  # fmt: skip
+    for q in range(n):
+        f = flags[q]
+        _count(f, tally)
+        if f != 0:
+            continue
+        a = pick[q]
+        s = side[a]
+        k, wd = _first_wind(d, a, lon, lat, twd0, boxes, values)
+        rel = _wind_rel(wd - course[d, a, 0])
+        change = tack_h[k] if min(rel, 360.0 - rel) < 90.0 else gybe_h[k]  # a tack upwind of the beam
+        for c in range(t0s.shape[1]):
+            t0 = t0s[a, c]
+            if np.isfinite(t0):
+                tot = _arrival(t0, times[q], from_sides[c], s, change)
+                if tot < best[s] or (tot == best[s] and tot < np.inf and (c < cb[s] or (c == cb[s] and a < jb[s]))):
+                    best[s], jb[s], cb[s] = tot, a, c
 
 
 def _pruned_step(  # type: ignore[no-untyped-def]

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 import pyroute_rel.dp_compiled as dp_compiled
 import pyroute_rel.solve as solve
 from pyroute_rel.grid import make_grid
-from pyroute_rel.manoeuvre import ManoeuvrePenalties
+from pyroute_rel.manoeuvre import ManoeuvrePenalties, wind_side
 from pyroute_rel.polar import Polar
 from pyroute_rel.weather import Patch, UniformWeather
 from tests.test_properties import NaNBox
@@ -175,3 +175,153 @@ def test_box_wind_is_uniform_weathers() -> None:
     np.testing.assert_array_equal(tws, want.tws_kn)
     np.testing.assert_array_equal(twd, want.twd_deg)
     assert boxes.shape[0] == sum("tws_kn" in p.values or "twd_deg" in p.values for p in weather.patches)
+
+
+def _random_penalties(rng: np.random.Generator) -> ManoeuvrePenalties:
+    """Tack and gybe tables of one to three rows, with zero penalties in part of the wind range (so that changing
+    side or not, or leaving from either label, often ties)."""
+
+    def table() -> list[list[float]]:
+        tws = np.sort(rng.choice(np.arange(0.0, 30.0, 2.5), int(rng.integers(1, 4)), replace=False))
+        return [[float(w), float(rng.choice([0.0, rng.uniform(1, 2e4)]))] for w in tws]
+
+    p = ManoeuvrePenalties(tack_s=table(), gybe_s=table())
+    return p if p.active else ManoeuvrePenalties(tack_s=[[0.0, 60.0]], gybe_s=table())
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    samples=st.integers(1, 3),
+    beyond=st.sampled_from(["clamp", "forbid"]),
+    prune=st.booleans(),
+    n_nodes=st.sampled_from([9, 41]),
+    initial=st.sampled_from([None, 0, 1]),
+    first_tws=st.sampled_from([0.0, 6.0]),
+)
+def test_side_labels_with_uniform_wind_in_the_kernel_equal_numpy_and_the_sampled_kernel(
+    seed: int, samples: int, beyond: str, prune: bool, n_nodes: int, initial: int | None, first_tws: float
+) -> None:
+    """Side labels on UniformWeather in one compiled call a rank (_boxed_sides_rank): random polars (light air below
+    the first column, a no-go zone, winds beyond the last column), random tack and gybe tables, overlapping patches
+    setting the speed, the direction, both or neither, with and without pruning, starting on either side or a given
+    one: the numpy path's labels, arrivals and back-pointers, bit for bit, and the kernel that samples the wind at
+    every arc first (_rank_kernel, the compiled path before it) arc for arc: the same arcs costed, pruned and
+    forbidden. And that path was taken for every rank."""
+    rng = np.random.default_rng(seed)
+    twa = np.array([30.0, 45.0, 60.0, 90.0, 120.0, 150.0, 180.0])
+    tws = np.array([first_tws, 10.0, 16.0, 24.0])
+    polar = Polar(name="random", twa_deg=twa, tws_kn=tws, speed_kn=rng.uniform(0.5, 8.0, (twa.size, tws.size)))
+    weather = UniformWeather(tws_kn=float(rng.uniform(1, 22)), twd_deg=float(rng.uniform(0, 360)),
+                             patches=_wind_patches(rng, int(rng.integers(0, 5))))  # fmt: skip
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=6, n_nodes=n_nodes, spacing_km=float(rng.uniform(30, 120)))
+    problem = solve.RoutingProblem(departure=DEP, weather=weather, polar=polar, samples=samples, beyond=beyond,
+                                   prune=prune, manoeuvres=_random_penalties(rng), initial_side=initial)  # fmt: skip
+    assert problem.sides
+    calls = []
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(
+            dp_compiled, "_boxed_sides_rank", lambda *a, f=dp_compiled._boxed_sides_rank: calls.append(1) or f(*a)
+        )
+        compiled, numpy_path = both(grid, problem, mp)
+        n_calls = len(calls)
+        of = solve._Pricing.of  # the wind sampled at every arc by the weather, then _rank_kernel
+        mp.setattr(solve._Pricing, "of", lambda *a, **k: replace(of(*a, **k), wind_boxes=None))
+        sampled = solve.forward_dp(grid, problem)
+    assert n_calls == (grid.n_ranks if compiled.dead_rank is None else compiled.dead_rank) + 1  # the finish too
+    assert len(calls) == n_calls  # the sampled path did not call it
+    assert_same(compiled, numpy_path, counts=not prune or n_nodes <= solve.PRUNE_MIN_WIDTH)
+    assert_same(compiled, sampled)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), n_patches=st.integers(0, 4), twd=st.sampled_from([0.0, 90.0, 250.0, 359.5, -30.0]))
+def test_box_sides_are_wind_side(seed: int, n_patches: int, twd: float) -> None:
+    """The side each arc is sailed on, from the kernel's wind at the first sample (_box_sides), is
+    manoeuvre.wind_side of the wind UniformWeather.sample gives there: at node 0 courses within a turn of the wind
+    (its quick path: random, dead up- and downwind, a hair either side), at node 1 any (a turn away, beyond, NaN,
+    infinite: the exact path); and _wind_rel is numpy.mod(x, 360)."""
+    rng = np.random.default_rng(seed)
+    weather = UniformWeather(tws_kn=12.0, twd_deg=twd, patches=_wind_patches(rng, n_patches))
+    tws0, twd0, boxes, values = weather.wind_boxes()
+    n = 600
+    lon, lat = rng.uniform(-60, -15, n), rng.uniform(15, 45, n)
+    wind = weather.sample(lon, lat, DEP).twd_deg
+    near = np.concatenate([rng.uniform(-359, 359, n - 100), rng.choice([0.0, 180.0, -180.0, 1e-13, -1e-13], 100)])
+    edges = [0.0, 180.0, -180.0, 360.0, -360.0, 1e-300, -1e-300, 1e-13, -1e-13]
+    anyhow = np.concatenate([rng.uniform(-720, 1080, 200), wind[200:500] - rng.choice(edges, 300),
+                             rng.choice([np.nan, np.inf, -np.inf, 0.0, -0.0, 360.0, 720.0], 100)])  # fmt: skip
+    course = np.stack([wind - near, anyhow])[:, :, None]  # (nodes, arcs, samples)
+    lon3, lat3 = (np.ascontiguousarray(np.broadcast_to(a[None, :, None], course.shape)) for a in (lon, lat))
+    for d in (0, 1):
+        side = np.full(n, 7, dtype=np.int8)
+        dp_compiled._box_sides(d, course, lon3, lat3, twd0, boxes, values, side)
+        with np.errstate(invalid="ignore"):  # infinite courses: NaN angles
+            np.testing.assert_array_equal(side, wind_side(wind, course[d, :, 0])[0])
+    x = np.concatenate([twd0 - course.ravel(), [-1e-300, -0.0, 0.0, -360.0, 360.0, -1e-14, 359.99999999999994]])
+    with np.errstate(invalid="ignore"):
+        np.testing.assert_array_equal([dp_compiled._wind_rel(v) for v in x], np.mod(x, 360.0))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    k=st.integers(0, 4),
+    samples=st.integers(1, 3),
+    beyond=st.sampled_from(["clamp", "forbid"]),
+    prune=st.booleans(),
+    n_nodes=st.sampled_from([9, 41]),
+    from_sides=st.sampled_from([(-1,), (0,), (1,), (0, 1)]),
+)
+def test_boxed_sides_rank_equals_the_sampled_kernel_on_ties(
+    seed: int, k: int, samples: int, beyond: str, prune: bool, n_nodes: int, from_sides: tuple[int, ...]
+) -> None:
+    """One rank with side labels, departures drawn to tie (both labels of a node reached at the same time, whole
+    hours, unreached labels), penalties zero in part of the wind range (arrivals over an arc from either label
+    tie) and some arcs twice (arrivals over two arcs tie): the rank in one compiled call (BoxWind) gives what the
+    weather's wind sampled at every arc and _rank_kernel give, label for label: arrivals, arcs and source labels
+    (first of equal ones), and the arcs costed and forbidden."""
+    rng = np.random.default_rng(seed)
+    weather = UniformWeather(tws_kn=float(rng.uniform(1, 22)), twd_deg=float(rng.uniform(0, 360)),
+                             patches=_wind_patches(rng, int(rng.integers(0, 4))))  # fmt: skip
+    grid = make_grid(START_PT, FINISH_PT, n_ranks=4, n_nodes=n_nodes, spacing_km=float(rng.uniform(30, 120)))
+    problem = solve.RoutingProblem(departure=DEP, weather=weather, polar=random_polar(rng), samples=samples,
+                                   beyond=beyond, manoeuvres=_random_penalties(rng))  # fmt: skip
+    src, valid = grid.pattern(k)
+    geom = solve.grid_geometry(grid, k, samples)
+    shape = valid.shape + (samples,)
+    n_src = grid.start_points[0].size if k == 0 else grid.n_nodes
+    t_prev = rng.choice([np.inf, 0.0, 1.0, 2.0, 3.0, float(rng.uniform(0, 3))], (n_src, len(from_sides)))
+    same = rng.random(n_src) < 0.5
+    t_prev[same] = t_prev[same, :1]  # both labels at once
+    lon, lat, course = (np.array(np.broadcast_to(a, shape)) for a in (geom.lon_deg, geom.lat_deg, geom.course_deg))
+    seg, src, valid = (np.array(np.broadcast_to(a, valid.shape)) for a in (geom.seg_nm[..., 0], src, valid))
+    width = valid.shape[1]
+    to, of = rng.integers(0, width, (2, width // 3 + 1))
+    for a in (lon, lat, course, seg, src, valid):  # some arcs twice: arrivals over different arcs tie
+        a[:, to] = a[:, of]
+
+    def sampled(pick: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        at = [a if pick is None else a.reshape(-1, samples)[pick] for a in (lon, lat)]
+        c = weather.sample(*at, DEP)
+        return c.tws_kn, c.twd_deg
+
+    bound = problem.speed_bound_kn() if prune else None
+    steps = [
+        dp_compiled.rank_step(
+            w,
+            course,
+            seg,
+            t_prev,
+            src,
+            valid,
+            problem.polar,
+            beyond=beyond,
+            bound_kn=bound,
+            from_sides=from_sides,
+            penalties=problem.manoeuvres,
+        )  # fmt: skip
+        for w in (dp_compiled.BoxWind(*weather.wind_boxes(), lon, lat), sampled)
+    ]
+    for a, b in zip(*steps, strict=True):
+        np.testing.assert_array_equal(a, b)
