@@ -33,7 +33,7 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -41,7 +41,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .crab import steer
-from .crossings import arc_extremes, needs_pieces
+from .crossings import arc_extremes, latitude_bound, needs_pieces
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
@@ -397,80 +397,111 @@ def deferred_costs(
 ) -> tuple[ArcCosts, PendingPieces | None]:
     """:func:`geometry_costs` (with ``exact_p_f=False``) that leaves the judgement on pieces to the caller.
 
-    The arcs are costed on their samples; those :func:`geometry_costs` would then judge on every piece they cross
-    are returned as :class:`PendingPieces` (None: there are none), to be judged when the caller needs them. The
-    DP judges only the arcs it would pick (:mod:`pyroute_rel.solve`). An arc judged this way gets exactly the
-    verdict, p_f and criteria :func:`geometry_costs` gives it; an arc not judged keeps its samples' time, p_f and
-    flags (its time may then be finite where :func:`geometry_costs` forbids it).
+    The arcs are costed on their samples; those :func:`geometry_costs` could then judge on every piece they cross
+    are returned as :class:`PendingPieces` (None: there are none), to be judged when the caller needs them: the DP
+    judges only the arcs it would pick (:mod:`pyroute_rel.solve`). An arc judged this way gets the verdict and
+    criteria :func:`geometry_costs` gives it; an arc not judged keeps its samples' time, p_f and flags (its time
+    may then be finite where :func:`geometry_costs` forbids it).
     """
     options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f=False)
-    costs, todo = _geometry_costs(geom, t0_h, options, workers, defer=True)
-    if todo is None or not todo.any():
+    t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape)
+    costs, todo = _geometry_costs(geom, t0, options, workers, defer=True)
+    if todo is None:
         return costs, None
-    shape = geom.shape
-    pick = np.flatnonzero(todo)
-    assert geom.a_xyz is not None and geom.b_xyz is not None
-    pending = PendingPieces(
-        index=pick,
-        a_xyz=np.broadcast_to(geom.a_xyz, shape + (3,)).reshape(-1, 3)[pick],
-        b_xyz=np.broadcast_to(geom.b_xyz, shape + (3,)).reshape(-1, 3)[pick],
-        t0_h=np.broadcast_to(np.asarray(t0_h, dtype=float), shape).reshape(-1)[pick],
-        time_h=np.broadcast_to(costs.time_h, shape).reshape(-1)[pick],
-        options=options,
-    )
-    return costs, pending
+    mask, near = todo
+    if not mask.any():
+        return costs, None
+    time_h = np.broadcast_to(costs.time_h, geom.shape)
+    return costs, PendingPieces(np.flatnonzero(mask), geom, t0, time_h, options, near)
+
+
+@dataclass(frozen=True)
+class _NearTest:
+    """What :func:`~pyroute_rel.crossings.needs_pieces` needs to answer for some arcs of a block as for the block:
+    the weather at the samples (None: sampled again) and the block's latitude bound [deg]."""
+
+    cond: Conditions | None
+    lat_bound_deg: float
 
 
 @dataclass
 class PendingPieces:
-    """Arcs of a block costed on their samples whose judgement on pieces is still to come (:func:`deferred_costs`).
+    """Arcs of a block costed on their samples whose judgement on the pieces they cross is still to come
+    (:func:`deferred_costs`); :meth:`judge` judges some, as :func:`geometry_costs` would.
 
     Attributes
     ----------
-    index : Flat indices (C order) in the block of the arcs to judge, increasing.
-    a_xyz, b_xyz : Unit vectors of their ends, shape (m, 3).
-    t0_h, time_h : Their departure [h after departure] and their samples' sailing time [h], shape (m,).
+    index : Flat indices (C order) of the arcs still to judge in the caller's block, increasing.
+    geom : The geometry of the block costed (:meth:`moved` lays it in a larger one: ``local`` then holds the arcs'
+        flat indices in ``geom``).
+    t0_h, time_h : Departure [h after departure] and the samples' sailing time [h] of each arc of ``geom``.
     options : The cost settings.
-    done : Which have been judged (:meth:`judge`).
+    near : With it, which of the arcs need their pieces is decided as they are judged
+        (:func:`~pyroute_rel.crossings.needs_pieces`); None: all of them do.
     """
 
     index: npt.NDArray[np.intp]
-    a_xyz: FloatArray
-    b_xyz: FloatArray
+    geom: ArcGeometry
     t0_h: FloatArray
     time_h: FloatArray
     options: _CostOptions
-    done: npt.NDArray[np.bool_] = field(default=None)  # type: ignore[assignment]
+    near: _NearTest | None = None
+    local: npt.NDArray[np.intp] | None = None
+    done: npt.NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
+        if self.local is None:
+            self.local = self.index
         if self.done is None:
             self.done = np.zeros(self.index.size, dtype=bool)
 
     @property
     def judged(self) -> int:
         """Arcs judged so far."""
+        assert self.done is not None
         return int(np.count_nonzero(self.done))
 
     def waiting(self, size: int) -> npt.NDArray[np.bool_]:
-        """Flat mask over a block of ``size`` arcs: the arcs not judged yet."""
+        """Flat mask over the caller's block of ``size`` arcs: the arcs not judged yet."""
         out = np.zeros(size, dtype=bool)
         out[self.index[~self.done]] = True
         return out
 
-    def judge(self, flat: npt.NDArray[np.intp]) -> tuple[npt.NDArray[np.bool_], FloatArray, npt.NDArray[np.uint32]]:
-        """Judge the arcs at flat block indices ``flat`` (all waiting) on every piece they cross; returns, for each,
-        whether that forbids it (p_f > apf), the largest p_f met along it (at least its samples') and the criteria
-        fired there (what :func:`geometry_costs` or-s into its flags)."""
+    def judge(self, flat: npt.NDArray[np.intp]) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.uint32]]:
+        """Judge the arcs at flat indices ``flat`` of the caller's block (all waiting) on every piece they cross;
+        returns, for each, whether that forbids it (the largest p_f met along it exceeds apf) and the criteria fired
+        in the states above apf met along it (what :func:`geometry_costs` or-s into its flags; 0 where allowed)."""
+        assert self.done is not None and self.local is not None
         at = np.searchsorted(self.index, flat)
-        if np.any(self.done[at]) or np.any(self.index[np.minimum(at, self.index.size - 1)] != flat):
-            raise ValueError("PendingPieces.judge: an arc not waiting to be judged")
-        o = self.options
-        assert o.failure is not None
+        if at.size and (
+            np.any(at >= self.index.size) or np.any(self.index[np.minimum(at, self.index.size - 1)] != flat)
+        ):
+            raise ValueError("PendingPieces.judge: an arc that is not waiting to be judged")
+        if np.any(self.done[at]):
+            raise ValueError("PendingPieces.judge: an arc judged already")
+        self.done[at] = True
+        over = np.zeros(flat.size, dtype=bool)
+        bits = np.zeros(flat.size, dtype=np.uint32)
+        g, o = self.geom, self.options
+        shape = g.shape
+        sel = np.unravel_index(self.local[at], shape)
+        if self.near is not None:
+            near = self._near(sel)
+            if near is not None:
+                go = np.flatnonzero(near)
+                sel = tuple(i[go] for i in sel)
+            else:
+                go = np.arange(flat.size)
+        else:
+            go = np.arange(flat.size)
+        if not go.size:
+            return over, bits
+        assert o.failure is not None and g.a_xyz is not None and g.b_xyz is not None
         ext = arc_extremes(
-            self.a_xyz[at],
-            self.b_xyz[at],
-            self.t0_h[at],
-            self.time_h[at],
+            np.broadcast_to(g.a_xyz, shape + (3,))[sel],
+            np.broadcast_to(g.b_xyz, shape + (3,))[sel],
+            self.t0_h[sel],
+            self.time_h[sel],
             departure=o.departure,
             weather=o.weather,
             polar=o.polar,
@@ -479,37 +510,58 @@ class PendingPieces:
             beyond=o.beyond,
             speed_factor=None if o.wave_loss is None else o.wave_loss.factor,
         )
-        self.done[at] = True
-        over = ext.p_f > o.apf
-        return over, ext.p_f, np.where(over, ext.fired_bits, 0).astype(np.uint32)
+        over[go] = ext.p_f > o.apf
+        bits[go] = np.where(over[go], ext.fired_bits, 0)
+        return over, bits
+
+    def _near(self, sel: tuple[npt.NDArray[np.intp], ...]) -> npt.NDArray[np.bool_] | None:
+        """:func:`~pyroute_rel.crossings.needs_pieces` of the arcs at block index ``sel``, as in their block."""
+        g, o, near = self.geom, self.options, self.near
+        assert near is not None and o.failure is not None
+        full = g.shape + (g.samples,)
+
+        def pick(a: Any, to: tuple[int, ...] = full) -> Any:
+            return np.broadcast_to(a, to)[sel]
+
+        cond = None
+        if near.cond is not None:
+            cond = Conditions(**{f.name: pick(getattr(near.cond, f.name)) for f in fields(Conditions)})
+        return needs_pieces(
+            pick(g.lon_deg),
+            pick(g.lat_deg),
+            pick(g.course_deg),
+            pick(g.seg_nm, g.shape + (1,)),
+            self.t0_h[sel],
+            self.time_h[sel],
+            weather=o.weather,
+            failure=o.failure,
+            departure=o.departure,
+            cond=cond,
+            lat_bound_deg=near.lat_bound_deg,
+        )
+
+    def near_mask(self) -> npt.NDArray[np.bool_]:
+        """The arcs still waiting that need their pieces judged, over this block (a mask of its shape)."""
+        assert self.done is not None and self.local is not None
+        out = np.zeros(self.geom.shape, dtype=bool)
+        wait = self.local[~self.done]
+        sel = np.unravel_index(wait, self.geom.shape)
+        near = None if self.near is None else self._near(sel)
+        out[sel if near is None else tuple(i[near] for i in sel)] = True
+        return out
 
     def moved(self, where: npt.NDArray[np.intp]) -> PendingPieces:
-        """These arcs laid out in a larger block: arc ``i`` of this block is ``where[i]`` there (increasing)."""
-        return replace(self, index=where[self.index], done=self.done.copy())
-
-    def merged(self, other: PendingPieces) -> PendingPieces:
-        """The arcs of both (of one block, disjoint)."""
-        order = np.argsort(np.concatenate([self.index, other.index]), kind="stable")
-
-        def cat(a: Any, b: Any) -> Any:
-            return np.concatenate([a, b])[order]
-
-        return PendingPieces(
-            index=cat(self.index, other.index),
-            a_xyz=cat(self.a_xyz, other.a_xyz),
-            b_xyz=cat(self.b_xyz, other.b_xyz),
-            t0_h=cat(self.t0_h, other.t0_h),
-            time_h=cat(self.time_h, other.time_h),
-            options=self.options,
-            done=cat(self.done, other.done),
-        )
+        """These arcs laid out in a larger block: arc ``i`` of this one is ``where[i]`` there (increasing)."""
+        assert self.done is not None
+        return replace(self, index=where[self.index], local=self.local, done=self.done.copy())
 
 
 def _geometry_costs(
     geom: ArcGeometry, t0_h: npt.ArrayLike, options: _CostOptions, workers: int | None, *, defer: bool
-) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
-    """:func:`geometry_costs`; ``defer``: the arcs are not judged on pieces, the mask (block shape) of those to
-    judge is returned instead (None: none)."""
+) -> tuple[ArcCosts, tuple[npt.NDArray[np.bool_], _NearTest | None] | None]:
+    """:func:`geometry_costs`; ``defer``: the arcs are not judged on pieces; returned instead, the mask (block
+    shape) of those that may need it and, when that is to be decided as they are judged, what decides it (None:
+    decided, no arc needs it)."""
     shape = geom.shape
     weather = options.weather
     steady = bool(weather.steady)
@@ -534,19 +586,33 @@ def _geometry_costs(
     costs = _arc_totals(dt, p_f, reason, fired)
     if options.failure is None or geom.a_xyz is None or geom.b_xyz is None:
         return costs, None
-    todo = _pieces_todo(geom, np.asarray(t0_h, dtype=float), costs, options, cond)
+    t0 = np.asarray(t0_h, dtype=float)
+    if defer and not cond.has_current:
+        # which arcs need their pieces is decided as they are judged, as it would be here (the block's bound)
+        todo = _pieces_todo(geom, t0, costs, options, cond, near=False)
+        if todo is None:
+            return costs, None
+        same = cond.tws_kn.shape == geom.lon_deg.shape
+        test = _NearTest(cond if same else None, latitude_bound(geom.lat_deg, geom.seg_nm))
+        return costs, (todo.reshape(shape), test)
+    todo = _pieces_todo(geom, t0, costs, options, cond)
     if defer:
-        return costs, None if todo is None else todo.reshape(shape)
-    return (costs if todo is None else _judge_pieces(geom, np.asarray(t0_h, dtype=float), costs, options, todo)), None
+        return costs, None if todo is None else (todo.reshape(shape), None)
+    return (costs if todo is None else _judge_pieces(geom, t0, costs, options, todo)), None
 
 
 def _pieces_todo(
-    geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options: _CostOptions, cond: Conditions
+    geom: ArcGeometry,
+    t0_h: FloatArray,
+    costs: ArcCosts,
+    options: _CostOptions,
+    cond: Conditions,
+    near: bool = True,
 ) -> npt.NDArray[np.bool_] | None:
     """Flat mask of the arcs to judge on every piece they cross (None: none): those still allowed whose samples
-    did not meet the table's largest p_f and that may meet more than their samples (:func:`~pyroute_rel.crossings.
-    needs_pieces`, decided from ``cond``, the weather at the samples). None too where no arc can be forbidden by it
-    and ``exact_p_f`` is False."""
+    did not meet the table's largest p_f and (``near``) that may meet more than their samples
+    (:func:`~pyroute_rel.crossings.needs_pieces`, decided from ``cond``, the weather at the samples). None too where
+    no arc can be forbidden by it and ``exact_p_f`` is False."""
     model = options.failure
     assert model is not None
     if not options.exact_p_f and options.apf >= float(np.max(model.p_flat)):
@@ -557,7 +623,9 @@ def _pieces_todo(
     # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more; an arc
     # far from any change of conditions and of criteria is judged by its samples
     todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
-    near = needs_pieces(
+    if not near:
+        return todo if todo.any() else None
+    close = needs_pieces(
         geom.lon_deg,
         geom.lat_deg,
         geom.course_deg,
@@ -569,8 +637,8 @@ def _pieces_todo(
         departure=options.departure,
         cond=cond,
     )
-    if near is not None:
-        todo &= np.broadcast_to(near, shape).reshape(-1)
+    if close is not None:
+        todo &= np.broadcast_to(close, shape).reshape(-1)
     return todo if todo.any() else None
 
 
@@ -635,11 +703,11 @@ class _CostOptions:
 
 def _threaded_costs(
     geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n: int, defer: bool
-) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
+) -> tuple[ArcCosts, tuple[npt.NDArray[np.bool_], None] | None]:
     """:func:`_geometry_costs` of a large block split along its first axis between ``n`` threads."""
     split_seg = geom.seg_nm.shape[:1] == geom.shape[:1]
 
-    def part(rows: slice) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
+    def part(rows: slice) -> tuple[ArcCosts, Any]:
         g = ArcGeometry(
             lon_deg=geom.lon_deg[rows],
             lat_deg=geom.lat_deg[rows],
@@ -648,7 +716,13 @@ def _threaded_costs(
             a_xyz=None if geom.a_xyz is None else np.broadcast_to(geom.a_xyz, geom.shape + (3,))[rows],
             b_xyz=None if geom.b_xyz is None else np.broadcast_to(geom.b_xyz, geom.shape + (3,))[rows],
         )
-        return _geometry_costs(g, t0[rows], options, 1, defer=defer)
+        costs, todo = _geometry_costs(g, t0[rows], options, 1, defer=defer)
+        if todo is not None and todo[1] is not None:  # decided here, with the part's bound (as without deferral)
+            assert g.a_xyz is not None
+            pending = PendingPieces(np.flatnonzero(todo[0]), g, t0[rows], np.broadcast_to(costs.time_h, g.shape),
+                                    options, todo[1])  # fmt: skip
+            return costs, pending.near_mask()
+        return costs, None if todo is None else todo[0]
 
     results = thread_map(part, row_blocks(geom.shape[0], n), n)
     done = [c for c, _ in results]
@@ -657,7 +731,7 @@ def _threaded_costs(
         bits = np.concatenate([c.bits() for c in done])
     todo = None
     if any(t is not None for _, t in results):
-        todo = np.concatenate([np.zeros(c.time_h.shape, bool) if t is None else t for c, t in results])
+        todo = np.concatenate([np.zeros(c.time_h.shape, bool) if t is None else t for c, t in results]), None
     costs = ArcCosts(
         time_h=np.concatenate([c.time_h for c in done]),
         p_f=np.concatenate([c.p_f for c in done]),

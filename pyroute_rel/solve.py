@@ -803,7 +803,7 @@ class _Pricing:
                 reason = reason | np.where(hit, REASONS["obstacle"], 0).astype(np.uint8)
             self.cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costed.costs.p_f, reason=reason))
         total = np.where(live, problem.arrive(t0 + time_h if pen is None else (t0 + time_h) + pen), np.inf)
-        if self.lazy or costed.pending is not None:
+        if self.lazy or costed.pending:
             times = _block_times(problem, t0) if self.lazy else None
             for s in (None,) if side is None else (PORT, STARBOARD):  # each label's best arc must be judged
                 total, found = _settle(costed, total, side, s, problem.blocked if self.lazy else None, k, times)
@@ -834,29 +834,36 @@ LAZY_PIECES = True
 @dataclass
 class _Costed:
     """The costs of the arcs into a rank at one set of departures and the arcs still to judge on the pieces they
-    cross (None: none, or judged eagerly); :meth:`judge` updates the costs."""
+    cross (in parts, each its own :class:`~pyroute_rel.cost.PendingPieces`; none when judged eagerly); :meth:`judge`
+    updates the costs."""
 
     costs: ArcCosts
-    pending: PendingPieces | None = None
+    pending: list[PendingPieces] = field(default_factory=list)
 
     @classmethod
     def of(cls, problem: RoutingProblem, geom: ArcGeometry, t0: FloatArray, lazy_pieces: bool) -> _Costed:
         """The arcs' costs, judged on pieces eagerly or (``lazy_pieces``) left pending."""
         if not lazy_pieces:
             return cls(problem.geometry_costs(geom, t0))
-        return cls(*deferred_costs(geom, t0, **problem._cost_options()))
+        costs, pending = deferred_costs(geom, t0, **problem._cost_options())
+        return cls(costs, [] if pending is None else [pending])
 
     def waiting(self, shape: tuple[int, ...]) -> BoolArray:
         """The arcs not judged yet, over the block."""
-        if self.pending is None:
-            return np.zeros(shape, dtype=bool)
-        return self.pending.waiting(math.prod(shape)).reshape(shape)
+        size = math.prod(shape)
+        out = np.zeros(size, dtype=bool)
+        for part in self.pending:
+            out |= part.waiting(size)
+        return out.reshape(shape)
 
     def judge(self, flat: npt.NDArray[np.intp]) -> npt.NDArray[np.intp]:
-        """Judge the arcs at flat indices ``flat`` (waiting) on their pieces; returns those that are forbidden, whose
-        time becomes inf, flags get the failure reason and criteria those fired along them."""
-        assert self.pending is not None
-        over, _, bits = self.pending.judge(flat)
+        """Judge the arcs at flat indices ``flat`` (increasing, waiting) on their pieces; returns those that are
+        forbidden, whose time becomes inf, flags get the failure reason and criteria those fired along them."""
+        over = np.zeros(flat.size, dtype=bool)
+        bits = np.zeros(flat.size, dtype=np.uint32)
+        for part in self.pending:
+            mine = np.isin(flat, part.index, assume_unique=True) if len(self.pending) > 1 else slice(None)
+            over[mine], bits[mine] = part.judge(flat[mine])
         bad = flat[over]
         if bad.size:
             c = self.costs
@@ -903,7 +910,7 @@ def _lazy_pieces(costed: _Costed, total: FloatArray) -> npt.NDArray[np.intp]:
     its earliest arrival not judged yet is judged (then its 4, 16, ... earliest) until its best arc is judged
     allowed, so the minimum, and the arc reaching it, are those of the fully judged arcs (an arc not judged
     arrives no earlier than the best; on a tie, after it) while most arcs are never judged."""
-    if costed.pending is None:
+    if not costed.pending:
         return np.zeros(0, dtype=np.intp)
     tot = total.copy()
     shape = tot.shape
@@ -1284,7 +1291,7 @@ def _pruned_costs(
     first &= live
     costed = _costs_of(problem, geom, t0, first, lazy_pieces)
     total = np.where(first, problem.arrive(t0 + costed.costs.time_h), np.inf)
-    if lazy or costed.pending is not None:
+    if lazy or costed.pending:
         blocked = problem.blocked if lazy else None
         total, hit = _settle(costed, total, None, None, blocked, k, _block_times(problem, t0) if lazy else None)
         if hit is not None:
@@ -1302,10 +1309,7 @@ def _pruned_costs(
             if c.fired_bits is None and m_c.fired_bits is None
             else np.where(rest, m_c.bits(), c.bits()),
         )
-        pending = costed.pending
-        if more.pending is not None:
-            pending = more.pending if pending is None else pending.merged(more.pending)
-        costed = _Costed(costs, pending)
+        costed = _Costed(costs, costed.pending + more.pending)
     return costed, first | rest
 
 
@@ -1330,7 +1334,8 @@ def _costs_of(
     if c.fired_bits is not None:
         fired = np.zeros(shape, dtype=np.uint32)
         fired[pick] = c.fired_bits
-    pending = None if part.pending is None else part.pending.moved(np.flatnonzero(pick))
+    where = np.flatnonzero(pick)
+    pending = [p.moved(where) for p in part.pending]
     return _Costed(ArcCosts(time_h=time_h, p_f=p_f, reason=reason, fired_bits=fired), pending)
 
 
