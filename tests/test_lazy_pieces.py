@@ -192,7 +192,6 @@ def test_lazy_equals_eager_on_gridded_weather(data: st.DataObject) -> None:
     assert_same_route(grid, problem, eager, lazy)
 
 
-@pytest.mark.slow
 @props(15)
 @given(data=st.data())
 def test_lazy_equals_eager_with_waits(data: st.DataObject) -> None:
@@ -228,7 +227,6 @@ def test_lazy_equals_eager_with_side_labels(data: st.DataObject) -> None:
     assert_same_route(grid, problem, eager, lazy)
 
 
-@pytest.mark.slow
 @props(12)
 @given(data=st.data())
 def test_lazy_equals_eager_when_the_dp_prunes(data: st.DataObject) -> None:
