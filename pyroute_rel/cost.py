@@ -33,7 +33,7 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -41,7 +41,7 @@ import numpy.typing as npt
 
 from . import geodesy
 from .crab import steer
-from .crossings import arc_extremes, latitude_bound, needs_pieces
+from .crossings import arc_extremes, needs_pieces
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .parallel import default_workers, row_blocks, thread_map
@@ -406,22 +406,10 @@ def deferred_costs(
     options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f=False)
     t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape)
     costs, todo = _geometry_costs(geom, t0, options, workers, defer=True)
-    if todo is None:
-        return costs, None
-    mask, near = todo
-    if not mask.any():
+    if todo is None or not todo.any():
         return costs, None
     time_h = np.broadcast_to(costs.time_h, geom.shape)
-    return costs, PendingPieces(np.flatnonzero(mask), geom, t0, time_h, options, near)
-
-
-@dataclass(frozen=True)
-class _NearTest:
-    """What :func:`~pyroute_rel.crossings.needs_pieces` needs to answer for some arcs of a block as for the block:
-    the weather at the samples (None: sampled again) and the block's latitude bound [deg]."""
-
-    cond: Conditions | None
-    lat_bound_deg: float
+    return costs, PendingPieces(np.flatnonzero(todo), geom, t0, time_h, options)
 
 
 @dataclass
@@ -436,8 +424,6 @@ class PendingPieces:
         flat indices in ``geom``).
     t0_h, time_h : Departure [h after departure] and the samples' sailing time [h] of each arc of ``geom``.
     options : The cost settings.
-    near : With it, which of the arcs need their pieces is decided as they are judged
-        (:func:`~pyroute_rel.crossings.needs_pieces`); None: all of them do.
     """
 
     index: npt.NDArray[np.intp]
@@ -445,7 +431,6 @@ class PendingPieces:
     t0_h: FloatArray
     time_h: FloatArray
     options: _CostOptions
-    near: _NearTest | None = None
     local: npt.NDArray[np.intp] | None = None
     done: npt.NDArray[np.bool_] | None = None
 
@@ -480,22 +465,9 @@ class PendingPieces:
         if np.any(self.done[at]):
             raise ValueError("PendingPieces.judge: an arc judged already")
         self.done[at] = True
-        over = np.zeros(flat.size, dtype=bool)
-        bits = np.zeros(flat.size, dtype=np.uint32)
         g, o = self.geom, self.options
         shape = g.shape
         sel = np.unravel_index(self.local[at], shape)
-        if self.near is not None:
-            near = self._near(sel)
-            if near is not None:
-                go = np.flatnonzero(near)
-                sel = tuple(i[go] for i in sel)
-            else:
-                go = np.arange(flat.size)
-        else:
-            go = np.arange(flat.size)
-        if not go.size:
-            return over, bits
         assert o.failure is not None and g.a_xyz is not None and g.b_xyz is not None
         ext = arc_extremes(
             np.broadcast_to(g.a_xyz, shape + (3,))[sel],
@@ -510,45 +482,8 @@ class PendingPieces:
             beyond=o.beyond,
             speed_factor=None if o.wave_loss is None else o.wave_loss.factor,
         )
-        over[go] = ext.p_f > o.apf
-        bits[go] = np.where(over[go], ext.fired_bits, 0)
-        return over, bits
-
-    def _near(self, sel: tuple[npt.NDArray[np.intp], ...]) -> npt.NDArray[np.bool_] | None:
-        """:func:`~pyroute_rel.crossings.needs_pieces` of the arcs at block index ``sel``, as in their block."""
-        g, o, near = self.geom, self.options, self.near
-        assert near is not None and o.failure is not None
-        full = g.shape + (g.samples,)
-
-        def pick(a: Any, to: tuple[int, ...] = full) -> Any:
-            return np.broadcast_to(a, to)[sel]
-
-        cond = None
-        if near.cond is not None:
-            cond = Conditions(**{f.name: pick(getattr(near.cond, f.name)) for f in fields(Conditions)})
-        return needs_pieces(
-            pick(g.lon_deg),
-            pick(g.lat_deg),
-            pick(g.course_deg),
-            pick(g.seg_nm, g.shape + (1,)),
-            self.t0_h[sel],
-            self.time_h[sel],
-            weather=o.weather,
-            failure=o.failure,
-            departure=o.departure,
-            cond=cond,
-            lat_bound_deg=near.lat_bound_deg,
-        )
-
-    def near_mask(self) -> npt.NDArray[np.bool_]:
-        """The arcs still waiting that need their pieces judged, over this block (a mask of its shape)."""
-        assert self.done is not None and self.local is not None
-        out = np.zeros(self.geom.shape, dtype=bool)
-        wait = self.local[~self.done]
-        sel = np.unravel_index(wait, self.geom.shape)
-        near = None if self.near is None else self._near(sel)
-        out[sel if near is None else tuple(i[near] for i in sel)] = True
-        return out
+        over = ext.p_f > o.apf
+        return over, np.where(over, ext.fired_bits, 0).astype(np.uint32)
 
     def moved(self, where: npt.NDArray[np.intp]) -> PendingPieces:
         """These arcs laid out in a larger block: arc ``i`` of this one is ``where[i]`` there (increasing)."""
@@ -558,10 +493,9 @@ class PendingPieces:
 
 def _geometry_costs(
     geom: ArcGeometry, t0_h: npt.ArrayLike, options: _CostOptions, workers: int | None, *, defer: bool
-) -> tuple[ArcCosts, tuple[npt.NDArray[np.bool_], _NearTest | None] | None]:
-    """:func:`geometry_costs`; ``defer``: the arcs are not judged on pieces; returned instead, the mask (block
-    shape) of those that may need it and, when that is to be decided as they are judged, what decides it (None:
-    decided, no arc needs it)."""
+) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
+    """:func:`geometry_costs`; ``defer``: the arcs are not judged on pieces; the mask (block shape) of those to
+    judge is returned instead (None: none)."""
     shape = geom.shape
     weather = options.weather
     steady = bool(weather.steady)
@@ -587,17 +521,9 @@ def _geometry_costs(
     if options.failure is None or geom.a_xyz is None or geom.b_xyz is None:
         return costs, None
     t0 = np.asarray(t0_h, dtype=float)
-    if defer and not cond.has_current:
-        # which arcs need their pieces is decided as they are judged, as it would be here (the block's bound)
-        todo = _pieces_todo(geom, t0, costs, options, cond, near=False)
-        if todo is None:
-            return costs, None
-        same = cond.tws_kn.shape == geom.lon_deg.shape
-        test = _NearTest(cond if same else None, latitude_bound(geom.lat_deg, geom.seg_nm))
-        return costs, (todo.reshape(shape), test)
     todo = _pieces_todo(geom, t0, costs, options, cond)
     if defer:
-        return costs, None if todo is None else (todo.reshape(shape), None)
+        return costs, None if todo is None else todo.reshape(shape)
     return (costs if todo is None else _judge_pieces(geom, t0, costs, options, todo)), None
 
 
@@ -607,10 +533,9 @@ def _pieces_todo(
     costs: ArcCosts,
     options: _CostOptions,
     cond: Conditions,
-    near: bool = True,
 ) -> npt.NDArray[np.bool_] | None:
     """Flat mask of the arcs to judge on every piece they cross (None: none): those still allowed whose samples
-    did not meet the table's largest p_f and (``near``) that may meet more than their samples
+    did not meet the table's largest p_f and that may meet more than their samples
     (:func:`~pyroute_rel.crossings.needs_pieces`, decided from ``cond``, the weather at the samples). None too where
     no arc can be forbidden by it and ``exact_p_f`` is False."""
     model = options.failure
@@ -623,8 +548,6 @@ def _pieces_todo(
     # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more; an arc
     # far from any change of conditions and of criteria is judged by its samples
     todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
-    if not near:
-        return todo if todo.any() else None
     close = needs_pieces(
         geom.lon_deg,
         geom.lat_deg,
@@ -703,11 +626,11 @@ class _CostOptions:
 
 def _threaded_costs(
     geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n: int, defer: bool
-) -> tuple[ArcCosts, tuple[npt.NDArray[np.bool_], None] | None]:
+) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
     """:func:`_geometry_costs` of a large block split along its first axis between ``n`` threads."""
     split_seg = geom.seg_nm.shape[:1] == geom.shape[:1]
 
-    def part(rows: slice) -> tuple[ArcCosts, Any]:
+    def part(rows: slice) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
         g = ArcGeometry(
             lon_deg=geom.lon_deg[rows],
             lat_deg=geom.lat_deg[rows],
@@ -716,13 +639,7 @@ def _threaded_costs(
             a_xyz=None if geom.a_xyz is None else np.broadcast_to(geom.a_xyz, geom.shape + (3,))[rows],
             b_xyz=None if geom.b_xyz is None else np.broadcast_to(geom.b_xyz, geom.shape + (3,))[rows],
         )
-        costs, todo = _geometry_costs(g, t0[rows], options, 1, defer=defer)
-        if todo is not None and todo[1] is not None:  # decided here, with the part's bound (as without deferral)
-            assert g.a_xyz is not None
-            pending = PendingPieces(np.flatnonzero(todo[0]), g, t0[rows], np.broadcast_to(costs.time_h, g.shape),
-                                    options, todo[1])  # fmt: skip
-            return costs, pending.near_mask()
-        return costs, None if todo is None else todo[0]
+        return _geometry_costs(g, t0[rows], options, 1, defer=defer)
 
     results = thread_map(part, row_blocks(geom.shape[0], n), n)
     done = [c for c, _ in results]
@@ -731,7 +648,7 @@ def _threaded_costs(
         bits = np.concatenate([c.bits() for c in done])
     todo = None
     if any(t is not None for _, t in results):
-        todo = np.concatenate([np.zeros(c.time_h.shape, bool) if t is None else t for c, t in results]), None
+        todo = np.concatenate([np.zeros(c.time_h.shape, bool) if t is None else t for c, t in results])
     costs = ArcCosts(
         time_h=np.concatenate([c.time_h for c in done]),
         p_f=np.concatenate([c.p_f for c in done]),

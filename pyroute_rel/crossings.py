@@ -62,7 +62,7 @@ from .times import hours_after
 from .units import KM_PER_NM
 from .weather.base import Boundaries, Conditions, WeatherSource
 
-__all__ = ["Boundaries", "NUDGE", "ArcExtremes", "arc_extremes", "latitude_bound", "needs_pieces", "split_fractions"]
+__all__ = ["Boundaries", "NUDGE", "ArcExtremes", "arc_extremes", "needs_pieces", "split_fractions"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -397,7 +397,6 @@ def needs_pieces(
     failure: FailureModel,
     departure: np.datetime64,
     cond: Conditions | None = None,
-    lat_bound_deg: float | None = None,
 ) -> npt.NDArray[np.bool_] | None:
     """Which arcs the cost function's samples cannot judge alone (None: any of them may need it), from the samples.
 
@@ -417,16 +416,15 @@ def needs_pieces(
     t0_h, time_h : Departure [h after ``departure``] and sailing time [h] of each arc (shape (...)).
     weather, failure, departure : As for :func:`arc_extremes`.
     cond : The weather at the samples, if known (else sampled again).
-    lat_bound_deg : The highest latitude [deg] the course's turn is bounded with (:func:`latitude_bound`); default
-        these arcs' own. Each arc's answer depends on it alone besides the arc: the bound of a block the arcs are
-        taken from gives them the answer they get in the block.
     """
     bounds = getattr(weather, "boundaries", None)
     if bounds is None:
         return None
-    half_deg, la_lo, la_hi = _lat_span(lat_deg, seg_nm)
+    half_deg = np.degrees(seg_nm[..., 0] * 0.5 * KM_PER_NM / geodesy.EARTH_RADIUS_KM) * 1.001 + 1e-9
+    la_lo = _last_axis(np.minimum, lat_deg) - half_deg
+    la_hi = _last_axis(np.maximum, lat_deg) + half_deg
     # the block's highest latitude [deg] (a bound for every arc: the course's turn, degrees of longitude per km)
-    big = _bound_of(la_lo, la_hi) if lat_bound_deg is None else float(lat_bound_deg)
+    big = min(max(float(np.max(np.abs(la_lo), initial=0.0)), float(np.max(np.abs(la_hi), initial=0.0))), 89.0)
     # every relative angle along the arc is within `margin` of its value at the first sample plus its field's
     # change (the fold is 1-Lipschitz; the course is monotonic along the arc)
     turn = half_deg * (math.tan(math.radians(big)) * 1.01) + 1e-9
@@ -460,25 +458,6 @@ def needs_pieces(
         for e in c.edges:
             near |= np.abs(q0 - e) <= margin
     return near
-
-
-def latitude_bound(lat_deg: FloatArray, seg_nm: FloatArray) -> float:
-    """The highest latitude [deg] (absolute, at most 89) any of the arcs with these samples (shape (..., samples))
-    and sub-segment lengths [nm] (broadcast to (..., 1)) reaches: :func:`needs_pieces`' bound for them."""
-    _, la_lo, la_hi = _lat_span(lat_deg, seg_nm)
-    return _bound_of(la_lo, la_hi)
-
-
-def _lat_span(lat_deg: FloatArray, seg_nm: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Half a sub-segment [deg of arc] (widened for rounding) and each arc's latitude range [deg] within it."""
-    half_deg = np.degrees(seg_nm[..., 0] * 0.5 * KM_PER_NM / geodesy.EARTH_RADIUS_KM) * 1.001 + 1e-9
-    la_lo = _last_axis(np.minimum, lat_deg) - half_deg
-    la_hi = _last_axis(np.maximum, lat_deg) + half_deg
-    return half_deg, la_lo, la_hi
-
-
-def _bound_of(la_lo: FloatArray, la_hi: FloatArray) -> float:
-    return min(max(float(np.max(np.abs(la_lo), initial=0.0)), float(np.max(np.abs(la_hi), initial=0.0))), 89.0)
 
 
 def _near_edges(
