@@ -33,7 +33,7 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -57,6 +57,8 @@ __all__ = [
     "geometry_from_xyz",
     "arc_costs",
     "geometry_costs",
+    "deferred_costs",
+    "PendingPieces",
     "arc_quantities",
     "REASONS",
 ]
@@ -376,13 +378,131 @@ def geometry_costs(
     GIL, so the parts run in parallel. Each arc's cost depends on that arc alone, so the result is the same as in
     one piece.
     """
+    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f)
+    return _geometry_costs(geom, t0_h, options, workers, defer=False)[0]
+
+
+def deferred_costs(
+    geom: ArcGeometry,
+    t0_h: npt.ArrayLike,
+    *,
+    departure: np.datetime64,
+    weather: WeatherSource,
+    polar: Polar,
+    failure: FailureModel | None = None,
+    apf: float = 1.0,
+    beyond: str = "clamp",
+    wave_loss: WaveLoss | None = None,
+    workers: int | None = None,
+) -> tuple[ArcCosts, PendingPieces | None]:
+    """:func:`geometry_costs` (with ``exact_p_f=False``) that leaves the judgement on pieces to the caller.
+
+    The arcs are costed on their samples; those :func:`geometry_costs` could then judge on every piece they cross
+    are returned as :class:`PendingPieces` (None: there are none), to be judged when the caller needs them: the DP
+    judges only the arcs it would pick (:mod:`pyroute_rel.solve`). An arc judged this way gets the verdict and
+    criteria :func:`geometry_costs` gives it; an arc not judged keeps its samples' time, p_f and flags (its time
+    may then be finite where :func:`geometry_costs` forbids it).
+    """
+    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f=False)
+    t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape)
+    costs, todo = _geometry_costs(geom, t0, options, workers, defer=True)
+    if todo is None or not todo.any():
+        return costs, None
+    time_h = np.broadcast_to(costs.time_h, geom.shape)
+    return costs, PendingPieces(np.flatnonzero(todo), geom, t0, time_h, options)
+
+
+@dataclass
+class PendingPieces:
+    """Arcs of a block costed on their samples whose judgement on the pieces they cross is still to come
+    (:func:`deferred_costs`); :meth:`judge` judges some, as :func:`geometry_costs` would.
+
+    Attributes
+    ----------
+    index : Flat indices (C order) of the arcs still to judge in the caller's block, increasing.
+    geom : The geometry of the block costed (:meth:`moved` lays it in a larger one: ``local`` then holds the arcs'
+        flat indices in ``geom``).
+    t0_h, time_h : Departure [h after departure] and the samples' sailing time [h] of each arc of ``geom``.
+    options : The cost settings.
+    """
+
+    index: npt.NDArray[np.intp]
+    geom: ArcGeometry
+    t0_h: FloatArray
+    time_h: FloatArray
+    options: _CostOptions
+    local: npt.NDArray[np.intp] | None = None
+    done: npt.NDArray[np.bool_] | None = None
+
+    def __post_init__(self) -> None:
+        if self.local is None:
+            self.local = self.index
+        if self.done is None:
+            self.done = np.zeros(self.index.size, dtype=bool)
+
+    @property
+    def judged(self) -> int:
+        """Arcs judged so far."""
+        assert self.done is not None
+        return int(np.count_nonzero(self.done))
+
+    def waiting(self, size: int) -> npt.NDArray[np.bool_]:
+        """Flat mask over the caller's block of ``size`` arcs: the arcs not judged yet."""
+        out = np.zeros(size, dtype=bool)
+        out[self.index[~self.done]] = True
+        return out
+
+    def judge(self, flat: npt.NDArray[np.intp]) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.uint32]]:
+        """Judge the arcs at flat indices ``flat`` of the caller's block (all waiting) on every piece they cross;
+        returns, for each, whether that forbids it (the largest p_f met along it exceeds apf) and the criteria fired
+        in the states above apf met along it (what :func:`geometry_costs` or-s into its flags; 0 where allowed)."""
+        assert self.done is not None and self.local is not None
+        at = np.searchsorted(self.index, flat)
+        if at.size and (
+            np.any(at >= self.index.size) or np.any(self.index[np.minimum(at, self.index.size - 1)] != flat)
+        ):
+            raise ValueError("PendingPieces.judge: an arc that is not waiting to be judged")
+        if np.any(self.done[at]):
+            raise ValueError("PendingPieces.judge: an arc judged already")
+        self.done[at] = True
+        g, o = self.geom, self.options
+        shape = g.shape
+        sel = np.unravel_index(self.local[at], shape)
+        assert o.failure is not None and g.a_xyz is not None and g.b_xyz is not None
+        ext = arc_extremes(
+            np.broadcast_to(g.a_xyz, shape + (3,))[sel],
+            np.broadcast_to(g.b_xyz, shape + (3,))[sel],
+            self.t0_h[sel],
+            self.time_h[sel],
+            departure=o.departure,
+            weather=o.weather,
+            polar=o.polar,
+            failure=o.failure,
+            apf=o.apf,
+            beyond=o.beyond,
+            speed_factor=None if o.wave_loss is None else o.wave_loss.factor,
+        )
+        over = ext.p_f > o.apf
+        return over, np.where(over, ext.fired_bits, 0).astype(np.uint32)
+
+    def moved(self, where: npt.NDArray[np.intp]) -> PendingPieces:
+        """These arcs laid out in a larger block: arc ``i`` of this one is ``where[i]`` there (increasing)."""
+        assert self.done is not None
+        return replace(self, index=where[self.index], local=self.local, done=self.done.copy())
+
+
+def _geometry_costs(
+    geom: ArcGeometry, t0_h: npt.ArrayLike, options: _CostOptions, workers: int | None, *, defer: bool
+) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
+    """:func:`geometry_costs`; ``defer``: the arcs are not judged on pieces; the mask (block shape) of those to
+    judge is returned instead (None: none)."""
     shape = geom.shape
+    weather = options.weather
     steady = bool(weather.steady)
     n = default_workers() if workers is None else int(workers)
-    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
     if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
-        return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n)
+        return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
     if steady:
         dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
     else:
@@ -398,29 +518,37 @@ def geometry_costs(
         elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
         dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
     costs = _arc_totals(dt, p_f, reason, fired)
-    if options.failure is not None and geom.a_xyz is not None and geom.b_xyz is not None:
-        costs = _judge_pieces(geom, np.asarray(t0_h, dtype=float), costs, options, cond)
-    return costs
+    if options.failure is None or geom.a_xyz is None or geom.b_xyz is None:
+        return costs, None
+    t0 = np.asarray(t0_h, dtype=float)
+    todo = _pieces_todo(geom, t0, costs, options, cond)
+    if defer:
+        return costs, None if todo is None else todo.reshape(shape)
+    return (costs if todo is None else _judge_pieces(geom, t0, costs, options, todo)), None
 
 
-def _judge_pieces(
-    geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options: _CostOptions, cond: Conditions
-) -> ArcCosts:
-    """``costs`` with each arc still allowed judged on every piece it crosses (:func:`~pyroute_rel.crossings.
-    arc_extremes`): its p_f is the largest met anywhere along it, and it is forbidden where that exceeds apf.
-    ``cond``: the weather at the samples (which arcs need it is decided from them, :func:`~pyroute_rel.crossings.
-    needs_pieces`)."""
+def _pieces_todo(
+    geom: ArcGeometry,
+    t0_h: FloatArray,
+    costs: ArcCosts,
+    options: _CostOptions,
+    cond: Conditions,
+) -> npt.NDArray[np.bool_] | None:
+    """Flat mask of the arcs to judge on every piece they cross (None: none): those still allowed whose samples
+    did not meet the table's largest p_f and that may meet more than their samples
+    (:func:`~pyroute_rel.crossings.needs_pieces`, decided from ``cond``, the weather at the samples). None too where
+    no arc can be forbidden by it and ``exact_p_f`` is False."""
     model = options.failure
-    assert model is not None and geom.a_xyz is not None and geom.b_xyz is not None
+    assert model is not None
     if not options.exact_p_f and options.apf >= float(np.max(model.p_flat)):
-        return costs  # nothing to forbid
+        return None  # nothing to forbid
     shape = geom.shape
     time_h = np.broadcast_to(costs.time_h, shape).reshape(-1)
     p_f = np.broadcast_to(costs.p_f, shape).reshape(-1)
     # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more; an arc
     # far from any change of conditions and of criteria is judged by its samples
     todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
-    near = needs_pieces(
+    close = needs_pieces(
         geom.lon_deg,
         geom.lat_deg,
         geom.course_deg,
@@ -432,11 +560,23 @@ def _judge_pieces(
         departure=options.departure,
         cond=cond,
     )
-    if near is not None:
-        todo &= np.broadcast_to(near, shape).reshape(-1)
+    if close is not None:
+        todo &= np.broadcast_to(close, shape).reshape(-1)
+    return todo if todo.any() else None
+
+
+def _judge_pieces(
+    geom: ArcGeometry, t0_h: FloatArray, costs: ArcCosts, options: _CostOptions, todo: npt.NDArray[np.bool_]
+) -> ArcCosts:
+    """``costs`` with the arcs of ``todo`` (a flat mask, :func:`_pieces_todo`) judged on every piece they cross
+    (:func:`~pyroute_rel.crossings.arc_extremes`): their p_f is the largest met anywhere along them, and they are
+    forbidden where that exceeds apf."""
+    model = options.failure
+    assert model is not None and geom.a_xyz is not None and geom.b_xyz is not None
+    shape = geom.shape
+    time_h = np.broadcast_to(costs.time_h, shape).reshape(-1)
+    p_f = np.broadcast_to(costs.p_f, shape).reshape(-1)
     pick = np.flatnonzero(todo)
-    if not pick.size:
-        return costs
     ext = arc_extremes(
         np.broadcast_to(geom.a_xyz, shape + (3,)).reshape(-1, 3)[pick],
         np.broadcast_to(geom.b_xyz, shape + (3,)).reshape(-1, 3)[pick],
@@ -484,11 +624,13 @@ class _CostOptions:
     exact_p_f: bool = True
 
 
-def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n: int) -> ArcCosts:
-    """:func:`geometry_costs` of a large block split along its first axis between ``n`` threads."""
+def _threaded_costs(
+    geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n: int, defer: bool
+) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
+    """:func:`_geometry_costs` of a large block split along its first axis between ``n`` threads."""
     split_seg = geom.seg_nm.shape[:1] == geom.shape[:1]
 
-    def part(rows: slice) -> ArcCosts:
+    def part(rows: slice) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
         g = ArcGeometry(
             lon_deg=geom.lon_deg[rows],
             lat_deg=geom.lat_deg[rows],
@@ -497,31 +639,23 @@ def _threaded_costs(geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n:
             a_xyz=None if geom.a_xyz is None else np.broadcast_to(geom.a_xyz, geom.shape + (3,))[rows],
             b_xyz=None if geom.b_xyz is None else np.broadcast_to(geom.b_xyz, geom.shape + (3,))[rows],
         )
-        o = options
-        return geometry_costs(
-            g,
-            t0[rows],
-            departure=o.departure,
-            weather=o.weather,
-            polar=o.polar,
-            failure=o.failure,
-            apf=o.apf,
-            beyond=o.beyond,
-            wave_loss=o.wave_loss,
-            workers=1,
-            exact_p_f=o.exact_p_f,
-        )
+        return _geometry_costs(g, t0[rows], options, 1, defer=defer)
 
-    done = thread_map(part, row_blocks(geom.shape[0], n), n)
+    results = thread_map(part, row_blocks(geom.shape[0], n), n)
+    done = [c for c, _ in results]
     bits = None
     if any(c.fired_bits is not None for c in done):
         bits = np.concatenate([c.bits() for c in done])
-    return ArcCosts(
+    todo = None
+    if any(t is not None for _, t in results):
+        todo = np.concatenate([np.zeros(c.time_h.shape, bool) if t is None else t for c, t in results])
+    costs = ArcCosts(
         time_h=np.concatenate([c.time_h for c in done]),
         p_f=np.concatenate([c.p_f for c in done]),
         reason=np.concatenate([c.reason for c in done]),
         fired_bits=bits,
     )
+    return costs, todo
 
 
 def _sample_and_cost(
