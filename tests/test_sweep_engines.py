@@ -17,7 +17,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pyroute_rel.cli.main import main
-from pyroute_rel.errors import PyrouteWarning
+from pyroute_rel.ensemble import route_ensemble
+from pyroute_rel.errors import PyrouteWarning, ScenarioError
 from pyroute_rel.sweep import (
     READS_METADATA,
     BatchQueue,
@@ -266,3 +267,44 @@ def test_a_local_pool_reads_each_member_in_one_worker(ensemble) -> None:
     pairs = [(r["worker"], r["member"]) for r in reads if r["reads"]]
     assert {m for _, m in pairs} == {0, 1, 2} and len({w for w, _ in pairs}) == 2
     assert len(pairs) <= 3 + 1, reads
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: run_sweep([], engine="gpu"), "engine must be one of auto, inline, processes, dask (got 'gpu')"),
+        (
+            lambda: run_sweep([], engine="auto", scheduler="tcp://127.0.0.1:9"),
+            "--scheduler needs the dask engine (got engine 'auto')",
+        ),
+        (
+            lambda: run_sweep([], engine="inline", workers=1),
+            "--workers needs the processes, dask or auto engine (engine 'inline' routes in this process)",
+        ),
+        (
+            lambda: route_ensemble("s.toml", engine="inline", workers=3),
+            "--workers 3 needs the processes or dask engine (got engine 'inline')",
+        ),
+        (
+            lambda: route_ensemble("s.toml", engine="dask", workers=2, scheduler="tcp://127.0.0.1:9"),
+            "--workers sets a LocalCluster's processes: give it or --scheduler, not both",
+        ),
+    ],
+)
+def test_the_shared_engine_checks_keep_each_command_s_meaning_of_workers(call, message) -> None:
+    """pyroute_rel.cluster checks both commands' engine options: the sweep's ``--workers`` is a pool or a
+    LocalCluster (never with ``inline``, even 1; ``--scheduler`` only with ``dask``), the ensemble's is its
+    processes (``inline`` accepts 1; ``--scheduler`` with ``auto``); the messages are those of session 9, whole."""
+    with pytest.raises(ScenarioError) as caught:
+        call()
+    assert str(caught.value) == message
+
+
+def test_the_ensemble_accepts_one_worker_inline_and_a_scheduler_with_auto() -> None:
+    from pyroute_rel.cluster import WorkersOption, check_engine_combinations
+
+    ensemble_meaning = WorkersOption(("auto", "dask"), "both", "{workers} inline", inline_allows=(1,))
+    check_engine_combinations("inline", 1, None, ensemble_meaning)  # no error
+    check_engine_combinations("auto", None, "tcp://127.0.0.1:9", ensemble_meaning)
+    with pytest.raises(ScenarioError, match="^2 inline$"):
+        check_engine_combinations("inline", 2, None, ensemble_meaning)
