@@ -7,9 +7,10 @@ The ensemble is synthetic (``benchmarks/make_ensemble.py``: 10 members, 1 deg, 6
 model, no land. The two grids are the default angular grid (160 ranks) and 80 ranks. Measured:
 
 - ``default``: ``run_sweep`` with its default engine (``"auto"``: on 2 or more CPUs a local pool of one process
-  per CPU), wall time (starting the pool, importing and reading the weather once per member in each worker,
-  building the grids, routing) and CPU time [s] per route (user + sys of this process and its workers); target
-  under 120 s.
+  per CPU), wall time (starting the pool, importing and reading the weather once per member in a worker,
+  building the grids, routing), CPU time [s] per route (user + sys of this process and its workers), the weather
+  files each worker read (counted in the workers: the table's metadata) and how many members were read by more
+  than one worker; target under 120 s.
 - ``overhead``: the runs of the first two members routed in this process (``engine="inline"``), the share of their
   route time spent outside the DPs (``forward_dp``, timed by wrapping it): reading the scenario, weather (cached:
   read once per member, as in the whole sweep), grids (cached), building the route's legs and its row; target
@@ -124,8 +125,24 @@ def _default(runs) -> dict:
         "no_route": sum(r["status"] == "no_route" for r in rows),
         "wall_s": wall,
         "cpu_s_per_route": cpu / len(rows),
+        **_reads(table),
         "table": _comparable(rows),
     }
+
+
+def _reads(table) -> dict:
+    """The weather files each worker process read (the table's metadata, counted in the workers), sorted, and how
+    many members more than one worker read."""
+    from pyroute_rel.sweep import READS_METADATA
+
+    reads = json.loads((table.schema.metadata or {}).get(READS_METADATA.encode(), b"[]"))
+    per_worker, readers = {}, {}
+    for r in reads:
+        per_worker[r["worker"]] = per_worker.get(r["worker"], 0) + r["reads"]
+        if r["reads"]:
+            readers.setdefault((r["scenario"], r["member"]), set()).add(r["worker"])
+    shared = sum(len(w) > 1 for w in readers.values())
+    return {"weather_reads": sorted(per_worker.values()), "members_read_twice": shared}
 
 
 def _inline(runs) -> dict:

@@ -1,17 +1,31 @@
 """The dask.distributed clusters the sweep and the ensemble run on: a client of a running scheduler's cluster
 (``tcp://HOST:PORT``), or of a ``LocalCluster`` started for the call, whose worker processes run one thread each
-(:data:`WORKER_ENV`), and the environment every worker process of the product runs with.
+(:data:`WORKER_ENV`), and the environment every worker process of the product runs with; the weather read in a
+task without the cluster's help (:func:`synchronous_reads`); the checks of the engine options both commands share
+(:func:`check_engine_name`, :func:`check_engine_combinations`, each command saying what its ``--workers`` means
+with a :class:`WorkersOption`).
 """
 
 from __future__ import annotations
 
 import logging
 import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any
 
-from .errors import ScenarioError
+from .errors import ScenarioError, brief
 
-__all__ = ["WORKER_ENV", "dask_client", "close_client"]
+__all__ = [
+    "WORKER_ENV",
+    "dask_client",
+    "close_client",
+    "synchronous_reads",
+    "WorkersOption",
+    "check_engine_name",
+    "check_engine_combinations",
+]
 
 #: Environment of worker processes (a process pool, a dask ``LocalCluster``): one thread each, also in the BLAS,
 #: OpenMP and numba thread pools, since the workers already use every core.
@@ -79,3 +93,69 @@ def close_client(client: Any) -> None:
     client.close()
     if cluster is not None:
         cluster.close()
+
+
+@contextmanager
+def synchronous_reads() -> Iterator[None]:
+    """Inside the block, dask arrays (a weather file's) are computed by dask's synchronous scheduler, in this
+    thread. In a dask worker the default would be the cluster itself: a task waiting there for its weather's chunks
+    secedes from the worker's thread, so that the worker starts its next task, and the next, all at once.
+
+    >>> import dask
+    >>> with synchronous_reads():
+    ...     dask.config.get("scheduler")
+    'synchronous'
+    """
+    import dask
+
+    with dask.config.set(scheduler="synchronous"):
+        yield
+
+
+@dataclass(frozen=True)
+class WorkersOption:
+    """What a command's ``--workers`` means, as its option errors say it (:func:`check_engine_combinations`).
+
+    Attributes
+    ----------
+    scheduler_engines : The engines ``--scheduler`` goes with.
+    with_scheduler : The error for ``--workers`` with ``--scheduler``.
+    with_inline : The error for ``--workers`` with the engine ``"inline"`` (``{workers}``: the value given).
+    inline_allows : Values of ``--workers`` the engine ``"inline"`` accepts (1: this process alone).
+    """
+
+    scheduler_engines: tuple[str, ...]
+    with_scheduler: str
+    with_inline: str
+    inline_allows: tuple[int, ...] = ()
+
+
+def check_engine_name(engine: Any, engines: Sequence[str], error: type[Exception] = ScenarioError) -> str:
+    """``engine`` if it is one of ``engines``, else ``error`` naming them.
+
+    >>> check_engine_name("dask", ("inline", "dask"))
+    'dask'
+    """
+    if not isinstance(engine, str) or engine not in engines:
+        raise error(f"engine must be one of {', '.join(engines)} (got {brief(engine)})")
+    return engine
+
+
+def check_engine_combinations(
+    engine: str, workers: Any, scheduler: Any, option: WorkersOption, error: type[Exception] = ScenarioError
+) -> None:
+    """The combinations of ``engine``, ``--workers`` and ``--scheduler`` that would do nothing, refused (in this
+    order): ``--scheduler`` without one of ``option.scheduler_engines``, ``--workers`` with the engine
+    ``"inline"`` (but for ``option.inline_allows``), ``--workers`` with ``--scheduler``.
+
+    Raises
+    ------
+    error
+        The first of these, in one line.
+    """
+    if scheduler is not None and engine not in option.scheduler_engines:
+        raise error(f"--scheduler needs the dask engine (got engine {engine!r})")
+    if engine == "inline" and workers is not None and workers not in option.inline_allows:
+        raise error(option.with_inline.format(workers=workers))
+    if workers is not None and scheduler is not None:
+        raise error(option.with_scheduler)

@@ -645,16 +645,18 @@ def _check_ensemble_args(
 def _check_engine(engine: Any, workers: int | None, scheduler: Any, connect_timeout_s: Any) -> str:
     """The engine :func:`route_ensemble` uses (``"auto"`` resolved), its options checked: ScenarioError naming
     the option."""
-    if not isinstance(engine, str) or engine not in ENGINES:
-        raise ScenarioError(f"engine must be one of {', '.join(ENGINES)} (got {brief(engine)})")
+    from .cluster import WorkersOption, check_engine_combinations, check_engine_name
+
+    check_engine_name(engine, ENGINES, ScenarioError)
     if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
         raise ScenarioError(f"--scheduler must be a dask scheduler's address, tcp://HOST:PORT (got {brief(scheduler)})")
-    if scheduler is not None and engine not in ("auto", "dask"):
-        raise ScenarioError(f"--scheduler needs the dask engine (got engine {engine!r})")
-    if engine == "inline" and workers not in (None, 1):
-        raise ScenarioError(f"--workers {workers} needs the processes or dask engine (got engine 'inline')")
-    if scheduler is not None and workers is not None:
-        raise ScenarioError("--workers sets a LocalCluster's processes: give it or --scheduler, not both")
+    meaning = WorkersOption(
+        scheduler_engines=("auto", "dask"),
+        with_scheduler="--workers sets a LocalCluster's processes: give it or --scheduler, not both",
+        with_inline="--workers {workers} needs the processes or dask engine (got engine 'inline')",
+        inline_allows=(1,),
+    )
+    check_engine_combinations(engine, workers, scheduler, meaning, ScenarioError)
     t = connect_timeout_s
     if isinstance(t, bool) or not isinstance(t, int | float) or not math.isfinite(t) or t <= 0:
         raise ScenarioError(f"connect_timeout_s (--connect-timeout) must be a finite number > 0 [s] (got {brief(t)})")

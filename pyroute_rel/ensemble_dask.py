@@ -21,7 +21,7 @@ import os
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from .cluster import close_client, dask_client
+from .cluster import close_client, dask_client, synchronous_reads
 
 __all__ = ["dask_client", "DaskWorkers"]
 
@@ -35,10 +35,8 @@ def _located(fn: Callable[..., Any], *args: Any) -> tuple[Any, str]:
 
 def _synchronous(fn: Callable[..., Any], *args: Any) -> Any:
     """``fn(*args)`` with the weather files' dask arrays read by dask's synchronous scheduler, in this thread: in a
-    dask worker the default would be the cluster itself (see :func:`pyroute_rel.sweep.run_batch`)."""
-    import dask
-
-    with dask.config.set(scheduler="synchronous"):
+    dask worker the default would be the cluster itself (:func:`pyroute_rel.cluster.synchronous_reads`)."""
+    with synchronous_reads():
         return fn(*args)
 
 

@@ -14,12 +14,15 @@ process pool of one process per CPU, :func:`auto_engine`), ``"inline"`` (this pr
 process pool) and ``"dask"`` (:mod:`distributed`: a running scheduler's address, or a ``LocalCluster`` of
 ``workers`` processes). Every process keeps the weather it opened (:mod:`pyroute_rel.weather.cache`) and the grids
 it built for its later runs. Worker processes run one thread each (:data:`WORKER_ENV`), and their tasks are
-batches of runs of the same member (:func:`task_batches`); on dask, all the batches of a member go to one worker
-(:func:`place_batches`, dask's worker restrictions, loose: another worker may take them when it would be idle, or
-when that worker dies), so that a member's weather is read by one worker only. Failures are retried a bounded
+batches of runs of the same member (:func:`task_batches`), and all the batches of a member go to one worker, so
+that a member's weather is read by one worker only: on dask by :func:`place_batches` (dask's worker restrictions,
+loose: another worker may take them when it would be idle, or when that worker dies); in the local pool by a
+:class:`BatchQueue` that gives each worker its next batch when it finishes one (its member's next, else a member
+not started yet, largest first, else the last batches of a member another worker started, rather than idle). The
+weather each process read is in the table's metadata (:data:`READS_METADATA`). Failures are retried a bounded
 number of times (``retries``): a run's internal error in its worker, a task whose worker died by the engine (dask's
-``retries``; the process pool is restarted and the unfinished batches resubmitted); a user error is a row, never
-retried.
+``retries``; in the local pool a new process replaces the dead one and runs its batch again); a user error is a
+row, never retried.
 
 Output (``out``): ``runs.parquet/``, a Parquet dataset folder: each batch of finished runs is one part file,
 written whole (a temporary name, then a rename), so a sweep that is killed keeps every batch it wrote;
@@ -38,6 +41,7 @@ import itertools
 import json
 import math
 import os
+import socket
 import time
 import uuid
 import warnings
@@ -47,7 +51,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .cluster import WORKER_ENV, close_client
+from .cluster import (
+    WORKER_ENV,
+    WorkersOption,
+    check_engine_combinations,
+    check_engine_name,
+    close_client,
+    synchronous_reads,
+)
 from .config import SCHEMA, parse_departure, probability
 from .errors import (
     NoFeasibleRouteError,
@@ -90,11 +101,15 @@ __all__ = [
     "run_batch",
     "task_batches",
     "place_batches",
+    "BatchQueue",
     "WORKER_ENV",
     "AUTO_MIN_RUNS",
     "MAX_BATCH_RUNS",
+    "READS_METADATA",
 ]
 
+#: Key of the schema metadata of :func:`run_sweep`'s table that holds the weather each process read (JSON).
+READS_METADATA = "pyroute_rel.weather_reads"
 #: Engines of :func:`run_sweep`.
 ENGINES = ("auto", "inline", "processes", "dask")
 #: Most runs one sweep may hold.
@@ -657,7 +672,7 @@ def _attempts(run: Run, key: str, retries: int) -> dict[str, Any]:
 
 def _inline(todo: Sequence[tuple[str, Run]], retries: int) -> Iterator[dict[str, Any]]:
     for key, run in todo:
-        yield _attempts(run, key, retries)
+        yield _counted(run, key, retries)
 
 
 _PINNED: list[Any] = []
@@ -688,11 +703,21 @@ def run_batch(batch: Sequence[tuple[str, Run]], retries: int = 0) -> list[dict[s
     default would be the cluster itself, and a task waiting there for its weather's chunks secedes from the
     worker's thread, so that the worker starts its next task, and the next, all at once.
     """
-    import dask
-
     _pin_threads()
-    with dask.config.set(scheduler="synchronous"):  # the weather's dask arrays: read here, not on the cluster
-        return [_attempts(run, key, retries) for key, run in batch]
+    with synchronous_reads():  # the weather's dask arrays: read here, not on the cluster
+        return [_counted(run, key, retries) for key, run in batch]
+
+
+def _counted(run: Run, key: str, retries: int) -> dict[str, Any]:
+    """:func:`_attempts`, with the process that routed it (``_worker``: ``host:pid``) and the weather it read there
+    (``_reads``: the weather cache's misses during the run)."""
+    from .weather import cache
+
+    before = cache.stats()["misses"]
+    row = _attempts(run, key, retries)
+    row["_reads"] = max(0, cache.stats()["misses"] - before)
+    row["_worker"] = f"{socket.gethostname()}:{os.getpid()}"
+    return row
 
 
 #: Most runs in one task of the process-pool and dask engines (tasks of about a second each are batched up to this
@@ -749,34 +774,107 @@ def place_batches(
     return [(b, where[_group(b[0][1])] if b else None) for b in batches]
 
 
+class BatchQueue:
+    """The batches of a local pool (:func:`task_batches`), handed out as each worker asks for its next one, so that
+    each member's runs stay on one worker: a worker takes the next batch of its member; else the first member not
+    started yet, largest first (as :func:`place_batches`); else, when every member has started, the last waiting
+    batch of the member with the most waiting, one it has read before first (it reads that member's weather,
+    rather than stay idle while another worker has batches waiting). :meth:`put_back` makes a batch whose worker
+    died waiting again, first of its member.
+
+    >>> b = [[("a", Run("s", member=0))] * 3, [("b", Run("s", member=0))] * 3, [("c", Run("s", member=1))] * 2]
+    >>> q = BatchQueue(b)
+    >>> q.take("w1"), q.take("w2"), q.take("w2"), q.take("w1"), len(q)
+    (0, 2, 1, None, 0)
+    """
+
+    def __init__(self, batches: Sequence[Sequence[tuple[str, Run]]]) -> None:
+        self.waiting: dict[tuple[str, int], list[int]] = {}
+        runs: dict[tuple[str, int], int] = {}
+        self.group: list[tuple[str, int] | None] = []
+        for i, b in enumerate(batches):
+            g = _group(b[0][1]) if b else None
+            self.group.append(g)
+            if g is not None:
+                self.waiting.setdefault(g, []).append(i)
+                runs[g] = runs.get(g, 0) + len(b)
+        self.unstarted = sorted(self.waiting, key=lambda g: -runs[g])  # stable: ties in the batches' order
+        self.owner: dict[tuple[str, int], Any] = {}  # the worker that started each member
+        self.current: dict[Any, tuple[str, int]] = {}
+        self.read: dict[Any, set[tuple[str, int]]] = {}
+
+    def __len__(self) -> int:
+        """Batches waiting."""
+        return sum(len(v) for v in self.waiting.values())
+
+    def take(self, worker: Any) -> int | None:
+        """The index of the batch ``worker`` runs next (None: none waiting)."""
+        g = self.current.get(worker)
+        if g is None or not self.waiting[g]:
+            if self.unstarted:
+                g = self.unstarted.pop(0)
+                self.owner[g] = worker
+            else:
+                read = self.read.get(worker, set())
+                waiting = [h for h, v in self.waiting.items() if v]
+                g = min(waiting, key=lambda h: (h not in read, -len(self.waiting[h])), default=None)
+                if g is None:
+                    return None
+            self.current[worker] = g
+            self.read.setdefault(worker, set()).add(g)
+        return self.waiting[g].pop(0) if self.owner[g] == worker else self.waiting[g].pop()
+
+    def put_back(self, i: int) -> None:
+        """Batch ``i`` waits again, first of its member."""
+        g = self.group[i]
+        if g is not None:
+            self.waiting[g].insert(0, i)
+
+
 def _processes(todo: Sequence[tuple[str, Run]], workers: int, retries: int) -> Iterator[dict[str, Any]]:
-    """A local pool of ``workers`` processes. A worker that dies breaks the pool: a new pool is started and every
-    batch not finished is submitted again, at most ``retries`` times per batch (then its runs are internal-error
-    rows); an internal error of a run is tried again in its worker (:func:`run_batch`)."""
+    """A local pool of ``workers`` processes (one single-process executor each), fed one batch at a time by a
+    :class:`BatchQueue`, so that each member's weather is read by one worker; rows are yielded per finished batch.
+    A worker that dies is replaced by a new process, and the batch it was running waits again, at most
+    ``retries`` times per batch (then its runs are internal-error rows); an internal error of a run is tried again
+    in its worker (:func:`run_batch`)."""
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
     ctx = multiprocessing.get_context("forkserver")
-    pending = {i: (b, 0) for i, b in enumerate(task_batches(todo, workers))}
-    while pending:
-        n = min(workers, len(pending))  # never more processes than batches to run
-        with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_pin_threads) as pool:
-            futures = {pool.submit(run_batch, b, retries): i for i, (b, _) in pending.items()}
-            for fut in as_completed(futures):
-                i = futures[fut]
-                batch, tries = pending[i]
+    batches = task_batches(todo, workers)
+    queue, tries = BatchQueue(batches), [0] * len(batches)
+    pools: dict[int, ProcessPoolExecutor] = {}
+    running: dict[Future[list[dict[str, Any]]], tuple[int, int]] = {}  # future -> (worker, batch)
+
+    def feed(w: int) -> None:
+        i = queue.take(w)
+        if i is not None:
+            if w not in pools:
+                pools[w] = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_pin_threads)
+            running[pools[w].submit(run_batch, batches[i], retries)] = (w, i)
+
+    try:
+        for w in range(min(workers, len(batches))):  # never more processes than batches to run
+            feed(w)
+        while running:
+            for fut in wait(running, return_when=FIRST_COMPLETED).done:
+                w, i = running.pop(fut)
                 try:
                     rows = fut.result()
-                except BrokenProcessPool as exc:  # its worker (or another) died: again in a new pool
-                    if tries < retries:
-                        pending[i] = (batch, tries + 1)
-                        continue
-                    rows = [_internal_row(run, key, exc) for key, run in batch]
+                except BrokenProcessPool as exc:  # its process died: a new one runs the batch again
+                    pools.pop(w).shutdown(wait=True)
+                    rows = [] if tries[i] < retries else [_internal_row(run, key, exc) for key, run in batches[i]]
+                    if tries[i] < retries:
+                        tries[i] += 1
+                        queue.put_back(i)
                 except Exception as exc:  # pragma: no cover - run_batch records run errors itself
-                    rows = [_internal_row(run, key, exc) for key, run in batch]
-                del pending[i]
+                    rows = [_internal_row(run, key, exc) for key, run in batches[i]]
+                feed(w)  # its next batch starts before these rows are written
                 yield from rows
+    finally:
+        for pool in pools.values():
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _dask_client(scheduler: str | None, workers: int | None, timeout_s: float) -> Any:
@@ -873,17 +971,20 @@ def _local_workers(workers: int, what: str) -> int:
     return min(workers, cpus)
 
 
+#: What ``--workers`` means to a sweep: the processes of a local pool or a LocalCluster (the engine ``"dask"``, and
+#: the default of the CLI with ``--workers`` alone).
+_WORKERS = WorkersOption(
+    scheduler_engines=("dask",),
+    with_scheduler="--workers starts a LocalCluster: not with --scheduler (the cluster's workers are used)",
+    with_inline="--workers needs the processes, dask or auto engine (engine 'inline' routes in this process)",
+)
+
+
 def _check_engine(engine: str, workers: int | None, scheduler: str | None, retries: int, batch: int) -> None:
-    if not isinstance(engine, str) or engine not in ENGINES:
-        raise SweepError(f"engine must be one of {', '.join(ENGINES)} (got {brief(engine)})")
+    check_engine_name(engine, ENGINES, SweepError)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise SweepError(f"--workers must be a whole number >= 1 (got {brief(workers)})")
-    if scheduler is not None and engine != "dask":
-        raise SweepError(f"--scheduler needs the dask engine (got engine {engine!r})")
-    if workers is not None and engine == "inline":
-        raise SweepError("--workers needs the processes, dask or auto engine (engine 'inline' routes in this process)")
-    if workers is not None and scheduler is not None:
-        raise SweepError("--workers starts a LocalCluster: not with --scheduler (the cluster's workers are used)")
+    check_engine_combinations(engine, workers, scheduler, _WORKERS, SweepError)
     if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
         raise SweepError(f"--retries must be a whole number >= 0 (got {brief(retries)})")
     if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
@@ -950,7 +1051,10 @@ def run_sweep(
     -------
     pyarrow.Table
         Internal errors (after the retries) are rows with status ``error`` and a message starting
-        ``"internal error"``, not written to ``out``.
+        ``"internal error"``, not written to ``out``. The schema's metadata :data:`READS_METADATA` says, as JSON,
+        how often each process read the weather of each scenario and member for the runs routed in this call: a
+        list of ``{"worker": "HOST:PID", "scenario": ..., "member": ..., "reads": N}`` (the weather cache's
+        misses, :mod:`pyroute_rel.weather.cache`; a run that reads several files counts each).
 
     Raises
     ------
@@ -969,6 +1073,7 @@ def run_sweep(
         log(f"{len(set(k for k, _ in keyed) & set(done))} done, {len(todo)} to run")
     bar = progress_bar(len(todo), enabled=progress, desc="sweep", unit="run")
     failed = 0
+    reads: dict[tuple[str, str, int | None], int] = {}  # (worker, scenario, member) -> weather files read
     try:
         for row in (
             _engine_rows(
@@ -980,6 +1085,9 @@ def run_sweep(
             if store is not None:
                 store.add(row)
             done[row["key"]] = row
+            if "_worker" in row:
+                where = (row["_worker"], row["scenario"], row["member"])
+                reads[where] = reads.get(where, 0) + row["_reads"]
             failed += row["status"] != "ok"
             if hasattr(bar, "set_postfix_str"):
                 bar.set_postfix_str(f"failed {failed}", refresh=False)
@@ -988,4 +1096,5 @@ def run_sweep(
         bar.close()
         if store is not None:
             store.flush()
-    return _table([done[k] for k, _ in keyed])
+    reads_json = json.dumps([{"worker": w, "scenario": sc, "member": m, "reads": n} for (w, sc, m), n in reads.items()])
+    return _table([done[k] for k, _ in keyed]).replace_schema_metadata({READS_METADATA: reads_json})

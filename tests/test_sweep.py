@@ -235,7 +235,12 @@ def test_a_run_that_keeps_failing_is_retried_a_bounded_number_of_times(ensemble,
     rows = sweep_module.run_batch(runs, retries=2)
     assert calls == ["a", "a", "a", "b"]
     assert rows[0]["message"] == "internal error: RuntimeError: a bug" and rows[0]["_internal"]
-    assert rows[1] == {"key": "b", "status": "error", "message": "user error"}
+    assert {k: v for k, v in rows[1].items() if not k.startswith("_")} == {
+        "key": "b",
+        "status": "error",
+        "message": "user error",
+    }
+    assert all(r["_worker"].endswith(f":{os.getpid()}") and r["_reads"] == 0 for r in rows)  # routed here, read nothing
 
 
 def test_auto_engine_uses_the_cores_for_large_sweeps_only() -> None:

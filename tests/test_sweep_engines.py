@@ -1,20 +1,33 @@
-"""Sweep engines (pyroute_rel.sweep): on dask each member's runs go to one worker and its weather is read there, in
-the task, not as tasks of the cluster; option combinations that would do nothing are one-line errors; local engines
-start at most one process per CPU."""
+"""Sweep engines (pyroute_rel.sweep): on dask and in the local pool each member's runs go to one worker and its
+weather is read there, in the task (not as tasks of the cluster); option combinations that would do nothing are
+one-line errors; local engines start at most one process per CPU."""
 
 from __future__ import annotations
 
 import importlib.util
+import json
+import math
 import os
 import warnings
 from collections import defaultdict
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pyroute_rel.cli.main import main
-from pyroute_rel.errors import PyrouteWarning
-from pyroute_rel.sweep import Run, SweepError, place_batches, run_sweep, task_batches
+from pyroute_rel.ensemble import route_ensemble
+from pyroute_rel.errors import PyrouteWarning, ScenarioError
+from pyroute_rel.sweep import (
+    READS_METADATA,
+    BatchQueue,
+    Run,
+    SweepError,
+    place_batches,
+    run_sweep,
+    task_batches,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Columns that differ between two runs of the same sweep: the time it took.
@@ -141,3 +154,157 @@ def test_a_local_pool_starts_at_most_one_process_per_cpu(ensemble) -> None:
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert _comparable(pooled) == _comparable(run_sweep(runs, engine="inline"))
+
+
+# --- the local pool: each member's runs on one worker ----------------------------------------------------------
+
+
+def _simulate(batches, workers: int, run_s: float, read_s: float):
+    """The pool's dispatch (:class:`BatchQueue`) on ``workers`` workers, simulated: each worker asks for its next
+    batch when it finishes one, a batch takes ``run_s`` per run plus ``read_s`` when its worker has not read that
+    member before. Returns the makespan, the (worker, member) pairs read and the batches each worker ran, in order."""
+    import heapq
+
+    queue = BatchQueue(batches)
+    free = [(0.0, w) for w in range(workers)]
+    heapq.heapify(free)
+    read, ran = set(), defaultdict(list)
+    makespan = 0.0
+    while free:
+        t, w = heapq.heappop(free)
+        i = queue.take(w)
+        if i is None:
+            makespan = max(makespan, t)
+            continue
+        member = batches[i][0][1].member
+        t += run_s * len(batches[i]) + (read_s if (w, member) not in read else 0.0)
+        read.add((w, member))
+        ran[w].append(i)
+        heapq.heappush(free, (t, w))
+    return makespan, read, ran
+
+
+def _best_makespan(batches, workers: int, run_s: float, read_s: float) -> float:
+    """Brute force over every assignment of the batches to the workers: the least makespan, each worker paying
+    ``read_s`` once per member it runs batches of."""
+    import itertools
+
+    best = math.inf
+    for assign in itertools.product(range(workers), repeat=len(batches)):
+        loads = [0.0] * workers
+        members = [set() for _ in range(workers)]
+        for b, w in zip(batches, assign, strict=True):
+            loads[w] += run_s * len(b)
+            members[w].add(b[0][1].member)
+        best = min(best, max(load + read_s * len(m) for load, m in zip(loads, members, strict=True)))
+    return best
+
+
+def _member_runs(sizes) -> list:
+    return [(f"m{m}r{i}", Run("s.toml", member=m, apf=i / 100)) for m, n in enumerate(sizes) for i in range(n)]
+
+
+def test_the_pool_queue_keeps_members_whole_on_the_brief_s_cases() -> None:
+    """10 members of 24 runs on 2 workers: 5 members each, each member read once, the makespan equal to the even
+    split's (a closed form); 3 members of 24 on 2 workers: the third member shared (4 reads), the makespan equal to
+    the brute-force optimum over every assignment of its 9 batches."""
+    run_s, read_s = 0.5, 1.5  # the issue's figures: a route about 0.45 s, opening the weather about 1.4 s
+    batches = task_batches(_member_runs([24] * 10), 2)
+    makespan, read, ran = _simulate(batches, 2, run_s, read_s)
+    assert len(read) == 10 and sorted(i for w in ran.values() for i in w) == list(range(len(batches)))
+    assert makespan == (240 * run_s + 10 * read_s) / 2
+    batches = task_batches(_member_runs([24] * 3), 2)
+    makespan, read, _ = _simulate(batches, 2, run_s, read_s)
+    assert len(read) == 4
+    assert makespan == _best_makespan(batches, 2, run_s, read_s)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    sizes=st.lists(st.integers(1, 24), min_size=1, max_size=4),
+    read_s=st.sampled_from([0.0, 0.5, 1.5, 4.0]),
+)
+def test_the_pool_queue_hands_out_every_batch_once_and_stays_near_the_best(sizes, read_s) -> None:
+    """On 2 workers: every batch runs once, a member's batches run in their order on the worker that started it
+    (another takes only its last ones), at most one member is read by both workers, and the makespan is within
+    ``read_s + largest batch / 2`` of the brute-force optimum (list scheduling: no worker idles while a batch
+    waits; the optimum pays each member's read at least once)."""
+    run_s = 1.0
+    batches = task_batches(_member_runs(sizes), 2)
+    makespan, read, ran = _simulate(batches, 2, run_s, read_s)
+    assert sorted(i for w in ran.values() for i in w) == list(range(len(batches)))
+    assert len(read) <= len(sizes) + 1
+    for order in ran.values():
+        for m in {batches[i][0][1].member for i in order}:
+            mine = [i for i in order if batches[i][0][1].member == m]
+            assert mine == sorted(mine) or mine == sorted(mine, reverse=True)
+    largest = max(len(b) for b in batches) * run_s
+    assert makespan <= _best_makespan(batches, 2, run_s, read_s) + read_s + largest / 2 + 1e-9
+
+
+def test_a_batch_put_back_runs_next_on_its_worker() -> None:
+    batches = task_batches(_member_runs([24, 24]), 2)
+    queue = BatchQueue(batches)
+    first = queue.take("w1")
+    assert queue.take("w2") is not None
+    queue.put_back(first)  # w1 died running it: its new process runs it again, first
+    assert queue.take("w1") == first
+
+
+@pytest.mark.slow
+def test_a_local_pool_reads_each_member_in_one_worker(ensemble) -> None:
+    """A pool of 2 processes, 3 members: the rows equal the inline engine's, and, counted in the workers (the
+    weather cache's misses, in the table's metadata), each worker read a member's weather at most once, both
+    worked, and only one member was read by both (the last one, shared out so that neither idles). The pool of
+    session 9, where any idle worker took the next batch, read most members in both workers."""
+    if (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()) < 2:
+        pytest.skip("needs 2 CPUs")
+    runs = _runs(ensemble)
+    pooled = run_sweep(runs, engine="processes", workers=2)
+    assert _comparable(pooled) == _comparable(run_sweep(runs, engine="inline"))
+    reads = json.loads(pooled.schema.metadata[READS_METADATA.encode()])
+    assert all(r["reads"] <= 1 for r in reads), reads
+    pairs = [(r["worker"], r["member"]) for r in reads if r["reads"]]
+    assert {m for _, m in pairs} == {0, 1, 2} and len({w for w, _ in pairs}) == 2
+    assert len(pairs) <= 3 + 1, reads
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: run_sweep([], engine="gpu"), "engine must be one of auto, inline, processes, dask (got 'gpu')"),
+        (
+            lambda: run_sweep([], engine="auto", scheduler="tcp://127.0.0.1:9"),
+            "--scheduler needs the dask engine (got engine 'auto')",
+        ),
+        (
+            lambda: run_sweep([], engine="inline", workers=1),
+            "--workers needs the processes, dask or auto engine (engine 'inline' routes in this process)",
+        ),
+        (
+            lambda: route_ensemble("s.toml", engine="inline", workers=3),
+            "--workers 3 needs the processes or dask engine (got engine 'inline')",
+        ),
+        (
+            lambda: route_ensemble("s.toml", engine="dask", workers=2, scheduler="tcp://127.0.0.1:9"),
+            "--workers sets a LocalCluster's processes: give it or --scheduler, not both",
+        ),
+    ],
+)
+def test_the_shared_engine_checks_keep_each_command_s_meaning_of_workers(call, message) -> None:
+    """pyroute_rel.cluster checks both commands' engine options: the sweep's ``--workers`` is a pool or a
+    LocalCluster (never with ``inline``, even 1; ``--scheduler`` only with ``dask``), the ensemble's is its
+    processes (``inline`` accepts 1; ``--scheduler`` with ``auto``); the messages are those of session 9, whole."""
+    with pytest.raises(ScenarioError) as caught:
+        call()
+    assert str(caught.value) == message
+
+
+def test_the_ensemble_accepts_one_worker_inline_and_a_scheduler_with_auto() -> None:
+    from pyroute_rel.cluster import WorkersOption, check_engine_combinations
+
+    ensemble_meaning = WorkersOption(("auto", "dask"), "both", "{workers} inline", inline_allows=(1,))
+    check_engine_combinations("inline", 1, None, ensemble_meaning)  # no error
+    check_engine_combinations("auto", None, "tcp://127.0.0.1:9", ensemble_meaning)
+    with pytest.raises(ScenarioError, match="^2 inline$"):
+        check_engine_combinations("inline", 2, None, ensemble_meaning)
