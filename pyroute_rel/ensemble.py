@@ -325,9 +325,29 @@ def _stopped(s: Any) -> bool:
 
 
 def _worker_init() -> None:
+    """A worker's set-up for one route_ensemble call: one thread, then :func:`_begin`."""
     os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads inside
+    _begin()
+
+
+def _begin() -> None:
+    """A process's set-up for one route_ensemble call: nothing kept from an earlier call (the files may have
+    changed), the weather files kept open from one member to the next
+    (:func:`~pyroute_rel.weather.readers.keep_files_open`)."""
+    from .weather.readers import keep_files_open
+
     _CACHE.clear()
     _GRIDS.clear()
+    keep_files_open(True)
+
+
+def _worker_done() -> None:
+    """Drop what a process kept for a route_ensemble call, and close the files it kept open."""
+    from .weather.readers import keep_files_open
+
+    _CACHE.clear()
+    _GRIDS.clear()
+    keep_files_open(False)
 
 
 #: Modules the worker processes' fork server imports before it forks them.
@@ -602,8 +622,7 @@ def route_ensemble(
     _check_ensemble_args(path, members, member_files, mean_field, workers, options, progress)
     engine = _check_engine(engine, workers, scheduler, connect_timeout_s)
     r = parse_risk(risk) if isinstance(risk, str) else check_instance(risk, Risk, "risk", ScenarioError)
-    _CACHE.clear()  # the files may have changed since an earlier call in this process
-    _GRIDS.clear()
+    _begin()  # this process routes the members with the inline engine
     jobs = None if members is None else len(members) + int(bool(mean_field))
     pool = _engine(engine, workers, scheduler, connect_timeout_s, jobs)  # starts while the members are counted
     try:
@@ -617,8 +636,7 @@ def route_ensemble(
         return _route_and_sail(path, chosen, files, dict(options or {}), with_mean, r, pool, progress)
     finally:
         pool.close()
-        _CACHE.clear()
-        _GRIDS.clear()
+        _worker_done()
 
 
 def _check_ensemble_args(
@@ -672,7 +690,9 @@ def _engine(engine: str, workers: int | None, scheduler: str | None, timeout_s: 
         from .ensemble_dask import DaskWorkers, dask_client
 
         n = None if scheduler is not None else (workers or default_workers())
-        return DaskWorkers(dask_client(scheduler, workers=n, timeout_s=timeout_s), setup=_worker_init)
+        return DaskWorkers(
+            dask_client(scheduler, workers=n, timeout_s=timeout_s), setup=_worker_init, teardown=_worker_done
+        )
     n = 1 if engine == "inline" else (default_workers() if workers is None else workers)
     return _Workers(n if jobs is None else min(n, jobs))
 
