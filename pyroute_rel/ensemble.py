@@ -622,10 +622,10 @@ def route_ensemble(
     _check_ensemble_args(path, members, member_files, mean_field, workers, options, progress)
     engine = _check_engine(engine, workers, scheduler, connect_timeout_s)
     r = parse_risk(risk) if isinstance(risk, str) else check_instance(risk, Risk, "risk", ScenarioError)
-    _begin()  # this process routes the members with the inline engine
     jobs = None if members is None else len(members) + int(bool(mean_field))
-    pool = _engine(engine, workers, scheduler, connect_timeout_s, jobs)  # starts while the members are counted
+    pool = _engine(engine, workers, scheduler, connect_timeout_s, jobs)
     try:
+        _begin()  # this process routes the members with the inline engine
         n = member_count(path, member_files=member_files)
         chosen = list(range(n)) if members is None else [int(m) for m in members]
         bad = [m for m in chosen if not 0 <= m < n]
