@@ -5,12 +5,16 @@ Steps (:func:`route_ensemble`):
 1. **Route every member** (:func:`pyroute_rel.members.member_scenario`: the scenario with ``[weather] member = k``,
    so a member's route is exactly ``pyroute-rel route`` with that key), and the ensemble-mean field
    (``member = "mean"``), in parallel on the local cores (one process per core, :mod:`concurrent.futures`) or on a
-   dask cluster (``engine="dask"``: :mod:`pyroute_rel.ensemble_dask`), each member in the next free process.
+   dask cluster (``engine="dask"``: :mod:`pyroute_rel.ensemble_dask`), each member in the next free process. A
+   process keeps the weather file open from one member to the next and reads each member it routes once
+   (:func:`~pyroute_rel.weather.readers.keep_files_open`); the mean field is read once, by the process routing it.
 2. **Candidates** are the members' routes plus the route on the ensemble mean (a member with no feasible route gives
    no candidate).
 3. **Sail every candidate in every member's weather** (:func:`pyroute_rel.evaluate.sail_tracks`, each leg costed as
    the router costs an arc): the time ``T[i, j]`` of candidate ``i`` in member ``j`` [h], its largest leg ``p_f`` and
    whether it is feasible there (no ``p_f > apf``, land, zone, or leg that cannot be sailed: then ``T = inf``).
+   Each process sails every candidate in the members it routed, their weathers sampled together
+   (:class:`~pyroute_rel.weather.gridded.MemberStack`: one call per leg, not one per member and leg).
 4. **Regret** ``R[i, j] = T[i, j] - T*[j]``, ``T*[j]`` member ``j``'s own optimum (its route's voyage time): the
    hours lost by sailing candidate ``i`` when member ``j`` comes true. The diagonal is zero (re-timing a route gives
    its own figures); an entry is None where the candidate is infeasible in that member or the member has no route.

@@ -398,7 +398,7 @@ def ensemble_size(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str
         paths = [paths]
     sizes: dict[int, str] = {}
     for p in paths:
-        for ds in _open_file(Path(p)):
+        for ds in _open_file(Path(p), lazy=True):  # the sizes only: no dask (a second of imports)
             try:
                 for dim, n in ds.sizes.items():
                     if str(dim).lower() in _MEMBER_NAMES:
