@@ -80,3 +80,27 @@ def test_the_json_does_not_depend_on_the_reading_path_or_the_engine(small: Path,
     assert fast == old
     assert _json(small, engine="processes", workers=2) == fast
     assert json.loads(fast)["chosen"]["name"] and np.isfinite(json.loads(fast)["members"][0]["voyage_time_h"])
+
+
+def test_a_kept_file_changed_since_is_opened_again(small: Path, tmp_path: Path):
+    """A file rewritten between two members is read anew (the new values), the old handle closed."""
+    import os
+    import shutil
+
+    path = tmp_path / "ens.nc"
+    shutil.copy(small.parent / "ens.nc", path)
+    readers.keep_files_open(True)
+    try:
+        readers.files_opened(reset=True)
+        first = readers.open_weather(path, member=1)
+        readers.open_weather(path, member=2)
+        assert readers.files_opened() == {str(path.resolve()): 1}
+        shutil.copy(small.parent / "ens.nc", tmp_path / "other.nc")
+        os.replace(tmp_path / "other.nc", path)  # the same bytes, a new file (new modification time)
+        os.utime(path, ns=(1, 1))
+        again = readers.open_weather(path, member=1)
+        assert readers.files_opened(reset=True) == {str(path.resolve()): 2} and len(readers._KEPT) == 1
+        assert np.array_equal(first._blocks[0].flat, again._blocks[0].flat, equal_nan=True)
+    finally:
+        readers.keep_files_open(False)
+    assert readers._KEPT == {}

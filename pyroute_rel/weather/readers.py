@@ -274,6 +274,9 @@ def files_opened(reset: bool = False) -> dict[str, int]:
 def _kept_file(path: Path) -> list[xr.Dataset]:
     key = cache.file_stamps([path])[0]
     if key not in _KEPT or key[1] < 0:
+        for old in [k for k in _KEPT if k[0] == key[0]]:  # the file as it was: closed
+            for ds in _KEPT.pop(old):
+                ds.close()
         _KEPT[key] = _open_file(path, lazy=True)
     return _KEPT[key]
 
