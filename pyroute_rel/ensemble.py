@@ -5,12 +5,16 @@ Steps (:func:`route_ensemble`):
 1. **Route every member** (:func:`pyroute_rel.members.member_scenario`: the scenario with ``[weather] member = k``,
    so a member's route is exactly ``pyroute-rel route`` with that key), and the ensemble-mean field
    (``member = "mean"``), in parallel on the local cores (one process per core, :mod:`concurrent.futures`) or on a
-   dask cluster (``engine="dask"``: :mod:`pyroute_rel.ensemble_dask`), each member in the next free process.
+   dask cluster (``engine="dask"``: :mod:`pyroute_rel.ensemble_dask`), each member in the next free process. A
+   process keeps the weather file open from one member to the next and reads each member it routes once
+   (:func:`~pyroute_rel.weather.readers.keep_files_open`); the mean field is read once, by the process routing it.
 2. **Candidates** are the members' routes plus the route on the ensemble mean (a member with no feasible route gives
    no candidate).
 3. **Sail every candidate in every member's weather** (:func:`pyroute_rel.evaluate.sail_tracks`, each leg costed as
    the router costs an arc): the time ``T[i, j]`` of candidate ``i`` in member ``j`` [h], its largest leg ``p_f`` and
    whether it is feasible there (no ``p_f > apf``, land, zone, or leg that cannot be sailed: then ``T = inf``).
+   Each process sails every candidate in the members it routed, their weathers sampled together
+   (:class:`~pyroute_rel.weather.gridded.MemberStack`: one call per leg, not one per member and leg).
 4. **Regret** ``R[i, j] = T[i, j] - T*[j]``, ``T*[j]`` member ``j``'s own optimum (its route's voyage time): the
    hours lost by sailing candidate ``i`` when member ``j`` comes true. The diagonal is zero (re-timing a route gives
    its own figures); an entry is None where the candidate is infeasible in that member or the member has no route.
@@ -325,9 +329,29 @@ def _stopped(s: Any) -> bool:
 
 
 def _worker_init() -> None:
+    """A worker's set-up for one route_ensemble call: one thread, then :func:`_begin`."""
     os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads inside
+    _begin()
+
+
+def _begin() -> None:
+    """A process's set-up for one route_ensemble call: nothing kept from an earlier call (the files may have
+    changed), the weather files kept open from one member to the next
+    (:func:`~pyroute_rel.weather.readers.keep_files_open`)."""
+    from .weather.readers import keep_files_open
+
     _CACHE.clear()
     _GRIDS.clear()
+    keep_files_open(True)
+
+
+def _worker_done() -> None:
+    """Drop what a process kept for a route_ensemble call, and close the files it kept open."""
+    from .weather.readers import keep_files_open
+
+    _CACHE.clear()
+    _GRIDS.clear()
+    keep_files_open(False)
 
 
 #: Modules the worker processes' fork server imports before it forks them.
@@ -602,11 +626,10 @@ def route_ensemble(
     _check_ensemble_args(path, members, member_files, mean_field, workers, options, progress)
     engine = _check_engine(engine, workers, scheduler, connect_timeout_s)
     r = parse_risk(risk) if isinstance(risk, str) else check_instance(risk, Risk, "risk", ScenarioError)
-    _CACHE.clear()  # the files may have changed since an earlier call in this process
-    _GRIDS.clear()
     jobs = None if members is None else len(members) + int(bool(mean_field))
-    pool = _engine(engine, workers, scheduler, connect_timeout_s, jobs)  # starts while the members are counted
+    pool = _engine(engine, workers, scheduler, connect_timeout_s, jobs)
     try:
+        _begin()  # this process routes the members with the inline engine
         n = member_count(path, member_files=member_files)
         chosen = list(range(n)) if members is None else [int(m) for m in members]
         bad = [m for m in chosen if not 0 <= m < n]
@@ -617,8 +640,7 @@ def route_ensemble(
         return _route_and_sail(path, chosen, files, dict(options or {}), with_mean, r, pool, progress)
     finally:
         pool.close()
-        _CACHE.clear()
-        _GRIDS.clear()
+        _worker_done()
 
 
 def _check_ensemble_args(
@@ -674,7 +696,9 @@ def _engine(engine: str, workers: int | None, scheduler: str | None, timeout_s: 
         from .ensemble_dask import DaskWorkers, dask_client
 
         n = None if scheduler is not None else (workers or default_workers())
-        return DaskWorkers(dask_client(scheduler, workers=n, timeout_s=timeout_s), setup=_worker_init)
+        return DaskWorkers(
+            dask_client(scheduler, workers=n, timeout_s=timeout_s), setup=_worker_init, teardown=_worker_done
+        )
     n = 1 if engine == "inline" else (default_workers() if workers is None else workers)
     return _Workers(n if jobs is None else min(n, jobs))
 

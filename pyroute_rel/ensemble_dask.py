@@ -56,12 +56,14 @@ class DaskWorkers:
     Parameters
     ----------
     client : A client of the cluster (:func:`dask_client`); closed by :meth:`close`.
-    setup : Run on every worker first and last (clears what the workers keep for a call).
+    setup : Run on every worker first (clears what the workers keep for a call).
+    teardown : Run on every worker last (drops what they kept; default ``setup``).
     """
 
-    def __init__(self, client: Any, setup: Callable[[], Any]) -> None:
+    def __init__(self, client: Any, setup: Callable[[], Any], teardown: Callable[[], Any] | None = None) -> None:
         self.client = client
         self.setup = setup
+        self.teardown = setup if teardown is None else teardown
         self.addresses: list[str] = sorted(client.scheduler_info().get("workers", {}))
         client.run(_prepare_worker, setup)
 
@@ -108,9 +110,9 @@ class DaskWorkers:
         return [None if f is None else f.result() for f in futures]
 
     def close(self) -> None:
-        """Drop what the workers keep (``setup`` again), then close the client (and its ``LocalCluster``)."""
+        """Drop what the workers keep (``teardown``), then close the client (and its ``LocalCluster``)."""
         try:
-            self.client.run(self.setup)
+            self.client.run(self.teardown)
         except Exception:  # noqa: BLE001 - a worker gone or the cluster closing: nothing left to drop there
             pass
         close_client(self.client)

@@ -465,6 +465,9 @@ def sail_in_members(
     (:func:`~pyroute_rel.crossings.arc_extremes`) in one call, all legs at once: the times do not depend on it
     (``apf = 1`` refuses no leg), only the legs' ``p_f``. ``manoeuvres``: as in :func:`sail_tracks`.
     """
+    groups = _member_groups(problems)
+    if len(groups) > 1:  # the members' stacked data would be too large at once
+        return [row for g in groups for row in sail_in_members(g, tracks, avoid=avoid, manoeuvres=manoeuvres)]
     tr = [as_track(t) for t in tracks]
     n_m, n_c = len(problems), len(tr)
     first = problems[0]
@@ -609,8 +612,10 @@ def _sail_legs(
     man: _Manoeuvres | None = None,
 ) -> None:
     """Time-varying weather: the k-th legs of every row costed together (their samples' ``p_f``), leg after leg,
-    filling the arrays in place; ``man``: each leg's side found at its departure and its manoeuvre charged."""
+    filling the arrays in place; ``man``: each leg's side found at its departure and its manoeuvre charged. The
+    members' weathers are sampled together (:func:`~pyroute_rel.weather.gridded.stack_members`) where they can be."""
     first = problems[0]
+    stack = _member_stack(problems)
     for k in range(has.shape[1]):
         go = has[:, k] & np.isfinite(elapsed[:, k])
         if not go.any():
@@ -622,7 +627,7 @@ def _sail_legs(
             ArcGeometry(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm),  # samples only: pieces later
             t0,
             departure=first.departure,
-            weather=_rows_weather(problems, rows // n_c),
+            weather=_rows_weather(problems, rows // n_c, stack),
             polar=first.polar,
             failure=first.failure,
             apf=1.0,
@@ -634,12 +639,37 @@ def _sail_legs(
         if man is None:
             elapsed[rows, k + 1] = first.arrive(t0 + c.time_h)
         else:
-            where = replace(first, weather=_rows_weather(problems, rows // n_c))
+            where = replace(first, weather=_rows_weather(problems, rows // n_c, stack))
             wind = first_sample_wind(where, geom, t0)
             man.side[rows, k], man.twa[rows, k], man.tws[rows, k] = wind
             pen = man.charge(rows, k)
             elapsed[rows, k + 1] = first.arrive(t0 + c.time_h if man.penalties is None else (t0 + c.time_h) + pen)
         elapsed[has[:, k] & ~go, k + 1] = np.inf
+
+
+#: Largest copy of the members' gridded data :func:`sail_in_members` makes to sample them together [bytes]; more
+#: members are sailed in groups.
+STACK_MAX_BYTES = 600_000_000
+
+
+def _member_groups(problems: Sequence[RoutingProblem]) -> list[Sequence[RoutingProblem]]:
+    """The problems in consecutive groups whose gridded data stacked take at most :data:`STACK_MAX_BYTES` (at
+    least two a group)."""
+    each = max((int(getattr(p.weather, "nbytes", 0)) for p in problems), default=0)
+    if len(problems) < 3 or problems[0].weather.steady or each * len(problems) <= STACK_MAX_BYTES:
+        return [problems]
+    size = max(2, STACK_MAX_BYTES // each)
+    return [problems[g : g + size] for g in range(0, len(problems), size)]
+
+
+def _member_stack(problems: Sequence[RoutingProblem]) -> Any:
+    """The problems' weathers stacked (:func:`~pyroute_rel.weather.gridded.stack_members`), or None (one problem,
+    weathers that are not gridded on one grid)."""
+    if len(problems) < 2:
+        return None
+    from .weather.gridded import stack_members
+
+    return stack_members(p.weather for p in problems)
 
 
 def _judge_legs(
@@ -694,30 +724,39 @@ def _judge_legs(
         p_f[r[pick], k[pick]] = np.maximum(p_f[r[pick], k[pick]], ext.p_f)
 
 
-def _rows_weather(problems: Sequence[RoutingProblem], member: npt.NDArray[np.intp]) -> Any:
+def _rows_weather(problems: Sequence[RoutingProblem], member: npt.NDArray[np.intp], stack: Any = None) -> Any:
     """The weather of rows whose weather is ``problems[member[row]]`` (``member`` sorted): the one source when
-    there is one, else :class:`_MemberRows`."""
+    there is one, else :class:`_MemberRows` (sampling every member in one call through ``stack``, a
+    :class:`~pyroute_rel.weather.gridded.MemberStack` of the problems' weathers, when there is one)."""
     if len(problems) == 1:
         return problems[0].weather
     cuts = np.searchsorted(member, np.arange(len(problems) + 1))
-    return _MemberRows([p.weather for p in problems], cuts)
+    return _MemberRows([p.weather for p in problems], cuts, None if stack is None else (stack, member))
 
 
 class _MemberRows:
     """A weather source whose queries' rows (first axis) come from different sources: rows ``cuts[j]:cuts[j + 1]``
-    are answered by ``sources[j]`` (the sources share their kind: all steady or all time-varying)."""
+    are answered by ``sources[j]`` (the sources share their kind: all steady or all time-varying); with ``stack``
+    (a :class:`~pyroute_rel.weather.gridded.MemberStack` of the sources and each row's source), prepared points are
+    sampled in one call."""
 
-    def __init__(self, sources: Sequence[Any], cuts: npt.NDArray[np.intp]) -> None:
+    def __init__(self, sources: Sequence[Any], cuts: npt.NDArray[np.intp], stack: Any = None) -> None:
         self.parts = [(s, int(a), int(b)) for s, a, b in zip(sources, cuts[:-1], cuts[1:], strict=True) if b > a]
         self.steady = bool(sources[0].steady)
         self.fields = frozenset(sources[0].fields)
         self.max_current_ms = max(float(s.max_current_ms) for s in sources)
+        self.stack = stack
 
-    def prepare(self, lon_deg: Any, lat_deg: Any) -> list[object]:
+    def prepare(self, lon_deg: Any, lat_deg: Any) -> Any:
         lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
+        if self.stack is not None:
+            stack, member = self.stack
+            return stack.prepare(lon, lat, member)
         return [s.prepare(lon[a:b], lat[a:b]) for s, a, b in self.parts]
 
     def sample_at(self, prepared: Any, departure: Any, *, offset_h: Any = None, fields: Any = None) -> Conditions:
+        if self.stack is not None:
+            return self.stack[0].sample_at(prepared, departure, offset_h=offset_h, fields=fields)
         off = None if offset_h is None else np.asarray(offset_h, dtype=float)
         return _join(
             [

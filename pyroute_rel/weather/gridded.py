@@ -38,7 +38,16 @@ from .base import RANGES, Boundaries, Conditions, Variation, sample_points
 if TYPE_CHECKING:
     pass
 
-__all__ = ["GRID_FIELDS", "OUT_OF_RANGE", "GriddedWeather", "PreparedPoints", "WeatherField", "check_plausible"]
+__all__ = [
+    "GRID_FIELDS",
+    "OUT_OF_RANGE",
+    "GriddedWeather",
+    "PreparedPoints",
+    "WeatherField",
+    "check_plausible",
+    "MemberStack",
+    "stack_members",
+]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -638,6 +647,93 @@ class GriddedWeather:
                     f"lon [{lon_range[0]:g}, {lon_range[1]:g}], lat [{lat_range[0]:g}, {lat_range[1]:g}] [deg], "
                     f"time {iso_minute(t0)} .. {iso_minute(t1)} ({' and '.join(short)} not covered)"
                 )
+
+
+class MemberStack:
+    """Gridded weathers on one grid (the members of an ensemble file) laid end to end, so that one query samples
+    them all: row ``r`` (first axis) of a query is answered by ``sources[member[r]]``, with the numbers that source's
+    own :meth:`GriddedWeather.sample_at` gives (the same compiled kernel, each point's cell index moved to its
+    member's data). Built by :func:`stack_members`; it holds a copy of the sources' data (:attr:`nbytes`).
+
+    Used to sail many tracks in many members at once (:func:`pyroute_rel.evaluate.sail_in_members`): one call per
+    leg instead of one per member.
+    """
+
+    def __init__(self, sources: list[GriddedWeather]) -> None:
+        first = sources[0]
+        joined = object.__new__(GriddedWeather)  # the first source's grids, over every source's data
+        joined._info = dict(first._info)
+        joined._steady = first._steady
+        joined._variations = {}
+        joined._blocks = []
+        self._sizes = []
+        for k, block in enumerate(first._blocks):
+            b = object.__new__(_Block)
+            b.__dict__.update(block.__dict__)
+            b.flat = np.concatenate([s._blocks[k].flat for s in sources])
+            b.data = None  # sampling reads ``flat`` only
+            joined._blocks.append(b)
+            self._sizes.append(block.flat.size)
+        self._joined = joined
+        self.n_members = len(sources)
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held by the stacked data [bytes]."""
+        return sum(b.flat.nbytes for b in self._joined._blocks)
+
+    def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, member: npt.ArrayLike) -> PreparedPoints:
+        """Locate points (as :meth:`GriddedWeather.prepare`) whose rows (first axis) are in members ``member``
+        (one index per row), for :meth:`sample_at`."""
+        p = self._joined.prepare(lon_deg, lat_deg)
+        rows = np.asarray(member, dtype=np.intp)
+        if rows.shape != p.shape[:1] or (rows.size and not 0 <= rows.min() <= rows.max() < self.n_members):
+            raise WeatherError(
+                f"member must give one member index in [0, {self.n_members - 1}] per row ({p.shape[:1]}) "
+                f"(got {brief(member)})"
+            )
+        per_row = int(np.prod(p.shape[1:], dtype=np.int64))
+        where = tuple(
+            replace(w, base=w.base + np.repeat(rows * size, per_row))
+            for w, size in zip(p.where, self._sizes, strict=True)
+        )
+        return replace(p, where=where)
+
+    def sample_at(
+        self,
+        prepared: PreparedPoints,
+        departure: npt.ArrayLike,
+        *,
+        offset_h: npt.ArrayLike | None = None,
+        fields: Collection[str] | None = None,
+    ) -> Conditions:
+        """:meth:`GriddedWeather.sample_at` at points located by :meth:`prepare`, each row in its member."""
+        return self._joined.sample_at(prepared, departure, offset_h=offset_h, fields=fields)
+
+
+def stack_members(sources: Iterable[Any]) -> MemberStack | None:
+    """A :class:`MemberStack` of weather sources, or None unless they are all :class:`GriddedWeather` with the same
+    fields on the same grids and times (as the members of one file are)."""
+    sources = list(sources)
+    if not sources or not all(type(s) is GriddedWeather for s in sources):
+        return None
+    first = sources[0]
+    for s in sources[1:]:
+        if s._steady != first._steady or list(s._info) != list(first._info) or len(s._blocks) != len(first._blocks):
+            return None
+        for a, b in zip(s._blocks, first._blocks, strict=True):
+            same = (
+                a.names == b.names
+                and a.flat.shape == b.flat.shape
+                and a.strides == b.strides
+                and np.array_equal(a.lon, b.lon)
+                and np.array_equal(a.lat, b.lat)
+                and np.array_equal(a.time_s, b.time_s)
+                and (a.t0 == b.t0 or (np.isnat(a.t0) and np.isnat(b.t0)))
+            )
+            if not same:
+                return None
+    return MemberStack(sources)
 
 
 def _pair(value: Any, name: str) -> tuple[float, float]:

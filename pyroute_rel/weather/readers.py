@@ -65,6 +65,8 @@ __all__ = [
     "weather_from_dataset",
     "weather_from_mapping",
     "ensemble_size",
+    "keep_files_open",
+    "files_opened",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -218,9 +220,10 @@ def open_weather(
     if not paths:
         raise WeatherError("no weather file given (expected at least one path)")
     opened: list[tuple[str, list[xr.Dataset]]] = []
+    keep = _KEEP and isinstance(member, int | np.integer) and not isinstance(member, bool)
     try:
         for p in paths:
-            opened.append((str(p), _open_file(Path(p))))
+            opened.append((str(p), _kept_file(Path(p)) if keep else _open_file(Path(p))))
         return GriddedWeather(
             read_fields(
                 opened,
@@ -233,9 +236,49 @@ def open_weather(
             )
         )
     finally:
-        for _, datasets in opened:
+        for _, datasets in opened if not keep else ():
             for ds in datasets:
                 ds.close()
+
+
+# Files kept open by this process (keep_files_open), by (resolved path, size, modification time); and how many times
+# each file was opened here (files_opened).
+_KEEP = False
+_KEPT: dict[tuple[str, int, int], list[xr.Dataset]] = {}
+_OPENED: dict[str, int] = {}
+
+
+def keep_files_open(keep: bool) -> None:
+    """Whether :func:`open_weather` keeps in this process the files it reads one ensemble member from (``member =
+    k``), for the next members: a process routing many members of one file (:mod:`pyroute_rel.ensemble`) opens it
+    once and reads each member's box from it, without dask (the same values: the file's decoding, element by
+    element). Either way, the files kept so far are closed (a file changed since is opened again: it is kept by
+    its path, size and modification time). The ensemble mean (``member = "mean"``) is read as before."""
+    global _KEEP
+    for datasets in _KEPT.values():
+        for ds in datasets:
+            ds.close()
+    _KEPT.clear()
+    _KEEP = bool(keep)
+
+
+def files_opened(reset: bool = False) -> dict[str, int]:
+    """How many times this process opened each weather file (resolved path) to read it (``reset``: count from
+    zero again)."""
+    out = dict(_OPENED)
+    if reset:
+        _OPENED.clear()
+    return out
+
+
+def _kept_file(path: Path) -> list[xr.Dataset]:
+    key = cache.file_stamps([path])[0]
+    if key not in _KEPT or key[1] < 0:
+        for old in [k for k in _KEPT if k[0] == key[0]]:  # the file as it was: closed
+            for ds in _KEPT.pop(old):
+                ds.close()
+        _KEPT[key] = _open_file(path, lazy=True)
+    return _KEPT[key]
 
 
 def weather_from_dataset(
@@ -358,7 +401,7 @@ def ensemble_size(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str
         paths = [paths]
     sizes: dict[int, str] = {}
     for p in paths:
-        for ds in _open_file(Path(p)):
+        for ds in _open_file(Path(p), lazy=True):  # the sizes only: no dask (a second of imports)
             try:
                 for dim, n in ds.sizes.items():
                     if str(dim).lower() in _MEMBER_NAMES:
@@ -376,7 +419,9 @@ def ensemble_size(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str
 # ----------------------------------------------------------------------------------------------- reading
 
 
-def _open_file(path: Path) -> list[xr.Dataset]:
+def _open_file(path: Path, *, lazy: bool = False) -> list[xr.Dataset]:
+    """The file's datasets, its variables dask arrays (``lazy``: xarray's lazily indexed arrays, nothing cached:
+    a selection reads that selection)."""
     if path.is_dir():
         raise WeatherError(
             f"weather file '{path}' is a folder: list the NetCDF or GRIB files in it under [weather].paths"
@@ -396,7 +441,10 @@ def _open_file(path: Path) -> list[xr.Dataset]:
         raise WeatherError(f"weather file '{path}' is not a NetCDF or GRIB file (starts with {head[:4]!r})")
     try:
         engine = "netcdf4" if find_spec("netCDF4") else ("scipy" if head.startswith(b"CDF") else "h5netcdf")
-        return [xr.open_dataset(path, engine=engine, chunks={}, decode_timedelta=False)]
+        opts: dict[str, Any] = {"chunks": None, "cache": False} if lazy else {"chunks": {}}
+        ds = xr.open_dataset(path, engine=engine, decode_timedelta=False, **opts)
+        _OPENED[str(path.resolve())] = _OPENED.get(str(path.resolve()), 0) + 1
+        return [ds]
     except Exception as exc:  # netCDF4/HDF5 raise many types for damaged files
         raise WeatherError(f"cannot read weather file '{path}': {type(exc).__name__}: {exc}") from exc
 
@@ -421,6 +469,7 @@ def _open_grib(path: Path) -> list[xr.Dataset]:
             out.append(ds)
         else:
             ds.close()
+    _OPENED[str(path.resolve())] = _OPENED.get(str(path.resolve()), 0) + 1
     return out
 
 
