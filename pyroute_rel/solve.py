@@ -959,19 +959,34 @@ class _FinishLine:
         # rank, node, source node, fraction, wait [h], side of the arc, side label of its source
         self.at: tuple[int, int, int, float, float, int, int] | None = None
 
-    def observe(self, arcs: _RankArcs, t0: FloatArray, priced: _Priced, wait_h: float, from_side: int = -1) -> None:
+    def observe(
+        self,
+        arcs: _RankArcs,
+        t0: FloatArray,
+        priced: _Priced,
+        wait_h: float,
+        from_side: int = -1,
+        blocked: Callable[[int, int], bool] | None = None,
+    ) -> None:
         """Keep the earliest crossing among the arcs into a rank (not the finish) leaving at ``t0`` [h] (from the
-        side label ``from_side``; a manoeuvre at the arc's start delays the crossing by its penalty)."""
+        side label ``from_side``; a manoeuvre at the arc's start delays the crossing by its penalty).
+
+        ``blocked(node, arc)``: whether an arc meets an obstacle, when the obstacles are tested lazily (the costs
+        then leave untested the arcs that are not a node's best, and one of them may cross the line first)."""
         frac = _crossing(self.grid, arcs.k)
         along = t0 + frac * priced.time_h
         if priced.penalty_h is not None:
             along = along + priced.penalty_h
         cand = np.where(np.isfinite(frac) & np.isfinite(priced.total_h), along, np.inf)
-        if cand.size and np.min(cand) < self.best_h:
+        while cand.size and np.min(cand) < self.best_h:
             jj, cc = np.unravel_index(np.argmin(cand), cand.shape)
+            if blocked is not None and blocked(int(jj), int(cc)):
+                cand[jj, cc] = np.inf
+                continue
             self.best_h = float(cand[jj, cc])
             side = 0 if priced.side is None else int(priced.side[jj, cc])
             self.at = (arcs.k, int(jj), int(arcs.src[jj, cc]), float(frac[jj, cc]), wait_h, side, max(from_side, 0))
+            break
 
     def end(
         self, finish_h: float, finish_back: int, wait_into: FloatArray | None
@@ -1207,7 +1222,7 @@ def _best_over_waits(
         if w == 0:
             fired = priced.fired
         if line is not None:
-            line.observe(arcs, t0, priced, w * step, from_side)
+            line.observe(arcs, t0, priced, w * step, from_side, blocked=_lazy_arc_check(pricing, arcs.k, t0))
         for s in range(n_lab):
             cand = priced.total_h if priced.side is None else np.where(priced.side == s, priced.total_h, np.inf)
             better = cand < total[s]
@@ -1351,6 +1366,25 @@ def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.date
     if problem.weather.steady and not (problem.blocked is not None and problem.blocked.timed):
         return None
     return hours_after(problem.departure, t0)
+
+
+def _lazy_arc_check(pricing: _Pricing, k: int, t0: FloatArray) -> Callable[[int, int], bool] | None:
+    """With obstacles tested lazily, whether arc (node, arc) into rank k, leaving at ``t0`` [h], meets one (tested
+    now if it was not); None when the costs already hold every arc's obstacles."""
+    blocked = pricing.problem.blocked
+    if not pricing.lazy or blocked is None:
+        return None
+    times = _block_times(pricing.problem, t0)
+
+    def check(j: int, c: int) -> bool:
+        known = blocked.known(k)
+        if not known[j, c]:
+            select = np.zeros(known.shape, dtype=bool)
+            select[j, c] = True
+            blocked.learn(k, select)
+        return bool(blocked.hits(k, times)[j, c])
+
+    return check
 
 
 def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[np.datetime64] | None) -> BoolArray:
