@@ -440,12 +440,6 @@ class PendingPieces:
         if self.done is None:
             self.done = np.zeros(self.index.size, dtype=bool)
 
-    @property
-    def judged(self) -> int:
-        """Arcs judged so far."""
-        assert self.done is not None
-        return int(np.count_nonzero(self.done))
-
     def waiting(self, size: int) -> npt.NDArray[np.bool_]:
         """Flat mask over the caller's block of ``size`` arcs: the arcs not judged yet."""
         out = np.zeros(size, dtype=bool)
