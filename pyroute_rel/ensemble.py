@@ -364,12 +364,6 @@ _PRELOAD = (
 )
 
 
-def _warm_up() -> None:
-    """Import what routing a member needs (seconds on a busy machine), while the caller reads the ensemble."""
-    from . import cost_compiled, solve  # noqa: F401
-    from .weather import readers  # noqa: F401
-
-
 def _forget(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> None:
     """Drop a member's scenario from the process (the mean field's, once routed: it is not sailed in)."""
     _CACHE.pop((path, member, files, repr(sorted(options.items()))), None)
@@ -383,16 +377,18 @@ class _Workers:
         self.pools: list[ProcessPoolExecutor] = []
         if n > 1:
             import multiprocessing
+            from multiprocessing import forkserver
 
             context = multiprocessing.get_context("forkserver")  # not fork: this process may run threads
             # the server imports what a member's routing needs once, and forks the processes from it: they start
             # with it imported (each importing it costs 1.5 processor seconds); ignored if the server already runs
             context.set_forkserver_preload(["__main__", *_PRELOAD])
+            # started now, without waiting: it imports while this process counts the members; the processes are
+            # forked at the first task (forking one waits until the server has imported everything)
+            forkserver.ensure_running()
             self.pools = [
                 ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_worker_init) for _ in range(n)
             ]
-            for p in self.pools:
-                p.submit(_warm_up)
 
     @property
     def size(self) -> int:
