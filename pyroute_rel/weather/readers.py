@@ -453,11 +453,32 @@ def _open_file(path: Path, *, lazy: bool = False) -> list[xr.Dataset]:
     try:
         engine = "netcdf4" if find_spec("netCDF4") else ("scipy" if head.startswith(b"CDF") else "h5netcdf")
         opts: dict[str, Any] = {"chunks": None, "cache": False} if lazy else {"chunks": {}}
-        ds = xr.open_dataset(path, engine=engine, decode_timedelta=False, **opts)
+        if lazy and engine == "netcdf4":
+            ds = _open_with_small_chunk_cache(path, opts)
+        else:
+            ds = xr.open_dataset(path, engine=engine, decode_timedelta=False, **opts)
         _OPENED[str(path.resolve())] = _OPENED.get(str(path.resolve()), 0) + 1
         return [ds]
     except Exception as exc:  # netCDF4/HDF5 raise many types for damaged files
         raise WeatherError(f"cannot read weather file '{path}': {type(exc).__name__}: {exc}") from exc
+
+
+#: HDF5 chunk cache of each variable of a file read without dask (a member kept open, the ensemble mean) [bytes]:
+#: HDF5's own default. netCDF-C's (64 MiB a variable) would keep up to that much of decompressed chunks, each read once.
+LAZY_CHUNK_CACHE_BYTES = 2**20
+
+
+def _open_with_small_chunk_cache(path: Path, opts: Mapping[str, Any]) -> xr.Dataset:
+    """``xr.open_dataset`` with netCDF4, its variables given a chunk cache of :data:`LAZY_CHUNK_CACHE_BYTES` (netCDF4
+    sets a variable's cache when it opens the file, from the process-wide setting, put back at once)."""
+    import netCDF4
+
+    before = netCDF4.get_chunk_cache()
+    netCDF4.set_chunk_cache(LAZY_CHUNK_CACHE_BYTES, before[1], before[2])
+    try:
+        return xr.open_dataset(path, engine="netcdf4", decode_timedelta=False, **opts)
+    finally:
+        netCDF4.set_chunk_cache(*before)
 
 
 def _open_grib(path: Path) -> list[xr.Dataset]:
@@ -870,10 +891,11 @@ def _reorder(values: npt.NDArray[np.float32], inverse: Sequence[IntArray | None]
     return values
 
 
-#: At most this many bytes of decoded values (float64) are held at once while the ensemble mean is read
-#: (``member="mean"``): the members are read in groups, and a time range at a time when one member's box and window
-#: exceed it. The running sum and count add 12 bytes per value of the result (whose own float32 values take 4).
-MEAN_READ_BYTES = 256 * 2**20
+#: At most this many bytes of decoded values (float64) are read at once for the ensemble mean (``member="mean"``): the
+#: members are read in groups, and a range of times at a time when one member's box and window exceed it (xarray's
+#: decoding briefly holds about twice as much). The running sum and count take 9 bytes per value of the result (up to
+#: 255 members; 12 with more), the result 4.
+MEAN_READ_BYTES = 64 * 2**20
 
 
 def _load_mean(
@@ -890,8 +912,9 @@ def _load_mean(
     none has)."""
     selectors, inverse = _selectors(dims, index)
     shape = tuple(np.arange(da.sizes[d])[selectors[d]].size for d in dims)
-    total, count = np.full(shape, -0.0), np.zeros(shape, dtype=np.int32)  # -0.0 + x == x, for x = -0.0 too
     n_members = [da.sizes[d] for d in member_dims]
+    counter = np.uint8 if np.prod(n_members) < 256 else np.int32
+    total, count = np.full(shape, -0.0), np.zeros(shape, dtype=counter)  # -0.0 + x == x, for x = -0.0 too
     step_bytes = 8 * shape[1] * shape[2] * int(np.prod(n_members[1:]))  # one time of one member (of the first dim)
     n_times = int(min(shape[0], max(1, MEAN_READ_BYTES // step_bytes)))
     group = int(max(1, MEAN_READ_BYTES // (step_bytes * n_times)))
@@ -902,9 +925,22 @@ def _load_mean(
         for m0 in range(0, n_members[0], group):
             cut[member_dims[0]] = slice(m0, min(m0 + group, n_members[0]))
             block = _read(da, cut, [*member_dims, *dims], where).reshape(-1, t_sel.size, shape[1], shape[2])
-            for values in block:  # in member order
-                accumulate_member(total[t0 : t0 + n_times], count[t0 : t0 + n_times], values, valid)
+            _accumulate_block(total[t0 : t0 + n_times], count[t0 : t0 + n_times], block, valid)
     return _reorder(member_mean(total, count).astype(np.float32), inverse)
+
+
+def _accumulate_block(
+    total: FloatArray, count: npt.NDArray[np.integer], block: npt.NDArray[Any], valid: tuple[float, float] | None
+) -> None:
+    """:func:`accumulate_member` for each member of ``block`` in order (when no value is missing: the same sums, one
+    pass a member)."""
+    if valid is None and block.dtype.kind == "f" and not np.isnan(block).any():
+        for values in block:
+            total += values
+        count += block.shape[0]
+        return
+    for values in block:
+        accumulate_member(total, count, values, valid)
 
 
 def _contiguous(idx: IntArray) -> bool:
