@@ -193,3 +193,42 @@ def test_reading_the_mean_computes_no_dask_graph(tmp_path: Path):
         w = readers.open_weather(path, member="mean", bbox=BOX, time_window=WINDOW)
     assert not computed and threading.active_count() == threads
     assert sorted(w.fields) == ["hs_m", "twd_deg", "tws_kn", "wave_dir_deg"]
+
+
+@pytest.mark.slow  # cfgrib's first import and open: 2-3 s
+def test_the_mean_of_a_grib_ensemble_is_the_numpy_mean_of_its_members(tmp_path: Path):
+    """An ECMWF-ENS-like GRIB2 file (perturbed members 1..3, read by cfgrib without dask): the same definition."""
+    pytest.importorskip("cfgrib")
+    eccodes = pytest.importorskip("eccodes")
+    rng = np.random.default_rng(3)
+    path = tmp_path / "ens.grib2"
+    with open(path, "wb") as fh:
+        for member in (1, 2, 3):
+            for step in (0, 6):
+                for number in (2, 3):  # u, v
+                    h = eccodes.codes_grib_new_from_samples("regular_ll_sfc_grib2")
+                    eccodes.codes_set(h, "productDefinitionTemplateNumber", 1)  # an individual ensemble forecast
+                    for key, value in [("discipline", 0), ("parameterCategory", 2), ("parameterNumber", number),
+                                       ("typeOfFirstFixedSurface", 103), ("scaleFactorOfFirstFixedSurface", 0),
+                                       ("scaledValueOfFirstFixedSurface", 10), ("dataDate", 20180601),
+                                       ("dataTime", 0), ("stepUnits", 1), ("forecastTime", step),
+                                       ("typeOfEnsembleForecast", 3), ("perturbationNumber", member),
+                                       ("numberOfForecastsInEnsemble", 3)]:  # fmt: skip
+                        eccodes.codes_set(h, key, value)
+                    eccodes.codes_set_key_vals(h, {
+                        "Ni": 5, "Nj": 4, "latitudeOfFirstGridPointInDegrees": 50.0,
+                        "latitudeOfLastGridPointInDegrees": 20.0, "longitudeOfFirstGridPointInDegrees": 300.0,
+                        "longitudeOfLastGridPointInDegrees": 340.0, "iDirectionIncrementInDegrees": 10.0,
+                        "jDirectionIncrementInDegrees": 10.0,
+                    })  # fmt: skip
+                    eccodes.codes_set(h, "bitsPerValue", 24)
+                    eccodes.codes_set_values(h, rng.integers(-4000, 4000, 20) / 256.0)  # exact in float32 and GRIB
+                    eccodes.codes_write(h, fh)
+                    eccodes.codes_release(h)
+    members = [readers.open_weather(path, member=k) for k in range(3)]
+    mean = readers.open_weather(path, member="mean")
+    assert mean.field_info["wind_u_ms"].time.size == 2 and mean.field_info["wind_u_ms"].lat.size == 4
+    for block, *parts in zip(mean._blocks, *(m._blocks for m in members), strict=True):
+        stack = np.stack([p.flat for p in parts]).astype(np.float64)
+        assert not np.array_equal(stack[0], stack[1])
+        assert np.array_equal(block.flat, (stack.sum(axis=0) / 3).astype(np.float32))
