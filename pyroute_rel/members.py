@@ -160,9 +160,12 @@ def _mean_of_files_scenario(
 def mean_of_files(member_files: Sequence[str | Path], out: str | Path) -> Path:
     """Write the ensemble mean of weather files, one per member, to a NetCDF file ``out`` and return its path.
 
-    Every data variable is averaged over the files in double precision (wind as the u and v components the files
-    hold; a direction variable, such as a mean wave direction, is averaged as the numbers stored, as ``member =
-    "mean"`` averages a member dimension). The files must hold the same variables on the same coordinates.
+    Every data variable is averaged over the files as ``member = "mean"`` averages a member dimension: the float64
+    sum, in the order of the files, of the decoded values that are not missing (NaN, or outside the variable's CF
+    valid range as :func:`~pyroute_rel.weather.readers.open_weather` reads it), divided by how many files have a
+    value there; missing (NaN) where none has. Wind is averaged as the u and v components the files hold; a direction
+    variable, such as a mean wave direction, as the numbers stored. The mean is written unpacked (float64), without
+    the valid range (already applied). The files must hold the same variables on the same coordinates.
 
     Raises
     ------
@@ -172,10 +175,12 @@ def mean_of_files(member_files: Sequence[str | Path], out: str | Path) -> Path:
     """
     import xarray as xr
 
+    from .weather.readers import accumulate_member, member_mean, valid_range
+
     if isinstance(member_files, str | Path) or not member_files:
         raise ScenarioError(f"member_files must be a list of one or more weather files (got {brief(member_files)})")
     paths = [Path(f) for f in member_files]
-    total: xr.Dataset | None = None
+    sums: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
     ref: xr.Dataset | None = None
     for p in paths:
         try:
@@ -187,13 +192,15 @@ def mean_of_files(member_files: Sequence[str | Path], out: str | Path) -> Path:
                 ref = ds.load()
             else:
                 _check_same_grid(ds, ref, p, paths[0])
-            part = ds[list(ref.data_vars)].astype(np.float64).load()
-            total = part if total is None else total + part
-    assert total is not None and ref is not None
-    mean = total / len(paths)
-    for v in mean.data_vars:
-        mean[v].attrs = dict(ref[v].attrs)
-        mean[v].encoding = {}
+            for v in ref.data_vars:
+                total, count = sums.setdefault(v, (np.full(ref[v].shape, -0.0), np.zeros(ref[v].shape, np.int32)))
+                valid = valid_range(ds[v], f"member file '{p}' variable '{v}'")
+                accumulate_member(total, count, np.asarray(ds[v].values), valid)
+    assert ref is not None
+    mean = ref[list(ref.data_vars)]
+    for v, (total, count) in sums.items():
+        attrs = {k: a for k, a in ref[v].attrs.items() if k not in ("valid_range", "valid_min", "valid_max")}
+        mean[v] = xr.Variable(ref[v].dims, member_mean(total, count), attrs)
     mean.attrs = {**ref.attrs, "history": f"ensemble mean of {len(paths)} member files (pyroute_rel)"}
     mean.to_netcdf(out)
     return Path(out)

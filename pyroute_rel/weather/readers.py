@@ -67,6 +67,10 @@ __all__ = [
     "ensemble_size",
     "keep_files_open",
     "files_opened",
+    "MEAN_READ_BYTES",
+    "accumulate_member",
+    "member_mean",
+    "valid_range",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -177,7 +181,8 @@ def open_weather(
 ) -> GriddedWeather:
     """Read NetCDF/GRIB weather files into a :class:`GriddedWeather`.
 
-    Files are opened lazily (dask chunks for NetCDF) and only the box and time window are read.
+    Files are opened lazily (dask chunks for NetCDF; no dask for the ensemble mean) and only the box and time
+    window are read.
     Declared fill values (``_FillValue``, ``missing_value``) and values outside the CF ``valid_range`` (or
     ``valid_min`` / ``valid_max``, in packed units when packed) are missing (NaN), never data. When every field read
     has a single time (an analysis, or one step of a forecast downloaded alone), the weather is steady: it is used
@@ -196,7 +201,11 @@ def open_weather(
     member : Ensemble member, as the position along the ``number`` (or ``realization``) dimension
         (equal to the member number for ERA5 and GEFS), or ``"mean"`` for the ensemble mean (each stored
         variable averaged over the members: wind as its u and v components, the usual layout). Required when a
-        file holds several members: an ensemble is never reduced silently.
+        file holds several members: an ensemble is never reduced silently. The mean at each point is the float64
+        sum, in member order, of the decoded values of the members that have a value there (not a fill value, not
+        outside the valid range: the values ``member=k`` reads), divided by their count, then stored as float32;
+        missing where no member has a value. It is read after the box and window are cut, in groups of members
+        holding at most :data:`MEAN_READ_BYTES` of decoded values at once, in this thread (no dask).
     margin_deg : Margin around ``bbox`` [deg].
     out_of_range : ``"error"`` (default): a value outside its plausible range
         (:data:`~pyroute_rel.weather.base.RANGES`; an undeclared fill value, a negative wave height) is an error
@@ -223,7 +232,8 @@ def open_weather(
     keep = _KEEP and isinstance(member, int | np.integer) and not isinstance(member, bool)
     try:
         for p in paths:
-            opened.append((str(p), _kept_file(Path(p)) if keep else _open_file(Path(p))))
+            lazy = member == "mean"  # read member group by member group, without dask (_load_mean)
+            opened.append((str(p), _kept_file(Path(p)) if keep else _open_file(Path(p), lazy=lazy)))
         return GriddedWeather(
             read_fields(
                 opened,
@@ -253,7 +263,8 @@ def keep_files_open(keep: bool) -> None:
     k``), for the next members: a process routing many members of one file (:mod:`pyroute_rel.ensemble`) opens it
     once and reads each member's box from it, without dask (the same values: the file's decoding, element by
     element). Either way, the files kept so far are closed (a file changed since is opened again: it is kept by
-    its path, size and modification time). The ensemble mean (``member = "mean"``) is read as before."""
+    its path, size and modification time). The ensemble mean (``member = "mean"``) opens its own file, read without
+    dask as well."""
     global _KEEP
     for datasets in _KEPT.values():
         for ds in datasets:
@@ -442,11 +453,32 @@ def _open_file(path: Path, *, lazy: bool = False) -> list[xr.Dataset]:
     try:
         engine = "netcdf4" if find_spec("netCDF4") else ("scipy" if head.startswith(b"CDF") else "h5netcdf")
         opts: dict[str, Any] = {"chunks": None, "cache": False} if lazy else {"chunks": {}}
-        ds = xr.open_dataset(path, engine=engine, decode_timedelta=False, **opts)
+        if lazy and engine == "netcdf4":
+            ds = _open_with_small_chunk_cache(path, opts)
+        else:
+            ds = xr.open_dataset(path, engine=engine, decode_timedelta=False, **opts)
         _OPENED[str(path.resolve())] = _OPENED.get(str(path.resolve()), 0) + 1
         return [ds]
     except Exception as exc:  # netCDF4/HDF5 raise many types for damaged files
         raise WeatherError(f"cannot read weather file '{path}': {type(exc).__name__}: {exc}") from exc
+
+
+#: HDF5 chunk cache of each variable of a file read without dask (a member kept open, the ensemble mean) [bytes]:
+#: HDF5's own default. netCDF-C's (64 MiB a variable) would keep up to that much of decompressed chunks, each read once.
+LAZY_CHUNK_CACHE_BYTES = 2**20
+
+
+def _open_with_small_chunk_cache(path: Path, opts: Mapping[str, Any]) -> xr.Dataset:
+    """``xr.open_dataset`` with netCDF4, its variables given a chunk cache of :data:`LAZY_CHUNK_CACHE_BYTES` (netCDF4
+    sets a variable's cache when it opens the file, from the process-wide setting, put back at once)."""
+    import netCDF4
+
+    before = netCDF4.get_chunk_cache()
+    netCDF4.set_chunk_cache(LAZY_CHUNK_CACHE_BYTES, before[1], before[2])
+    try:
+        return xr.open_dataset(path, engine="netcdf4", decode_timedelta=False, **opts)
+    finally:
+        netCDF4.set_chunk_cache(*before)
 
 
 def _open_grib(path: Path) -> list[xr.Dataset]:
@@ -653,7 +685,7 @@ def _extract(
     """Cut one variable to the box and window, load it, convert units, check its values -> (field or None, had
     members). A variable with a single time is kept whatever the window (it may be steady weather)."""
     where = f"weather file '{source}' variable '{var}'"
-    valid = _valid_range(da, where)  # before any selection: attributes and encoding as the file has them
+    valid = valid_range(da, where)  # before any selection: attributes and encoding as the file has them
     kinds = {d: _dim_kind(da, d) for d in da.dims}
     da, had_members = _drop_extra_dims(da, kinds, member, where)
     lon_dim, lat_dim, time_dims = ([d for d in da.dims if kinds[d] == kind] for kind in ("lon", "lat", "time"))
@@ -681,10 +713,15 @@ def _extract(
         if t_plan is None:
             return None, had_members
         t_index, times = t_plan
-    values = _load(da, (tdim, lat_dim_, lon_dim_), (t_index, lat_plan[0], lon_plan[0]), where)
+    dims, index = (tdim, lat_dim_, lon_dim_), (t_index, lat_plan[0], lon_plan[0])
+    member_dims = [d for d in da.dims if kinds.get(d) == "member"] if member == "mean" else []
+    if member_dims:  # each member's values outside the valid range are missing before the mean
+        values = _load_mean(da, member_dims, dims, index, where, valid)
+    else:
+        values = _load(da, dims, index, where)
     if times is not None and np.isnat(times).any():
         raise WeatherError(f"{where} has missing (NaT) times")
-    if valid is not None:  # outside the declared valid range: missing, like a declared fill value
+    if valid is not None and not member_dims:  # outside the declared valid range: missing, like a fill value
         lo, hi = np.float64(valid[0]), np.float64(valid[1])
         values = np.where((values < lo) | (values > hi), np.float32(np.nan), values).astype(np.float32, copy=False)
     values = _convert_units(values, da.attrs, name, where)
@@ -696,7 +733,7 @@ def _extract(
     return replace(field, values=values), had_members
 
 
-def _valid_range(da: xr.DataArray, where: str) -> tuple[float, float] | None:
+def valid_range(da: xr.DataArray, where: str) -> tuple[float, float] | None:
     """The CF ``valid_range`` (or ``valid_min`` / ``valid_max``) of a variable in its unpacked units, or None.
 
     As the CF conventions (section 2.5.1) and the netCDF user guide say, these bounds are in the packed data's units
@@ -749,8 +786,7 @@ def _drop_extra_dims(
                 raise WeatherError(
                     f"{where} has {n} ensemble members (dimension '{dim}'); choose one with member=<0..{n - 1}>"
                 )
-            if member == "mean":
-                da = da.astype(np.float64).mean(dim, keep_attrs=True)
+            if member == "mean":  # kept: averaged by _load_mean once the box and window are cut
                 continue
             index = 0 if member is None else member
             if not 0 <= index < n:
@@ -817,6 +853,16 @@ def _load(
     da: xr.DataArray, dims: tuple[Hashable, Hashable, Hashable], index: tuple[IntArray, ...], where: str
 ) -> npt.NDArray[np.float32]:
     """Read only the needed rows/columns (sorted, unique; slices where contiguous), then reorder."""
+    selectors, inverse = _selectors(dims, index)
+    values = _read(da, selectors, dims, where).astype(np.float32, copy=False)
+    return _reorder(values, inverse)
+
+
+def _selectors(
+    dims: Sequence[Hashable], index: Sequence[IntArray]
+) -> tuple[dict[Hashable, Any], list[IntArray | None]]:
+    """What to read along each dimension (the sorted unique indices; a slice where contiguous), and how to put the
+    values read back in the order of ``index`` (None: already in order)."""
     selectors: dict[Hashable, Any] = {}
     inverse: list[IntArray | None] = []
     for dim, idx in zip(dims, index, strict=True):
@@ -824,17 +870,107 @@ def _load(
         contiguous = uniq.size == uniq[-1] - uniq[0] + 1
         selectors[dim] = slice(int(uniq[0]), int(uniq[-1]) + 1) if contiguous else uniq
         inverse.append(None if np.array_equal(inv, np.arange(inv.size)) else inv)
+    return selectors, inverse
+
+
+def _read(da: xr.DataArray, selectors: Mapping[Hashable, Any], dims: Sequence[Hashable], where: str) -> npt.NDArray:
+    """The decoded values of a selection, on ``dims`` in that order (numeric, else a WeatherError)."""
     try:
         values = np.asarray(da.isel(selectors).transpose(*dims).values)
     except Exception as exc:
         raise WeatherError(f"cannot read {where}: {type(exc).__name__}: {exc}") from exc
     if values.dtype.kind not in "fiu":
         raise WeatherError(f"{where} is not numeric (dtype {values.dtype})")
-    values = values.astype(np.float32, copy=False)
+    return values
+
+
+def _reorder(values: npt.NDArray[np.float32], inverse: Sequence[IntArray | None]) -> npt.NDArray[np.float32]:
     for axis, order in enumerate(inverse):
         if order is not None:
             values = np.take(values, order, axis=axis)
     return values
+
+
+#: At most this many bytes of decoded values (float64) are read at once for the ensemble mean (``member="mean"``): the
+#: members are read in groups, and a range of times at a time when one member's box and window exceed it (xarray's
+#: decoding briefly holds about twice as much). The running sum and count take 9 bytes per value of the result (up to
+#: 255 members; 12 with more), the result 4.
+MEAN_READ_BYTES = 64 * 2**20
+
+
+def _load_mean(
+    da: xr.DataArray,
+    member_dims: Sequence[Hashable],
+    dims: tuple[Hashable, Hashable, Hashable],
+    index: tuple[IntArray, ...],
+    where: str,
+    valid: tuple[float, float] | None,
+) -> npt.NDArray[np.float32]:
+    """The ensemble mean of the box and window ``index`` cuts: the members' decoded values read in groups of members
+    (and of times) of at most :data:`MEAN_READ_BYTES`, without dask, summed in float64 in member order where they
+    have a value (not NaN, inside ``valid``: as ``member=k`` reads them) and divided by how many have one (NaN where
+    none has)."""
+    selectors, inverse = _selectors(dims, index)
+    shape = tuple(np.arange(da.sizes[d])[selectors[d]].size for d in dims)
+    n_members = [da.sizes[d] for d in member_dims]
+    counter = np.uint8 if np.prod(n_members) < 256 else np.int32
+    total, count = np.full(shape, -0.0), np.zeros(shape, dtype=counter)  # -0.0 + x == x, for x = -0.0 too
+    step_bytes = 8 * shape[1] * shape[2] * int(np.prod(n_members[1:]))  # one time of one member (of the first dim)
+    n_times = int(min(shape[0], max(1, MEAN_READ_BYTES // step_bytes)))
+    group = int(max(1, MEAN_READ_BYTES // (step_bytes * n_times)))
+    t_all = np.arange(da.sizes[dims[0]])[selectors[dims[0]]]
+    for t0 in range(0, shape[0], n_times):
+        t_sel = t_all[t0 : t0 + n_times]
+        cut = {**selectors, dims[0]: slice(int(t_sel[0]), int(t_sel[-1]) + 1) if _contiguous(t_sel) else t_sel}
+        for m0 in range(0, n_members[0], group):
+            cut[member_dims[0]] = slice(m0, min(m0 + group, n_members[0]))
+            block = _read(da, cut, [*member_dims, *dims], where).reshape(-1, t_sel.size, shape[1], shape[2])
+            _accumulate_block(total[t0 : t0 + n_times], count[t0 : t0 + n_times], block, valid)
+    return _reorder(member_mean(total, count).astype(np.float32), inverse)
+
+
+def _accumulate_block(
+    total: FloatArray, count: npt.NDArray[np.integer], block: npt.NDArray[Any], valid: tuple[float, float] | None
+) -> None:
+    """:func:`accumulate_member` for each member of ``block`` in order (when no value is missing: the same sums, one
+    pass a member)."""
+    if valid is None and block.dtype.kind == "f" and not np.isnan(block).any():
+        for values in block:
+            total += values
+        count += block.shape[0]
+        return
+    for values in block:
+        accumulate_member(total, count, values, valid)
+
+
+def _contiguous(idx: IntArray) -> bool:
+    return bool(idx.size == idx[-1] - idx[0] + 1)
+
+
+def accumulate_member(
+    total: FloatArray,
+    count: npt.NDArray[np.integer],
+    values: npt.NDArray[np.floating] | npt.NDArray[np.integer],
+    valid: tuple[float, float] | None = None,
+) -> None:
+    """Add one ensemble member's decoded values to a running sum, in place: ``total`` (float64, start at -0.0) gets
+    each value that is not missing (NaN, or outside ``valid`` once in float32, as a member is read) added in float64,
+    ``count`` (integer) counts them. Adding the members in member order and then :func:`member_mean` is the ensemble
+    mean of :func:`open_weather` ``(member="mean")`` and of :func:`pyroute_rel.members.mean_of_files`."""
+    values64 = np.asarray(values, dtype=np.float64)
+    ok = ~np.isnan(values64)
+    if valid is not None:
+        as_read = values64.astype(np.float32)
+        ok &= (as_read >= np.float64(valid[0])) & (as_read <= np.float64(valid[1]))
+    np.add(total, values64, out=total, where=ok)
+    count += ok
+
+
+def member_mean(total: FloatArray, count: npt.NDArray[np.integer]) -> FloatArray:
+    """The mean of :func:`accumulate_member`'s sum: ``total / count`` [float64], NaN where no member has a value."""
+    out = np.full(total.shape, np.nan)
+    np.divide(total, count, out=out, where=count > 0)
+    return out
 
 
 def _lon_plan(
