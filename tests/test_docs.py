@@ -2,8 +2,9 @@
 
 Fenced blocks are collected from README.md and docs/**/*.md:
 
-- ``sh`` / ``console``: each ``pyroute-rel ...`` command runs (as ``python -m pyroute_rel.cli``, from the repository
-  root, with ``--out`` sent to a temporary folder) and must exit 0, or the code a trailing ``# exits N`` comment
+- ``sh`` / ``console``: each ``pyroute-rel ...`` command runs (through :func:`pyroute_rel.cli.main`, the function the
+  ``pyroute-rel`` script calls, in the test's process, from the repository root, with ``--out`` sent to a temporary
+  folder; warnings are errors there, as in every test) and must exit 0, or the code a trailing ``# exits N`` comment
   names. A ``text output`` block after a shell block is an excerpt of what its last command prints: each of its
   lines must be printed (whitespace aside; ``runtime`` lines vary and are skipped). Installing (``pip``,
   ``python -m venv``), building the docs and running the test suite are what CI does around this test; scripts
@@ -24,7 +25,6 @@ from __future__ import annotations
 import copy
 import doctest
 import json
-import os
 import re
 import shlex
 import shutil
@@ -37,6 +37,7 @@ from pathlib import Path
 import pytest
 
 import pyroute_rel as pr
+from pyroute_rel.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs"
@@ -216,22 +217,29 @@ def make_era5_data() -> None:
 
 
 @pytest.mark.parametrize("cmd", command_params())
-def test_command(cmd: Command | str, tmp_path: Path):
+def test_command(
+    cmd: Command | str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capfd: pytest.CaptureFixture[str]
+):
     if isinstance(cmd, str):
         pytest.fail(cmd)
     if any("microtransat_era5" in a for a in cmd.argv):
         make_era5_data()
-    env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    argv = [sys.executable, "-m", "pyroute_rel.cli", *redirect_out(cmd.argv, tmp_path)]
-    done = subprocess.run(argv, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
-    assert done.returncode == cmd.exit_code, (
-        f"{cmd.where}: `pyroute-rel {shlex.join(cmd.argv)}` exited {done.returncode}, the docs say "
-        f"{cmd.exit_code}\n{done.stdout[-2000:]}\n{done.stderr[-2000:]}"
+    # in this process, through the entry point the ``pyroute-rel`` script calls (a subprocess per command spent
+    # its time importing numpy, numba and xarray again); the output at file-descriptor level, as a terminal sees it
+    monkeypatch.chdir(ROOT)
+    try:
+        code = main(redirect_out(cmd.argv, tmp_path))
+    except SystemExit as exc:  # argparse's usage errors, --help and --version
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    stdout, stderr = capfd.readouterr()
+    assert code == cmd.exit_code, (
+        f"{cmd.where}: `pyroute-rel {shlex.join(cmd.argv)}` exited {code}, the docs say "
+        f"{cmd.exit_code}\n{stdout[-2000:]}\n{stderr[-2000:]}"
     )
-    assert "Traceback" not in done.stderr
+    assert "Traceback" not in stderr
     if "--json" in cmd.argv and cmd.exit_code == 0:
-        json.loads(done.stdout)
-    printed = (done.stdout + done.stderr).replace(str(tmp_path / "out_"), "out/")
+        json.loads(stdout)
+    printed = (stdout + stderr).replace(str(tmp_path / "out_"), "out/")
     printed_lines = {" ".join(line.split()) for line in printed.splitlines()}
     for line in cmd.expected.splitlines():
         if line.strip() and not line.startswith(VARIABLE_OUTPUT):

@@ -416,14 +416,30 @@ apf = 0.95
 
 
 def cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """``python -m pyroute_rel`` in a child process (the package's own entry point)."""
     return subprocess.run([sys.executable, "-m", "pyroute_rel", *args], capture_output=True, text=True, cwd=ROOT)
+
+
+def cli_here(capfd: pytest.CaptureFixture[str], *args: str) -> subprocess.CompletedProcess[str]:
+    """The same command through :func:`pyroute_rel.cli.main` in this process (the function both entry points call:
+    no interpreter to start; ``cli`` above keeps ``python -m pyroute_rel`` itself tested)."""
+    from pyroute_rel.cli import main
+
+    try:
+        code = main(list(args))
+    except SystemExit as exc:  # argparse's usage errors
+        code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+    out, err = capfd.readouterr()
+    return subprocess.CompletedProcess(["pyroute-rel", *args], code, out, err)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", ["bottleneck", "voyage"])
-def test_cli_json_contract_and_files(tmp_path: Path, kind: str) -> None:
+def test_cli_json_contract_and_files(tmp_path: Path, kind: str, capfd: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
-    run = cli("tradeoff", str(small_toml(tmp_path)), "--front", kind, "--json", "--out", str(out), "--quiet")
+    run = cli_here(
+        capfd, "tradeoff", str(small_toml(tmp_path)), "--front", kind, "--json", "--out", str(out), "--quiet"
+    )
     assert run.returncode == 0, run.stderr
     doc = json.loads(run.stdout)
     assert {"front", "sensitivity", "labels"} <= set(doc)
@@ -440,8 +456,8 @@ def test_cli_json_contract_and_files(tmp_path: Path, kind: str) -> None:
 
 
 @pytest.mark.slow
-def test_cli_refuses_a_bad_cap_with_exit_2(tmp_path: Path) -> None:
-    run = cli("tradeoff", str(small_toml(tmp_path)), "--front", "voyage", "--max-labels", "1", "--quiet")
+def test_cli_refuses_a_bad_cap_with_exit_2(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    run = cli_here(capfd, "tradeoff", str(small_toml(tmp_path)), "--front", "voyage", "--max-labels", "1", "--quiet")
     assert run.returncode == 2
     assert "--max-labels" in run.stderr and len(run.stderr.strip().splitlines()) == 1
 
@@ -454,19 +470,21 @@ def test_cli_refuses_a_negative_cap_even_for_the_bottleneck_front(tmp_path: Path
 
 
 @pytest.mark.slow
-def test_cli_through_a_waypoint_equals_the_library_and_refine_is_for_the_bottleneck_front(tmp_path: Path) -> None:
+def test_cli_through_a_waypoint_equals_the_library_and_refine_is_for_the_bottleneck_front(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
     path = small_toml(tmp_path)
     text = path.read_text().replace('departure = "2018', 'waypoints = [[-14.0, 44.5]]\ndeparture = "2018')
     path.write_text(text.replace("n_ranks = 3", "n_ranks = 4"))
-    run = cli("tradeoff", str(path), "--front", "voyage", "--json", "--quiet")
+    run = cli_here(capfd, "tradeoff", str(path), "--front", "voyage", "--json", "--quiet")
     assert run.returncode == 0, run.stderr
     sc = load_scenario(path)
     front = course_voyage_front([(g, sc.problem(grid=g)) for g in sc.leg_grids()])
     got = json.loads(run.stdout)["front"]
     assert [(p["voyage_time_h"], p["hazard"]) for p in got] == [(p.voyage_time_h, p.hazard) for p in front.points]
     assert all(len(p["track"]) == 7 for p in got)  # start, 2 nodes, the mark, 2 nodes, finish
-    run = cli("tradeoff", str(path), "--front", "voyage", "--refine", "1", "--quiet")
+    run = cli_here(capfd, "tradeoff", str(path), "--front", "voyage", "--refine", "1", "--quiet")
     assert run.returncode == 2 and "--refine applies to the bottleneck front" in run.stderr
-    run = cli("tradeoff", str(path), "--refine", "1", "--json", "--quiet")
+    run = cli_here(capfd, "tradeoff", str(path), "--refine", "1", "--json", "--quiet")
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["refine"] == 1
