@@ -434,7 +434,7 @@ def needs_pieces(
         margin = np.maximum(margin, np.abs((course_deg[..., k] - c0 + 180.0) % 360.0 - 180.0) + 2.0 * turn)
     if bounds.continuous:
         variation = getattr(weather, "variation", None)
-        if variation is None:
+        if variation is None or _unbounded(weather, failure, variation):
             return None
         dt = np.zeros(()) if weather.steady else np.where(np.isfinite(time_h), time_h, 0.0)  # forbidden: no time
         span = (half_deg / math.cos(math.radians(big)), half_deg, dt)
@@ -458,6 +458,16 @@ def needs_pieces(
         for e in c.edges:
             near |= np.abs(q0 - e) <= margin
     return near
+
+
+def _unbounded(weather: WeatherSource, failure: FailureModel, variation: Any) -> bool:
+    """True when a criterion's field has no variation bound (:func:`needs_pieces` would find that after sampling
+    the weather; known before it when the weather has no current, which returns None first), the heading-dependent
+    ones asked first (a direction's bound is the one that tends to be missing, and says so fast)."""
+    if "current_u_ms" in getattr(weather, "fields", ("current_u_ms",)):
+        return False
+    names = sorted({QUANTITY_FIELDS[c.quantity] for c in failure.criteria}, key=lambda f: (not f[1], f[0]))
+    return any(variation(name) is None for name, _ in names)
 
 
 def _near_edges(

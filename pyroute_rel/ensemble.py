@@ -291,7 +291,14 @@ def _sail_in_members(
     land), each of shape (candidates, members); land (the same in every member) is tested only when ``land``."""
     scs = [_scenario(path, m, files, options) for m in members]
     avoid = scs[0].avoid if land else replace(scs[0].avoid, land=False)
-    sailed = sail_in_members([evaluation_problem(sc) for sc in scs], tracks, avoid=avoid)
+    # the members' scenarios differ in their weather only: one problem (its grid built once), each member's weather
+    # in it; a member whose weather lacks a field of the first's has its own (which refuses a missing field)
+    first = evaluation_problem(scs[0])
+    fields = scs[0].weather.fields
+    problems = [
+        replace(first, weather=sc.weather) if sc.weather.fields == fields else evaluation_problem(sc) for sc in scs
+    ]
+    sailed = sail_in_members(problems, tracks, avoid=avoid)
 
     def column(fn: Any) -> Any:
         return np.array([[fn(s) for s in per_member] for per_member in sailed]).T

@@ -858,24 +858,27 @@ def _variation(blocks: list[_Block], field: str) -> Variation | None:
     steps = [float(np.min(np.diff(block.lon))), float(np.min(np.diff(block.lat)))]
     steps.append(float(np.min(np.diff(block.time_s))) / 3600.0 if block.time_s.size > 1 else np.inf)
     # largest neighbour statistic along each axis of the data (lat, lon, time): axes 1, 0, 2
-    worst = [_neighbour_max(block.data, cols, axis, kind) for axis in (1, 0, 2)]
-    if kind == "angle":
-        spread = float(sum(worst))
-        if not spread < 90.0:
-            return None
+    if kind == "angle":  # the angles' sum, axis by axis: no bound once it reaches 90 deg (the rest only add)
+        spread = 0.0
+        for axis in (1, 0, 2):
+            spread += _neighbour_max(block.data, cols, axis, kind)
+            if not spread < 90.0:
+                return None
         return Variation(spread / steps[0], spread / steps[1], spread / steps[2], fixed=4.0 * spread)
+    worst = [_neighbour_max(block.data, cols, axis, kind) for axis in (1, 0, 2)]
     scale = KN_PER_MS if kind == "length" else 1.0
     return Variation(*(scale * w / s for w, s in zip(worst, steps, strict=True)))
 
 
 def _neighbour_max(data: npt.NDArray[np.float32], cols: list[int], axis: int, kind: str) -> float:
     """Largest difference (sum over the columns, or angle between the vectors [deg]) between neighbours along
-    ``axis`` of ``data`` (lat, lon, time, column); NaN ignored. One compiled pass over the data."""
+    ``axis`` of ``data`` (lat, lon, time, column); NaN ignored. One compiled pass over the data (an angle: cut
+    short at the first one over 90 deg, which is then returned instead of the largest)."""
     if data.shape[axis] < 2:
         return 0.0
     c0, c1 = cols[0], cols[-1]
     if kind == "angle":
-        worst_cos = _neighbour_min_cos(data, c0, c1, axis)
+        worst_cos = _neighbour_min_cos(data, c0, c1, axis, 0.0)
         return float(np.degrees(np.arccos(min(1.0, max(-1.0, worst_cos)))))
     return float(_neighbour_max_diff(data, c0, c1 if len(cols) > 1 else -1, axis))
 
@@ -898,9 +901,9 @@ def _neighbour_max_diff(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # 
 
 
 @numba.njit(nogil=True, cache=True)
-def _neighbour_min_cos(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _neighbour_min_cos(data, c0, c1, axis, stop):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Smallest cosine of the angle between the vectors (column c0, column c1) of neighbours along ``axis`` (-1
-    where one is zero)."""
+    where one is zero), or the first one found below ``stop``."""
     ny, nx, nt, _ = data.shape
     dj, di, dt = (1, 0, 0) if axis == 0 else ((0, 1, 0) if axis == 1 else (0, 0, 1))
     worst = 1.0
@@ -917,4 +920,6 @@ def _neighbour_min_cos(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # p
                 c = (ax * bx + ay * by) / norm if norm > 0.0 else -1.0
                 if c < worst:
                     worst = c
+                    if c < stop:
+                        return worst
     return worst
