@@ -502,8 +502,10 @@ def sail_in_members(
         if man is not None:
             man.charge_tracks(has, time_h, elapsed)
     else:
-        _sail_legs(problems, n_c, lon, lat, has, elapsed, time_h, p_f, reason, man)
-        _judge_legs(problems, n_c, lon, lat, elapsed, time_h, p_f)
+        legs1 = _Legs.of(lon1, lat1, has1, first.samples)
+        stack = _member_stack(problems)
+        _sail_legs(problems, legs1, stack, has, elapsed, time_h, p_f, reason, man)
+        _judge_legs(problems, legs1, stack, elapsed, time_h, p_f)
     land1 = None
     if avoid is not None and avoid.land:  # the same in every weather
         land1, _ = _obstacles(first, replace(avoid, zones=()), lon1, lat1, elapsed[:n_c], has1)
@@ -599,11 +601,36 @@ def _sailed(
     return Sailed(t.lon_deg, t.lat_deg, e, costs, hit_land, hit_zone, apf)
 
 
+@dataclass(frozen=True)
+class _Legs:
+    """The tracks' legs and their :class:`~pyroute_rel.cost.ArcGeometry`, computed once for every weather they are
+    sailed in (it depends on the points only): leg ``k`` of track ``i`` is ``geometry`` row ``index[i, k]`` (-1: the
+    track has no such leg)."""
+
+    geometry: ArcGeometry
+    index: npt.NDArray[np.intp]
+
+    @classmethod
+    def of(cls, lon: FloatArray, lat: FloatArray, has: npt.NDArray[np.bool_], samples: int) -> _Legs:
+        """The legs of tracks whose points are the rows of ``lon``, ``lat`` [deg] (``has``: which legs exist)."""
+        index = np.full(has.shape, -1, dtype=np.intp)
+        index[has] = np.arange(int(has.sum()))
+        geometry = arc_geometry(lon[:, :-1][has], lat[:, :-1][has], lon[:, 1:][has], lat[:, 1:][has], samples=samples)
+        return cls(geometry, index)
+
+    def at(self, rows: npt.NDArray[np.intp], k: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], ArcGeometry]:
+        """Which legs rows ``rows`` sail as their ``k``-th (row ``r`` is track ``r % tracks``), and their geometry
+        (with their ends' unit vectors)."""
+        i = self.index[rows % self.index.shape[0], k]
+        g = self.geometry
+        assert g.a_xyz is not None and g.b_xyz is not None
+        return i, ArcGeometry(g.lon_deg[i], g.lat_deg[i], g.course_deg[i], g.seg_nm[i], g.a_xyz[i], g.b_xyz[i])
+
+
 def _sail_legs(
     problems: Sequence[RoutingProblem],
-    n_c: int,
-    lon: FloatArray,
-    lat: FloatArray,
+    legs: _Legs,
+    stack: Any,
     has: npt.NDArray[np.bool_],
     elapsed: FloatArray,
     time_h: FloatArray,
@@ -613,21 +640,23 @@ def _sail_legs(
 ) -> None:
     """Time-varying weather: the k-th legs of every row costed together (their samples' ``p_f``), leg after leg,
     filling the arrays in place; ``man``: each leg's side found at its departure and its manoeuvre charged. The
-    members' weathers are sampled together (:func:`~pyroute_rel.weather.gridded.stack_members`) where they can be."""
+    members' weathers are sampled together (``stack``, :func:`~pyroute_rel.weather.gridded.stack_members`) where
+    they can be."""
     first = problems[0]
-    stack = _member_stack(problems)
+    n_c = legs.index.shape[0]
     for k in range(has.shape[1]):
         go = has[:, k] & np.isfinite(elapsed[:, k])
         if not go.any():
             continue
         rows = np.flatnonzero(go)
         t0 = elapsed[rows, k]
-        geom = arc_geometry(lon[rows, k], lat[rows, k], lon[rows, k + 1], lat[rows, k + 1], samples=first.samples)
+        _, geom = legs.at(rows, k)
+        weather = _rows_weather(problems, rows // n_c, stack)
         c = geometry_costs(
             ArcGeometry(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm),  # samples only: pieces later
             t0,
             departure=first.departure,
-            weather=_rows_weather(problems, rows // n_c, stack),
+            weather=weather,
             polar=first.polar,
             failure=first.failure,
             apf=1.0,
@@ -639,8 +668,7 @@ def _sail_legs(
         if man is None:
             elapsed[rows, k + 1] = first.arrive(t0 + c.time_h)
         else:
-            where = replace(first, weather=_rows_weather(problems, rows // n_c, stack))
-            wind = first_sample_wind(where, geom, t0)
+            wind = first_sample_wind(replace(first, weather=weather), geom, t0)
             man.side[rows, k], man.twa[rows, k], man.tws[rows, k] = wind
             pen = man.charge(rows, k)
             elapsed[rows, k + 1] = first.arrive(t0 + c.time_h if man.penalties is None else (t0 + c.time_h) + pen)
@@ -674,24 +702,26 @@ def _member_stack(problems: Sequence[RoutingProblem]) -> Any:
 
 def _judge_legs(
     problems: Sequence[RoutingProblem],
-    n_c: int,
-    lon: FloatArray,
-    lat: FloatArray,
+    legs: _Legs,
+    stack: Any,
     elapsed: FloatArray,
     time_h: FloatArray,
     p_f: FloatArray,
 ) -> None:
-    """Each weather's legs judged on every piece they cross, all at once, as the cost function judges an arc
+    """Each weather's legs judged on every piece they cross, as the cost function judges an arc
     (:func:`~pyroute_rel.cost.geometry_costs` with its end points): the legs sailed whose samples did not meet the
     table's largest ``p_f`` and that may need it (:func:`~pyroute_rel.crossings.needs_pieces`) get the largest
-    ``p_f`` met anywhere along them (in place)."""
+    ``p_f`` met anywhere along them (in place). With one weather, or the members' weathers on one grid (``stack``),
+    each leg is cut into pieces once and every weather's legs are judged in one call."""
     first = problems[0]
     model = first.failure
     if model is None:
         return
-    from .crossings import arc_extremes, needs_pieces
+    from .crossings import arc_extremes, arc_pieces, needs_pieces
 
+    n_c = legs.index.shape[0]
     top = float(np.max(model.p_flat))
+    picked = []
     for j, problem in enumerate(problems):
         rows = slice(j * n_c, (j + 1) * n_c)
         with np.errstate(invalid="ignore"):
@@ -700,28 +730,39 @@ def _judge_legs(
         if not r.size:
             continue
         r = r + j * n_c
-        t0, dt = elapsed[r, k], time_h[r, k]
-        geom = arc_geometry(lon[r, k], lat[r, k], lon[r, k + 1], lat[r, k + 1], samples=first.samples)
-        near = needs_pieces(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, t0, dt,
+        i, geom = legs.at(r, k)
+        near = needs_pieces(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, elapsed[r, k], time_h[r, k],
                             weather=problem.weather, failure=model, departure=first.departure)  # fmt: skip
-        pick = np.arange(r.size) if near is None else np.flatnonzero(near)
-        if not pick.size:
-            continue
-        assert geom.a_xyz is not None and geom.b_xyz is not None
+        pick = slice(None) if near is None else np.flatnonzero(near)
+        picked.append((j, r[pick], k[pick], i[pick]))
+    picked = [x for x in picked if x[1].size]
+    if not picked:
+        return
+    g = legs.geometry
+    assert g.a_xyz is not None and g.b_xyz is not None
+    if len(problems) == 1 or stack is not None:  # one call, each leg judged cut once
+        r, k, i = (np.concatenate([x[n] for x in picked]) for n in (1, 2, 3))
+        which, at = np.unique(i, return_inverse=True)
+        cut = arc_pieces(g.a_xyz[which], g.b_xyz[which], getattr(first.weather, "boundaries", None)).take(at)
+        calls = [(r, k, i, cut, _rows_weather(problems, (r // n_c)[cut.arc], stack))]
+    else:
+        calls = [(r, k, i, None, problems[j].weather) for j, r, k, i in picked]
+    for r, k, i, pieces, weather in calls:
         ext = arc_extremes(
-            geom.a_xyz[pick],
-            geom.b_xyz[pick],
-            t0[pick],
-            dt[pick],
+            g.a_xyz[i],
+            g.b_xyz[i],
+            elapsed[r, k],
+            time_h[r, k],
             departure=first.departure,
-            weather=problem.weather,
+            weather=weather,
             polar=first.polar,
             failure=model,
             apf=1.0,
             beyond=first.beyond,
             speed_factor=None if first.wave_loss is None else first.wave_loss.factor,
+            pieces=pieces,
         )
-        p_f[r[pick], k[pick]] = np.maximum(p_f[r[pick], k[pick]], ext.p_f)
+        p_f[r, k] = np.maximum(p_f[r, k], ext.p_f)
 
 
 def _rows_weather(problems: Sequence[RoutingProblem], member: npt.NDArray[np.intp], stack: Any = None) -> Any:
@@ -746,6 +787,14 @@ class _MemberRows:
         self.fields = frozenset(sources[0].fields)
         self.max_current_ms = max(float(s.max_current_ms) for s in sources)
         self.stack = stack
+
+    def take_rows(self, rows: npt.NDArray[np.intp]) -> _MemberRows:
+        """The same weather for queries whose rows are rows ``rows`` (sorted) of this one's."""
+        owner = np.repeat(np.arange(len(self.parts)), [b - a for _, a, b in self.parts])[rows]
+        sources = [s for s, _, _ in self.parts]
+        cuts = np.searchsorted(owner, np.arange(len(sources) + 1))
+        stack = None if self.stack is None else (self.stack[0], self.stack[1][rows])
+        return _MemberRows(sources, cuts, stack)
 
     def prepare(self, lon_deg: Any, lat_deg: Any) -> Any:
         lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
