@@ -62,6 +62,8 @@ __all__ = [
     "evaluation_problem",
     "sail_tracks",
     "sail_in_members",
+    "member_figures",
+    "MemberFigures",
     "BLOCK_REASONS",
     "TRACK_MAX_BYTES",
 ]
@@ -463,11 +465,106 @@ def sail_in_members(
     used). The k-th legs of every track in every weather are costed in one call (the weather answers each row from
     its own source); then each weather's legs are judged on every piece they cross
     (:func:`~pyroute_rel.crossings.arc_extremes`) in one call, all legs at once: the times do not depend on it
-    (``apf = 1`` refuses no leg), only the legs' ``p_f``. ``manoeuvres``: as in :func:`sail_tracks`.
+    (``apf = 1`` refuses no leg), only the legs' ``p_f``. Each leg's geometry, and its pieces, are computed once for
+    every weather. ``manoeuvres``: as in :func:`sail_tracks`.
     """
-    groups = _member_groups(problems)
-    if len(groups) > 1:  # the members' stacked data would be too large at once
-        return [row for g in groups for row in sail_in_members(g, tracks, avoid=avoid, manoeuvres=manoeuvres)]
+    return [row for g in _member_groups(problems) for row in _sail_rows(g, tracks, avoid, manoeuvres).sailed()]
+
+
+@dataclass(frozen=True)
+class MemberFigures:
+    """The figures of every track sailed in every weather (:func:`member_figures`), shape (tracks, weathers).
+
+    Attributes
+    ----------
+    voyage_time_h : :attr:`Sailed.voyage_time_h` [h] (``inf`` where a leg cannot be sailed).
+    max_p_f : :attr:`Sailed.max_p_f` [-].
+    over_apf : Whether a leg sailed has ``p_f > apf`` (``"p_f"`` among its :meth:`Sailed.leg_reasons`).
+    blocked : Whether the track is blocked otherwise: a leg cannot be sailed, or one touches land or an active zone.
+    on_land : Whether a leg sailed touches land (or the coastal margin).
+    """
+
+    voyage_time_h: FloatArray
+    max_p_f: FloatArray
+    over_apf: npt.NDArray[np.bool_]
+    blocked: npt.NDArray[np.bool_]
+    on_land: npt.NDArray[np.bool_]
+
+    @property
+    def feasible(self) -> npt.NDArray[np.bool_]:
+        """:attr:`Sailed.feasible` of each track in each weather."""
+        return ~self.blocked & ~self.over_apf
+
+
+def member_figures(
+    problems: Sequence[RoutingProblem], tracks: Sequence[Track | npt.ArrayLike], *, avoid: Any = None
+) -> MemberFigures:
+    """The figures of :func:`sail_in_members` (``[[s for s in row] for row in sail_in_members(...)]``, transposed to
+    (tracks, weathers)) without building a :class:`Sailed` per track and weather: the same numbers, as arrays."""
+    parts = [_sail_rows(g, tracks, avoid, False).figures() for g in _member_groups(problems)]
+    return MemberFigures(
+        *(np.concatenate([getattr(p, f.name) for p in parts], axis=1) for f in dataclass_fields(MemberFigures))
+    )
+
+
+@dataclass(frozen=True)
+class _Sailing:
+    """Tracks sailed in weathers, one row per (weather ``j``, track ``i``): row ``j * len(tracks) + i``; arrays of
+    (rows, legs) (``elapsed``: (rows, legs + 1)), NaN-padded after each track's last leg."""
+
+    tracks: list[Track]
+    problems: Sequence[RoutingProblem]
+    n_legs: npt.NDArray[np.intp]
+    elapsed: FloatArray
+    time_h: FloatArray
+    p_f: FloatArray
+    reason: npt.NDArray[np.uint8]
+    land: npt.NDArray[np.bool_]
+    zone: npt.NDArray[np.bool_]
+    man: _Manoeuvres | None
+
+    def sailed(self) -> list[list[Sailed]]:
+        """Each row's :class:`Sailed`, ``out[j][i]``."""
+        out: list[list[Sailed]] = []
+        n_c, man = len(self.tracks), self.man
+        for j, problem in enumerate(self.problems):
+            out.append([])
+            for i, t in enumerate(self.tracks):
+                r, n = j * n_c + i, int(self.n_legs[i])
+                sailed = _sailed(t, self.elapsed[r, : n + 1], self.time_h[r, :n], self.p_f[r, :n], self.reason[r, :n],
+                                 self.land[r, :n], self.zone[r, :n], float(problem.apf))  # fmt: skip
+                out[j].append(sailed if man is None else replace(sailed, manoeuvres=man.track(r, n, sailed.elapsed_h)))
+        return out
+
+    def figures(self) -> MemberFigures:
+        """Each row's figures as :func:`sailed` gives them (a leg after one that cannot be sailed is not sailed)."""
+        n_m, n_c = len(self.problems), len(self.tracks)
+        n = np.tile(self.n_legs, n_m)
+        rows = np.arange(n.size)
+        point = np.arange(self.elapsed.shape[1])[None, :]
+        bad = (point <= n[:, None]) & ~np.isfinite(self.elapsed)
+        stop = np.where(bad.any(axis=1), np.argmax(bad, axis=1), n + 1)  # the first point not reached
+        time = np.where(stop <= n, np.inf, self.elapsed[rows, n])
+        sailed = (point[:, :-1] < stop[:, None]) & (point[:, :-1] < n[:, None])
+        apf = np.repeat([float(p.apf) for p in self.problems], n_c)
+        with np.errstate(invalid="ignore"):
+            over = (sailed & (self.p_f > apf[:, None])).any(axis=1)
+        known = sailed & np.isfinite(self.p_f)
+        top = np.where(known.any(axis=1), np.max(np.where(known, self.p_f, -np.inf), axis=1, initial=-np.inf), 0.0)
+        land = (sailed & self.land).any(axis=1)
+        stops = np.uint8(_STOPS["no_speed"] | _STOPS["current"] | _STOPS["weather"])
+        blocked = ~np.isfinite(time) | (sailed & ((self.reason & stops) != 0)).any(axis=1)
+        blocked |= land | (sailed & self.zone).any(axis=1)
+        return MemberFigures(*(x.reshape(n_m, n_c).T for x in (time, top, over, blocked, land)))
+
+
+def _sail_rows(
+    problems: Sequence[RoutingProblem],
+    tracks: Sequence[Track | npt.ArrayLike],
+    avoid: Any,
+    manoeuvres: bool | None,
+) -> _Sailing:
+    """:func:`sail_in_members` of one group of weathers, as rows."""
     tr = [as_track(t) for t in tracks]
     n_m, n_c = len(problems), len(tr)
     first = problems[0]
@@ -513,15 +610,7 @@ def sail_in_members(
     if avoid is not None and avoid.zones:
         _, zone = _obstacles(first, replace(avoid, land=False), lon, lat, elapsed, has)
     land = np.zeros(has.shape, dtype=bool) if land1 is None else np.tile(land1, (n_m, 1))
-    out: list[list[Sailed]] = []
-    for j in range(n_m):
-        out.append([])
-        for i, t in enumerate(tr):
-            r, n = j * n_c + i, int(n_legs[i])
-            sailed = _sailed(t, elapsed[r, : n + 1], time_h[r, :n], p_f[r, :n], reason[r, :n], land[r, :n],
-                             zone[r, :n], float(problems[j].apf))  # fmt: skip
-            out[j].append(sailed if man is None else replace(sailed, manoeuvres=man.track(r, n, sailed.elapsed_h)))
-    return out
+    return _Sailing(tr, problems, n_legs, elapsed, time_h, p_f, reason, land, zone, man)
 
 
 @dataclass
@@ -619,12 +708,11 @@ class _Legs:
         return cls(geometry, index)
 
     def at(self, rows: npt.NDArray[np.intp], k: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], ArcGeometry]:
-        """Which legs rows ``rows`` sail as their ``k``-th (row ``r`` is track ``r % tracks``), and their geometry
-        (with their ends' unit vectors)."""
+        """Which legs rows ``rows`` sail as their ``k``-th (row ``r`` is track ``r % tracks``), and their samples'
+        geometry (without the ends' unit vectors)."""
         i = self.index[rows % self.index.shape[0], k]
         g = self.geometry
-        assert g.a_xyz is not None and g.b_xyz is not None
-        return i, ArcGeometry(g.lon_deg[i], g.lat_deg[i], g.course_deg[i], g.seg_nm[i], g.a_xyz[i], g.b_xyz[i])
+        return i, ArcGeometry(g.lon_deg[i], g.lat_deg[i], g.course_deg[i], g.seg_nm[i])
 
 
 def _sail_legs(
@@ -650,10 +738,10 @@ def _sail_legs(
             continue
         rows = np.flatnonzero(go)
         t0 = elapsed[rows, k]
-        _, geom = legs.at(rows, k)
+        _, geom = legs.at(rows, k)  # samples only: pieces later
         weather = _rows_weather(problems, rows // n_c, stack)
         c = geometry_costs(
-            ArcGeometry(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm),  # samples only: pieces later
+            geom,
             t0,
             departure=first.departure,
             weather=weather,
