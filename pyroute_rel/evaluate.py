@@ -24,6 +24,7 @@ the craft sails each leg as fast as the weather lets it, without waiting.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
 import math
@@ -600,7 +601,8 @@ def _sail_rows(
             man.charge_tracks(has, time_h, elapsed)
     else:
         legs1 = _Legs.of(lon1, lat1, has1, first.samples)
-        stack = _member_stack(problems)
+        make_stack = _member_stack(problems)
+        stack = None if make_stack is None else make_stack(box=legs1.box())
         _sail_legs(problems, legs1, stack, has, elapsed, time_h, p_f, reason, man)
         _judge_legs(problems, legs1, stack, elapsed, time_h, p_f)
     land1 = None
@@ -707,6 +709,31 @@ class _Legs:
         geometry = arc_geometry(lon[:, :-1][has], lat[:, :-1][has], lon[:, 1:][has], lat[:, 1:][has], samples=samples)
         return cls(geometry, index)
 
+    def box(self) -> tuple[float, float, float, float] | None:
+        """``lon_min, lon_max, lat_min, lat_max`` [deg] holding every point of every leg (as
+        :func:`~pyroute_rel.cost.arc_geometry` and :mod:`~pyroute_rel.crossings` place them, longitudes in
+        [-180, 180]), or None when a leg crosses the antimeridian or comes within a degree of a pole. Longitude is
+        monotonic along a minor arc that does not pass a pole, and every point of an arc is within half its central
+        angle of an end."""
+        g = self.geometry
+        assert g.a_xyz is not None and g.b_xyz is not None
+        if not g.a_xyz.size:
+            return None
+        lon0, lon1 = (np.degrees(np.arctan2(v[:, 1], v[:, 0])) for v in (g.a_xyz, g.b_xyz))
+        lat0, lat1 = (np.degrees(np.arcsin(np.clip(v[:, 2], -1.0, 1.0))) for v in (g.a_xyz, g.b_xyz))
+        d = g.a_xyz - g.b_xyz
+        half = np.degrees(2.0 * np.arcsin(np.clip(np.sqrt(np.sum(d * d, axis=-1)) / 2.0, 0.0, 1.0))) / 2.0
+        lat_lo, lat_hi = float(np.min(np.minimum(lat0, lat1) - half)), float(np.max(np.maximum(lat0, lat1) + half))
+        if abs(lon1 - lon0).max() >= 180.0 or lat_lo < -89.0 or lat_hi > 89.0:
+            return None
+        pad = 1e-6  # rounding of the points placed along the arcs
+        return (
+            float(np.minimum(lon0, lon1).min()) - pad,
+            float(np.maximum(lon0, lon1).max()) + pad,
+            lat_lo - pad,
+            lat_hi + pad,
+        )
+
     def at(self, rows: npt.NDArray[np.intp], k: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], ArcGeometry]:
         """Which legs rows ``rows`` sail as their ``k``-th (row ``r`` is track ``r % tracks``), and their samples'
         geometry (without the ends' unit vectors)."""
@@ -779,13 +806,14 @@ def _member_groups(problems: Sequence[RoutingProblem]) -> list[Sequence[RoutingP
 
 
 def _member_stack(problems: Sequence[RoutingProblem]) -> Any:
-    """The problems' weathers stacked (:func:`~pyroute_rel.weather.gridded.stack_members`), or None (one problem,
-    weathers that are not gridded on one grid)."""
+    """How to stack the problems' weathers: :func:`~pyroute_rel.weather.gridded.stack_members` of them, called with
+    the ``box`` of the points to be sampled (it gives None when the weathers are not gridded on one grid); None with
+    one problem."""
     if len(problems) < 2:
         return None
     from .weather.gridded import stack_members
 
-    return stack_members(p.weather for p in problems)
+    return functools.partial(stack_members, [p.weather for p in problems])
 
 
 def _judge_legs(

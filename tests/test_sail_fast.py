@@ -222,3 +222,29 @@ def test_a_directions_variation_is_its_neighbours_largest_angles_or_none_past_90
     none = needs_pieces(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, np.zeros(()), np.ones(()),
                         weather=w, failure=model, departure=np.datetime64("2018-06-01T00:00", "s"))  # fmt: skip
     assert none is None
+
+
+def test_members_stacked_within_a_box_answer_as_stacked_whole_and_refuse_points_outside():
+    from pyroute_rel.errors import WeatherError
+    from pyroute_rel.weather.gridded import stack_members
+
+    rng = np.random.default_rng(11)
+    box = (-31.3, -17.0, 29.5, 40.2)  # grid lines every 2 deg (odd latitudes): cells [-32, -16] x [29, 41] stacked
+    lon = rng.uniform(box[0], box[1], (40, 3))
+    lat = rng.uniform(box[2], box[3], (40, 3))
+    lon[0, 0], lat[1, 1], lon[2, 2], lat[3, 0] = box[0], box[3], -18.0, 31.0  # on the box edges, on grid lines
+    member = np.sort(rng.integers(0, N_MEMBERS, 40))
+    off = rng.uniform(0.0, 230.0, (40, 3))  # past the data's 9 days too
+    whole, part = stack_members(MEMBERS), stack_members(MEMBERS, box=box)
+    assert whole is not None and part is not None
+    assert part.nbytes == whole.nbytes * (9 * 7) // (21 * 18)  # 9 of 21 longitudes, 7 of 18 latitudes
+    kw = dict(offset_h=off)
+    a = whole.sample_at(whole.prepare(lon, lat, member), np.datetime64("2018-06-01T00:00", "ns"), **kw)
+    b = part.sample_at(part.prepare(lon, lat, member), np.datetime64("2018-06-01T00:00", "ns"), **kw)
+    for name in ("tws_kn", "twd_deg", "hs_m", "wave_dir_deg", "wave_period_s"):
+        assert getattr(a, name).tobytes() == getattr(b, name).tobytes(), name
+    assert np.isnan(a.hs_m).any() and np.isfinite(a.hs_m).any()  # the islands and past the data's end, compared
+    with pytest.raises(WeatherError, match="points outside the stacked members' box"):
+        part.prepare(lon + 0.5, lat, member)
+    wide = stack_members(MEMBERS, box=(-45.0, -17.0, 29.5, 40.2))  # past the grid's longitudes: all of them kept
+    assert wide is not None and wide.nbytes == whole.nbytes * 7 // 18
