@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -62,7 +62,16 @@ from .times import hours_after
 from .units import KM_PER_NM
 from .weather.base import Boundaries, Conditions, WeatherSource
 
-__all__ = ["Boundaries", "NUDGE", "ArcExtremes", "arc_extremes", "needs_pieces", "split_fractions"]
+__all__ = [
+    "Boundaries",
+    "NUDGE",
+    "ArcExtremes",
+    "ArcPieces",
+    "arc_extremes",
+    "arc_pieces",
+    "needs_pieces",
+    "split_fractions",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -434,7 +443,7 @@ def needs_pieces(
         margin = np.maximum(margin, np.abs((course_deg[..., k] - c0 + 180.0) % 360.0 - 180.0) + 2.0 * turn)
     if bounds.continuous:
         variation = getattr(weather, "variation", None)
-        if variation is None:
+        if variation is None or _unbounded(weather, failure, variation):
             return None
         dt = np.zeros(()) if weather.steady else np.where(np.isfinite(time_h), time_h, 0.0)  # forbidden: no time
         span = (half_deg / math.cos(math.radians(big)), half_deg, dt)
@@ -458,6 +467,16 @@ def needs_pieces(
         for e in c.edges:
             near |= np.abs(q0 - e) <= margin
     return near
+
+
+def _unbounded(weather: WeatherSource, failure: FailureModel, variation: Any) -> bool:
+    """True when a criterion's field has no variation bound (:func:`needs_pieces` would find that after sampling
+    the weather; known before it when the weather has no current, which returns None first), the heading-dependent
+    ones asked first (a direction's bound is the one that tends to be missing, and says so fast)."""
+    if "current_u_ms" in getattr(weather, "fields", ("current_u_ms",)):
+        return False
+    names = sorted({QUANTITY_FIELDS[c.quantity] for c in failure.criteria}, key=lambda f: (not f[1], f[0]))
+    return any(variation(name) is None for name, _ in names)
 
 
 def _near_edges(
@@ -535,6 +554,76 @@ def _near_bin_edges(
     return near
 
 
+@dataclass(frozen=True)
+class ArcPieces:
+    """Arcs cut into pieces where conditions can change (:func:`arc_pieces`), and each piece's ends (nudged inside)
+    and middle: everything :func:`arc_extremes` needs that does not depend on the weather's values or the times, so
+    that arcs judged in many weathers on one grid (ensemble members) are cut once.
+
+    Attributes
+    ----------
+    a_xyz, u_xyz : Unit vector of each arc's start and unit tangent there towards its end, shape (n, 3).
+    omega : Central angle of each arc [rad] (n,).
+    arc, s0, s1 : Each piece's arc, start and end fraction along it (arc-major order).
+    lon_deg, lat_deg, course_deg : Position and course [deg] at the piece's ends (nudged inside by
+        :data:`NUDGE`) and middle, shape (pieces, 3).
+    continuous : Whether the fields are continuous (no patches): the quantities' parabolas are sampled too.
+    """
+
+    a_xyz: FloatArray
+    u_xyz: FloatArray
+    omega: FloatArray
+    arc: npt.NDArray[np.intp]
+    s0: FloatArray
+    s1: FloatArray
+    lon_deg: FloatArray
+    lat_deg: FloatArray
+    course_deg: FloatArray
+    continuous: bool
+
+    def take(self, arcs: npt.ArrayLike) -> ArcPieces:
+        """The pieces of arcs ``arcs`` (indices, in that order, repeats allowed), as if those arcs were cut alone."""
+        idx = np.asarray(arcs, dtype=np.intp).reshape(-1)
+        counts = np.bincount(self.arc, minlength=self.omega.size)
+        starts = np.cumsum(counts) - counts
+        c = counts[idx]
+        first = np.cumsum(c) - c
+        pick = np.repeat(starts[idx] - first, c) + np.arange(int(c.sum()), dtype=np.intp)
+        return ArcPieces(
+            a_xyz=self.a_xyz[idx],
+            u_xyz=self.u_xyz[idx],
+            omega=self.omega[idx],
+            arc=np.repeat(np.arange(idx.size, dtype=np.intp), c),
+            s0=self.s0[pick],
+            s1=self.s1[pick],
+            lon_deg=self.lon_deg[pick],
+            lat_deg=self.lat_deg[pick],
+            course_deg=self.course_deg[pick],
+            continuous=self.continuous,
+        )
+
+
+#: Fractions of a piece where :func:`arc_extremes` samples it: both ends nudged inside, and the middle.
+_FRACTIONS = np.array([NUDGE, 0.5, 1.0 - NUDGE])
+
+
+def arc_pieces(a_xyz: FloatArray, b_xyz: FloatArray, bounds: Boundaries | None) -> ArcPieces:
+    """Great-circle arcs cut where they cross ``bounds`` (a weather's :class:`Boundaries`; None: the equator only)
+    and the points at which :func:`arc_extremes` samples each piece first (see the module notes).
+
+    Parameters
+    ----------
+    a_xyz, b_xyz : Unit vectors of the arcs' ends, shape (n, 3).
+    bounds : Where conditions can change.
+    """
+    omega, u = _frame(a_xyz, b_xyz)
+    arc, s0, s1 = _pieces(_split_fractions(a_xyz, b_xyz, bounds, omega, u))
+    f = s0[:, None] + (s1 - s0)[:, None] * _FRACTIONS
+    lon, lat, course = _points(a_xyz, u, omega, arc, f)
+    continuous = bounds is None or bounds.continuous
+    return ArcPieces(a_xyz, u, omega, arc, s0, s1, lon, lat, course, continuous)
+
+
 def arc_extremes(
     a_xyz: FloatArray,
     b_xyz: FloatArray,
@@ -548,6 +637,7 @@ def arc_extremes(
     apf: float = 1.0,
     beyond: str = "clamp",
     speed_factor: Any = None,
+    pieces: ArcPieces | None = None,
 ) -> ArcExtremes:
     """The largest failure probability met anywhere along great-circle arcs (see the module notes).
 
@@ -559,27 +649,26 @@ def arc_extremes(
         ``t0_h + f * time_h`` (at ``t0_h`` where the time is not finite).
     departure, weather, polar, failure, apf, beyond : As for :func:`~pyroute_rel.cost.geometry_costs`.
     speed_factor : Wave speed loss factor as a function of Hs (for the crab heading in a current), or None.
+    pieces : The arcs' pieces (:func:`arc_pieces` with the weather's boundaries, e.g. cut once for many weathers
+        on one grid, then :meth:`ArcPieces.take`), or None: cut here. The numbers are the same either way. A
+        weather whose answers depend on the query's row (first axis), such as one answering each piece in its own
+        ensemble member, is queried with one row per piece, and gives ``take_rows(rows)``: the same weather for
+        queries whose rows are those pieces.
     """
     judge = _Judge(departure, weather, polar, failure, float(apf), beyond, speed_factor)
-    bounds = getattr(weather, "boundaries", None)
-    omega, u = _frame(a_xyz, b_xyz)
-    arc, s0, s1 = _pieces(_split_fractions(a_xyz, b_xyz, bounds, omega, u))
-    r = np.array([NUDGE, 0.5, 1.0 - NUDGE])
-    f = s0[:, None] + (s1 - s0)[:, None] * r
-    t = None if weather.steady else _times(t0_h, time_h, arc, f)
-    lon, lat, course = _points(a_xyz, u, omega, arc, f)
-    q = _quantities(judge, lon, lat, course, t)
-    continuous = bounds is None or bounds.continuous
-    if continuous:  # the extremum of each quantity's parabola through the three points
+    if pieces is None:
+        pieces = arc_pieces(a_xyz, b_xyz, getattr(weather, "boundaries", None))
+    arc, s0, s1 = pieces.arc, pieces.s0, pieces.s1
+    r = _FRACTIONS
+    t = None if weather.steady else _times(t0_h, time_h, arc, s0[:, None] + (s1 - s0)[:, None] * r)
+    q = _quantities(judge, pieces.lon_deg, pieces.lat_deg, pieces.course_deg, t)
+    if pieces.continuous:  # the extremum of each quantity's parabola through the three points
         rv = np.stack([_vertex(v, r) for v, _ in q.values()], axis=-1)
-        fv = s0[:, None] + (s1 - s0)[:, None] * rv
-        tv = None if weather.steady else _times(t0_h, time_h, arc, fv)
-        lon_v, lat_v, course_v = _points(a_xyz, u, omega, arc, fv)
-        qv = _quantities(judge, lon_v, lat_v, course_v, tv)
-        q = {k: (np.concatenate([v, qv[k][0]], axis=-1), rel) for k, (v, rel) in q.items()}
+        qv = _at_vertices(judge, pieces, t0_h, time_h, rv, q)
+        q = {k: (np.concatenate([v, qv[k]], axis=-1), rel) for k, (v, rel) in q.items()}
     ranges = {k: _ranges(v, rel) for k, (v, rel) in q.items()}
     best, bits = _box_max(failure, ranges, judge.apf)
-    n = omega.size
+    n = pieces.omega.size
     p_arc = np.zeros(n)
     bits_arc = np.zeros(n, dtype=np.uint32)
     if arc.size:
@@ -587,6 +676,37 @@ def arc_extremes(
         p_arc[arc[starts]] = np.maximum(np.maximum.reduceat(best, starts), 0.0)
         bits_arc[arc[starts]] = np.bitwise_or.reduceat(bits, starts)
     return ArcExtremes(p_f=p_arc, fired_bits=bits_arc, pieces=int(arc.size))
+
+
+def _at_vertices(
+    judge: _Judge,
+    pieces: ArcPieces,
+    t0_h: FloatArray,
+    time_h: FloatArray,
+    rv: FloatArray,
+    q: dict[str, tuple[FloatArray, bool]],
+) -> dict[str, FloatArray]:
+    """Every quantity at each quantity's vertex ``rv`` (pieces, quantities) [fraction of the piece]: sampled where
+    the vertex is a new point, copied from ``q`` (the quantities at :data:`_FRACTIONS`) where it is one of those
+    (a parabola's extremum clipped to an end, or the middle where it is flat): the same point, the same numbers."""
+    s0, s1, arc = pieces.s0[:, None], pieces.s1[:, None], pieces.arc
+    col = np.full(rv.shape, -1, dtype=np.intp)
+    for c, x in enumerate(_FRACTIONS):
+        col[rv == x] = c
+    new = col < 0
+    out = {k: np.take_along_axis(v, np.maximum(col, 0), axis=-1) for k, (v, _) in q.items()}
+    if new.any():
+        at = np.broadcast_to(arc[:, None], rv.shape)[new]
+        fv = (s0 + (s1 - s0) * rv)[new][:, None]
+        tv = None if judge.weather.steady else _times(t0_h, time_h, at, fv)
+        lon_v, lat_v, course_v = _points(pieces.a_xyz, pieces.u_xyz, pieces.omega, at, fv)
+        take_rows = getattr(judge.weather, "take_rows", None)  # a weather answering each piece from its own source
+        if take_rows is not None:
+            judge = replace(judge, weather=take_rows(np.broadcast_to(np.arange(rv.shape[0])[:, None], rv.shape)[new]))
+        qv = _quantities(judge, lon_v, lat_v, course_v, tv)
+        for k, v in out.items():
+            v[new] = qv[k][0][:, 0]
+    return out
 
 
 def _times(t0_h: FloatArray, time_h: FloatArray, arc: npt.NDArray[np.intp], f: FloatArray) -> FloatArray:

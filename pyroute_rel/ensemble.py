@@ -60,7 +60,7 @@ from .errors import (
     check_instance,
     check_path,
 )
-from .evaluate import evaluation_problem, sail_in_members
+from .evaluate import evaluation_problem, member_figures
 from .members import member_count, member_scenario
 from .progress import progress_bar
 from .scenario import Scenario
@@ -287,23 +287,20 @@ def _sail_in_members(
     land: bool,
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Every candidate sailed in each of some members' weather, all together
-    (:func:`~pyroute_rel.evaluate.sail_in_members`): (time [h], largest p_f, meets p_f > apf, feasible, touches
-    land), each of shape (candidates, members); land (the same in every member) is tested only when ``land``."""
+    (:func:`~pyroute_rel.evaluate.member_figures`, the figures of :func:`~pyroute_rel.evaluate.sail_in_members`):
+    (time [h], largest p_f, meets p_f > apf, feasible, touches land), each of shape (candidates, members); land (the
+    same in every member) is tested only when ``land``."""
     scs = [_scenario(path, m, files, options) for m in members]
     avoid = scs[0].avoid if land else replace(scs[0].avoid, land=False)
-    sailed = sail_in_members([evaluation_problem(sc) for sc in scs], tracks, avoid=avoid)
-
-    def column(fn: Any) -> Any:
-        return np.array([[fn(s) for s in per_member] for per_member in sailed]).T
-
-    over = column(_meets_p_f)
-    return (
-        column(lambda s: s.voyage_time_h),
-        column(lambda s: s.max_p_f),
-        over,
-        ~column(_stopped) & ~over,
-        column(lambda s: bool(s.land.any())),
-    )
+    # the members' scenarios differ in their weather only: one problem (its grid built once), each member's weather
+    # in it; a member whose weather lacks a field of the first's has its own (which refuses a missing field)
+    first = evaluation_problem(scs[0])
+    fields = scs[0].weather.fields
+    problems = [
+        replace(first, weather=sc.weather) if sc.weather.fields == fields else evaluation_problem(sc) for sc in scs
+    ]
+    fig = member_figures(problems, tracks, avoid=avoid)
+    return fig.voyage_time_h, fig.max_p_f, fig.over_apf, fig.feasible, fig.on_land
 
 
 #: Reason bits of a leg that cannot be sailed (:data:`pyroute_rel.evaluate.BLOCK_REASONS` ``no_speed``,

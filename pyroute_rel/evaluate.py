@@ -24,6 +24,7 @@ the craft sails each leg as fast as the weather lets it, without waiting.
 from __future__ import annotations
 
 import csv
+import functools
 import io
 import json
 import math
@@ -62,6 +63,8 @@ __all__ = [
     "evaluation_problem",
     "sail_tracks",
     "sail_in_members",
+    "member_figures",
+    "MemberFigures",
     "BLOCK_REASONS",
     "TRACK_MAX_BYTES",
 ]
@@ -463,11 +466,106 @@ def sail_in_members(
     used). The k-th legs of every track in every weather are costed in one call (the weather answers each row from
     its own source); then each weather's legs are judged on every piece they cross
     (:func:`~pyroute_rel.crossings.arc_extremes`) in one call, all legs at once: the times do not depend on it
-    (``apf = 1`` refuses no leg), only the legs' ``p_f``. ``manoeuvres``: as in :func:`sail_tracks`.
+    (``apf = 1`` refuses no leg), only the legs' ``p_f``. Each leg's geometry, and its pieces, are computed once for
+    every weather. ``manoeuvres``: as in :func:`sail_tracks`.
     """
-    groups = _member_groups(problems)
-    if len(groups) > 1:  # the members' stacked data would be too large at once
-        return [row for g in groups for row in sail_in_members(g, tracks, avoid=avoid, manoeuvres=manoeuvres)]
+    return [row for g in _member_groups(problems) for row in _sail_rows(g, tracks, avoid, manoeuvres).sailed()]
+
+
+@dataclass(frozen=True)
+class MemberFigures:
+    """The figures of every track sailed in every weather (:func:`member_figures`), shape (tracks, weathers).
+
+    Attributes
+    ----------
+    voyage_time_h : :attr:`Sailed.voyage_time_h` [h] (``inf`` where a leg cannot be sailed).
+    max_p_f : :attr:`Sailed.max_p_f` [-].
+    over_apf : Whether a leg sailed has ``p_f > apf`` (``"p_f"`` among its :meth:`Sailed.leg_reasons`).
+    blocked : Whether the track is blocked otherwise: a leg cannot be sailed, or one touches land or an active zone.
+    on_land : Whether a leg sailed touches land (or the coastal margin).
+    """
+
+    voyage_time_h: FloatArray
+    max_p_f: FloatArray
+    over_apf: npt.NDArray[np.bool_]
+    blocked: npt.NDArray[np.bool_]
+    on_land: npt.NDArray[np.bool_]
+
+    @property
+    def feasible(self) -> npt.NDArray[np.bool_]:
+        """:attr:`Sailed.feasible` of each track in each weather."""
+        return ~self.blocked & ~self.over_apf
+
+
+def member_figures(
+    problems: Sequence[RoutingProblem], tracks: Sequence[Track | npt.ArrayLike], *, avoid: Any = None
+) -> MemberFigures:
+    """The figures of :func:`sail_in_members` (``[[s for s in row] for row in sail_in_members(...)]``, transposed to
+    (tracks, weathers)) without building a :class:`Sailed` per track and weather: the same numbers, as arrays."""
+    parts = [_sail_rows(g, tracks, avoid, False).figures() for g in _member_groups(problems)]
+    return MemberFigures(
+        *(np.concatenate([getattr(p, f.name) for p in parts], axis=1) for f in dataclass_fields(MemberFigures))
+    )
+
+
+@dataclass(frozen=True)
+class _Sailing:
+    """Tracks sailed in weathers, one row per (weather ``j``, track ``i``): row ``j * len(tracks) + i``; arrays of
+    (rows, legs) (``elapsed``: (rows, legs + 1)), NaN-padded after each track's last leg."""
+
+    tracks: list[Track]
+    problems: Sequence[RoutingProblem]
+    n_legs: npt.NDArray[np.intp]
+    elapsed: FloatArray
+    time_h: FloatArray
+    p_f: FloatArray
+    reason: npt.NDArray[np.uint8]
+    land: npt.NDArray[np.bool_]
+    zone: npt.NDArray[np.bool_]
+    man: _Manoeuvres | None
+
+    def sailed(self) -> list[list[Sailed]]:
+        """Each row's :class:`Sailed`, ``out[j][i]``."""
+        out: list[list[Sailed]] = []
+        n_c, man = len(self.tracks), self.man
+        for j, problem in enumerate(self.problems):
+            out.append([])
+            for i, t in enumerate(self.tracks):
+                r, n = j * n_c + i, int(self.n_legs[i])
+                sailed = _sailed(t, self.elapsed[r, : n + 1], self.time_h[r, :n], self.p_f[r, :n], self.reason[r, :n],
+                                 self.land[r, :n], self.zone[r, :n], float(problem.apf))  # fmt: skip
+                out[j].append(sailed if man is None else replace(sailed, manoeuvres=man.track(r, n, sailed.elapsed_h)))
+        return out
+
+    def figures(self) -> MemberFigures:
+        """Each row's figures as :func:`sailed` gives them (a leg after one that cannot be sailed is not sailed)."""
+        n_m, n_c = len(self.problems), len(self.tracks)
+        n = np.tile(self.n_legs, n_m)
+        rows = np.arange(n.size)
+        point = np.arange(self.elapsed.shape[1])[None, :]
+        bad = (point <= n[:, None]) & ~np.isfinite(self.elapsed)
+        stop = np.where(bad.any(axis=1), np.argmax(bad, axis=1), n + 1)  # the first point not reached
+        time = np.where(stop <= n, np.inf, self.elapsed[rows, n])
+        sailed = (point[:, :-1] < stop[:, None]) & (point[:, :-1] < n[:, None])
+        apf = np.repeat([float(p.apf) for p in self.problems], n_c)
+        with np.errstate(invalid="ignore"):
+            over = (sailed & (self.p_f > apf[:, None])).any(axis=1)
+        known = sailed & np.isfinite(self.p_f)
+        top = np.where(known.any(axis=1), np.max(np.where(known, self.p_f, -np.inf), axis=1, initial=-np.inf), 0.0)
+        land = (sailed & self.land).any(axis=1)
+        stops = np.uint8(_STOPS["no_speed"] | _STOPS["current"] | _STOPS["weather"])
+        blocked = ~np.isfinite(time) | (sailed & ((self.reason & stops) != 0)).any(axis=1)
+        blocked |= land | (sailed & self.zone).any(axis=1)
+        return MemberFigures(*(x.reshape(n_m, n_c).T for x in (time, top, over, blocked, land)))
+
+
+def _sail_rows(
+    problems: Sequence[RoutingProblem],
+    tracks: Sequence[Track | npt.ArrayLike],
+    avoid: Any,
+    manoeuvres: bool | None,
+) -> _Sailing:
+    """:func:`sail_in_members` of one group of weathers, as rows."""
     tr = [as_track(t) for t in tracks]
     n_m, n_c = len(problems), len(tr)
     first = problems[0]
@@ -502,8 +600,11 @@ def sail_in_members(
         if man is not None:
             man.charge_tracks(has, time_h, elapsed)
     else:
-        _sail_legs(problems, n_c, lon, lat, has, elapsed, time_h, p_f, reason, man)
-        _judge_legs(problems, n_c, lon, lat, elapsed, time_h, p_f)
+        legs1 = _Legs.of(lon1, lat1, has1, first.samples)
+        make_stack = _member_stack(problems)
+        stack = None if make_stack is None else make_stack(box=legs1.box())
+        _sail_legs(problems, legs1, stack, has, elapsed, time_h, p_f, reason, man)
+        _judge_legs(problems, legs1, stack, elapsed, time_h, p_f)
     land1 = None
     if avoid is not None and avoid.land:  # the same in every weather
         land1, _ = _obstacles(first, replace(avoid, zones=()), lon1, lat1, elapsed[:n_c], has1)
@@ -511,15 +612,7 @@ def sail_in_members(
     if avoid is not None and avoid.zones:
         _, zone = _obstacles(first, replace(avoid, land=False), lon, lat, elapsed, has)
     land = np.zeros(has.shape, dtype=bool) if land1 is None else np.tile(land1, (n_m, 1))
-    out: list[list[Sailed]] = []
-    for j in range(n_m):
-        out.append([])
-        for i, t in enumerate(tr):
-            r, n = j * n_c + i, int(n_legs[i])
-            sailed = _sailed(t, elapsed[r, : n + 1], time_h[r, :n], p_f[r, :n], reason[r, :n], land[r, :n],
-                             zone[r, :n], float(problems[j].apf))  # fmt: skip
-            out[j].append(sailed if man is None else replace(sailed, manoeuvres=man.track(r, n, sailed.elapsed_h)))
-    return out
+    return _Sailing(tr, problems, n_legs, elapsed, time_h, p_f, reason, land, zone, man)
 
 
 @dataclass
@@ -599,11 +692,60 @@ def _sailed(
     return Sailed(t.lon_deg, t.lat_deg, e, costs, hit_land, hit_zone, apf)
 
 
+@dataclass(frozen=True)
+class _Legs:
+    """The tracks' legs and their :class:`~pyroute_rel.cost.ArcGeometry`, computed once for every weather they are
+    sailed in (it depends on the points only): leg ``k`` of track ``i`` is ``geometry`` row ``index[i, k]`` (-1: the
+    track has no such leg)."""
+
+    geometry: ArcGeometry
+    index: npt.NDArray[np.intp]
+
+    @classmethod
+    def of(cls, lon: FloatArray, lat: FloatArray, has: npt.NDArray[np.bool_], samples: int) -> _Legs:
+        """The legs of tracks whose points are the rows of ``lon``, ``lat`` [deg] (``has``: which legs exist)."""
+        index = np.full(has.shape, -1, dtype=np.intp)
+        index[has] = np.arange(int(has.sum()))
+        geometry = arc_geometry(lon[:, :-1][has], lat[:, :-1][has], lon[:, 1:][has], lat[:, 1:][has], samples=samples)
+        return cls(geometry, index)
+
+    def box(self) -> tuple[float, float, float, float] | None:
+        """``lon_min, lon_max, lat_min, lat_max`` [deg] holding every point of every leg (as
+        :func:`~pyroute_rel.cost.arc_geometry` and :mod:`~pyroute_rel.crossings` place them, longitudes in
+        [-180, 180]), or None when a leg crosses the antimeridian or comes within a degree of a pole. Longitude is
+        monotonic along a minor arc that does not pass a pole, and every point of an arc is within half its central
+        angle of an end."""
+        g = self.geometry
+        assert g.a_xyz is not None and g.b_xyz is not None
+        if not g.a_xyz.size:
+            return None
+        lon0, lon1 = (np.degrees(np.arctan2(v[:, 1], v[:, 0])) for v in (g.a_xyz, g.b_xyz))
+        lat0, lat1 = (np.degrees(np.arcsin(np.clip(v[:, 2], -1.0, 1.0))) for v in (g.a_xyz, g.b_xyz))
+        d = g.a_xyz - g.b_xyz
+        half = np.degrees(2.0 * np.arcsin(np.clip(np.sqrt(np.sum(d * d, axis=-1)) / 2.0, 0.0, 1.0))) / 2.0
+        lat_lo, lat_hi = float(np.min(np.minimum(lat0, lat1) - half)), float(np.max(np.maximum(lat0, lat1) + half))
+        if abs(lon1 - lon0).max() >= 180.0 or lat_lo < -89.0 or lat_hi > 89.0:
+            return None
+        pad = 1e-6  # rounding of the points placed along the arcs
+        return (
+            float(np.minimum(lon0, lon1).min()) - pad,
+            float(np.maximum(lon0, lon1).max()) + pad,
+            lat_lo - pad,
+            lat_hi + pad,
+        )
+
+    def at(self, rows: npt.NDArray[np.intp], k: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], ArcGeometry]:
+        """Which legs rows ``rows`` sail as their ``k``-th (row ``r`` is track ``r % tracks``), and their samples'
+        geometry (without the ends' unit vectors)."""
+        i = self.index[rows % self.index.shape[0], k]
+        g = self.geometry
+        return i, ArcGeometry(g.lon_deg[i], g.lat_deg[i], g.course_deg[i], g.seg_nm[i])
+
+
 def _sail_legs(
     problems: Sequence[RoutingProblem],
-    n_c: int,
-    lon: FloatArray,
-    lat: FloatArray,
+    legs: _Legs,
+    stack: Any,
     has: npt.NDArray[np.bool_],
     elapsed: FloatArray,
     time_h: FloatArray,
@@ -613,21 +755,23 @@ def _sail_legs(
 ) -> None:
     """Time-varying weather: the k-th legs of every row costed together (their samples' ``p_f``), leg after leg,
     filling the arrays in place; ``man``: each leg's side found at its departure and its manoeuvre charged. The
-    members' weathers are sampled together (:func:`~pyroute_rel.weather.gridded.stack_members`) where they can be."""
+    members' weathers are sampled together (``stack``, :func:`~pyroute_rel.weather.gridded.stack_members`) where
+    they can be."""
     first = problems[0]
-    stack = _member_stack(problems)
+    n_c = legs.index.shape[0]
     for k in range(has.shape[1]):
         go = has[:, k] & np.isfinite(elapsed[:, k])
         if not go.any():
             continue
         rows = np.flatnonzero(go)
         t0 = elapsed[rows, k]
-        geom = arc_geometry(lon[rows, k], lat[rows, k], lon[rows, k + 1], lat[rows, k + 1], samples=first.samples)
+        _, geom = legs.at(rows, k)  # samples only: pieces later
+        weather = _rows_weather(problems, rows // n_c, stack)
         c = geometry_costs(
-            ArcGeometry(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm),  # samples only: pieces later
+            geom,
             t0,
             departure=first.departure,
-            weather=_rows_weather(problems, rows // n_c, stack),
+            weather=weather,
             polar=first.polar,
             failure=first.failure,
             apf=1.0,
@@ -639,8 +783,7 @@ def _sail_legs(
         if man is None:
             elapsed[rows, k + 1] = first.arrive(t0 + c.time_h)
         else:
-            where = replace(first, weather=_rows_weather(problems, rows // n_c, stack))
-            wind = first_sample_wind(where, geom, t0)
+            wind = first_sample_wind(replace(first, weather=weather), geom, t0)
             man.side[rows, k], man.twa[rows, k], man.tws[rows, k] = wind
             pen = man.charge(rows, k)
             elapsed[rows, k + 1] = first.arrive(t0 + c.time_h if man.penalties is None else (t0 + c.time_h) + pen)
@@ -663,35 +806,38 @@ def _member_groups(problems: Sequence[RoutingProblem]) -> list[Sequence[RoutingP
 
 
 def _member_stack(problems: Sequence[RoutingProblem]) -> Any:
-    """The problems' weathers stacked (:func:`~pyroute_rel.weather.gridded.stack_members`), or None (one problem,
-    weathers that are not gridded on one grid)."""
+    """How to stack the problems' weathers: :func:`~pyroute_rel.weather.gridded.stack_members` of them, called with
+    the ``box`` of the points to be sampled (it gives None when the weathers are not gridded on one grid); None with
+    one problem."""
     if len(problems) < 2:
         return None
     from .weather.gridded import stack_members
 
-    return stack_members(p.weather for p in problems)
+    return functools.partial(stack_members, [p.weather for p in problems])
 
 
 def _judge_legs(
     problems: Sequence[RoutingProblem],
-    n_c: int,
-    lon: FloatArray,
-    lat: FloatArray,
+    legs: _Legs,
+    stack: Any,
     elapsed: FloatArray,
     time_h: FloatArray,
     p_f: FloatArray,
 ) -> None:
-    """Each weather's legs judged on every piece they cross, all at once, as the cost function judges an arc
+    """Each weather's legs judged on every piece they cross, as the cost function judges an arc
     (:func:`~pyroute_rel.cost.geometry_costs` with its end points): the legs sailed whose samples did not meet the
     table's largest ``p_f`` and that may need it (:func:`~pyroute_rel.crossings.needs_pieces`) get the largest
-    ``p_f`` met anywhere along them (in place)."""
+    ``p_f`` met anywhere along them (in place). With one weather, or the members' weathers on one grid (``stack``),
+    each leg is cut into pieces once and every weather's legs are judged in one call."""
     first = problems[0]
     model = first.failure
     if model is None:
         return
-    from .crossings import arc_extremes, needs_pieces
+    from .crossings import arc_extremes, arc_pieces, needs_pieces
 
+    n_c = legs.index.shape[0]
     top = float(np.max(model.p_flat))
+    picked = []
     for j, problem in enumerate(problems):
         rows = slice(j * n_c, (j + 1) * n_c)
         with np.errstate(invalid="ignore"):
@@ -700,28 +846,39 @@ def _judge_legs(
         if not r.size:
             continue
         r = r + j * n_c
-        t0, dt = elapsed[r, k], time_h[r, k]
-        geom = arc_geometry(lon[r, k], lat[r, k], lon[r, k + 1], lat[r, k + 1], samples=first.samples)
-        near = needs_pieces(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, t0, dt,
+        i, geom = legs.at(r, k)
+        near = needs_pieces(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, elapsed[r, k], time_h[r, k],
                             weather=problem.weather, failure=model, departure=first.departure)  # fmt: skip
-        pick = np.arange(r.size) if near is None else np.flatnonzero(near)
-        if not pick.size:
-            continue
-        assert geom.a_xyz is not None and geom.b_xyz is not None
+        pick = slice(None) if near is None else np.flatnonzero(near)
+        picked.append((j, r[pick], k[pick], i[pick]))
+    picked = [x for x in picked if x[1].size]
+    if not picked:
+        return
+    g = legs.geometry
+    assert g.a_xyz is not None and g.b_xyz is not None
+    if len(problems) == 1 or stack is not None:  # one call, each leg judged cut once
+        r, k, i = (np.concatenate([x[n] for x in picked]) for n in (1, 2, 3))
+        which, at = np.unique(i, return_inverse=True)
+        cut = arc_pieces(g.a_xyz[which], g.b_xyz[which], getattr(first.weather, "boundaries", None)).take(at)
+        calls = [(r, k, i, cut, _rows_weather(problems, (r // n_c)[cut.arc], stack))]
+    else:
+        calls = [(r, k, i, None, problems[j].weather) for j, r, k, i in picked]
+    for r, k, i, pieces, weather in calls:
         ext = arc_extremes(
-            geom.a_xyz[pick],
-            geom.b_xyz[pick],
-            t0[pick],
-            dt[pick],
+            g.a_xyz[i],
+            g.b_xyz[i],
+            elapsed[r, k],
+            time_h[r, k],
             departure=first.departure,
-            weather=problem.weather,
+            weather=weather,
             polar=first.polar,
             failure=model,
             apf=1.0,
             beyond=first.beyond,
             speed_factor=None if first.wave_loss is None else first.wave_loss.factor,
+            pieces=pieces,
         )
-        p_f[r[pick], k[pick]] = np.maximum(p_f[r[pick], k[pick]], ext.p_f)
+        p_f[r, k] = np.maximum(p_f[r, k], ext.p_f)
 
 
 def _rows_weather(problems: Sequence[RoutingProblem], member: npt.NDArray[np.intp], stack: Any = None) -> Any:
@@ -746,6 +903,14 @@ class _MemberRows:
         self.fields = frozenset(sources[0].fields)
         self.max_current_ms = max(float(s.max_current_ms) for s in sources)
         self.stack = stack
+
+    def take_rows(self, rows: npt.NDArray[np.intp]) -> _MemberRows:
+        """The same weather for queries whose rows are rows ``rows`` (sorted) of this one's."""
+        owner = np.repeat(np.arange(len(self.parts)), [b - a for _, a, b in self.parts])[rows]
+        sources = [s for s, _, _ in self.parts]
+        cuts = np.searchsorted(owner, np.arange(len(sources) + 1))
+        stack = None if self.stack is None else (self.stack[0], self.stack[1][rows])
+        return _MemberRows(sources, cuts, stack)
 
     def prepare(self, lon_deg: Any, lat_deg: Any) -> Any:
         lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))

@@ -653,13 +653,15 @@ class MemberStack:
     """Gridded weathers on one grid (the members of an ensemble file) laid end to end, so that one query samples
     them all: row ``r`` (first axis) of a query is answered by ``sources[member[r]]``, with the numbers that source's
     own :meth:`GriddedWeather.sample_at` gives (the same compiled kernel, each point's cell index moved to its
-    member's data). Built by :func:`stack_members`; it holds a copy of the sources' data (:attr:`nbytes`).
+    member's data). Built by :func:`stack_members`; it holds a copy of the sources' data (:attr:`nbytes`), or of the
+    part of it within ``box`` (``lon_min, lon_max, lat_min, lat_max`` [deg]: the cells of every point that may be
+    queried; a point outside it is refused).
 
     Used to sail many tracks in many members at once (:func:`pyroute_rel.evaluate.sail_in_members`): one call per
     leg instead of one per member.
     """
 
-    def __init__(self, sources: list[GriddedWeather]) -> None:
+    def __init__(self, sources: list[GriddedWeather], box: tuple[float, float, float, float] | None = None) -> None:
         first = sources[0]
         joined = object.__new__(GriddedWeather)  # the first source's grids, over every source's data
         joined._info = dict(first._info)
@@ -667,13 +669,24 @@ class MemberStack:
         joined._variations = {}
         joined._blocks = []
         self._sizes = []
+        self._box = box
         for k, block in enumerate(first._blocks):
+            x = y = slice(None)
+            if box is not None:  # longitudes only when the box is within the grid's (no point moved by 360 deg)
+                y = _crop(block.lat, box[2:])
+                x = _crop(block.lon, box[:2]) if block.lon[0] <= box[0] and box[1] <= block.lon[-1] else x
             b = object.__new__(_Block)
-            b.__dict__.update(block.__dict__)
-            b.flat = np.concatenate([s._blocks[k].flat for s in sources])
+            b.__dict__.update(block.__dict__)  # lon_mid kept: points are moved across 360 deg as the source moves them
+            b.lon, b.lat = block.lon[x], block.lat[y]
+            shape = (b.lat.size, b.lon.size, *block.data.shape[2:])
+            b.strides = (shape[3], shape[1] * shape[2] * shape[3], shape[2] * shape[3])
+            size = int(np.prod(shape))
+            b.flat = np.empty(size * len(sources), dtype=block.data.dtype)
+            for m, src in enumerate(sources):
+                b.flat[m * size : (m + 1) * size].reshape(shape)[...] = src._blocks[k].data[y, x]
             b.data = None  # sampling reads ``flat`` only
             joined._blocks.append(b)
-            self._sizes.append(block.flat.size)
+            self._sizes.append(size)
         self._joined = joined
         self.n_members = len(sources)
 
@@ -686,6 +699,11 @@ class MemberStack:
         """Locate points (as :meth:`GriddedWeather.prepare`) whose rows (first axis) are in members ``member``
         (one index per row), for :meth:`sample_at`."""
         p = self._joined.prepare(lon_deg, lat_deg)
+        if self._box is not None:  # cells outside it were not stacked
+            x, y = p.lon[np.isfinite(p.lon)], p.lat[np.isfinite(p.lat)]
+            lon_min, lon_max, lat_min, lat_max = self._box
+            if x.size and not (lon_min <= x.min() and x.max() <= lon_max and lat_min <= y.min() and y.max() <= lat_max):
+                raise WeatherError(f"points outside the stacked members' box {list(self._box)} [deg] (lon, lat)")
         rows = np.asarray(member, dtype=np.intp)
         if rows.shape != p.shape[:1] or (rows.size and not 0 <= rows.min() <= rows.max() < self.n_members):
             raise WeatherError(
@@ -711,9 +729,20 @@ class MemberStack:
         return self._joined.sample_at(prepared, departure, offset_h=offset_h, fields=fields)
 
 
-def stack_members(sources: Iterable[Any]) -> MemberStack | None:
+def _crop(axis: FloatArray, span: tuple[float, float]) -> slice:
+    """The grid lines of ``axis`` (increasing) whose cells hold every point of ``span`` [deg] (clipped to the axis)."""
+    i0 = max(int(np.searchsorted(axis, span[0], side="right")) - 1, 0)
+    i1 = min(int(np.searchsorted(axis, span[1], side="left")), axis.size - 1)
+    return slice(i0, max(i1, i0) + 1)
+
+
+def stack_members(
+    sources: Iterable[Any], *, box: tuple[float, float, float, float] | None = None
+) -> MemberStack | None:
     """A :class:`MemberStack` of weather sources, or None unless they are all :class:`GriddedWeather` with the same
-    fields on the same grids and times (as the members of one file are)."""
+    fields on the same grids and times (as the members of one file are). ``box``: ``lon_min, lon_max, lat_min,
+    lat_max`` [deg] holding every point to be sampled (within the grids' longitudes, as they are given: not moved
+    across 360 deg), to stack the cells there only (None: all)."""
     sources = list(sources)
     if not sources or not all(type(s) is GriddedWeather for s in sources):
         return None
@@ -733,7 +762,7 @@ def stack_members(sources: Iterable[Any]) -> MemberStack | None:
             )
             if not same:
                 return None
-    return MemberStack(sources)
+    return MemberStack(sources, box)
 
 
 def _pair(value: Any, name: str) -> tuple[float, float]:
@@ -858,24 +887,27 @@ def _variation(blocks: list[_Block], field: str) -> Variation | None:
     steps = [float(np.min(np.diff(block.lon))), float(np.min(np.diff(block.lat)))]
     steps.append(float(np.min(np.diff(block.time_s))) / 3600.0 if block.time_s.size > 1 else np.inf)
     # largest neighbour statistic along each axis of the data (lat, lon, time): axes 1, 0, 2
-    worst = [_neighbour_max(block.data, cols, axis, kind) for axis in (1, 0, 2)]
-    if kind == "angle":
-        spread = float(sum(worst))
-        if not spread < 90.0:
-            return None
+    if kind == "angle":  # the angles' sum, axis by axis: no bound once it reaches 90 deg (the rest only add)
+        spread = 0.0
+        for axis in (1, 0, 2):
+            spread += _neighbour_max(block.data, cols, axis, kind)
+            if not spread < 90.0:
+                return None
         return Variation(spread / steps[0], spread / steps[1], spread / steps[2], fixed=4.0 * spread)
+    worst = [_neighbour_max(block.data, cols, axis, kind) for axis in (1, 0, 2)]
     scale = KN_PER_MS if kind == "length" else 1.0
     return Variation(*(scale * w / s for w, s in zip(worst, steps, strict=True)))
 
 
 def _neighbour_max(data: npt.NDArray[np.float32], cols: list[int], axis: int, kind: str) -> float:
     """Largest difference (sum over the columns, or angle between the vectors [deg]) between neighbours along
-    ``axis`` of ``data`` (lat, lon, time, column); NaN ignored. One compiled pass over the data."""
+    ``axis`` of ``data`` (lat, lon, time, column); NaN ignored. One compiled pass over the data (an angle: cut
+    short at the first one over 90 deg, which is then returned instead of the largest)."""
     if data.shape[axis] < 2:
         return 0.0
     c0, c1 = cols[0], cols[-1]
     if kind == "angle":
-        worst_cos = _neighbour_min_cos(data, c0, c1, axis)
+        worst_cos = _neighbour_min_cos(data, c0, c1, axis, 0.0)
         return float(np.degrees(np.arccos(min(1.0, max(-1.0, worst_cos)))))
     return float(_neighbour_max_diff(data, c0, c1 if len(cols) > 1 else -1, axis))
 
@@ -898,9 +930,9 @@ def _neighbour_max_diff(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # 
 
 
 @numba.njit(nogil=True, cache=True)
-def _neighbour_min_cos(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _neighbour_min_cos(data, c0, c1, axis, stop):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Smallest cosine of the angle between the vectors (column c0, column c1) of neighbours along ``axis`` (-1
-    where one is zero)."""
+    where one is zero), or the first one found below ``stop``."""
     ny, nx, nt, _ = data.shape
     dj, di, dt = (1, 0, 0) if axis == 0 else ((0, 1, 0) if axis == 1 else (0, 0, 1))
     worst = 1.0
@@ -917,4 +949,6 @@ def _neighbour_min_cos(data, c0, c1, axis):  # type: ignore[no-untyped-def]  # p
                 c = (ax * bx + ay * by) / norm if norm > 0.0 else -1.0
                 if c < worst:
                     worst = c
+                    if c < stop:
+                        return worst
     return worst
