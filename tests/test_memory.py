@@ -163,10 +163,10 @@ import contextlib, io, json, sys, time
 import pyroute_rel.scenario, pyroute_rel.failure
 from pyroute_rel.cli.main import main
 err = io.StringIO()
-t0 = time.perf_counter()
+t0 = time.process_time()  # processor time: a guard on the work done, not on how busy the machine is
 with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
     rc = main(sys.argv[1:])
-_REPORT = json.dumps({"rc": rc, "s": time.perf_counter() - t0, "err": err.getvalue()})
+_REPORT = json.dumps({"rc": rc, "s": time.process_time() - t0, "err": err.getvalue()})
 """
 
 
@@ -258,7 +258,8 @@ def _mkdir(p: Path) -> Path:
 
 
 def test_refusals_are_quick_and_small(tmp_path: Path) -> None:
-    """Each refused case exits 2 with one line within 1 s and 200 MB (a guard, not a speed target)."""
+    """Each refused case exits 2 with one line within 1 s of processor time and 200 MB (a guard that nothing heavy
+    ran before the refusal, not a speed target)."""
     base = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_CACHE_DIR": str(tmp_path / "cache")}
     base.pop(memory.ENV, None)
     for name, (args, env, pattern) in _refused_cases(tmp_path).items():
@@ -309,8 +310,8 @@ def test_estimate_within_2x_of_measured_peak(options: dict[str, Any], monkeypatc
 def test_huge_failure_table_is_refused_before_compiling(tmp_path: Path) -> None:
     """24 criteria pass the count, but their table has 3^24 = 2.8e11 entries: refused once the network's states are
     known, before the joint is queried. Reading any network imports pgmpy and builds its BIF grammar (about 2 s and
-    350 MB on this machine, the same for a one-criterion model), so the guard here is that refusing costs no more
-    than loading the one-criterion model of the same form."""
+    350 MB on this machine, the same for a one-criterion model), so the guard here is that refusing costs about what
+    loading the one-criterion model of the same form costs (processor time), far from compiling the table."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_CACHE_DIR": str(tmp_path / "cache"), memory.ENV: "16G"}
     one, one_peak = _run_child(["failure", str(_failure_model(_mkdir(tmp_path / "m1"), 1)), "--json"], env)
     assert one["rc"] == 0, one  # compiled: the cache folder was empty
@@ -322,7 +323,9 @@ def test_huge_failure_table_is_refused_before_compiling(tmp_path: Path) -> None:
         r"criteria or fewer states per criterion, or raise PYROUTE_REL_MAX_MEMORY / --max-memory\n",
         report["err"],
     ), report["err"]
-    assert report["s"] < one["s"] + 1.0, (report["s"], one["s"])
+    # processor time: parsing 24 criteria's BIF costs more than one's (seen up to 1.4x under load); compiling the
+    # 2.8e11-entry table would take hours, so twice the one-criterion load still tells the two apart
+    assert report["s"] < 2.0 * one["s"] + 1.0, (report["s"], one["s"])
     assert peak < one_peak + 50 * 1024**2, (peak / 2**20, one_peak / 2**20)
 
 
