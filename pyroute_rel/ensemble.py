@@ -50,7 +50,6 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .cost import REASONS
 from .errors import (
     NoFeasibleRouteError,
     ScenarioError,
@@ -301,28 +300,6 @@ def _sail_in_members(
     ]
     fig = member_figures(problems, tracks, avoid=avoid)
     return fig.voyage_time_h, fig.max_p_f, fig.over_apf, fig.feasible, fig.on_land
-
-
-#: Reason bits of a leg that cannot be sailed (:data:`pyroute_rel.evaluate.BLOCK_REASONS` ``no_speed``,
-#: ``current``, ``weather``).
-_STOP_BITS = np.uint8(REASONS["polar"] | REASONS["current"] | REASONS["weather"])
-
-
-def _meets_p_f(s: Any) -> bool:
-    """Whether a sailed track meets ``p_f > apf`` on a leg it sails (``"p_f"`` in its ``leg_reasons``)."""
-    with np.errstate(invalid="ignore"):
-        return bool(np.any(s.costs.p_f > s.apf))
-
-
-def _stopped(s: Any) -> bool:
-    """Whether a sailed track is blocked other than by ``p_f`` (a leg that cannot be sailed, land or a zone): with
-    :func:`_meets_p_f`, ``not Sailed.feasible``, without building its ``leg_reasons``."""
-    return (
-        not math.isfinite(s.voyage_time_h)
-        or bool(np.any(s.costs.reason & _STOP_BITS))
-        or bool(s.land.any())
-        or bool(s.zone.any())
-    )
 
 
 def _worker_init() -> None:

@@ -259,10 +259,12 @@ def test_ensemble_spread_is_zero_for_identical_members_and_positive_otherwise(tm
 
 @pytest.mark.slow
 def test_sailed_flags_equal_the_leg_reasons(ensemble):
-    """The ensemble's p_f and feasibility flags of a sailed track equal ``Sailed.leg_reasons`` / ``feasible``, on
-    tracks that meet p_f > apf, cross land and leave the weather."""
-    from pyroute_rel.ensemble import _meets_p_f, _stopped
-    from pyroute_rel.evaluate import evaluation_problem, sail_in_members
+    """The ensemble's p_f and feasibility flags of a sailed track (:func:`~pyroute_rel.evaluate.member_figures`, as
+    the ensemble's sailing phase gets them) equal ``Sailed.leg_reasons`` / ``feasible``, on tracks that meet
+    p_f > apf, cross land and leave the weather."""
+    from dataclasses import replace
+
+    from pyroute_rel.evaluate import evaluation_problem, member_figures, sail_in_members
     from pyroute_rel.members import member_scenario
 
     path, res = ensemble
@@ -272,17 +274,18 @@ def test_sailed_flags_equal_the_leg_reasons(ensemble):
         np.array([[-14.0, 31.0], [-9.0, 31.5], [-6.0, 32.0]]),  # into Morocco
         np.array([[-5.0, 40.0], [-2.0, 45.0], [3.0, 46.0]]),  # through Spain, off the file's east edge (0 E)
     ]
-    avoid = scs[0].avoid
-    from dataclasses import replace
-
-    sailed = sail_in_members([evaluation_problem(sc) for sc in scs], tracks, avoid=replace(avoid, land=True))
+    avoid = replace(scs[0].avoid, land=True)
+    problems = [evaluation_problem(sc) for sc in scs]
+    sailed = sail_in_members(problems, tracks, avoid=avoid)
+    fig = member_figures(problems, tracks, avoid=avoid)
     seen = {"p_f": 0, "land": 0, "stop": 0, "ok": 0}
-    for per_member in sailed:
-        for s in per_member:
+    for j, per_member in enumerate(sailed):
+        for i, s in enumerate(per_member):
             reasons = s.leg_reasons()
             over = any("p_f" in r for r in reasons)
-            assert _meets_p_f(s) == over
-            assert (not _stopped(s) and not _meets_p_f(s)) == s.feasible
+            assert bool(fig.over_apf[i, j]) == over
+            assert bool(fig.feasible[i, j]) == s.feasible
+            assert bool(fig.on_land[i, j]) == bool(s.land.any())
             seen["p_f"] += over
             seen["land"] += any("land" in r for r in reasons)
             seen["stop"] += not np.isfinite(s.voyage_time_h)
