@@ -200,6 +200,7 @@ class PreparedPoints:
     lat: FloatArray
     where: tuple[_Where, ...]
     owner: int  # id of the GriddedWeather that located them
+    grid: tuple[Any, ...] = ()  # its grids (GriddedWeather.grid_key): sources with an equal key may reuse them
 
 
 def _locate(axis: FloatArray, x: FloatArray, stride: int) -> tuple[IntArray, FloatArray, IntArray, Any]:
@@ -516,8 +517,33 @@ class GriddedWeather:
         shape = np.broadcast_shapes(lon.shape, lat.shape)
         lon_f, lat_f = (np.broadcast_to(a, shape).ravel() for a in (lon, lat))
         return PreparedPoints(
-            shape=shape, lon=lon_f, lat=lat_f, owner=id(self), where=tuple(b.locate(lon_f, lat_f) for b in self._blocks)
+            shape=shape,
+            lon=lon_f,
+            lat=lat_f,
+            owner=id(self),
+            where=tuple(b.locate(lon_f, lat_f) for b in self._blocks),
+            grid=self.grid_key,
         )
+
+    @functools.cached_property
+    def grid_key(self) -> tuple[Any, ...]:
+        """What points located by :meth:`prepare` depend on: per block of fields sharing a grid, its longitudes and
+        latitudes (as bytes), its memory layout (the index steps along time, latitude and longitude) and its size.
+        Two sources with equal keys locate every point alike (members of one file, a file and its ensemble mean)."""
+        return tuple((b.lon.tobytes(), b.lat.tobytes(), b.strides, b.flat.size) for b in self._blocks)
+
+    def reuse(self, prepared: PreparedPoints) -> PreparedPoints | None:
+        """Points another source's :meth:`prepare` located, for this source's :meth:`sample_at`: the same points
+        (nothing is located again) when that source's :attr:`grid_key` equals this one's, else None.
+
+        The cost kernel keeps the points of each arc geometry it costs and reuses them in every source on the same
+        grid (:func:`pyroute_rel.cost.geometry_costs`): locating them is a tenth of a route over time-varying
+        gridded weather.
+        """
+        key = self.grid_key
+        if not (prepared.grid is key or prepared.grid == key):  # (an owner's id alone may be a dead source's)
+            return None
+        return prepared if prepared.owner == id(self) else replace(prepared, owner=id(self))
 
     def sample_at(
         self,
