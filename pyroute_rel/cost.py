@@ -506,19 +506,23 @@ def _geometry_costs(
         return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
     if steady:
         dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
+        costs = _arc_totals(dt, p_f, reason, fired)
     else:
         # time-varying weather samples the same points at two sets of times: the source prepares them once; pass 1
         # times the sub-segments at the departure time (speeds only: the failure model decides nothing here),
         # pass 2 samples each at the time the craft gets there
         prepared = _located(geom, weather)
         t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (geom.samples,))
-        dt = _sample_and_cost(geom, options, prepared, t_samples, timing=True)[0]
-        elapsed = 0.5 * dt
-        for s in range(1, geom.samples):
-            elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
-        elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
-        dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
-    costs = _arc_totals(dt, p_f, reason, fired)
+        if COMPILED_GLUE and _wind_only(options):
+            costs, cond = _wind_passes(geom, t_samples, options, prepared)
+        else:
+            dt = _sample_and_cost(geom, options, prepared, t_samples, timing=True)[0]
+            elapsed = 0.5 * dt
+            for s in range(1, geom.samples):
+                elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
+            elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
+            dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
+            costs = _arc_totals(dt, p_f, reason, fired)
     if options.failure is None or geom.a_xyz is None or geom.b_xyz is None:
         return costs, None
     t0 = np.asarray(t0_h, dtype=float)
@@ -736,6 +740,55 @@ def _sample_and_cost(
         ),
         cond,
     )
+
+
+#: Time-varying weather with wind only (no current, no wave speed loss) is costed with the compiled bookkeeping of
+#: :mod:`pyroute_rel.cost_compiled` between the sampling calls (:func:`_wind_passes`; False: the numpy path, for
+#: comparisons). The numbers are the same.
+COMPILED_GLUE = True
+
+
+def _wind_only(options: _CostOptions) -> bool:
+    """True where the speed comes from the wind alone: no wave speed loss, no current in the weather (the case
+    :func:`pyroute_rel.cost_compiled.sail_wind` covers)."""
+    return options.wave_loss is None and not {"current_u_ms", "current_v_ms"} & options.weather.fields
+
+
+def _wind_passes(
+    geom: ArcGeometry, t_samples: FloatArray, options: _CostOptions, prepared: object
+) -> tuple[ArcCosts, Conditions]:
+    """The two passes of :func:`_geometry_costs` over time-varying weather with wind only (:func:`_wind_only`): the
+    per-arc costs and the weather at the samples of the second pass. The sources sample, the polar and the failure
+    model's evidence are the numpy path's calls; the elapsed times and the per-sample and per-arc bookkeeping are
+    compiled (:func:`~pyroute_rel.cost_compiled.arrival_offsets`, :func:`~pyroute_rel.cost_compiled.judge_samples`),
+    with the same arithmetic: the same numbers as :func:`_sample_and_cost` and :func:`_arc_totals`."""
+    from .cost_compiled import arrival_offsets, judge_samples, sail_wind
+
+    o, weather, model = options, options.weather, options.failure
+    course, seg = geom.course_deg, geom.seg_nm
+    cond = weather.sample_at(prepared, o.departure, offset_h=_finite(t_samples), fields=("tws_kn", "twd_deg"))
+    dt = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[2]
+    arrive = arrival_offsets(dt, t_samples[..., 0])
+    wanted: tuple[str, ...] = _TIMING_FIELDS
+    if model is not None:
+        wanted += tuple(sorted(model.weather_fields - set(wanted)))
+    cond = weather.sample_at(prepared, o.departure, offset_h=arrive, fields=wanted)
+    twa, v, _ = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)
+    evidence = None
+    if model is not None:
+        q: dict[str, Any] = arc_quantities(cond, course, model.quantities - {"twa_deg"})
+        if "twa_deg" in model.quantities:
+            q["twa_deg"] = twa
+        flat, unknown = model.evidence_index(q)
+        evidence = (flat, unknown, model.p_flat, model.p_flat > o.apf, model.fired_bits_flat)
+    flags = (REASONS["polar"], REASONS["weather"], REASONS["failure"])
+    time_h, p_f, reason, fired = judge_samples(cond.tws_kn, cond.twd_deg, v, seg, evidence, flags)
+    return ArcCosts(time_h=time_h, p_f=p_f, reason=reason, fired_bits=fired), cond
+
+
+def _finite(time_h: FloatArray) -> FloatArray:
+    """Times [h] with 0 where not finite (how the cost kernel samples a time it could not compute)."""
+    return np.where(np.isfinite(time_h), time_h, 0.0)
 
 
 def _arc_totals(

@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import pyroute_rel.cost as cost_module
-from pyroute_rel.cost import arc_geometry, deferred_costs, geometry_costs
+from pyroute_rel.cost import REASONS, arc_geometry, deferred_costs, geometry_costs
 from pyroute_rel.failure import load_failure_model
 from pyroute_rel.grid import make_grid
 from pyroute_rel.polar import get_polar
@@ -232,3 +232,97 @@ def test_costs_reusing_points_equal_costs_locating_them(seed: int, samples: int,
             mp.setattr(cost_module, "LOCATE_CACHE", False)
             want = geometry_costs(geom, t0, departure=DEP, weather=w, polar=POLAR, failure=MODEL, apf=apf)
         assert_same_costs(got, want)
+
+
+# --- the compiled bookkeeping between the sampling calls (cost.COMPILED_GLUE) -------------------------------------
+
+
+def numpy_path(geom, t0, **kw):  # type: ignore[no-untyped-def]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(cost_module, "COMPILED_GLUE", False)
+        return geometry_costs(geom, t0, **kw)
+
+
+def assert_same_fired(a, b) -> None:  # type: ignore[no-untyped-def]
+    assert (a.fired_bits is None) == (b.fired_bits is None)
+    if a.fired_bits is not None:
+        assert a.fired_bits.dtype == b.fired_bits.dtype
+        np.testing.assert_array_equal(a.fired_bits, b.fired_bits)
+
+
+@st.composite
+def nan_weather(draw: st.DrawFn) -> GriddedWeather:
+    """Wind and waves (and a period) with NaN islands and calm spots; Hs about the 4 m criterion."""
+    seed = draw(st.integers(0, 2**31))
+    rng = np.random.default_rng(seed)
+    lon, lat = np.arange(-26.0, -6.9, 1.0), np.arange(35.0, 49.01, 1.0)
+    time = DEP.astype("datetime64[ns]") + np.arange(33) * np.timedelta64(6, "h")
+    shape = (time.size, lat.size, lon.size)
+    values = {
+        "wind_u_ms": rng.uniform(-12.0, 12.0, shape) * (rng.random(shape) > 0.05),  # some calm
+        "wind_v_ms": rng.uniform(-12.0, 12.0, shape),
+        "hs_m": np.clip(rng.normal(4.0, 1.5, shape), 0.0, None),
+        "wave_dir_deg": rng.uniform(0.0, 360.0, shape),
+        "wave_period_s": rng.uniform(3.0, 14.0, shape),
+    }
+    for name in draw(st.sets(st.sampled_from(sorted(values)), max_size=3)):
+        v = values[name]
+        v[rng.random(shape) < 0.03] = np.nan
+    return GriddedWeather(
+        [WeatherField(k, v.astype(np.float32), lon, lat, time, source="t", variable=k) for k, v in values.items()]
+    )
+
+
+@settings(max_examples=25, derandomize=True, deadline=None, database=None)
+@given(
+    nan_weather(),
+    st.integers(0, 2**31),
+    st.integers(1, 4),
+    st.sampled_from([None, "dickson2018", "wind_wave_multistate"]),
+    st.sampled_from([0.0, 0.2, 0.5, 0.95, 1.0]),
+    st.sampled_from(["clamp", "forbid"]),
+)
+def test_compiled_bookkeeping_equals_the_numpy_path(
+    w: GriddedWeather, seed: int, samples: int, model: str | None, apf: float, beyond: str
+) -> None:
+    geom, t0 = arcs(seed, shape=(6, 5), samples=samples)
+    t0 = t0 * 2.0 + 150.0 * (np.arange(6) == 0)[:, None]  # a row leaving after the last time: NaN weather
+    kw = dict(
+        departure=DEP,
+        weather=w,
+        polar=POLAR,
+        failure=None if model is None else load_failure_model(model),
+        apf=apf,
+        beyond=beyond,
+    )
+    for exact in (True, False):
+        got = geometry_costs(geom, t0, exact_p_f=exact, **kw)
+        want = numpy_path(geom, t0, exact_p_f=exact, **kw)
+        assert_same_costs(got, want)
+        assert_same_fired(got, want)
+
+
+def test_compiled_bookkeeping_covers_every_flag() -> None:
+    """The property test's cases reach every reason, NaN p_f and criteria fired (else it could pass vacuously)."""
+    rng = np.random.default_rng(7)
+    lon, lat = np.arange(-26.0, -6.9, 1.0), np.arange(35.0, 49.01, 1.0)
+    time = DEP.astype("datetime64[ns]") + np.arange(33) * np.timedelta64(6, "h")
+    shape = (time.size, lat.size, lon.size)
+    hs = np.clip(rng.normal(3.0, 1.5, shape), 0.0, None)
+    hs[rng.random(shape) < 0.005] = np.nan
+    u = rng.uniform(-12.0, 12.0, shape) * (rng.random(shape) > 0.01)
+    v = rng.uniform(-12.0, 12.0, shape) * (u != 0.0)
+    u[:, 5:9, 6:10] = v[:, 5:9, 6:10] = 0.0  # a calm box: no speed
+    fields = {"wind_u_ms": u, "wind_v_ms": v, "hs_m": hs, "wave_dir_deg": rng.uniform(0.0, 360.0, shape)}
+    w = GriddedWeather(
+        [WeatherField(k, v.astype(np.float32), lon, lat, time, source="t", variable=k) for k, v in fields.items()]
+    )
+    geom, t0 = arcs(11, shape=(40, 8), samples=3)
+    t0 = t0 + 150.0 * (np.arange(40) < 3)[:, None]
+    got = geometry_costs(geom, t0, departure=DEP, weather=w, polar=POLAR, failure=MODEL, apf=0.95, exact_p_f=False)
+    want = numpy_path(geom, t0, departure=DEP, weather=w, polar=POLAR, failure=MODEL, apf=0.95, exact_p_f=False)
+    assert_same_costs(got, want)
+    assert_same_fired(got, want)
+    for flag in ("polar", "weather", "failure"):
+        assert (got.reason & REASONS[flag]).any(), flag
+    assert np.isnan(got.p_f).any() and np.isfinite(got.time_h).any() and got.fired_bits is not None
