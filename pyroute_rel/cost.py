@@ -195,6 +195,10 @@ class ArcGeometry:
     #: The geometry split between threads, per number of parts (:func:`_threaded_costs`).
     _parts: dict[int, list[ArcGeometry]] = field(default_factory=dict, init=False, compare=False, repr=False)
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (and copied) without the points located on weather grids: they are a cache."""
+        return {**self.__dict__, "_located": [], "_parts": {}}
+
     @property
     def shape(self) -> tuple[int, ...]:
         """Shape of the block of arcs (without the samples axis)."""
@@ -766,7 +770,8 @@ def _wind_passes(
 
     o, weather, model = options, options.weather, options.failure
     course, seg = geom.course_deg, geom.seg_nm
-    cond = weather.sample_at(prepared, o.departure, offset_h=_finite(t_samples), fields=("tws_kn", "twd_deg"))
+    depart = np.broadcast_to(_finite(t_samples[..., :1]), t_samples.shape)  # per arc, then to its samples
+    cond = weather.sample_at(prepared, o.departure, offset_h=depart, fields=("tws_kn", "twd_deg"))
     dt = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[2]
     arrive = arrival_offsets(dt, t_samples[..., 0])
     wanted: tuple[str, ...] = _TIMING_FIELDS

@@ -78,16 +78,21 @@ def sail_wind(
     return twa.reshape(shape), v.reshape(shape), dt.reshape(shape)
 
 
-#: The polars' tables as the kernels take them, kept while the polar lives (made anew they cost more than the
-#: kernel on a rank of the default grid: the polar's arrays are read-only, so each is copied).
-_TABLES: weakref.WeakKeyDictionary[Polar, tuple[Any, ...]] = weakref.WeakKeyDictionary()
+#: The polars' tables as the kernels take them, by the polar's id, with a weak reference to it (made anew they cost
+#: more than the kernel on a rank of the default grid: the polar's arrays are read-only, so each is copied). An entry
+#: goes when its polar does.
+_TABLES: dict[int, tuple[weakref.ref[Polar], tuple[Any, ...]]] = {}
 
 
 def _tables(polar: Polar) -> tuple[Any, ...]:
-    """:func:`pyroute_rel.polar_compiled.tables` of a polar, made once."""
-    tables = _TABLES.get(polar)
-    if tables is None:
-        tables = _TABLES[polar] = polar_compiled.tables(polar)
+    """:func:`pyroute_rel.polar_compiled.tables` of a polar, made once (looked up by identity: comparing polars
+    compares their tables)."""
+    key = id(polar)
+    kept = _TABLES.get(key)
+    if kept is not None and kept[0]() is polar:
+        return kept[1]
+    tables = polar_compiled.tables(polar)
+    _TABLES[key] = (weakref.ref(polar, lambda _, key=key: _TABLES.pop(key, None)), tables)
     return tables
 
 

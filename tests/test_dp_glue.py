@@ -326,3 +326,15 @@ def test_compiled_bookkeeping_covers_every_flag() -> None:
     for flag in ("polar", "weather", "failure"):
         assert (got.reason & REASONS[flag]).any(), flag
     assert np.isnan(got.p_f).any() and np.isfinite(got.time_h).any() and got.fired_bits is not None
+
+
+def test_a_pickled_geometry_leaves_its_located_points_behind() -> None:
+    import pickle
+
+    geom, t0 = arcs(6)
+    w = weather(1)
+    want = costs(geom, t0, w)
+    back = pickle.loads(pickle.dumps(geom))
+    assert len(pickle.dumps(geom)) == len(pickle.dumps(arcs(6)[0]))  # as a geometry never costed
+    np.testing.assert_array_equal(back.lon_deg, geom.lon_deg)
+    assert_same_costs(costs(back, t0, w), want)
