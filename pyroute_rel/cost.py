@@ -33,7 +33,7 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -129,8 +129,8 @@ def arc_quantities(
     """
     out: dict[str, FloatArray] = {}
     for name in names:
-        field, relative = QUANTITY_FIELDS[name]
-        value = getattr(conditions, field)
+        attr, relative = QUANTITY_FIELDS[name]
+        value = getattr(conditions, attr)
         out[name] = geodesy.angle_diff_deg(value, heading_deg) if relative else value
     return out
 
@@ -179,6 +179,9 @@ class ArcGeometry:
     seg_nm : Length of each sub-segment [nm], shape (..., 1).
     a_xyz, b_xyz : Unit vectors of the arcs' ends, shape (..., 3) (broadcast to the block), or None: then the arcs
         are judged at their samples only, not on every piece they cross (:mod:`pyroute_rel.crossings`).
+
+    The arrays are never written to: the cost kernel keeps, with the geometry, its sample points located on the
+    weather grids it was costed on (see :data:`LOCATE_CACHE`).
     """
 
     lon_deg: FloatArray
@@ -187,6 +190,14 @@ class ArcGeometry:
     seg_nm: FloatArray
     a_xyz: FloatArray | None = None
     b_xyz: FloatArray | None = None
+    #: The sample points located on weather grids (``weather.prepare``), most recent first (:func:`_located`).
+    _located: list[Any] = field(default_factory=list, init=False, compare=False, repr=False)
+    #: The geometry split between threads, per number of parts (:func:`_threaded_costs`).
+    _parts: dict[int, list[ArcGeometry]] = field(default_factory=dict, init=False, compare=False, repr=False)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (and copied) without the points located on weather grids: they are a cache."""
+        return {**self.__dict__, "_located": [], "_parts": {}}
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -499,19 +510,23 @@ def _geometry_costs(
         return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
     if steady:
         dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
+        costs = _arc_totals(dt, p_f, reason, fired)
     else:
         # time-varying weather samples the same points at two sets of times: the source prepares them once; pass 1
         # times the sub-segments at the departure time (speeds only: the failure model decides nothing here),
         # pass 2 samples each at the time the craft gets there
-        prepared = weather.prepare(geom.lon_deg, geom.lat_deg)
+        prepared = _located(geom, weather)
         t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (geom.samples,))
-        dt = _sample_and_cost(geom, options, prepared, t_samples, timing=True)[0]
-        elapsed = 0.5 * dt
-        for s in range(1, geom.samples):
-            elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
-        elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
-        dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
-    costs = _arc_totals(dt, p_f, reason, fired)
+        if COMPILED_GLUE and _wind_only(options):
+            costs, cond = _wind_passes(geom, t_samples, options, prepared)
+        else:
+            dt = _sample_and_cost(geom, options, prepared, t_samples, timing=True)[0]
+            elapsed = 0.5 * dt
+            for s in range(1, geom.samples):
+                elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
+            elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
+            dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
+            costs = _arc_totals(dt, p_f, reason, fired)
     if options.failure is None or geom.a_xyz is None or geom.b_xyz is None:
         return costs, None
     t0 = np.asarray(t0_h, dtype=float)
@@ -519,6 +534,36 @@ def _geometry_costs(
     if defer:
         return costs, None if todo is None else todo.reshape(shape)
     return (costs if todo is None else _judge_pieces(geom, t0, costs, options, todo)), None
+
+
+#: The cost kernel keeps each arc geometry's sample points located on the weather grids of time-varying sources
+#: (``weather.prepare``), and reuses them for every source on the same grid (the source's ``reuse``): a process
+#: routing many members of one ensemble file, or many departures, locates them once (False: every time, for
+#: comparisons). The numbers are the same either way.
+LOCATE_CACHE = True
+
+#: Grids whose located points are kept per geometry (the most recently used): each costs about 40 bytes a sample
+#: point, 1.7 times the geometry's own arrays.
+LOCATED_PER_GEOMETRY = 2
+
+
+def _located(geom: ArcGeometry, weather: WeatherSource) -> object:
+    """``weather.prepare`` of the geometry's sample points, kept with the geometry (:data:`LOCATE_CACHE`) where the
+    source can reuse points located on its grid by another source."""
+    reuse = getattr(type(weather), "reuse", None)  # on the type: a wrapper that forwards attributes does not count
+    if not LOCATE_CACHE or reuse is None:
+        return weather.prepare(geom.lon_deg, geom.lat_deg)
+    kept = geom._located
+    for i, points in enumerate(kept):
+        mine = reuse(weather, points)
+        if mine is not None:
+            if i:
+                kept.insert(0, kept.pop(i))
+            return mine
+    points = weather.prepare(geom.lon_deg, geom.lat_deg)
+    kept.insert(0, points)
+    del kept[LOCATED_PER_GEOMETRY:]
+    return points
 
 
 def _pieces_todo(
@@ -622,20 +667,26 @@ def _threaded_costs(
     geom: ArcGeometry, t0: FloatArray, options: _CostOptions, n: int, defer: bool
 ) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
     """:func:`_geometry_costs` of a large block split along its first axis between ``n`` threads."""
-    split_seg = geom.seg_nm.shape[:1] == geom.shape[:1]
+    blocks = row_blocks(geom.shape[0], n)
+    parts = geom._parts.get(n)
+    if parts is None:  # kept with the geometry, so that each part keeps its located points (_located)
+        split_seg = geom.seg_nm.shape[:1] == geom.shape[:1]
+        parts = geom._parts[n] = [
+            ArcGeometry(
+                lon_deg=geom.lon_deg[rows],
+                lat_deg=geom.lat_deg[rows],
+                course_deg=geom.course_deg[rows],
+                seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm,
+                a_xyz=None if geom.a_xyz is None else np.broadcast_to(geom.a_xyz, geom.shape + (3,))[rows],
+                b_xyz=None if geom.b_xyz is None else np.broadcast_to(geom.b_xyz, geom.shape + (3,))[rows],
+            )
+            for rows in blocks
+        ]
 
-    def part(rows: slice) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
-        g = ArcGeometry(
-            lon_deg=geom.lon_deg[rows],
-            lat_deg=geom.lat_deg[rows],
-            course_deg=geom.course_deg[rows],
-            seg_nm=geom.seg_nm[rows] if split_seg else geom.seg_nm,
-            a_xyz=None if geom.a_xyz is None else np.broadcast_to(geom.a_xyz, geom.shape + (3,))[rows],
-            b_xyz=None if geom.b_xyz is None else np.broadcast_to(geom.b_xyz, geom.shape + (3,))[rows],
-        )
-        return _geometry_costs(g, t0[rows], options, 1, defer=defer)
+    def part(i: int) -> tuple[ArcCosts, npt.NDArray[np.bool_] | None]:
+        return _geometry_costs(parts[i], t0[blocks[i]], options, 1, defer=defer)
 
-    results = thread_map(part, row_blocks(geom.shape[0], n), n)
+    results = thread_map(part, range(len(blocks)), n)
     done = [c for c, _ in results]
     bits = None
     if any(c.fired_bits is not None for c in done):
@@ -693,6 +744,56 @@ def _sample_and_cost(
         ),
         cond,
     )
+
+
+#: Time-varying weather with wind only (no current, no wave speed loss) is costed with the compiled bookkeeping of
+#: :mod:`pyroute_rel.cost_compiled` between the sampling calls (:func:`_wind_passes`; False: the numpy path, for
+#: comparisons). The numbers are the same.
+COMPILED_GLUE = True
+
+
+def _wind_only(options: _CostOptions) -> bool:
+    """True where the speed comes from the wind alone: no wave speed loss, no current in the weather (the case
+    :func:`pyroute_rel.cost_compiled.sail_wind` covers)."""
+    return options.wave_loss is None and not {"current_u_ms", "current_v_ms"} & options.weather.fields
+
+
+def _wind_passes(
+    geom: ArcGeometry, t_samples: FloatArray, options: _CostOptions, prepared: object
+) -> tuple[ArcCosts, Conditions]:
+    """The two passes of :func:`_geometry_costs` over time-varying weather with wind only (:func:`_wind_only`): the
+    per-arc costs and the weather at the samples of the second pass. The sources sample, the polar and the failure
+    model's evidence are the numpy path's calls; the elapsed times and the per-sample and per-arc bookkeeping are
+    compiled (:func:`~pyroute_rel.cost_compiled.arrival_offsets`, :func:`~pyroute_rel.cost_compiled.judge_samples`),
+    with the same arithmetic: the same numbers as :func:`_sample_and_cost` and :func:`_arc_totals`."""
+    from .cost_compiled import arrival_offsets, judge_samples, sail_wind
+
+    o, weather, model = options, options.weather, options.failure
+    course, seg = geom.course_deg, geom.seg_nm
+    depart = np.broadcast_to(_finite(t_samples[..., :1]), t_samples.shape)  # per arc, then to its samples
+    cond = weather.sample_at(prepared, o.departure, offset_h=depart, fields=("tws_kn", "twd_deg"))
+    dt = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[2]
+    arrive = arrival_offsets(dt, t_samples[..., 0])
+    wanted: tuple[str, ...] = _TIMING_FIELDS
+    if model is not None:
+        wanted += tuple(sorted(model.weather_fields - set(wanted)))
+    cond = weather.sample_at(prepared, o.departure, offset_h=arrive, fields=wanted)
+    twa, v, _ = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)
+    evidence = None
+    if model is not None:
+        q: dict[str, Any] = arc_quantities(cond, course, model.quantities - {"twa_deg"})
+        if "twa_deg" in model.quantities:
+            q["twa_deg"] = twa
+        flat, unknown = model.evidence_index(q)
+        evidence = (flat, unknown, model.p_flat, model.p_flat > o.apf, model.fired_bits_flat)
+    flags = (REASONS["polar"], REASONS["weather"], REASONS["failure"])
+    time_h, p_f, reason, fired = judge_samples(cond.tws_kn, cond.twd_deg, v, seg, evidence, flags)
+    return ArcCosts(time_h=time_h, p_f=p_f, reason=reason, fired_bits=fired), cond
+
+
+def _finite(time_h: FloatArray) -> FloatArray:
+    """Times [h] with 0 where not finite (how the cost kernel samples a time it could not compute)."""
+    return np.where(np.isfinite(time_h), time_h, 0.0)
 
 
 def _arc_totals(

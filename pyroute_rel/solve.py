@@ -1362,8 +1362,9 @@ def _costs_of(
 
 
 def _block_times(problem: RoutingProblem, t0: FloatArray) -> npt.NDArray[np.datetime64] | None:
-    """Departure times for obstacle masks that depend on time (None when neither weather nor zones do)."""
-    if problem.weather.steady and not (problem.blocked is not None and problem.blocked.timed):
+    """Departure times for obstacle masks that depend on time (None when the mask does not: :attr:`ArcMask.timed`,
+    whatever the weather)."""
+    if problem.blocked is None or not problem.blocked.timed:
         return None
     return hours_after(problem.departure, t0)
 

@@ -134,6 +134,7 @@ class _Block:
         self.time_s = _NO_TIME if ref.time is None else (ref.time - self.t0) / np.timedelta64(1, "s")
         self.lon_mid = 0.5 * (self.lon[0] + self.lon[-1])
         self.strides = (nf, nx * nt * nf, nt * nf)  # time, lat, lon
+        self._columns: dict[frozenset[str] | None, tuple[list[int], IntArray]] = {}
 
     def locate(self, lon: FloatArray, lat: FloatArray) -> _Where:
         """Where points (1-D arrays) fall on this block's grid (reused by every time at which they are sampled)."""
@@ -149,14 +150,12 @@ class _Block:
         return _Where(base=iy, sx=sx, sy=sy, wx=wx, wy=wy, ok=ok)
 
     def interpolate_at(
-        self, where: _Where, origin: np.datetime64, offset_s: FloatArray, columns: IntArray
+        self, where: _Where, origin: np.datetime64, offset: FloatArray, columns: IntArray, scale: float = 1.0
     ) -> FloatArray:
-        """The stored ``columns`` at located points and times ``origin + offset_s`` [s] (1-D)
-        -> (len(columns), n_points), NaN outside."""
-        if self.time_s.size:
-            t = offset_s + (origin - self.t0) / np.timedelta64(1, "s")
-        else:
-            t = offset_s  # a steady block: any time will do
+        """The stored ``columns`` at located points and times ``origin + offset * scale`` [s] (``offset`` 1-D,
+        contiguous; ``scale`` [s] per its unit) -> (len(columns), n_points), NaN outside. The kernel computes each
+        point's time on the block's axis, ``offset * scale + (origin - t0)`` (rounded after each operation)."""
+        shift = (origin - self.t0) / np.timedelta64(1, "s") if self.time_s.size else 0.0  # steady: any time will do
         out = np.empty((columns.size, where.base.size))
         _interpolate_kernel(
             self.flat,
@@ -168,11 +167,21 @@ class _Block:
             where.wx,
             where.wy,
             where.ok,
-            t,
+            offset,
+            float(scale),
+            float(shift),
             self.time_s,
             out,
         )
         return out
+
+    def columns(self, wanted: frozenset[str] | None) -> tuple[list[int], IntArray]:
+        """Indices of the stored columns among ``wanted`` (None: all), as a list and an array; kept per set."""
+        cols = self._columns.get(wanted)
+        if cols is None:
+            picked = [j for j, name in enumerate(self.names) if wanted is None or name in wanted]
+            cols = self._columns[wanted] = (picked, np.asarray(picked, dtype=np.intp))
+        return cols
 
 
 #: Time axis of a block steady in time (any time is valid).
@@ -200,6 +209,7 @@ class PreparedPoints:
     lat: FloatArray
     where: tuple[_Where, ...]
     owner: int  # id of the GriddedWeather that located them
+    grid: tuple[Any, ...] = ()  # its grids (GriddedWeather.grid_key): sources with an equal key may reuse them
 
 
 def _locate(axis: FloatArray, x: FloatArray, stride: int) -> tuple[IntArray, FloatArray, IntArray, Any]:
@@ -230,7 +240,9 @@ def _load_kernels() -> None:
     axis = np.array([0.0, 1.0])
     i, w, step, ok = _locate(axis, np.array([0.5]), 1)
     out = np.empty((1, 1))
-    _interpolate_kernel(np.zeros(8, np.float32), 1, np.zeros(1, np.intp), i, step, step, w, w, ok, w, axis, out)
+    _interpolate_kernel(
+        np.zeros(8, np.float32), 1, np.zeros(1, np.intp), i, step, step, w, w, ok, w, 1.0, 0.0, axis, out
+    )
     _vector_kernel(w, w, 1.0, 1.0, np.empty(1), np.empty(1))
 
 
@@ -281,11 +293,11 @@ def _locate_kernel(axis, x, stride, i_out, w_out, step_out, ok_out):  # type: ig
 
 
 @numba.njit(nogil=True, cache=True)
-def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, t_axis, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, scale, shift, t_axis, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Trilinear interpolation of the stored ``columns`` (of ``nf`` interleaved) at located points -> ``out``.
 
-    ``base``/``sx``/``sy``/``wx``/``wy``/``ok`` are a :class:`_Where`; ``t`` [s] the points' times on ``t_axis``
-    (empty: a steady block, valid at any time; one value: valid at exactly that time). NaN outside.
+    ``base``/``sx``/``sy``/``wx``/``wy``/``ok`` are a :class:`_Where`; ``t * scale + shift`` [s] the points' times
+    on ``t_axis`` (empty: a steady block, valid at any time; one value: valid at exactly that time). NaN outside.
     """
     nt = t_axis.size
     t_first = t_axis[0] if nt > 0 else 0.0
@@ -295,7 +307,7 @@ def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, t_axis, 
         it = 0
         wt = 0.0
         if good and nt > 0:
-            x = t[k]
+            x = t[k] * scale + shift
             good = t_first <= x <= t_axis[nt - 1]
             if good:
                 it, wt = _cell(t_axis, t_first, t_step, x)
@@ -486,15 +498,17 @@ class GriddedWeather:
         self,
         where: tuple[_Where, ...],
         origin: np.datetime64,
-        offset_s: FloatArray,
-        wanted: Collection[str] | None = None,
+        offset: FloatArray,
+        wanted: frozenset[str] | None = None,
+        scale: float = 1.0,
     ) -> dict[str, FloatArray]:
+        """The stored columns ``wanted`` (None: all) at located points and times ``origin + offset * scale`` [s]."""
         out: dict[str, FloatArray] = {}
         for block, w in zip(self._blocks, where, strict=True):
-            cols = [j for j, name in enumerate(block.names) if wanted is None or name in wanted]
+            cols, index = block.columns(wanted)
             if cols:
-                values = block.interpolate_at(w, origin, offset_s, np.asarray(cols, dtype=np.intp))
-                out.update((block.names[j], row) for j, row in zip(cols, values, strict=True))
+                values = block.interpolate_at(w, origin, offset, index, scale)
+                out.update(zip([block.names[j] for j in cols], values, strict=True))
         return out
 
     def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> PreparedPoints:
@@ -516,8 +530,33 @@ class GriddedWeather:
         shape = np.broadcast_shapes(lon.shape, lat.shape)
         lon_f, lat_f = (np.broadcast_to(a, shape).ravel() for a in (lon, lat))
         return PreparedPoints(
-            shape=shape, lon=lon_f, lat=lat_f, owner=id(self), where=tuple(b.locate(lon_f, lat_f) for b in self._blocks)
+            shape=shape,
+            lon=lon_f,
+            lat=lat_f,
+            owner=id(self),
+            where=tuple(b.locate(lon_f, lat_f) for b in self._blocks),
+            grid=self.grid_key,
         )
+
+    @functools.cached_property
+    def grid_key(self) -> tuple[Any, ...]:
+        """What points located by :meth:`prepare` depend on: per block of fields sharing a grid, its longitudes and
+        latitudes (as bytes), its memory layout (the index steps along time, latitude and longitude) and its size.
+        Two sources with equal keys locate every point alike (members of one file, a file and its ensemble mean)."""
+        return tuple((b.lon.tobytes(), b.lat.tobytes(), b.strides, b.flat.size) for b in self._blocks)
+
+    def reuse(self, prepared: PreparedPoints) -> PreparedPoints | None:
+        """Points another source's :meth:`prepare` located, for this source's :meth:`sample_at`: the same points
+        (nothing is located again) when that source's :attr:`grid_key` equals this one's, else None.
+
+        The cost kernel keeps the points of each arc geometry it costs and reuses them in every source on the same
+        grid (:func:`pyroute_rel.cost.geometry_costs`): locating them is a tenth of a route over time-varying
+        gridded weather.
+        """
+        key = self.grid_key
+        if not (prepared.grid is key or prepared.grid == key):  # (an owner's id alone may be a dead source's)
+            return None
+        return prepared if prepared.owner == id(self) else replace(prepared, owner=id(self))
 
     def sample_at(
         self,
@@ -548,17 +587,21 @@ class GriddedWeather:
             unknown = sorted(set(fields) - set(_NEEDS))
             if unknown:
                 raise WeatherError(f"'fields' must be Conditions fields {sorted(_NEEDS)} (got {unknown})")
-            wanted = {col for name in fields for col in _NEEDS[name]}
+            wanted = frozenset(col for name in fields for col in _NEEDS[name])
         if offset_h is None:
-            origin, offset_s = _offsets(np.broadcast_to(t.astype("datetime64[ns]"), prepared.shape).ravel())
+            origin, offset = _offsets(np.broadcast_to(t.astype("datetime64[ns]"), prepared.shape).ravel())
+            scale = 1.0
         else:
             if t.ndim:
                 raise WeatherError(f"with 'offset_h', 'departure' must be one origin (got shape {t.shape})")
             origin = np.datetime64(t.astype("datetime64[ns]").item(), "ns")
-            offset_s = np.ascontiguousarray(
-                np.broadcast_to(np.asarray(offset_h, dtype=np.float64) * 3600.0, prepared.shape).ravel()
+            # hours, turned into seconds in the kernel (offset_h * 3600, then the block's origin added)
+            offset = np.ascontiguousarray(
+                np.broadcast_to(np.asarray(offset_h, dtype=np.float64), prepared.shape).ravel()
             )
-        return self._conditions(prepared.shape, self._interpolate_at(prepared.where, origin, offset_s, wanted), fields)
+            scale = 3600.0
+        values = self._interpolate_at(prepared.where, origin, offset, wanted, scale)
+        return self._conditions(prepared.shape, values, fields)
 
     def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
         """One stored field (e.g. ``"wind_u_ms"`` [m/s]) at broadcast points; NaN where unknown."""
@@ -593,7 +636,7 @@ class GriddedWeather:
     def _conditions(
         self, shape: tuple[int, ...], v: dict[str, FloatArray], fields: Collection[str] | None = None
     ) -> Conditions:
-        n = int(np.prod(shape))
+        n = math.prod(shape)
         nan = np.full(n, np.nan)
         out = dict.fromkeys(_NEEDS, nan)
         if "wind_u_ms" in v:
