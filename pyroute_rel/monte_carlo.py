@@ -509,4 +509,26 @@ def spread_from_members(
         speed = np.asarray(c.tws_kn, dtype=float) / KN_PER_MS
         u.append(-speed * np.sin(rad))
         v.append(-speed * np.cos(rad))
-    return np.asarray(0.5 * (np.std(u, axis=0, ddof=1) + np.std(v, axis=0, ddof=1)), dtype=float)
+    spread = np.asarray(0.5 * (np.std(u, axis=0, ddof=1) + np.std(v, axis=0, ddof=1)), dtype=float)
+    _check_spread(spread, mlon, mlat, when, w)
+    return spread
+
+
+def _wind_extent(weather: Any) -> str:
+    """The extent of a gridded source's wind field (its ``describe()``), else its type's name."""
+    info = getattr(weather, "field_info", None)
+    if isinstance(info, dict) and "wind_u_ms" in info:
+        return str(info["wind_u_ms"].describe())
+    return type(weather).__name__
+
+
+def _check_spread(spread: FloatArray, lon: FloatArray, lat: FloatArray, when: Any, weather: Any) -> None:
+    """ScenarioError naming the first leg whose midpoint the members have no wind at (outside their data)."""
+    bad = np.flatnonzero(~np.isfinite(spread))
+    if bad.size:
+        k = int(bad[0])
+        raise ScenarioError(
+            f"the ensemble's members have no wind at the midpoint of leg {k + 1} of {spread.size} (lon "
+            f"{lon[k]:.2f}, lat {lat[k]:.2f} [deg], {str(when[k])[:16]}): the track leaves the members' data "
+            f"(wind: {_wind_extent(weather)}); {bad.size} legs in all"
+        )

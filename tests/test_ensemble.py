@@ -291,3 +291,21 @@ def test_sailed_flags_equal_the_leg_reasons(ensemble):
             seen["stop"] += not np.isfinite(s.voyage_time_h)
             seen["ok"] += s.feasible
     assert all(seen.values()), seen  # every case met
+
+
+def test_ensemble_spread_of_a_track_leaving_the_members_data_is_a_clear_error(tmp_path: Path):
+    """A track whose legs leave the members' data: one line naming the first such leg, where it is and the wind's
+    extent (it said "Monte-Carlo spread_ms must be ... finite (got nan at index k)")."""
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.monte_carlo import spread_from_members
+
+    path = write_ensemble_scenario(tmp_path, n_members=3, spread=1.0)
+    inside = np.column_stack([np.linspace(-14.0, -22.0, 5), np.linspace(31.0, 25.0, 5)])
+    assert np.isfinite(spread_from_members(path, inside)).all()
+    out = np.vstack([inside, [[-60.0, 25.0], [-70.0, 25.0]]])  # two legs out of the data to the west
+    with pytest.raises(ScenarioError, match=r"^the ensemble's members have no wind at the midpoint of leg 5 of 6 "):
+        spread_from_members(path, out)
+    with pytest.raises(
+        ScenarioError, match=r"the track leaves the members' data \(wind: lon \[-40, 0\], lat .*\); 2 legs in all$"
+    ):
+        spread_from_members(path, out)
