@@ -51,7 +51,7 @@ from ..errors import (
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
 from . import cache
-from .gridded import OUT_OF_RANGE, GriddedWeather, PreparedPoints, WeatherField, check_plausible
+from .gridded import OUT_OF_RANGE, CodedValues, GriddedWeather, PreparedPoints, WeatherField, check_plausible
 
 __all__ = [
     "BBOX_MARGIN_DEG",
@@ -880,7 +880,7 @@ def _extract(
     elif fixed is not None and plan.tables is not None:
         return _finish_coded(plan, stored, fixed, name, source, var, out_of_range), plan.had_members  # type: ignore[arg-type]
     elif fixed is not None:
-        selectors, inverse = _selectors(plan.dims, plan.index)
+        selectors, inverse = plan.selection
         values = _reorder(stored.decode(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where)), inverse)  # type: ignore[union-attr]
         values = values.astype(np.float32, copy=False)
     else:
@@ -912,6 +912,7 @@ class _Plan:
     fixed: dict[Hashable, int] | None = None
     member_dim: tuple[Hashable, int] | None = None
     tables: tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]] | None = None
+    selection: tuple[dict[Hashable, Any], list[IntArray | None]] = ({}, [])  # _selectors of dims and index
 
 
 def _plan(
@@ -966,7 +967,8 @@ def _plan(
         t_index, times = t_plan
     if times is not None and np.isnat(times).any():
         raise WeatherError(f"{where} has missing (NaT) times")
-    plan = replace(plan, index=(t_index, lat_plan[0], lon_plan[0]), times=times)
+    index = (t_index, lat_plan[0], lon_plan[0])
+    plan = replace(plan, index=index, times=times, selection=_selectors(plan.dims, index))
     if stored is not None and stored.table is not None and fixed is not None and not plan.member_dims:
         table = _in_units(stored.table.astype(np.float32, copy=False), plan, name)  # every stored value, as read
         plan = replace(plan, tables=(table, _normalise_direction(table, plan.attrs, name)))
@@ -989,19 +991,21 @@ def _finish(
     source: str,
     var: str,
     out_of_range: str,
-    normalised: Callable[[], npt.NDArray[np.float32]] | None = None,
+    normalised: Callable[[], CodedValues] | None = None,
 ) -> WeatherField:
     """The field of values in its units: checked (:func:`check_plausible`), directions normalised (``normalised``:
-    they are, as long as no value was made missing), refused when all NaN."""
+    they are, looked up by code, as long as no value was made missing), refused when all NaN."""
     field = WeatherField(name, values, plan.lon, plan.lat, plan.times, source, var, plan.periodic)
     checked = check_plausible(field, out_of_range=out_of_range)
+    coded = None
     if normalised is not None and checked is field:
-        values = normalised()
+        coded = normalised()
+        values = coded.values
     else:
         values = _normalise_direction(checked.values, plan.attrs, name)  # type: ignore[arg-type]
     if not np.isfinite(values).any():
         raise WeatherError(f"{plan.where} is all NaN{' inside the requested box and time window' if plan.cut else ''}")
-    return replace(checked, values=values)
+    return replace(checked, values=values, coded=coded)
 
 
 def _finish_coded(
@@ -1016,11 +1020,13 @@ def _finish_coded(
     """:func:`_finish` for a variable of 8- or 16-bit integers: its stored values read, each looked up in the plan's
     tables (the field's value for every stored value: the same numbers as decoding, converting and normalising
     each)."""
-    selectors, inverse = _selectors(plan.dims, plan.index)  # type: ignore[arg-type]
+    selectors, inverse = plan.selection
     codes = stored.codes(_reorder(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where), inverse))
     table, normalised = plan.tables  # type: ignore[misc]
     values = np.take(table, codes)
-    later = None if normalised is table else (lambda: np.take(normalised, codes))
+    if _KIND[name] != "direction":
+        return _finish(values, plan, name, source, var, out_of_range)
+    later = lambda: CodedValues(np.take(normalised, codes), codes, normalised)  # noqa: E731
     return _finish(values, plan, name, source, var, out_of_range, later)
 
 
@@ -1255,9 +1261,32 @@ def _load_mean(
         cut = {**selectors, dims[0]: slice(int(t_sel[0]), int(t_sel[-1]) + 1) if _contiguous(t_sel) else t_sel}
         for m0 in range(0, n_members[0], group):
             cut[member_dims[0]] = slice(m0, min(m0 + group, n_members[0]))
+            part = (total[t0 : t0 + n_times], count[t0 : t0 + n_times])
+            if raw is not None and raw.variable.table is not None:
+                _accumulate_stored(*part, raw, cut, [*member_dims, *dims], where, valid)
+                continue
             block = _read(raw or da, cut, [*member_dims, *dims], where).reshape(-1, t_sel.size, shape[1], shape[2])
-            _accumulate_block(total[t0 : t0 + n_times], count[t0 : t0 + n_times], block, valid)
+            _accumulate_block(*part, block, valid)
     return _reorder(member_mean(total, count).astype(np.float32), inverse)
+
+
+def _accumulate_stored(
+    total: FloatArray,
+    count: npt.NDArray[np.integer],
+    raw: _Stored,
+    selectors: Mapping[Hashable, Any],
+    dims: Sequence[Hashable],
+    where: str,
+    valid: tuple[float, float] | None,
+) -> None:
+    """:func:`_accumulate_block` of the members of a selection of 8- or 16-bit stored values: each member's decoded
+    values looked up (:attr:`_RawVariable.table`) into one buffer, then added."""
+    stored = raw.variable
+    codes = stored.codes(_read_stored(stored, {**raw.fixed, **selectors}, dims, where)).reshape(-1, *total.shape)
+    values = np.empty(total.shape, stored.table.dtype)  # type: ignore[union-attr]
+    for member in codes:
+        np.take(stored.table, member, out=values, mode="clip")  # (a code is always inside the table: nothing clips)
+        _accumulate_block(total, count, values[np.newaxis], valid)
 
 
 def _accumulate_block(
