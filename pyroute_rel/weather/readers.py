@@ -526,11 +526,13 @@ class _RawFile:
     opened lazily, read with netCDF4 and decoded here exactly as xarray decodes them (:class:`_RawVariable`): the
     same numbers, without xarray's indexing (most of a member's reading time besides the decompression) or the
     import of dask its first selection brings (a second). Opened at the first read; keeps each variable's
-    :class:`_RawVariable` and reading plans (:class:`_Plan`, for the next member) until closed."""
+    :class:`_RawVariable`, reading plans (:class:`_Plan`) and the variables found (:func:`_detect`) for the next
+    member, until closed."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
         self.plans: dict[tuple[Any, ...], _Plan] = {}
+        self.detected: dict[tuple[Any, ...], dict[str, tuple[xr.Dataset, str]]] = {}
         self._nc: Any = None
         self._variables: dict[str, _RawVariable | None] = {}
 
@@ -559,6 +561,7 @@ class _RawFile:
 
     def close(self) -> None:
         self.plans.clear()
+        self.detected.clear()
         self._variables.clear()
         if self._nc is not None:
             with _NETCDF4_LOCK:
@@ -696,7 +699,7 @@ def read_fields(
     dropped: dict[str, list[str]] = {}
     used_member = False
     for source, datasets in files:
-        found = _detect(source, datasets, variables)
+        found = _detected(source, datasets, variables)
         for name, (ds, var) in found.items():
             raw = _RAW.get(id(ds))
             field, had_members = _extract(
@@ -794,6 +797,20 @@ def _steady_if_single_time(fields: list[WeatherField]) -> list[WeatherField]:
         stacklevel=3,
     )
     return [replace(f, time=None) for f in fields]
+
+
+def _detected(
+    source: str, datasets: list[xr.Dataset], variables: Mapping[str, str]
+) -> dict[str, tuple[xr.Dataset, str]]:
+    """:func:`_detect`, kept with a file's stored values (:class:`_RawFile`) for the next member."""
+    raw = _RAW.get(id(datasets[0])) if len(datasets) == 1 else None
+    if raw is None or raw[0] is not datasets[0]:
+        return _detect(source, datasets, variables)
+    key = (source, tuple(sorted(variables.items())))
+    found = raw[1].detected.get(key)
+    if found is None:
+        found = raw[1].detected[key] = _detect(source, datasets, variables)
+    return dict(found)
 
 
 def _detect(source: str, datasets: list[xr.Dataset], variables: Mapping[str, str]) -> dict[str, tuple[xr.Dataset, str]]:
