@@ -227,3 +227,28 @@ def test_reading_kept_members_and_the_mean_never_imports_dask_array(tmp_path: Pa
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == "False", out.stderr
+
+
+def test_a_coded_wave_direction_is_stored_as_its_values_and_a_stale_code_is_ignored():
+    """A wave direction given with its codes (:class:`CodedValues`) is stored as the sine and cosine of its values,
+    as one without; a copy with other values (``dataclasses.replace``) keeps the old codes but is stored from its own
+    values."""
+    from dataclasses import replace
+
+    from pyroute_rel.weather.gridded import CodedValues, GriddedWeather, WeatherField
+
+    rng = np.random.default_rng(3)
+    table = np.mod(rng.uniform(-100.0, 400.0, 256).astype(np.float32), np.float32(360.0))
+    codes = rng.integers(0, 256, (3, 4, 5)).astype(np.uint8)
+    values = table[codes]
+    lon, lat = np.arange(5.0), np.arange(4.0) + 40.0
+    time = np.datetime64("2018-06-01T00:00", "ns") + np.arange(3) * np.timedelta64(6, "h")
+    wind = [WeatherField(n, np.ones((3, 4, 5), np.float32), lon, lat, time) for n in ("wind_u_ms", "wind_v_ms")]
+    coded = WeatherField("wave_dir_deg", values, lon, lat, time, coded=CodedValues(values, codes, table))
+    other = replace(coded, values=np.flip(values, axis=0).copy())  # the same codes, other values
+    for field in (coded, other):
+        block = GriddedWeather([*wind, field])._blocks[0]
+        rad = np.deg2rad(field.values)
+        for name, expected in (("_wave_sin", np.sin(rad)), ("_wave_cos", np.cos(rad))):
+            got = block.data[..., block.names.index(name)]
+            assert got.tobytes() == np.moveaxis(expected, 0, -1).astype(np.float32).tobytes(), name
