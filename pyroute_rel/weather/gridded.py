@@ -145,12 +145,12 @@ class _Block:
         self.data = np.empty((ny, nx, nt, nf), dtype=np.float32)
         rows = max(1, (1 << 22) // max(1, nt * nx))
         for j, (f, op) in enumerate(cols):
-            values = f.values
-            coded = f.coded if f.coded is not None and f.coded.values is values and op is not None else None
-            if coded is not None:  # each code's sine (cosine) looked up: the same numbers, element by element
-                values, op = np.take(op(np.deg2rad(coded.table.astype(np.float32))), coded.codes), None
+            values, table = f.values, None
+            if f.coded is not None and f.coded.values is values and op is not None:  # each code's sine (cosine)
+                values, table, op = f.coded.codes, op(np.deg2rad(f.coded.table.astype(np.float32))), None  # looked up
             for y0 in range(0, ny, rows):  # in bands of latitude: no full-size temporaries
-                chunk = np.moveaxis(np.asarray(values[:, y0 : y0 + rows, :]), 0, -1)  # type: ignore[index]
+                band = np.asarray(values[:, y0 : y0 + rows, :])  # type: ignore[index]
+                chunk = np.moveaxis(band if table is None else np.take(table, band), 0, -1)
                 self.data[y0 : y0 + rows, :, :, j] = chunk if op is None else op(np.deg2rad(chunk.astype(np.float32)))
         self.flat = self.data.reshape(-1)
         self.n_fields = nf
