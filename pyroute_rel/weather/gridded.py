@@ -23,7 +23,7 @@ import functools
 import math
 import warnings
 from collections.abc import Collection, Iterable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numba
@@ -47,6 +47,7 @@ __all__ = [
     "check_plausible",
     "MemberStack",
     "stack_members",
+    "CodedValues",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -87,6 +88,10 @@ class WeatherField:
     source : File (or ``"<dataset>"``) the field was read from, for messages.
     variable : Variable name in that file.
     periodic : True when ``lon`` wraps around the whole globe (one duplicated column on each side).
+    coded : Optionally, ``values`` as a lookup (:class:`CodedValues`: a file's packed integers and the field's value
+        for each), so that :class:`GriddedWeather` transforms each distinct value once (a wave direction's sine and
+        cosine). Used only while it describes this field's ``values`` array itself (a copy with other values made
+        by :func:`dataclasses.replace` is stored from its values).
     """
 
     name: str
@@ -97,12 +102,29 @@ class WeatherField:
     source: str = "<dataset>"
     variable: str = ""
     periodic: bool = False
+    coded: CodedValues | None = field(default=None, repr=False, compare=False)
 
     def describe(self) -> str:
         """The field's extent, e.g. ``"lon [-70, 0], lat [5, 55] [deg], time 2018-06-01T00:00 .. ..."``."""
         t = "any time" if self.time is None else f"time {iso_minute(self.time[0])} .. {iso_minute(self.time[-1])}"
         lon = "all longitudes" if self.periodic else f"lon [{self.lon[0]:g}, {self.lon[-1]:g}]"
         return f"{lon}, lat [{self.lat[0]:g}, {self.lat[-1]:g}] [deg], {t}"
+
+
+@dataclass(frozen=True)
+class CodedValues:
+    """A field's values as a lookup: ``values`` is ``table[codes]``, element by element.
+
+    Attributes
+    ----------
+    values : The values described (the array of the :class:`WeatherField`, (n_time, n_lat, n_lon)).
+    codes : Unsigned integers of the same shape (e.g. a file's packed 16-bit values).
+    table : Float32 value of each code.
+    """
+
+    values: npt.NDArray[np.floating]
+    codes: npt.NDArray[np.unsignedinteger]
+    table: npt.NDArray[np.float32]
 
 
 class _Block:
@@ -123,9 +145,12 @@ class _Block:
         self.data = np.empty((ny, nx, nt, nf), dtype=np.float32)
         rows = max(1, (1 << 22) // max(1, nt * nx))
         for j, (f, op) in enumerate(cols):
-            values = f.values
+            values, table = f.values, None
+            if f.coded is not None and f.coded.values is values and op is not None:  # each code's sine (cosine)
+                values, table, op = f.coded.codes, op(np.deg2rad(f.coded.table.astype(np.float32))), None  # looked up
             for y0 in range(0, ny, rows):  # in bands of latitude: no full-size temporaries
-                chunk = np.moveaxis(np.asarray(values[:, y0 : y0 + rows, :]), 0, -1)  # type: ignore[index]
+                band = np.asarray(values[:, y0 : y0 + rows, :])  # type: ignore[index]
+                chunk = np.moveaxis(band if table is None else np.take(table, band), 0, -1)
                 self.data[y0 : y0 + rows, :, :, j] = chunk if op is None else op(np.deg2rad(chunk.astype(np.float32)))
         self.flat = self.data.reshape(-1)
         self.n_fields = nf
@@ -418,7 +443,7 @@ class GriddedWeather:
                 "currents need both components, current_u_ms and current_v_ms "
                 f"(got only {'current_u_ms' if 'current_u_ms' in names else 'current_v_ms'})"
             )
-        self._info: dict[str, WeatherField] = {f.name: replace(f, values=None) for f in fields}
+        self._info: dict[str, WeatherField] = {f.name: replace(f, values=None, coded=None) for f in fields}
         groups: dict[tuple[bytes, bytes, bytes | None], list[WeatherField]] = {}
         for f in fields:
             key = (f.lon.tobytes(), f.lat.tobytes(), None if f.time is None else f.time.tobytes())

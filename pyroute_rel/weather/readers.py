@@ -29,11 +29,11 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Hashable, Mapping, Sequence
-from dataclasses import replace
+from collections.abc import Callable, Hashable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from importlib.util import find_spec
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -51,7 +51,7 @@ from ..errors import (
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
 from . import cache
-from .gridded import OUT_OF_RANGE, GriddedWeather, PreparedPoints, WeatherField, check_plausible
+from .gridded import OUT_OF_RANGE, CodedValues, GriddedWeather, PreparedPoints, WeatherField, check_plausible
 
 __all__ = [
     "BBOX_MARGIN_DEG",
@@ -248,7 +248,7 @@ def open_weather(
     finally:
         for _, datasets in opened if not keep else ():
             for ds in datasets:
-                ds.close()
+                _close(ds)
 
 
 # Files kept open by this process (keep_files_open), by (resolved path, size, modification time); and how many times
@@ -268,7 +268,7 @@ def keep_files_open(keep: bool) -> None:
     global _KEEP
     for datasets in _KEPT.values():
         for ds in datasets:
-            ds.close()
+            _close(ds)
     _KEPT.clear()
     _KEEP = bool(keep)
 
@@ -287,7 +287,7 @@ def _kept_file(path: Path) -> list[xr.Dataset]:
     if key not in _KEPT or key[1] < 0:
         for old in [k for k in _KEPT if k[0] == key[0]]:  # the file as it was: closed
             for ds in _KEPT.pop(old):
-                ds.close()
+                _close(ds)
         _KEPT[key] = _open_file(path, lazy=True)
     return _KEPT[key]
 
@@ -418,7 +418,7 @@ def ensemble_size(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str
                     if str(dim).lower() in _MEMBER_NAMES:
                         sizes.setdefault(int(n), str(p))
             finally:
-                ds.close()
+                _close(ds)
     if len(sizes) > 1:
         raise WeatherError(
             "weather files hold different numbers of ensemble members: "
@@ -432,7 +432,8 @@ def ensemble_size(paths: str | os.PathLike[str] | Sequence[str | os.PathLike[str
 
 def _open_file(path: Path, *, lazy: bool = False) -> list[xr.Dataset]:
     """The file's datasets, its variables dask arrays (``lazy``: xarray's lazily indexed arrays, nothing cached:
-    a selection reads that selection)."""
+    a selection reads that selection; a netCDF4 file's stored values are read and decoded here, :class:`_RawFile`).
+    Close them with :func:`_close`."""
     if path.is_dir():
         raise WeatherError(
             f"weather file '{path}' is a folder: list the NetCDF or GRIB files in it under [weather].paths"
@@ -455,6 +456,7 @@ def _open_file(path: Path, *, lazy: bool = False) -> list[xr.Dataset]:
         opts: dict[str, Any] = {"chunks": None, "cache": False} if lazy else {"chunks": {}}
         if lazy and engine == "netcdf4":
             ds = _open_with_small_chunk_cache(path, opts)
+            _RAW[id(ds)] = (ds, _RawFile(path))  # its stored values, read and decoded here
         else:
             ds = xr.open_dataset(path, engine=engine, decode_timedelta=False, **opts)
         _OPENED[str(path.resolve())] = _OPENED.get(str(path.resolve()), 0) + 1
@@ -505,6 +507,176 @@ def _open_grib(path: Path) -> list[xr.Dataset]:
     return out
 
 
+# Files opened lazily with netCDF4 (a kept member file, the ensemble mean's), by the id of their xarray dataset: the
+# dataset (kept alive with its entry, so that its id is not reused) and its stored values (_RawFile). Dropped when
+# the dataset is closed (_close).
+_RAW: dict[int, tuple[xr.Dataset, _RawFile]] = {}
+
+
+def _close(ds: xr.Dataset) -> None:
+    """Close a dataset :func:`_open_file` opened, and its :class:`_RawFile` if any."""
+    entry = _RAW.pop(id(ds), None)
+    if entry is not None:
+        entry[1].close()
+    ds.close()
+
+
+class _RawFile:
+    """The stored values (packed integers, fill values: as in the file) of the variables of a netCDF4 file xarray
+    opened lazily, read with netCDF4 and decoded here exactly as xarray decodes them (:class:`_RawVariable`): the
+    same numbers, without xarray's indexing (most of a member's reading time besides the decompression) or the
+    import of dask its first selection brings (a second). Opened at the first read; keeps each variable's
+    :class:`_RawVariable`, reading plans (:class:`_Plan`) and the variables found (:func:`_detect`) for the next
+    member, until closed."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.plans: dict[tuple[Any, ...], _Plan] = {}
+        self.detected: dict[tuple[Any, ...], dict[str, tuple[xr.Dataset, str]]] = {}
+        self._nc: Any = None
+        self._variables: dict[str, _RawVariable | None] = {}
+
+    def variable(self, var: str, da: xr.DataArray) -> _RawVariable | None:
+        """The variable ``var`` of the file (``da``: as xarray decodes it), or None when it is not read here (not
+        stored as numbers on ``da``'s dimensions, or not decoded to ``da``'s type)."""
+        if var not in self._variables:
+            try:
+                with _NETCDF4_LOCK:
+                    self._variables[var] = _raw_variable(self._open(), var, da)
+            except Exception:  # any trouble: xarray reads it (and says what is wrong)
+                self._variables[var] = None
+        return self._variables[var]
+
+    def _open(self) -> Any:
+        if self._nc is None:
+            import netCDF4
+
+            before = netCDF4.get_chunk_cache()
+            netCDF4.set_chunk_cache(LAZY_CHUNK_CACHE_BYTES, before[1], before[2])
+            try:
+                self._nc = netCDF4.Dataset(self.path, "r")
+            finally:
+                netCDF4.set_chunk_cache(*before)
+        return self._nc
+
+    def close(self) -> None:
+        self.plans.clear()
+        self.detected.clear()
+        self._variables.clear()
+        if self._nc is not None:
+            with _NETCDF4_LOCK:
+                self._nc.close()
+            self._nc = None
+
+
+def _netcdf4_lock() -> Any:
+    """The lock xarray takes around netCDF4 and HDF5 calls (the libraries are not thread-safe), or one of ours."""
+    try:
+        from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
+
+        return NETCDF4_PYTHON_LOCK
+    except ImportError:  # pragma: no cover - another xarray
+        import threading
+
+        return threading.Lock()
+
+
+_NETCDF4_LOCK = _netcdf4_lock()
+
+
+@dataclass(frozen=True)
+class _RawVariable:
+    """A variable's stored values and how xarray decodes them.
+
+    Attributes
+    ----------
+    variable : The netCDF4 variable, returning stored values (no masking or scaling).
+    dims : Its dimensions.
+    stored : Type of its stored values (native byte order).
+    attrs : Its attributes, as xarray's netCDF4 backend hands them to the CF decoding.
+    table : For 8- and 16-bit integers: the decoded value of every stored value (indexed by its bits read as an
+        unsigned integer, :meth:`codes`); else None (the values read are decoded).
+    """
+
+    variable: Any
+    dims: tuple[str, ...]
+    stored: np.dtype[Any]
+    attrs: dict[str, Any]
+    table: npt.NDArray[Any] | None
+
+    def read(self, selectors: Mapping[Hashable, Any], dims: Sequence[Hashable]) -> npt.NDArray[Any]:
+        """The stored values of a selection (along each of the variable's dimensions an integer, a slice or sorted
+        unique indices; all of a dimension not given), on ``dims`` in that order (a dimension of ``dims`` the
+        variable lacks, the ``_time`` added to a field without time, gets length 1)."""
+        key = tuple(selectors.get(d, slice(None)) for d in self.dims)
+        with _NETCDF4_LOCK:
+            values = np.asarray(self.variable[key])
+        if values.dtype != self.stored:
+            values = values.astype(self.stored)
+        kept = [d for d, k in zip(self.dims, key, strict=True) if not isinstance(k, int | np.integer)]
+        values = values.transpose([kept.index(d) for d in dims if d in kept])  # type: ignore[arg-type]
+        for axis, d in enumerate(dims):
+            if d not in kept:
+                values = np.expand_dims(values, axis)
+        return values
+
+    def codes(self, values: npt.NDArray[Any]) -> npt.NDArray[Any]:
+        """Stored 8- or 16-bit integers as indices into :attr:`table`."""
+        return values.view(np.dtype(f"u{self.stored.itemsize}"))
+
+    def decode(self, values: npt.NDArray[Any]) -> npt.NDArray[Any]:
+        """Stored values decoded (xarray's numbers)."""
+        if self.table is not None:
+            return np.take(self.table, self.codes(values))
+        return _decode_stored(values, self.attrs, self.variable.name)
+
+
+def _raw_variable(nc: Any, var: str, da: xr.DataArray) -> _RawVariable | None:
+    """The :class:`_RawVariable` of ``var`` in an open netCDF4 file, or None when it is not read here."""
+    v = nc.variables.get(var)
+    if v is None or tuple(v.dimensions) != tuple(map(str, da.dims)) or tuple(v.shape) != tuple(da.shape):
+        return None
+    stored = v.dtype
+    if not isinstance(stored, np.dtype) or stored.kind not in "iuf":
+        return None
+    stored = stored.newbyteorder("=")
+    v.set_auto_maskandscale(False)  # as xarray's netCDF4 backend reads it
+    v.set_auto_chartostring(False)
+    attrs = {k: v.getncattr(k) for k in v.ncattrs()}
+    attrs.pop("least_significant_digit", None)  # (moved to the encoding by the backend)
+    table = None
+    if stored.kind in "iu" and stored.itemsize <= 2:
+        table = _decode_stored(
+            np.arange(1 << (8 * stored.itemsize)).astype(f"u{stored.itemsize}").view(stored), attrs, var
+        )
+        decoded = table.dtype
+    else:
+        decoded = _decode_stored(np.zeros(1, stored), attrs, var).dtype
+    if decoded != da.dtype or decoded.kind not in "iuf":
+        return None
+    return _RawVariable(v, tuple(v.dimensions), stored, attrs, table)
+
+
+def _decode_stored(values: npt.NDArray[Any], attrs: Mapping[str, Any], name: str) -> npt.NDArray[Any]:
+    """Stored values decoded by xarray's CF decoding (fill values, ``scale_factor``, ``add_offset``, ``_Unsigned``)
+    with the options :func:`_open_file` opens files with: element by element, the numbers xarray reads."""
+    variable = xr.Variable(tuple(f"_{k}" for k in range(values.ndim)), values, dict(attrs), fastpath=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (xarray warned when it opened the file)
+        decoded = xr.conventions.decode_cf_variable(name, variable, concat_characters=False, decode_timedelta=False)
+    return np.asarray(decoded.values)
+
+
+def _read_stored(
+    stored: _RawVariable, selectors: Mapping[Hashable, Any], dims: Sequence[Hashable], where: str
+) -> npt.NDArray[Any]:
+    """:meth:`_RawVariable.read`, a failure a WeatherError."""
+    try:
+        return stored.read(selectors, dims)
+    except Exception as exc:  # netCDF4/HDF5 raise many types for damaged files
+        raise WeatherError(f"cannot read {where}: {type(exc).__name__}: {exc}") from exc
+
+
 def read_fields(
     files: list[tuple[str, list[xr.Dataset]]],
     *,
@@ -527,9 +699,13 @@ def read_fields(
     dropped: dict[str, list[str]] = {}
     used_member = False
     for source, datasets in files:
-        found = _detect(source, datasets, variables)
+        found = _detected(source, datasets, variables)
         for name, (ds, var) in found.items():
-            field, had_members = _extract(ds[var], name, source, var, box, window, member, margin_deg, out_of_range)
+            raw = _RAW.get(id(ds))
+            field, had_members = _extract(
+                ds[var], name, source, var, box, window, member, margin_deg, out_of_range,
+                raw=None if raw is None or raw[0] is not ds else raw[1],
+            )  # fmt: skip
             used_member |= had_members
             if field is None:
                 covered = ""
@@ -623,6 +799,20 @@ def _steady_if_single_time(fields: list[WeatherField]) -> list[WeatherField]:
     return [replace(f, time=None) for f in fields]
 
 
+def _detected(
+    source: str, datasets: list[xr.Dataset], variables: Mapping[str, str]
+) -> dict[str, tuple[xr.Dataset, str]]:
+    """:func:`_detect`, kept with a file's stored values (:class:`_RawFile`) for the next member."""
+    raw = _RAW.get(id(datasets[0])) if len(datasets) == 1 else None
+    if raw is None or raw[0] is not datasets[0]:
+        return _detect(source, datasets, variables)
+    key = (source, tuple(sorted(variables.items())))
+    found = raw[1].detected.get(key)
+    if found is None:
+        found = raw[1].detected[key] = _detect(source, datasets, variables)
+    return dict(found)
+
+
 def _detect(source: str, datasets: list[xr.Dataset], variables: Mapping[str, str]) -> dict[str, tuple[xr.Dataset, str]]:
     """Which variable of which dataset of one file gives each field."""
     found: dict[str, tuple[xr.Dataset, str]] = {}
@@ -681,13 +871,87 @@ def _extract(
     member: int | str | None,
     margin: float,
     out_of_range: str = "error",
+    *,
+    raw: _RawFile | None = None,
 ) -> tuple[WeatherField | None, bool]:
     """Cut one variable to the box and window, load it, convert units, check its values -> (field or None, had
-    members). A variable with a single time is kept whatever the window (it may be steady weather)."""
+    members). A variable with a single time is kept whatever the window (it may be steady weather).
+
+    ``raw``: the file's stored values (:class:`_RawFile`), read and decoded here when the variable allows it (the
+    same numbers as xarray's), its plan kept for the next member."""
+    stored = raw.variable(var, da) if raw is not None else None
+    key = (source, var, name, box, window, margin, member == "mean")
+    plan = raw.plans.get(key) if raw is not None and stored is not None else None
+    if plan is None:
+        plan, da = _plan(da, name, source, var, box, window, member, margin, stored)
+        if stored is not None and plan.fixed is not None and not plan.member_dims:
+            raw.plans[key] = plan  # type: ignore[union-attr]
+    elif plan.member_dim is not None:  # a kept plan: the member checked as _drop_extra_dims does
+        _member_index(plan.member_dim[0], plan.member_dim[1], member, plan.where)
+    if plan.index is None:
+        return None, plan.had_members
+    fixed = None if stored is None or plan.fixed is None else _fixed_with_member(plan, member)
+    if plan.member_dims:  # each member's values outside the valid range are missing before the mean
+        raw_read = None if fixed is None else _Stored(stored, fixed)  # type: ignore[arg-type]
+        values = _load_mean(da, plan.member_dims, plan.dims, plan.index, plan.where, plan.valid, raw_read)
+    elif fixed is not None and plan.tables is not None:
+        return _finish_coded(plan, stored, fixed, name, source, var, out_of_range), plan.had_members  # type: ignore[arg-type]
+    elif fixed is not None:
+        selectors, inverse = plan.selection
+        values = _reorder(stored.decode(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where)), inverse)  # type: ignore[union-attr]
+        values = values.astype(np.float32, copy=False)
+    else:
+        values = _load(da, plan.dims, plan.index, plan.where)
+    values = _in_units(values, plan, name)
+    return _finish(values, plan, name, source, var, out_of_range), plan.had_members
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """How one variable of a file is read, whatever member: where (for messages), valid range, attributes, the
+    (time, lat, lon) dimensions and the indices to read along them (``index`` None: no time in the window), the
+    field's axes, the member dimensions averaged (the mean), the index fixed along every other dimension of the
+    variable (None: read through xarray only), the member dimension and its size, and (variables stored as 8- or
+    16-bit integers) the field's value for every stored value, as read and with directions normalised."""
+
+    where: str
+    valid: tuple[float, float] | None
+    attrs: Mapping[Hashable, Any]
+    dims: tuple[Hashable, Hashable, Hashable]
+    index: tuple[IntArray, ...] | None
+    times: npt.NDArray[np.datetime64] | None
+    lon: FloatArray
+    lat: FloatArray
+    periodic: bool
+    member_dims: list[Hashable]
+    had_members: bool
+    cut: bool
+    fixed: dict[Hashable, int] | None = None
+    member_dim: tuple[Hashable, int] | None = None
+    tables: tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]] | None = None
+    selection: tuple[dict[Hashable, Any], list[IntArray | None]] = ({}, [])  # _selectors of dims and index
+
+
+def _plan(
+    da: xr.DataArray,
+    name: str,
+    source: str,
+    var: str,
+    box: tuple[float, float, float, float] | None,
+    window: tuple[np.datetime64, np.datetime64] | None,
+    member: int | str | None,
+    margin: float,
+    stored: _RawVariable | None = None,
+) -> tuple[_Plan, xr.DataArray]:
+    """The variable's :class:`_Plan` (its tables when ``stored`` has a table) and the variable cut to one member (and
+    depth), on (time, lat, lon) and the member dimensions of a mean."""
     where = f"weather file '{source}' variable '{var}'"
     valid = valid_range(da, where)  # before any selection: attributes and encoding as the file has them
     kinds = {d: _dim_kind(da, d) for d in da.dims}
-    da, had_members = _drop_extra_dims(da, kinds, member, where)
+    member_dim = next(((d, int(da.sizes[d])) for d, k in kinds.items() if k == "member"), None)
+    da, had_members, fixed = _drop_extra_dims(da, kinds, member, where)
+    if member_dim is not None and fixed is not None:
+        fixed.pop(member_dim[0], None)  # the member is put in at each read (_fixed_with_member)
     lon_dim, lat_dim, time_dims = ([d for d in da.dims if kinds[d] == kind] for kind in ("lon", "lat", "time"))
     if len(lon_dim) != 1 or len(lat_dim) != 1 or lon_dim[0] not in da.coords or lat_dim[0] not in da.coords:
         raise WeatherError(
@@ -708,29 +972,97 @@ def _extract(
     if lat_plan[1].size < 2 or lon_plan[1].size < 2:
         raise WeatherError(f"{where} needs at least two latitudes and two longitudes")
     t_index = np.arange(da.sizes[tdim])
+    plan = _Plan(
+        where, valid, dict(da.attrs), (tdim, lat_dim_, lon_dim_), None, times, lon_plan[1], lat_plan[1],
+        lon_plan[2], [d for d in da.dims if kinds.get(d) == "member"] if member == "mean" else [], had_members,
+        bool(box or window), fixed, member_dim,
+    )  # fmt: skip
     if times is not None and times.size > 1:
         t_plan = _time_plan(times, window, where)
         if t_plan is None:
-            return None, had_members
+            return plan, da
         t_index, times = t_plan
-    dims, index = (tdim, lat_dim_, lon_dim_), (t_index, lat_plan[0], lon_plan[0])
-    member_dims = [d for d in da.dims if kinds.get(d) == "member"] if member == "mean" else []
-    if member_dims:  # each member's values outside the valid range are missing before the mean
-        values = _load_mean(da, member_dims, dims, index, where, valid)
-    else:
-        values = _load(da, dims, index, where)
     if times is not None and np.isnat(times).any():
         raise WeatherError(f"{where} has missing (NaT) times")
-    if valid is not None and not member_dims:  # outside the declared valid range: missing, like a fill value
-        lo, hi = np.float64(valid[0]), np.float64(valid[1])
+    index = (t_index, lat_plan[0], lon_plan[0])
+    plan = replace(plan, index=index, times=times, selection=_selectors(plan.dims, index))
+    if stored is not None and stored.table is not None and fixed is not None and not plan.member_dims:
+        table = _in_units(stored.table.astype(np.float32, copy=False), plan, name)  # every stored value, as read
+        plan = replace(plan, tables=(table, _normalise_direction(table, plan.attrs, name)))
+    return plan, da
+
+
+def _in_units(values: npt.NDArray[np.float32], plan: _Plan, name: str) -> npt.NDArray[np.float32]:
+    """Values read (float32): outside the declared valid range missing (a mean's members had it applied), in the
+    units of the field (element by element: applied to the data, or to a table of every stored value)."""
+    if plan.valid is not None and not plan.member_dims:  # outside the declared valid range: missing, like a fill value
+        lo, hi = np.float64(plan.valid[0]), np.float64(plan.valid[1])
         values = np.where((values < lo) | (values > hi), np.float32(np.nan), values).astype(np.float32, copy=False)
-    values = _convert_units(values, da.attrs, name, where)
-    field = WeatherField(name, values, lon_plan[1], lat_plan[1], times, source, var, lon_plan[2])
-    field = check_plausible(field, out_of_range=out_of_range)
-    values = _normalise_direction(field.values, da.attrs, name)  # type: ignore[arg-type]
+    return _convert_units(values, plan.attrs, name, plan.where)
+
+
+def _finish(
+    values: npt.NDArray[np.float32],
+    plan: _Plan,
+    name: str,
+    source: str,
+    var: str,
+    out_of_range: str,
+    normalised: Callable[[], CodedValues] | None = None,
+) -> WeatherField:
+    """The field of values in its units: checked (:func:`check_plausible`), directions normalised (``normalised``:
+    they are, looked up by code, as long as no value was made missing), refused when all NaN."""
+    field = WeatherField(name, values, plan.lon, plan.lat, plan.times, source, var, plan.periodic)
+    checked = check_plausible(field, out_of_range=out_of_range)
+    coded = None
+    if normalised is not None and checked is field:
+        coded = normalised()
+        values = coded.values
+    else:
+        values = _normalise_direction(checked.values, plan.attrs, name)  # type: ignore[arg-type]
     if not np.isfinite(values).any():
-        raise WeatherError(f"{where} is all NaN{' inside the requested box and time window' if box or window else ''}")
-    return replace(field, values=values), had_members
+        raise WeatherError(f"{plan.where} is all NaN{' inside the requested box and time window' if plan.cut else ''}")
+    return replace(checked, values=values, coded=coded)
+
+
+def _finish_coded(
+    plan: _Plan,
+    stored: _RawVariable,
+    fixed: Mapping[Hashable, Any],
+    name: str,
+    source: str,
+    var: str,
+    out_of_range: str,
+) -> WeatherField:
+    """:func:`_finish` for a variable of 8- or 16-bit integers: its stored values read, each looked up in the plan's
+    tables (the field's value for every stored value: the same numbers as decoding, converting and normalising
+    each)."""
+    selectors, inverse = plan.selection
+    codes = stored.codes(_reorder(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where), inverse))
+    table, normalised = plan.tables  # type: ignore[misc]
+    values = np.take(table, codes)
+    if _KIND[name] != "direction":
+        return _finish(values, plan, name, source, var, out_of_range)
+    later = lambda: CodedValues(np.take(normalised, codes), codes, normalised)  # noqa: E731
+    return _finish(values, plan, name, source, var, out_of_range, later)
+
+
+def _fixed_with_member(plan: _Plan, member: int | str | None) -> dict[Hashable, Any]:
+    """The index along every dimension but (time, lat, lon) (and a mean's members): the plan's, plus the member's."""
+    fixed: dict[Hashable, Any] = dict(plan.fixed or {})
+    if plan.member_dim is not None and not plan.member_dims:
+        fixed[plan.member_dim[0]] = _member_index(plan.member_dim[0], plan.member_dim[1], member, plan.where)
+    return fixed
+
+
+def _member_index(dim: Hashable, n: int, member: int | str | None, where: str) -> int:
+    """The position of ``member`` along the member dimension ``dim`` of size ``n`` (None: its only member)."""
+    if member is None and n > 1:
+        raise WeatherError(f"{where} has {n} ensemble members (dimension '{dim}'); choose one with member=<0..{n - 1}>")
+    index = 0 if member is None else member
+    if not 0 <= index < n:  # type: ignore[operator]
+        raise WeatherError(f"{where}: member must be in [0, {n - 1}] (got {member})")
+    return int(index)  # type: ignore[arg-type]
 
 
 def valid_range(da: xr.DataArray, where: str) -> tuple[float, float] | None:
@@ -774,40 +1106,49 @@ def valid_range(da: xr.DataArray, where: str) -> tuple[float, float] | None:
 
 def _drop_extra_dims(
     da: xr.DataArray, kinds: Mapping[Hashable, str], member: int | str | None, where: str
-) -> tuple[xr.DataArray, bool]:
+) -> tuple[xr.DataArray, bool, dict[Hashable, int] | None]:
     """Pick the ensemble member, the shallowest depth and ERA5's merged ``expver``; refuse other dimensions of more
-    than one value -> (the variable on lon, lat and time only, whether it had members)."""
+    than one value -> (the variable on lon, lat and time only, whether it had members, the index taken along each
+    dimension dropped: None when ``expver`` was merged)."""
     had_members = False
+    fixed: dict[Hashable, int] | None = {}
     for dim, kind in kinds.items():
         n = da.sizes[dim]
         if kind == "member":
             had_members = True
-            if member is None and n > 1:
-                raise WeatherError(
-                    f"{where} has {n} ensemble members (dimension '{dim}'); choose one with member=<0..{n - 1}>"
-                )
             if member == "mean":  # kept: averaged by _load_mean once the box and window are cut
                 continue
-            index = 0 if member is None else member
-            if not 0 <= index < n:
-                raise WeatherError(f"{where}: member must be in [0, {n - 1}] (got {member})")
-            da = da.isel({dim: index})
+            index = _member_index(dim, n, member, where)
         elif kind == "depth":
             depth = np.asarray(da[dim].values, dtype=float) if dim in da.coords else np.arange(n, dtype=float)
-            da = da.isel({dim: int(np.nanargmin(np.abs(depth)))})  # the shallowest level
+            index = int(np.nanargmin(np.abs(depth)))  # the shallowest level
         elif kind == "other" and str(dim).lower() == "expver":  # ERA5 + ERA5T: each time is in one of them
             parts = [da.isel({dim: k}).drop_vars([dim], errors="ignore") for k in range(n)]
             da = parts[0]
             for part in parts[1:]:
                 da = da.fillna(part)
+            fixed = None
+            continue
         elif kind == "other":
             if n != 1:
                 raise WeatherError(
                     f"{where} has an unexpected dimension '{dim}' of size {n} "
                     f"(expected time, latitude, longitude and optionally number and depth)"
                 )
-            da = da.isel({dim: 0})
-    return da, had_members
+            index = 0
+        else:
+            continue
+        da = _take(da, dim, index)
+        if fixed is not None:
+            fixed[dim] = index
+    return da, had_members, fixed
+
+
+def _take(da: xr.DataArray, dim: Hashable, index: int) -> xr.DataArray:
+    """``da.isel({dim: index})``, the coordinates along ``dim`` alone (not dates) dropped first: nothing reads them
+    afterwards, and selecting them makes xarray import dask.array (a second) for its duck-array checks."""
+    drop = [c for c, v in da.coords.items() if v.dims == (dim,) and v.dtype.kind != "M"]
+    return da.drop_vars(drop).isel({dim: index})
 
 
 def _time_axis(
@@ -873,8 +1214,20 @@ def _selectors(
     return selectors, inverse
 
 
-def _read(da: xr.DataArray, selectors: Mapping[Hashable, Any], dims: Sequence[Hashable], where: str) -> npt.NDArray:
-    """The decoded values of a selection, on ``dims`` in that order (numeric, else a WeatherError)."""
+class _Stored(NamedTuple):
+    """A variable's stored values (:class:`_RawVariable`) and the index along its dimensions other than those read."""
+
+    variable: _RawVariable
+    fixed: Mapping[Hashable, Any]
+
+
+def _read(
+    da: xr.DataArray | _Stored, selectors: Mapping[Hashable, Any], dims: Sequence[Hashable], where: str
+) -> npt.NDArray:
+    """The decoded values of a selection, on ``dims`` in that order (numeric, else a WeatherError), from xarray or
+    from the stored values."""
+    if isinstance(da, _Stored):
+        return da.variable.decode(_read_stored(da.variable, {**da.fixed, **selectors}, dims, where))
     try:
         values = np.asarray(da.isel(selectors).transpose(*dims).values)
     except Exception as exc:
@@ -905,11 +1258,12 @@ def _load_mean(
     index: tuple[IntArray, ...],
     where: str,
     valid: tuple[float, float] | None,
+    raw: _Stored | None = None,
 ) -> npt.NDArray[np.float32]:
     """The ensemble mean of the box and window ``index`` cuts: the members' decoded values read in groups of members
     (and of times) of at most :data:`MEAN_READ_BYTES`, without dask, summed in float64 in member order where they
     have a value (not NaN, inside ``valid``: as ``member=k`` reads them) and divided by how many have one (NaN where
-    none has)."""
+    none has); ``raw``: read from the stored values."""
     selectors, inverse = _selectors(dims, index)
     shape = tuple(np.arange(da.sizes[d])[selectors[d]].size for d in dims)
     n_members = [da.sizes[d] for d in member_dims]
@@ -924,9 +1278,32 @@ def _load_mean(
         cut = {**selectors, dims[0]: slice(int(t_sel[0]), int(t_sel[-1]) + 1) if _contiguous(t_sel) else t_sel}
         for m0 in range(0, n_members[0], group):
             cut[member_dims[0]] = slice(m0, min(m0 + group, n_members[0]))
-            block = _read(da, cut, [*member_dims, *dims], where).reshape(-1, t_sel.size, shape[1], shape[2])
-            _accumulate_block(total[t0 : t0 + n_times], count[t0 : t0 + n_times], block, valid)
+            part = (total[t0 : t0 + n_times], count[t0 : t0 + n_times])
+            if raw is not None and raw.variable.table is not None:
+                _accumulate_stored(*part, raw, cut, [*member_dims, *dims], where, valid)
+                continue
+            block = _read(raw or da, cut, [*member_dims, *dims], where).reshape(-1, t_sel.size, shape[1], shape[2])
+            _accumulate_block(*part, block, valid)
     return _reorder(member_mean(total, count).astype(np.float32), inverse)
+
+
+def _accumulate_stored(
+    total: FloatArray,
+    count: npt.NDArray[np.integer],
+    raw: _Stored,
+    selectors: Mapping[Hashable, Any],
+    dims: Sequence[Hashable],
+    where: str,
+    valid: tuple[float, float] | None,
+) -> None:
+    """:func:`_accumulate_block` of the members of a selection of 8- or 16-bit stored values: each member's decoded
+    values looked up (:attr:`_RawVariable.table`) into one buffer, then added."""
+    stored = raw.variable
+    codes = stored.codes(_read_stored(stored, {**raw.fixed, **selectors}, dims, where)).reshape(-1, *total.shape)
+    values = np.empty(total.shape, stored.table.dtype)  # type: ignore[union-attr]
+    for member in codes:
+        np.take(stored.table, member, out=values, mode="clip")  # (a code is always inside the table: nothing clips)
+        _accumulate_block(total, count, values[np.newaxis], valid)
 
 
 def _accumulate_block(
