@@ -29,7 +29,7 @@ import numpy.typing as npt
 
 from . import polar_compiled
 from .polar import MIN_SPEED_KN, Polar, check_beyond
-from .polar_compiled import fold_twa, speed_kn, sub_time
+from .polar_compiled import SHORT_AXIS, blend, fold_twa, sub_time, table_edges
 
 __all__ = ["arrival_offsets", "judge_samples", "sail_wind"]
 
@@ -74,7 +74,7 @@ def sail_wind(
     else:
         seg = _flat(seg_nm, shape)
     twa, v, dt = (np.empty(flat[0].size) for _ in range(3))
-    _wind_kernel(*flat, seg, every, *_tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)  # type: ignore[call-arg]
+    _wind_kernel(*flat, seg, every, *_tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)
     return twa.reshape(shape), v.reshape(shape), dt.reshape(shape)
 
 
@@ -85,13 +85,15 @@ _TABLES: dict[int, tuple[weakref.ref[Polar], tuple[Any, ...]]] = {}
 
 
 def _tables(polar: Polar) -> tuple[Any, ...]:
-    """:func:`pyroute_rel.polar_compiled.tables` of a polar, made once (looked up by identity: comparing polars
-    compares their tables)."""
+    """The polar's table and axes as :func:`pyroute_rel.polar_compiled.tables` gives them, each axis followed by its
+    :func:`~pyroute_rel.polar_compiled.cell_finder` (``twa, tws, speed, twa_finder, tws_finder``), made once (looked
+    up by identity: comparing polars compares their tables)."""
     key = id(polar)
     kept = _TABLES.get(key)
     if kept is not None and kept[0]() is polar:
         return kept[1]
-    tables = polar_compiled.tables(polar)
+    twa, tws, speed, _, _ = polar_compiled.tables(polar)
+    tables = (twa, tws, speed, polar_compiled.cell_finder(twa), polar_compiled.cell_finder(tws))
     _TABLES[key] = (weakref.ref(polar, lambda _, key=key: _TABLES.pop(key, None)), tables)
     return tables
 
@@ -280,8 +282,8 @@ def _wind_kernel(
     twa_tab,
     tws_tab,
     speed_tab,
-    twa_inv,
-    tws_inv,
+    twa_finder,
+    tws_finder,
     forbid,
     min_speed,
     twa_out,
@@ -290,12 +292,54 @@ def _wind_kernel(
 ):  # type: ignore[no-untyped-def]  # pragma: no cover
     """One point at a time: fold TWA, bilinear polar, then ``seg / speed`` or ``inf`` (missing wind, no speed)
     (:mod:`pyroute_rel.polar_compiled`), in the numpy path's order of operations; points ``i * every`` to
-    ``(i + 1) * every - 1`` sail ``seg[i]``."""
+    ``(i + 1) * every - 1`` sail ``seg[i]``. The table is read here (cells as :func:`~pyroute_rel.polar_compiled.cell`
+    finds them: counted on short axes, from the axes' :func:`~pyroute_rel.polar_compiled.cell_finder` on long ones),
+    and only scalars passed to the inlined helpers: an array passed to one is reference-counted at every point,
+    which doubled the kernel's time."""
+    a0, a_scale, a_last, a_lower = twa_finder
+    w0, w_scale, w_last, w_lower = tws_finder
+    n_tws = tws_tab.size
+    top_a = twa_tab.size - 2
+    top_w = n_tws - 2
+    tws_first, twa_first = tws_tab[0], twa_tab[0]
+    twa_last, tws_last = twa_tab[twa_tab.size - 1], tws_tab[n_tws - 1]
     for i in range(tws.size // every):  # arc by arc (no division per point)
         s = seg[i]
         for k in range(i * every, (i + 1) * every):
             a = fold_twa(twd[k], course[k])
             twa_out[k] = a
-            v = speed_kn(a, tws[k], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
+            w = tws[k]
+            v = np.nan
+            if a == a and w == w:
+                ia = jw = 0
+                if top_a <= SHORT_AXIS:  # count the inner rows at or below: no branch, no dependent load
+                    for m in range(1, top_a + 1):
+                        ia += twa_tab[m] <= a
+                else:  # a first cell from the finder, stepped up
+                    ia = a_lower[int(min(max((a - a0) * a_scale, 0.0), a_last))]
+                    while ia < top_a and twa_tab[ia + 1] <= a:
+                        ia += 1
+                if top_w <= SHORT_AXIS:
+                    for m in range(1, top_w + 1):
+                        jw += tws_tab[m] <= w
+                else:
+                    jw = w_lower[int(min(max((w - w0) * w_scale, 0.0), w_last))]
+                    while jw < top_w and tws_tab[jw + 1] <= w:
+                        jw += 1
+                c = ia * n_tws + jw
+                v = blend(
+                    a,
+                    w,
+                    twa_tab[ia],
+                    twa_tab[ia + 1],
+                    tws_tab[jw],
+                    tws_tab[jw + 1],
+                    speed_tab[c],
+                    speed_tab[c + 1],
+                    speed_tab[c + n_tws],
+                    speed_tab[c + n_tws + 1],
+                    tws_first,
+                )
+            v = table_edges(v, a, w, twa_first, twa_last, tws_last, forbid)
             v_out[k] = v
-            dt_out[k] = sub_time(s, v, tws[k], twd[k], min_speed)[0]
+            dt_out[k] = sub_time(s, v, w, twd[k], min_speed)[0]
