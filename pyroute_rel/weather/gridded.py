@@ -274,8 +274,25 @@ def _load_kernels() -> None:
     i, w, step, ok = _locate(axis, np.array([0.5]), 1)
     out = np.empty((1, 1))
     _interpolate_kernel(
-        np.zeros(8, np.float32), 1, np.zeros(1, np.intp), i, step, step, w, w, ok, w, 1.0, 0.0, axis, -1, -1, -1, -1,
-        1.0, out
+        np.zeros(8, np.float32),
+        1,
+        np.zeros(1, np.intp),
+        i,
+        step,
+        step,
+        w,
+        w,
+        ok,
+        w,
+        1.0,
+        0.0,
+        axis,
+        -1,
+        -1,
+        -1,
+        -1,
+        1.0,
+        out,
     )
     _vector_kernel(w, w, 1.0, 1.0, np.empty(1), np.empty(1))
 
