@@ -28,10 +28,12 @@ import numpy as np
 import numpy.typing as npt
 
 from . import polar_compiled
+from .failure import QUANTITY_FIELDS, FailureModel
 from .polar import MIN_SPEED_KN, Polar, check_beyond
 from .polar_compiled import SHORT_AXIS, blend, fold_twa, sub_time, table_edges
+from .weather.base import Conditions
 
-__all__ = ["arrival_offsets", "judge_samples", "sail_wind"]
+__all__ = ["arrival_offsets", "evidence_index", "judge_samples", "sail_wind"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -136,6 +138,81 @@ def _offsets_kernel(dt, t0, every, out):  # type: ignore[no-untyped-def]  # prag
                 e = 0.0
             t = t0[i] + e
             out[k] = t if np.isfinite(t) else 0.0
+
+
+def evidence_index(
+    model: FailureModel, conditions: Conditions, course_deg: FloatArray
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_] | None]:
+    """:meth:`FailureModel.evidence_index <pyroute_rel.failure.FailureModel.evidence_index>` of the quantities
+    :func:`pyroute_rel.cost.arc_quantities` makes of the weather ``conditions`` on ``course_deg`` [deg] (no current:
+    the heading is the course), in one compiled loop: each
+    quantity's field, or its angle to the course (:func:`~pyroute_rel.polar_compiled.fold_twa`, the TWA
+    :func:`sail_wind` gives), classified as the model's numpy rules classify it (the same flat index and unknown
+    points; :meth:`~pyroute_rel.failure.FailureModel.evidence_rules`).
+
+    Returns
+    -------
+    ``(index, unknown)`` with ``course_deg``'s shape; ``unknown`` None where no point's evidence is unknown.
+    """
+    shape = course_deg.shape
+    edges, n_edges, contrib, right, fill = _rules(model)
+    sources = [QUANTITY_FIELDS[c.quantity] for c in model.criteria]
+    values = np.empty((len(sources), int(np.prod(shape, dtype=np.int64))))
+    for row, (attr, _) in zip(values, sources, strict=True):
+        row[:] = np.broadcast_to(getattr(conditions, attr), shape).reshape(-1)
+    relative = np.array([rel for _, rel in sources], dtype=np.bool_)
+    index = np.empty(values.shape[1], dtype=np.intp)
+    unknown = np.empty(values.shape[1], dtype=np.bool_)
+    course = _flat(course_deg, shape)
+    lost = _evidence_kernel(values, relative, course, edges, n_edges, contrib, right, fill, index, unknown)
+    return index.reshape(shape), unknown.reshape(shape) if lost else None
+
+
+#: Failure models' classifiers as the evidence kernel takes them, by the model's id (as :data:`_TABLES`).
+_RULES: dict[int, tuple[weakref.ref[FailureModel], tuple[Any, ...]]] = {}
+
+
+def _rules(model: FailureModel) -> tuple[Any, ...]:
+    """:meth:`~pyroute_rel.failure.FailureModel.evidence_rules` of a model, made once."""
+    key = id(model)
+    kept = _RULES.get(key)
+    if kept is not None and kept[0]() is model:
+        return kept[1]
+    rules = model.evidence_rules()
+    _RULES[key] = (weakref.ref(model, lambda _, key=key: _RULES.pop(key, None)), rules)
+    return rules
+
+
+@numba.njit(nogil=True, cache=True)
+def _evidence_kernel(values, relative, course, edges, n_edges, contrib, right, fill, index_out, unknown_out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`evidence_index` into the outputs; returns whether any point's evidence is unknown. Per point and
+    criterion ``c``: the value ``values[c]`` (folded to its angle to the course where ``relative[c]``), its bin (the
+    edges below it, or at or below with ``right``: numpy's searchsorted; NaN: the fill, or unknown in the last bin, the
+    first with one edge, as numpy classifies a NaN) and that bin's contribution, summed over the criteria."""
+    any_lost = False
+    for k in range(values.shape[1]):
+        e = 0
+        lost = False
+        for c in range(values.shape[0]):
+            x = values[c, k]
+            if relative[c]:
+                x = fold_twa(x, course[k])
+            m = n_edges[c]
+            if x != x:
+                if fill[c] >= 0:
+                    e += fill[c]
+                    continue
+                lost = True
+                b = 0 if m == 1 else m
+            else:
+                b = 0
+                for j in range(m):
+                    b += (edges[c, j] <= x) if right[c] else (edges[c, j] < x)
+            e += contrib[c, b]
+        index_out[k] = e
+        unknown_out[k] = lost
+        any_lost |= lost
+    return any_lost
 
 
 def judge_samples(

@@ -21,6 +21,7 @@ from hypothesis import strategies as st
 
 import pyroute_rel.weather.gridded as gridded
 from pyroute_rel.cost_compiled import sail_wind
+from pyroute_rel.failure import list_failure_models, load_failure_model
 from pyroute_rel.grid import make_grid
 from pyroute_rel.polar import Polar, boat_speed_kn
 from pyroute_rel.polar_compiled import cell_finder
@@ -196,3 +197,43 @@ def test_dp_is_the_same_with_the_fused_sampling_on_and_off(apf: float) -> None:
         want.arcs_forbidden,
         want.forbidden_by_reason,
     )
+
+
+@pytest.mark.parametrize("name", list_failure_models())
+def test_compiled_evidence_index_is_the_models(name: str) -> None:
+    """For every shipped failure model: the compiled evidence (quantities folded to the course, binned) is
+    FailureModel.evidence_index of cost.arc_quantities: the same flat index everywhere (NaN points included: the fired
+    criteria are read there) and the same unknown points, with values on the bin edges, beyond them and NaN."""
+    from pyroute_rel.cost import arc_quantities
+    from pyroute_rel.cost_compiled import evidence_index
+    from pyroute_rel.weather import Conditions
+
+    model = load_failure_model(name)
+    rng = np.random.default_rng(len(name))
+    shape = (300, 3)
+    edges = np.concatenate([np.atleast_1d(np.asarray(c.edges, dtype=float)) for c in model.criteria])
+
+    def field(low: float, high: float) -> np.ndarray:
+        x = rng.uniform(low, high, shape)
+        x.flat[::5] = rng.choice(edges, x.flat[::5].size)  # on edges (directions: relative to a zero course below)
+        x.flat[::13] = np.nan
+        return x
+
+    course = rng.uniform(0.0, 360.0, shape)
+    course.flat[::5] = 0.0
+    cond = Conditions(
+        tws_kn=field(0.0, 60.0),
+        twd_deg=field(0.0, 360.0),
+        hs_m=field(0.0, 12.0),
+        wave_dir_deg=field(0.0, 360.0),
+        wave_period_s=field(2.0, 18.0),
+        current_u_ms=np.zeros(shape),
+        current_v_ms=np.zeros(shape),
+    )
+    want_index, want_unknown = model.evidence_index(arc_quantities(cond, course, model.quantities))
+    got_index, got_unknown = evidence_index(model, cond, course)
+    np.testing.assert_array_equal(got_index, np.broadcast_to(want_index, shape))
+    assert (got_unknown is None) == (want_unknown is None)
+    if want_unknown is not None:
+        np.testing.assert_array_equal(got_unknown, np.broadcast_to(want_unknown, shape))
+    assert np.unique(got_index).size > 1
