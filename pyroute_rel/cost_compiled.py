@@ -159,7 +159,8 @@ def evidence_index(
     sources = [QUANTITY_FIELDS[c.quantity] for c in model.criteria]
     values = np.empty((len(sources), int(np.prod(shape, dtype=np.int64))))
     for row, (attr, _) in zip(values, sources, strict=True):
-        row[:] = np.broadcast_to(getattr(conditions, attr), shape).reshape(-1)
+        value = getattr(conditions, attr)
+        row[:] = (value if value.shape == shape else np.broadcast_to(value, shape)).reshape(-1)
     relative = np.array([rel for _, rel in sources], dtype=np.bool_)
     index = np.empty(values.shape[1], dtype=np.intp)
     unknown = np.empty(values.shape[1], dtype=np.bool_)
