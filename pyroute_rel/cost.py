@@ -762,11 +762,12 @@ def _wind_passes(
     geom: ArcGeometry, t_samples: FloatArray, options: _CostOptions, prepared: object
 ) -> tuple[ArcCosts, Conditions]:
     """The two passes of :func:`_geometry_costs` over time-varying weather with wind only (:func:`_wind_only`): the
-    per-arc costs and the weather at the samples of the second pass. The sources sample, the polar and the failure
-    model's evidence are the numpy path's calls; the elapsed times and the per-sample and per-arc bookkeeping are
-    compiled (:func:`~pyroute_rel.cost_compiled.arrival_offsets`, :func:`~pyroute_rel.cost_compiled.judge_samples`),
-    with the same arithmetic: the same numbers as :func:`_sample_and_cost` and :func:`_arc_totals`."""
-    from .cost_compiled import arrival_offsets, judge_samples, sail_wind
+    per-arc costs and the weather at the samples of the second pass. The sources sample as on the numpy path; the
+    polar, the elapsed times, the failure model's evidence and the per-sample and per-arc bookkeeping are compiled
+    (:func:`~pyroute_rel.cost_compiled.sail_wind`, :func:`~pyroute_rel.cost_compiled.arrival_offsets`,
+    :func:`~pyroute_rel.cost_compiled.evidence_index`, :func:`~pyroute_rel.cost_compiled.judge_samples`), with the
+    same arithmetic: the same numbers as :func:`_sample_and_cost` and :func:`_arc_totals`."""
+    from .cost_compiled import arrival_offsets, evidence_index, judge_samples, sail_wind
 
     o, weather, model = options, options.weather, options.failure
     course, seg = geom.course_deg, geom.seg_nm
@@ -778,13 +779,10 @@ def _wind_passes(
     if model is not None:
         wanted += tuple(sorted(model.weather_fields - set(wanted)))
     cond = weather.sample_at(prepared, o.departure, offset_h=arrive, fields=wanted)
-    twa, v, _ = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)
+    v = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[1]
     evidence = None
-    if model is not None:
-        q: dict[str, Any] = arc_quantities(cond, course, model.quantities - {"twa_deg"})
-        if "twa_deg" in model.quantities:
-            q["twa_deg"] = twa
-        flat, unknown = model.evidence_index(q)
+    if model is not None:  # the quantities (arc_quantities; the TWA is the one sail_wind gives) and their evidence
+        flat, unknown = evidence_index(model, cond, course)
         evidence = (flat, unknown, model.p_flat, model.p_flat > o.apf, model.fired_bits_flat)
     flags = (REASONS["polar"], REASONS["weather"], REASONS["failure"])
     time_h, p_f, reason, fired = judge_samples(cond.tws_kn, cond.twd_deg, v, seg, evidence, flags)

@@ -28,10 +28,12 @@ import numpy as np
 import numpy.typing as npt
 
 from . import polar_compiled
+from .failure import QUANTITY_FIELDS, FailureModel
 from .polar import MIN_SPEED_KN, Polar, check_beyond
-from .polar_compiled import fold_twa, speed_kn, sub_time
+from .polar_compiled import SHORT_AXIS, blend, fold_twa, sub_time, table_edges
+from .weather.base import Conditions
 
-__all__ = ["arrival_offsets", "judge_samples", "sail_wind"]
+__all__ = ["arrival_offsets", "evidence_index", "judge_samples", "sail_wind"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -74,7 +76,7 @@ def sail_wind(
     else:
         seg = _flat(seg_nm, shape)
     twa, v, dt = (np.empty(flat[0].size) for _ in range(3))
-    _wind_kernel(*flat, seg, every, *_tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)  # type: ignore[call-arg]
+    _wind_kernel(*flat, seg, every, *_tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)
     return twa.reshape(shape), v.reshape(shape), dt.reshape(shape)
 
 
@@ -85,13 +87,15 @@ _TABLES: dict[int, tuple[weakref.ref[Polar], tuple[Any, ...]]] = {}
 
 
 def _tables(polar: Polar) -> tuple[Any, ...]:
-    """:func:`pyroute_rel.polar_compiled.tables` of a polar, made once (looked up by identity: comparing polars
-    compares their tables)."""
+    """The polar's table and axes as :func:`pyroute_rel.polar_compiled.tables` gives them, each axis followed by its
+    :func:`~pyroute_rel.polar_compiled.cell_finder` (``twa, tws, speed, twa_finder, tws_finder``), made once (looked
+    up by identity: comparing polars compares their tables)."""
     key = id(polar)
     kept = _TABLES.get(key)
     if kept is not None and kept[0]() is polar:
         return kept[1]
-    tables = polar_compiled.tables(polar)
+    twa, tws, speed, _, _ = polar_compiled.tables(polar)
+    tables = (twa, tws, speed, polar_compiled.cell_finder(twa), polar_compiled.cell_finder(tws))
     _TABLES[key] = (weakref.ref(polar, lambda _, key=key: _TABLES.pop(key, None)), tables)
     return tables
 
@@ -134,6 +138,82 @@ def _offsets_kernel(dt, t0, every, out):  # type: ignore[no-untyped-def]  # prag
                 e = 0.0
             t = t0[i] + e
             out[k] = t if np.isfinite(t) else 0.0
+
+
+def evidence_index(
+    model: FailureModel, conditions: Conditions, course_deg: FloatArray
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_] | None]:
+    """:meth:`FailureModel.evidence_index <pyroute_rel.failure.FailureModel.evidence_index>` of the quantities
+    :func:`pyroute_rel.cost.arc_quantities` makes of the weather ``conditions`` on ``course_deg`` [deg] (no current:
+    the heading is the course), in one compiled loop: each
+    quantity's field, or its angle to the course (:func:`~pyroute_rel.polar_compiled.fold_twa`, the TWA
+    :func:`sail_wind` gives), classified as the model's numpy rules classify it (the same flat index and unknown
+    points; :meth:`~pyroute_rel.failure.FailureModel.evidence_rules`).
+
+    Returns
+    -------
+    ``(index, unknown)`` with ``course_deg``'s shape; ``unknown`` None where no point's evidence is unknown.
+    """
+    shape = course_deg.shape
+    edges, n_edges, contrib, right, fill = _rules(model)
+    sources = [QUANTITY_FIELDS[c.quantity] for c in model.criteria]
+    values = np.empty((len(sources), int(np.prod(shape, dtype=np.int64))))
+    for row, (attr, _) in zip(values, sources, strict=True):
+        value = getattr(conditions, attr)
+        row[:] = (value if value.shape == shape else np.broadcast_to(value, shape)).reshape(-1)
+    relative = np.array([rel for _, rel in sources], dtype=np.bool_)
+    index = np.empty(values.shape[1], dtype=np.intp)
+    unknown = np.empty(values.shape[1], dtype=np.bool_)
+    course = _flat(course_deg, shape)
+    lost = _evidence_kernel(values, relative, course, edges, n_edges, contrib, right, fill, index, unknown)
+    return index.reshape(shape), unknown.reshape(shape) if lost else None
+
+
+#: Failure models' classifiers as the evidence kernel takes them, by the model's id (as :data:`_TABLES`).
+_RULES: dict[int, tuple[weakref.ref[FailureModel], tuple[Any, ...]]] = {}
+
+
+def _rules(model: FailureModel) -> tuple[Any, ...]:
+    """:meth:`~pyroute_rel.failure.FailureModel.evidence_rules` of a model, made once."""
+    key = id(model)
+    kept = _RULES.get(key)
+    if kept is not None and kept[0]() is model:
+        return kept[1]
+    rules = model.evidence_rules()
+    _RULES[key] = (weakref.ref(model, lambda _, key=key: _RULES.pop(key, None)), rules)
+    return rules
+
+
+@numba.njit(nogil=True, cache=True)
+def _evidence_kernel(values, relative, course, edges, n_edges, contrib, right, fill, index_out, unknown_out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`evidence_index` into the outputs; returns whether any point's evidence is unknown. Per point and
+    criterion ``c``: the value ``values[c]`` (folded to its angle to the course where ``relative[c]``), its bin (the
+    edges below it, or at or below with ``right``: numpy's searchsorted; NaN: the fill, or unknown in the last bin, the
+    first with one edge, as numpy classifies a NaN) and that bin's contribution, summed over the criteria."""
+    any_lost = False
+    for k in range(values.shape[1]):
+        e = 0
+        lost = False
+        for c in range(values.shape[0]):
+            x = values[c, k]
+            if relative[c]:
+                x = fold_twa(x, course[k])
+            m = n_edges[c]
+            if x != x:
+                if fill[c] >= 0:
+                    e += fill[c]
+                    continue
+                lost = True
+                b = 0 if m == 1 else m
+            else:
+                b = 0
+                for j in range(m):
+                    b += (edges[c, j] <= x) if right[c] else (edges[c, j] < x)
+            e += contrib[c, b]
+        index_out[k] = e
+        unknown_out[k] = lost
+        any_lost |= lost
+    return any_lost
 
 
 def judge_samples(
@@ -280,8 +360,8 @@ def _wind_kernel(
     twa_tab,
     tws_tab,
     speed_tab,
-    twa_inv,
-    tws_inv,
+    twa_finder,
+    tws_finder,
     forbid,
     min_speed,
     twa_out,
@@ -290,12 +370,54 @@ def _wind_kernel(
 ):  # type: ignore[no-untyped-def]  # pragma: no cover
     """One point at a time: fold TWA, bilinear polar, then ``seg / speed`` or ``inf`` (missing wind, no speed)
     (:mod:`pyroute_rel.polar_compiled`), in the numpy path's order of operations; points ``i * every`` to
-    ``(i + 1) * every - 1`` sail ``seg[i]``."""
+    ``(i + 1) * every - 1`` sail ``seg[i]``. The table is read here (cells as :func:`~pyroute_rel.polar_compiled.cell`
+    finds them: counted on short axes, from the axes' :func:`~pyroute_rel.polar_compiled.cell_finder` on long ones),
+    and only scalars passed to the inlined helpers: an array passed to one is reference-counted at every point,
+    which doubled the kernel's time."""
+    a0, a_scale, a_last, a_lower = twa_finder
+    w0, w_scale, w_last, w_lower = tws_finder
+    n_tws = tws_tab.size
+    top_a = twa_tab.size - 2
+    top_w = n_tws - 2
+    tws_first, twa_first = tws_tab[0], twa_tab[0]
+    twa_last, tws_last = twa_tab[twa_tab.size - 1], tws_tab[n_tws - 1]
     for i in range(tws.size // every):  # arc by arc (no division per point)
         s = seg[i]
         for k in range(i * every, (i + 1) * every):
             a = fold_twa(twd[k], course[k])
             twa_out[k] = a
-            v = speed_kn(a, tws[k], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
+            w = tws[k]
+            v = np.nan
+            if a == a and w == w:
+                ia = jw = 0
+                if top_a <= SHORT_AXIS:  # count the inner rows at or below: no branch, no dependent load
+                    for m in range(1, top_a + 1):
+                        ia += twa_tab[m] <= a
+                else:  # a first cell from the finder, stepped up
+                    ia = a_lower[int(min(max((a - a0) * a_scale, 0.0), a_last))]
+                    while ia < top_a and twa_tab[ia + 1] <= a:
+                        ia += 1
+                if top_w <= SHORT_AXIS:
+                    for m in range(1, top_w + 1):
+                        jw += tws_tab[m] <= w
+                else:
+                    jw = w_lower[int(min(max((w - w0) * w_scale, 0.0), w_last))]
+                    while jw < top_w and tws_tab[jw + 1] <= w:
+                        jw += 1
+                c = ia * n_tws + jw
+                v = blend(
+                    a,
+                    w,
+                    twa_tab[ia],
+                    twa_tab[ia + 1],
+                    tws_tab[jw],
+                    tws_tab[jw + 1],
+                    speed_tab[c],
+                    speed_tab[c + 1],
+                    speed_tab[c + n_tws],
+                    speed_tab[c + n_tws + 1],
+                    tws_first,
+                )
+            v = table_edges(v, a, w, twa_first, twa_last, tws_last, forbid)
             v_out[k] = v
-            dt_out[k] = sub_time(s, v, tws[k], twd[k], min_speed)[0]
+            dt_out[k] = sub_time(s, v, w, twd[k], min_speed)[0]

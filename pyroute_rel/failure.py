@@ -384,6 +384,27 @@ class FailureModel:
             unknown = np.broadcast_to(unknown, flat.shape) if unknown.shape != flat.shape else unknown
         return flat, unknown
 
+    def evidence_rules(
+        self,
+    ) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], npt.NDArray[np.bool_], npt.NDArray[np.intp]]:
+        """:meth:`evidence_index`'s classifiers as arrays for compiled code, one row per criterion (in order):
+        ``(edges, n_edges, contrib, right, fill)``: the bin edges (padded with NaN) and their number, each bin's
+        contribution to the flat index (padded with 0), whether a value on an edge goes to the upper bin, and the
+        contribution of a NaN value (-1: a NaN makes the evidence unknown). A value's bin is the number of edges below
+        it (at or below with ``right``); a NaN's, where it is unknown, is the last (numpy's searchsorted puts NaN
+        there), or the first for a single edge (a comparison with NaN is false)."""
+        rules = self._kernel.rules
+        width = max(r.edges.size for r in rules)
+        edges = np.full((len(rules), width), np.nan)
+        contrib = np.zeros((len(rules), width + 1), dtype=np.intp)
+        for i, r in enumerate(rules):
+            edges[i, : r.edges.size] = r.edges
+            contrib[i, : r.contrib.size] = r.contrib
+        n_edges = np.array([r.edges.size for r in rules], dtype=np.intp)
+        right = np.array([r.right for r in rules], dtype=np.bool_)
+        fill = np.array([-1 if r.fill is None else r.fill for r in rules], dtype=np.intp)
+        return edges, n_edges, contrib, right, fill
+
     @staticmethod
     def _fired_lut(c: Criterion) -> npt.NDArray[np.bool_]:
         return np.array([s not in c.nominal for s in c.states] + [False])

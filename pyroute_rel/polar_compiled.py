@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from .polar import Polar
 
-__all__ = ["SHORT_AXIS", "cell", "fold_twa", "sub_time", "speed_kn", "tables"]
+__all__ = ["SHORT_AXIS", "blend", "cell", "cell_finder", "fold_twa", "sub_time", "speed_kn", "tables", "table_edges"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -98,28 +98,79 @@ def speed_kn(ang, w, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid):  # 
     """Boat speed [kn] at TWA ``ang`` [deg] (folded) and TWS ``w`` [kn]: bilinear in the table, linear to 0 kn
     below its first column, 0 kn below its first row (no-go) and, with ``forbid``, beyond its last row or column;
     NaN where ``ang`` or ``w`` is (but for those two rules, applied last as in the numpy code)."""
-    n_twa = twa_tab.size
     n_tws = tws_tab.size
     v = np.nan
     if ang == ang and w == w:
         i = cell(ang, twa_tab, twa_inv)
         j = cell(w, tws_tab, tws_inv)
-        fa = (ang - twa_tab[i]) / (twa_tab[i + 1] - twa_tab[i])
-        fa = min(max(fa, 0.0), 1.0)
-        fw = (w - tws_tab[j]) / (tws_tab[j + 1] - tws_tab[j])
-        fw = min(max(fw, 0.0), 1.0)
         c = i * n_tws + j
-        gw = 1.0 - fw
-        low = speed_tab[c] * gw + speed_tab[c + 1] * fw
-        high = speed_tab[c + n_tws] * gw + speed_tab[c + n_tws + 1] * fw
-        v = high * fa - low * (fa - 1.0)
-        if tws_tab[0] > 0.0 and w < tws_tab[0]:
-            v *= w / tws_tab[0]
-    if twa_tab[0] > 0.0 and ang < twa_tab[0]:
+        v = blend(
+            ang,
+            w,
+            twa_tab[i],
+            twa_tab[i + 1],
+            tws_tab[j],
+            tws_tab[j + 1],
+            speed_tab[c],
+            speed_tab[c + 1],
+            speed_tab[c + n_tws],
+            speed_tab[c + n_tws + 1],
+            tws_tab[0],
+        )
+    return table_edges(v, ang, w, twa_tab[0], twa_tab[twa_tab.size - 1], tws_tab[n_tws - 1], forbid)
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def blend(ang, w, a0, a1, w0, w1, s00, s01, s10, s11, tws_first):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`speed_kn` inside the table (``ang`` and ``w`` not NaN): bilinear between the cell's corners, TWA
+    ``a0`` to ``a1`` [deg] and TWS ``w0`` to ``w1`` [kn] with speeds ``s00`` (a0, w0), ``s01`` (a0, w1), ``s10``
+    (a1, w0), ``s11`` (a1, w1) [kn], weights clipped to [0, 1], times ``w / tws_first`` below a first column
+    ``tws_first`` [kn] above 0. Scalars only: a kernel reads the table itself (an array passed to a function numba
+    inlines is reference-counted at every call, which cost more than the lookup)."""
+    fa = (ang - a0) / (a1 - a0)
+    fa = min(max(fa, 0.0), 1.0)
+    fw = (w - w0) / (w1 - w0)
+    fw = min(max(fw, 0.0), 1.0)
+    gw = 1.0 - fw
+    low = s00 * gw + s01 * fw
+    high = s10 * gw + s11 * fw
+    v = high * fa - low * (fa - 1.0)
+    if tws_first > 0.0 and w < tws_first:
+        v *= w / tws_first
+    return v
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def table_edges(v, ang, w, twa_first, twa_last, tws_last, forbid):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`speed_kn`'s last two rules on the speed ``v`` [kn]: 0 below the first row ``twa_first`` [deg] when it
+    is above 0 (no-go), and, with ``forbid``, 0 beyond the last row ``twa_last`` [deg] or column ``tws_last`` [kn]."""
+    if twa_first > 0.0 and ang < twa_first:
         v = 0.0
-    if forbid and (ang > twa_tab[n_twa - 1] or w > tws_tab[n_tws - 1]):
+    if forbid and (ang > twa_last or w > tws_last):
         v = 0.0
     return v
+
+
+def cell_finder(axis: FloatArray) -> tuple[float, float, float, npt.NDArray[np.intp]]:
+    """What a kernel needs to find :func:`cell`'s cell in constant time, with no search: ``(x0, scale, last,
+    lower)``; the cell of ``x`` (not NaN) on ``axis`` is then ``i = lower[int(min(max((x - x0) * scale, 0),
+    last))]``, stepped up while ``i < n - 2`` and ``axis[i + 1] <= x``.
+
+    The bins ``b(x) = int((x - x0) * scale)`` (clipped) rise with ``x`` (rounding is monotonic), so ``lower[b]``,
+    the number of inner rows whose own bin is below ``b``, counts only rows below ``x``: it is never above the
+    cell, and the steps up make it exact whatever the rounding. With ``scale`` at two bins per narrowest step, no two
+    rows share a bin, and one step at most is needed. ``x0`` is the first inner row; at most 4096 bins.
+    """
+    axis = np.asarray(axis, dtype=np.float64)
+    inner = axis[1:-1]
+    if inner.size < 2:
+        return float(axis[0]), 1.0, 0.0, np.zeros(1, dtype=np.intp)  # one bin (a finite scale: inf x 0 is NaN)
+    x0, span = float(inner[0]), float(inner[-1] - inner[0])
+    scale = min(2.0 / float(np.min(np.diff(inner))), 4096.0 / span)
+    bins = np.minimum(np.maximum((inner - x0) * scale, 0.0), np.inf).astype(np.intp)
+    last = int(bins[-1])
+    lower = np.searchsorted(bins, np.arange(last + 1), "left").astype(np.intp)  # rows with a bin below each bin
+    return x0, scale, float(last), lower
 
 
 @numba.njit(nogil=True, cache=True, inline="always")

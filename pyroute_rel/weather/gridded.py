@@ -175,11 +175,22 @@ class _Block:
         return _Where(base=iy, sx=sx, sy=sy, wx=wx, wy=wy, ok=ok)
 
     def interpolate_at(
-        self, where: _Where, origin: np.datetime64, offset: FloatArray, columns: IntArray, scale: float = 1.0
+        self,
+        where: _Where,
+        origin: np.datetime64,
+        offset: FloatArray,
+        columns: IntArray,
+        scale: float = 1.0,
+        convert: tuple[int, int, int, int] = (-1, -1, -1, -1),
     ) -> FloatArray:
         """The stored ``columns`` at located points and times ``origin + offset * scale`` [s] (``offset`` 1-D,
         contiguous; ``scale`` [s] per its unit) -> (len(columns), n_points), NaN outside. The kernel computes each
-        point's time on the block's axis, ``offset * scale + (origin - t0)`` (rounded after each operation)."""
+        point's time on the block's axis, ``offset * scale + (origin - t0)`` (rounded after each operation).
+
+        ``convert``: rows (of the output; -1: none) of wind u and v, and of the wave direction's sine and cosine,
+        turned into speed [kn] and direction [deg] (the wind: in its u and v rows) and the wave direction [deg] (in
+        its sine's row) as each point is interpolated (:func:`_interpolate_kernel`): what :func:`_vector_kernel`
+        makes of the rows afterwards, without a second pass over them."""
         shift = (origin - self.t0) / np.timedelta64(1, "s") if self.time_s.size else 0.0  # steady: any time will do
         out = np.empty((columns.size, where.base.size))
         _interpolate_kernel(
@@ -196,6 +207,8 @@ class _Block:
             float(scale),
             float(shift),
             self.time_s,
+            *convert,
+            KN_PER_MS,
             out,
         )
         return out
@@ -207,6 +220,26 @@ class _Block:
             picked = [j for j, name in enumerate(self.names) if wanted is None or name in wanted]
             cols = self._columns[wanted] = (picked, np.asarray(picked, dtype=np.intp))
         return cols
+
+
+#: :meth:`GriddedWeather.sample_at` turns the wind's (u, v) into speed and direction, and the wave direction's (sine,
+#: cosine) into its angle, as it interpolates each point (one compiled loop, no arrays of components; False: the
+#: components are interpolated, then turned by :func:`_vector_kernel`, for comparisons). The numbers are the same.
+FUSED_SAMPLING = True
+
+#: Stored column pairs turned into :class:`Conditions` fields (:data:`_TURNED`) as they are interpolated.
+_PAIRS = (("wind_u_ms", "wind_v_ms"), ("_wave_sin", "_wave_cos"))
+_TURNED = (("tws_kn", "twd_deg"), ("wave_dir_deg",))
+_TURNED_FIELDS = ("tws_kn", "twd_deg", "wave_dir_deg")
+
+
+def _pair_rows(names: list[str]) -> tuple[int, int, int, int]:
+    """Rows of ``names`` (a block's columns picked) holding each pair of :data:`_PAIRS` (-1, -1 where the block does
+    not hold both)."""
+    rows: list[int] = []
+    for a, b in _PAIRS:
+        rows += [names.index(a), names.index(b)] if a in names and b in names else [-1, -1]
+    return rows[0], rows[1], rows[2], rows[3]
 
 
 #: Time axis of a block steady in time (any time is valid).
@@ -266,7 +299,25 @@ def _load_kernels() -> None:
     i, w, step, ok = _locate(axis, np.array([0.5]), 1)
     out = np.empty((1, 1))
     _interpolate_kernel(
-        np.zeros(8, np.float32), 1, np.zeros(1, np.intp), i, step, step, w, w, ok, w, 1.0, 0.0, axis, out
+        np.zeros(8, np.float32),
+        1,
+        np.zeros(1, np.intp),
+        i,
+        step,
+        step,
+        w,
+        w,
+        ok,
+        w,
+        1.0,
+        0.0,
+        axis,
+        -1,
+        -1,
+        -1,
+        -1,
+        1.0,
+        out,
     )
     _vector_kernel(w, w, 1.0, 1.0, np.empty(1), np.empty(1))
 
@@ -318,48 +369,60 @@ def _locate_kernel(axis, x, stride, i_out, w_out, step_out, ok_out):  # type: ig
 
 
 @numba.njit(nogil=True, cache=True)
-def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, scale, shift, t_axis, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, scale, shift, t_axis, ru, rv, rs, rc, kn, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Trilinear interpolation of the stored ``columns`` (of ``nf`` interleaved) at located points -> ``out``.
 
     ``base``/``sx``/``sy``/``wx``/``wy``/``ok`` are a :class:`_Where`; ``t * scale + shift`` [s] the points' times
     on ``t_axis`` (empty: a steady block, valid at any time; one value: valid at exactly that time). NaN outside.
+    Rows ``ru``, ``rv`` (wind u, v [m/s]) become the wind's speed [``kn`` per m/s] and direction (from) [deg], row
+    ``rs`` (with ``rc``: a wave direction's sine and cosine) the wave direction [deg], point by point, as
+    :func:`_vector_kernel` turns them (-1: no such rows).
     """
     nt = t_axis.size
     t_first = t_axis[0] if nt > 0 else 0.0
-    t_step = (t_axis[nt - 1] - t_first) / (nt - 1) if nt > 1 else 1.0
+    t_last = t_axis[nt - 1] if nt > 0 else 0.0
+    t_step = (t_last - t_first) / (nt - 1) if nt > 1 else 1.0
+    x_prev, it_prev, wt_prev = np.nan, 0, 0.0  # the last time's cell: runs of points share a time (one arc's)
     for k in range(base.size):
         good = ok[k]
         it = 0
         wt = 0.0
         if good and nt > 0:
             x = t[k] * scale + shift
-            good = t_first <= x <= t_axis[nt - 1]
+            good = t_first <= x <= t_last
             if good:
-                it, wt = _cell(t_axis, t_first, t_step, x)
+                if x != x_prev:
+                    x_prev = x
+                    it_prev, wt_prev = _cell(t_axis, t_first, t_step, x)
+                it, wt = it_prev, wt_prev
         if not good:
             for c in range(columns.size):
                 out[c, k] = np.nan
-            continue
-        st = nf if wt > 0.0 else 0
-        b = base[k] + it * nf
-        ax = wx[k]
-        ay = wy[k]
-        c00 = (1.0 - ax) * (1.0 - ay)
-        c10 = ax * (1.0 - ay)
-        c01 = (1.0 - ax) * ay
-        c11 = ax * ay
-        b10 = b + sx[k]
-        b01 = b + sy[k]
-        b11 = b10 + sy[k]
-        t0w = 1.0 - wt
-        for c in range(columns.size):
-            f = columns[c]
-            out[c, k] = (
-                c00 * (t0w * flat[b + f] + wt * flat[b + st + f])
-                + c10 * (t0w * flat[b10 + f] + wt * flat[b10 + st + f])
-                + c01 * (t0w * flat[b01 + f] + wt * flat[b01 + st + f])
-                + c11 * (t0w * flat[b11 + f] + wt * flat[b11 + st + f])
-            )
+        else:
+            st = nf if wt > 0.0 else 0
+            b = base[k] + it * nf
+            ax = wx[k]
+            ay = wy[k]
+            c00 = (1.0 - ax) * (1.0 - ay)
+            c10 = ax * (1.0 - ay)
+            c01 = (1.0 - ax) * ay
+            c11 = ax * ay
+            b10 = b + sx[k]
+            b01 = b + sy[k]
+            b11 = b10 + sy[k]
+            t0w = 1.0 - wt
+            for c in range(columns.size):
+                f = columns[c]
+                out[c, k] = (
+                    c00 * (t0w * flat[b + f] + wt * flat[b + st + f])
+                    + c10 * (t0w * flat[b10 + f] + wt * flat[b10 + st + f])
+                    + c01 * (t0w * flat[b01 + f] + wt * flat[b01 + st + f])
+                    + c11 * (t0w * flat[b11 + f] + wt * flat[b11 + st + f])
+                )
+        if ru >= 0:  # the wind's speed and direction, from its (u, v) just computed
+            out[ru, k], out[rv, k] = _speed_bearing(-1.0 * out[ru, k], -1.0 * out[rv, k], kn)
+        if rs >= 0:
+            out[rs, k] = _speed_bearing(out[rs, k], out[rc, k], 1.0)[1]
 
 
 @numba.njit(nogil=True, cache=True)
@@ -373,25 +436,30 @@ def _vector_kernel(east, north, sign, scale, speed_out, bearing_out):  # type: i
     """
     with_speed = speed_out.size > 0
     for k in range(east.size):
-        e = sign * east[k]
-        n = sign * north[k]
-        ae = abs(e)
-        an = abs(n)
-        hi = max(ae, an)
-        if hi > 0.0 and hi < math.inf and e == e and n == n:  # (max() may drop a NaN: tested apart)
-            r = math.degrees(math.atan(min(ae, an) / hi))  # angle from the nearer axis, in [0, 45]
-            r = 90.0 - r if ae > an else r  # from the north-south axis
-            r = 180.0 - r if n < 0.0 else r
-            d = 360.0 - r if e < 0.0 else r
-        else:  # calm (signed zeros), infinite or NaN components: the library's rules
-            d = math.degrees(math.atan2(e, n))
-            if d < 0.0:
-                d += 360.0
-        if d >= 360.0:
-            d = 0.0
-        bearing_out[k] = d + 0.0  # no -0.0
+        speed, bearing = _speed_bearing(sign * east[k], sign * north[k], scale)
+        bearing_out[k] = bearing
         if with_speed:
-            speed_out[k] = math.sqrt(e * e + n * n) * scale  # hypot's overflow care costs 15x here
+            speed_out[k] = speed
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _speed_bearing(e, n, scale):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`_vector_kernel` for one vector (east, north): its length x ``scale`` and bearing [deg, [0, 360)]."""
+    ae = abs(e)
+    an = abs(n)
+    hi = max(ae, an)
+    if hi > 0.0 and hi < math.inf and e == e and n == n:  # (max() may drop a NaN: tested apart)
+        r = math.degrees(math.atan(min(ae, an) / hi))  # angle from the nearer axis, in [0, 45]
+        r = 90.0 - r if ae > an else r  # from the north-south axis
+        r = 180.0 - r if n < 0.0 else r
+        d = 360.0 - r if e < 0.0 else r
+    else:  # calm (signed zeros), infinite or NaN components: the library's rules
+        d = math.degrees(math.atan2(e, n))
+        if d < 0.0:
+            d += 360.0
+    if d >= 360.0:
+        d = 0.0
+    return math.sqrt(e * e + n * n) * scale, d + 0.0  # hypot's overflow care costs 15x here; + 0.0: no -0.0
 
 
 class GriddedWeather:
@@ -526,14 +594,25 @@ class GriddedWeather:
         offset: FloatArray,
         wanted: frozenset[str] | None = None,
         scale: float = 1.0,
+        convert: bool = False,
     ) -> dict[str, FloatArray]:
-        """The stored columns ``wanted`` (None: all) at located points and times ``origin + offset * scale`` [s]."""
+        """The stored columns ``wanted`` (None: all) at located points and times ``origin + offset * scale`` [s].
+
+        ``convert``: the wind and the wave direction stored in one block come as :class:`Conditions` fields
+        (``tws_kn``, ``twd_deg``; ``wave_dir_deg``) turned as they are interpolated (:meth:`_Block.interpolate_at`),
+        in place of their stored columns (:data:`FUSED_SAMPLING`)."""
         out: dict[str, FloatArray] = {}
         for block, w in zip(self._blocks, where, strict=True):
             cols, index = block.columns(wanted)
             if cols:
-                values = block.interpolate_at(w, origin, offset, index, scale)
-                out.update(zip([block.names[j] for j in cols], values, strict=True))
+                names = [block.names[j] for j in cols]
+                rows = _pair_rows(names) if convert else (-1, -1, -1, -1)
+                values = block.interpolate_at(w, origin, offset, index, scale, rows)
+                out.update(zip(names, values, strict=True))
+                for (a, b), (ra, rb), fields in zip(_PAIRS, (rows[:2], rows[2:]), _TURNED, strict=True):
+                    if ra >= 0:
+                        del out[a], out[b]
+                        out.update(zip(fields, (values[ra], values[rb])[: len(fields)], strict=True))
         return out
 
     def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> PreparedPoints:
@@ -625,7 +704,7 @@ class GriddedWeather:
                 np.broadcast_to(np.asarray(offset_h, dtype=np.float64), prepared.shape).ravel()
             )
             scale = 3600.0
-        values = self._interpolate_at(prepared.where, origin, offset, wanted, scale)
+        values = self._interpolate_at(prepared.where, origin, offset, wanted, scale, convert=FUSED_SAMPLING)
         return self._conditions(prepared.shape, values, fields)
 
     def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
@@ -664,6 +743,7 @@ class GriddedWeather:
         n = math.prod(shape)
         nan = np.full(n, np.nan)
         out = dict.fromkeys(_NEEDS, nan)
+        out.update((name, v[name]) for name in _TURNED_FIELDS if name in v)  # turned as they were interpolated
         if "wind_u_ms" in v:
             out["tws_kn"], out["twd_deg"] = np.empty(n), np.empty(n)
             _vector_kernel(v["wind_u_ms"], v["wind_v_ms"], -1.0, KN_PER_MS, out["tws_kn"], out["twd_deg"])
