@@ -381,6 +381,8 @@ def _wind_kernel(
     top_w = n_tws - 2
     tws_first, twa_first = tws_tab[0], twa_tab[0]
     twa_last, tws_last = twa_tab[twa_tab.size - 1], tws_tab[n_tws - 1]
+    short_a, short_w = top_a <= SHORT_AXIS, top_w <= SHORT_AXIS
+    un, one = np.uint64(n_tws), np.uint64(1)  # table indices unsigned: no negative-index wraparound
     for i in range(tws.size // every):  # arc by arc (no division per point)
         s = seg[i]
         for k in range(i * every, (i + 1) * every):
@@ -390,32 +392,33 @@ def _wind_kernel(
             v = np.nan
             if a == a and w == w:
                 ia = jw = 0
-                if top_a <= SHORT_AXIS:  # count the inner rows at or below: no branch, no dependent load
+                if short_a:  # count the inner rows at or below: no branch, no dependent load
                     for m in range(1, top_a + 1):
                         ia += twa_tab[m] <= a
                 else:  # a first cell from the finder, stepped up
                     ia = a_lower[int(min(max((a - a0) * a_scale, 0.0), a_last))]
                     while ia < top_a and twa_tab[ia + 1] <= a:
                         ia += 1
-                if top_w <= SHORT_AXIS:
+                if short_w:
                     for m in range(1, top_w + 1):
                         jw += tws_tab[m] <= w
                 else:
                     jw = w_lower[int(min(max((w - w0) * w_scale, 0.0), w_last))]
                     while jw < top_w and tws_tab[jw + 1] <= w:
                         jw += 1
-                c = ia * n_tws + jw
+                ua, uw = np.uint64(ia), np.uint64(jw)
+                c = ua * un + uw
                 v = blend(
                     a,
                     w,
-                    twa_tab[ia],
-                    twa_tab[ia + 1],
-                    tws_tab[jw],
-                    tws_tab[jw + 1],
+                    twa_tab[ua],
+                    twa_tab[ua + one],
+                    tws_tab[uw],
+                    tws_tab[uw + one],
                     speed_tab[c],
-                    speed_tab[c + 1],
-                    speed_tab[c + n_tws],
-                    speed_tab[c + n_tws + 1],
+                    speed_tab[c + one],
+                    speed_tab[c + un],
+                    speed_tab[c + un + one],
                     tws_first,
                 )
             v = table_edges(v, a, w, twa_first, twa_last, tws_last, forbid)

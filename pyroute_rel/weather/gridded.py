@@ -322,12 +322,13 @@ def _load_kernels() -> None:
     _vector_kernel(w, w, 1.0, 1.0, np.empty(1), np.empty(1))
 
 
-@numba.njit(nogil=True, cache=True)
-def _cell(axis, first, step, x):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
+@numba.njit(nogil=True, cache=True, inline="always")
+def _cell(axis, first, inv, x):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
     """(i, w): the cell ``axis[i] <= x < axis[i + 1]`` (clipped to the axis) and the weight of ``axis[i + 1]``.
 
-    Regular axes are found by arithmetic, checked against the axis values; anything else by a binary search,
-    so the cell is always the binary search's. Outside the axis ``w`` is outside [0, 1]; NaN gives NaN.
+    Regular axes are found by arithmetic (``inv``: cells per unit of the axis, its mean spacing's inverse), checked
+    against the axis values and corrected by a step; anything else by a binary search, so the cell is always the
+    binary search's. Outside the axis ``w`` is outside [0, 1]; NaN gives NaN.
     """
     n = axis.size
     if x != x:  # NaN
@@ -337,7 +338,11 @@ def _cell(axis, first, step, x):  # type: ignore[no-untyped-def]  # pragma: no c
     elif x >= axis[n - 1]:
         i = n - 1
     else:
-        i = min(max(int((x - first) / step), 0), n - 2)
+        i = min(max(int((x - first) * inv), 0), n - 2)  # a product, not a quotient: the guess may be one off
+        if x < axis[i]:
+            i = max(i - 1, 0)
+        elif x >= axis[i + 1]:
+            i = min(i + 1, n - 2)
         if not (axis[i] <= x < axis[i + 1]):
             lo, hi = 0, n - 1  # axis[lo] <= x < axis[hi]
             while hi - lo > 1:
@@ -358,14 +363,42 @@ def _locate_kernel(axis, x, stride, i_out, w_out, step_out, ok_out):  # type: ig
     n = axis.size
     first = axis[0]
     last = axis[n - 1]
-    step = (last - first) / (n - 1) if n > 1 else 1.0
+    inv = (n - 1) / (last - first) if n > 1 else 1.0
     for k in range(x.size):
         xk = x[k]
-        i, w = _cell(axis, first, step, xk)
+        i, w = _cell(axis, first, inv, xk)
         i_out[k] = i
         w_out[k] = w
         step_out[k] = stride if w > 0.0 else 0
         ok_out[k] = first <= xk <= last
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _lerp(flat, b00, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """One stored value, trilinear: corners ``b00`` .. ``b11`` of ``flat`` (unsigned indices, the column's own) with
+    weights ``c00`` .. ``c11``, each at two times ``st`` apart with weights ``t0w`` and ``wt``."""
+    return (
+        c00 * (t0w * flat[b00] + wt * flat[b00 + st])
+        + c10 * (t0w * flat[b10] + wt * flat[b10 + st])
+        + c01 * (t0w * flat[b01] + wt * flat[b01 + st])
+        + c11 * (t0w * flat[b11] + wt * flat[b11 + st])
+    )
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _fused_mode(columns, ru, rv, rs, rc):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Which of :func:`_interpolate_kernel`'s unrolled paths fits the call: 1 (two consecutive columns, the wind's u and
+    v, turned), 2 (five consecutive columns: wind u and v turned, a third, a wave direction's sine and cosine turned),
+    0 (any other: the general loop)."""
+    n = columns.size
+    for c in range(n):
+        if columns[c] != columns[0] + c:
+            return 0
+    if n == 2 and ru == 0 and rv == 1 and rs < 0:
+        return 1
+    if n == 5 and ru == 0 and rv == 1 and rs == 3 and rc == 4:
+        return 2
+    return 0
 
 
 @numba.njit(nogil=True, cache=True)
@@ -377,11 +410,16 @@ def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, scale, s
     Rows ``ru``, ``rv`` (wind u, v [m/s]) become the wind's speed [``kn`` per m/s] and direction (from) [deg], row
     ``rs`` (with ``rc``: a wave direction's sine and cosine) the wave direction [deg], point by point, as
     :func:`_vector_kernel` turns them (-1: no such rows).
+
+    The sampler's two usual calls (wind; wind, a scalar and the wave direction, consecutive columns) are unrolled
+    (:func:`_fused_mode`), each turned vector kept in registers; indices are unsigned (no negative-index wraparound).
     """
     nt = t_axis.size
     t_first = t_axis[0] if nt > 0 else 0.0
     t_last = t_axis[nt - 1] if nt > 0 else 0.0
-    t_step = (t_last - t_first) / (nt - 1) if nt > 1 else 1.0
+    t_inv = (nt - 1) / (t_last - t_first) if nt > 1 else 1.0
+    mode = _fused_mode(columns, ru, rv, rs, rc)
+    f0 = np.uint64(columns[0]) if mode > 0 else np.uint64(0)
     x_prev, it_prev, wt_prev = np.nan, 0, 0.0  # the last time's cell: runs of points share a time (one arc's)
     for k in range(base.size):
         good = ok[k]
@@ -393,36 +431,49 @@ def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, scale, s
             if good:
                 if x != x_prev:
                     x_prev = x
-                    it_prev, wt_prev = _cell(t_axis, t_first, t_step, x)
+                    it_prev, wt_prev = _cell(t_axis, t_first, t_inv, x)
                 it, wt = it_prev, wt_prev
         if not good:
             for c in range(columns.size):
                 out[c, k] = np.nan
+            mode_k = 0
         else:
-            st = nf if wt > 0.0 else 0
-            b = base[k] + it * nf
+            mode_k = mode
+            st = np.uint64(nf) if wt > 0.0 else np.uint64(0)
+            b = np.uint64(base[k] + it * nf)
             ax = wx[k]
             ay = wy[k]
             c00 = (1.0 - ax) * (1.0 - ay)
             c10 = ax * (1.0 - ay)
             c01 = (1.0 - ax) * ay
             c11 = ax * ay
-            b10 = b + sx[k]
-            b01 = b + sy[k]
-            b11 = b10 + sy[k]
+            b10 = b + np.uint64(sx[k])
+            b01 = b + np.uint64(sy[k])
+            b11 = b10 + np.uint64(sy[k])
             t0w = 1.0 - wt
-            for c in range(columns.size):
-                f = columns[c]
-                out[c, k] = (
-                    c00 * (t0w * flat[b + f] + wt * flat[b + st + f])
-                    + c10 * (t0w * flat[b10 + f] + wt * flat[b10 + st + f])
-                    + c01 * (t0w * flat[b01 + f] + wt * flat[b01 + st + f])
-                    + c11 * (t0w * flat[b11 + f] + wt * flat[b11 + st + f])
-                )
-        if ru >= 0:  # the wind's speed and direction, from its (u, v) just computed
-            out[ru, k], out[rv, k] = _speed_bearing(-1.0 * out[ru, k], -1.0 * out[rv, k], kn)
-        if rs >= 0:
-            out[rs, k] = _speed_bearing(out[rs, k], out[rc, k], 1.0)[1]
+            if mode == 0:
+                for c in range(columns.size):
+                    f = np.uint64(columns[c])
+                    out[c, k] = _lerp(flat, b + f, b10 + f, b01 + f, b11 + f, st, c00, c10, c01, c11, t0w, wt)
+            else:
+                b, b10, b01, b11 = b + f0, b10 + f0, b01 + f0, b11 + f0
+                u = _lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
+                one, two = np.uint64(1), np.uint64(2)
+                v = _lerp(flat, b + one, b10 + one, b01 + one, b11 + one, st, c00, c10, c01, c11, t0w, wt)
+                out[0, k], out[1, k] = _speed_bearing(-1.0 * u, -1.0 * v, kn)
+                if mode == 2:
+                    b, b10, b01, b11 = b + two, b10 + two, b01 + two, b11 + two
+                    out[2, k] = _lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
+                    sin = _lerp(flat, b + one, b10 + one, b01 + one, b11 + one, st, c00, c10, c01, c11, t0w, wt)
+                    b, b10, b01, b11 = b + two, b10 + two, b01 + two, b11 + two
+                    cos = _lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
+                    out[3, k] = _speed_bearing(sin, cos, 1.0)[1]
+                    out[4, k] = cos
+        if mode_k == 0:
+            if ru >= 0:  # the wind's speed and direction, from its (u, v) just computed
+                out[ru, k], out[rv, k] = _speed_bearing(-1.0 * out[ru, k], -1.0 * out[rv, k], kn)
+            if rs >= 0:
+                out[rs, k] = _speed_bearing(out[rs, k], out[rc, k], 1.0)[1]
 
 
 @numba.njit(nogil=True, cache=True)
