@@ -32,6 +32,7 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -767,26 +768,43 @@ def _wind_passes(
     (:func:`~pyroute_rel.cost_compiled.sail_wind`, :func:`~pyroute_rel.cost_compiled.arrival_offsets`,
     :func:`~pyroute_rel.cost_compiled.evidence_index`, :func:`~pyroute_rel.cost_compiled.judge_samples`), with the
     same arithmetic: the same numbers as :func:`_sample_and_cost` and :func:`_arc_totals`."""
-    from .cost_compiled import arrival_offsets, evidence_index, judge_samples, sail_wind
+    from .cost_compiled import arrival_offsets, evidence_index, judge_samples, judge_tables, sail_wind
 
     o, weather, model = options, options.weather, options.failure
     course, seg = geom.course_deg, geom.seg_nm
-    depart = np.broadcast_to(_finite(t_samples[..., :1]), t_samples.shape)  # per arc, then to its samples
-    cond = weather.sample_at(prepared, o.departure, offset_h=depart, fields=("tws_kn", "twd_deg"))
+    t0 = t_samples[..., 0]
+    # each arc's departure repeated over its samples (contiguous: the source samples it without another copy)
+    depart = np.repeat(_finite(t0), geom.samples).reshape(t_samples.shape)
+    cond = weather.sample_at(prepared, o.departure, offset_h=depart, fields=_WIND_FIELDS)
     dt = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[2]
-    arrive = arrival_offsets(dt, t_samples[..., 0])
-    wanted: tuple[str, ...] = _TIMING_FIELDS
-    if model is not None:
-        wanted += tuple(sorted(model.weather_fields - set(wanted)))
-    cond = weather.sample_at(prepared, o.departure, offset_h=arrive, fields=wanted)
+    arrive = arrival_offsets(dt, t0)
+    cond = weather.sample_at(prepared, o.departure, offset_h=arrive, fields=_second_pass_fields(model))
     v = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[1]
     evidence = None
     if model is not None:  # the quantities (arc_quantities; the TWA is the one sail_wind gives) and their evidence
         flat, unknown = evidence_index(model, cond, course)
-        evidence = (flat, unknown, model.p_flat, model.p_flat > o.apf, model.fired_bits_flat)
+        evidence = (flat, unknown, *judge_tables(model, o.apf))
     flags = (REASONS["polar"], REASONS["weather"], REASONS["failure"])
     time_h, p_f, reason, fired = judge_samples(cond.tws_kn, cond.twd_deg, v, seg, evidence, flags)
     return ArcCosts(time_h=time_h, p_f=p_f, reason=reason, fired_bits=fired), cond
+
+
+#: Conditions the first pass of :func:`_wind_passes` samples.
+_WIND_FIELDS = ("tws_kn", "twd_deg")
+
+
+def _second_pass_fields(model: FailureModel | None) -> tuple[str, ...]:
+    """Conditions the second pass of :func:`_wind_passes` samples: those of the timing pass, and the failure model's
+    (kept while the model lives: the DP asks at every rank)."""
+    if model is None:
+        return _TIMING_FIELDS
+    wanted = _PASS_FIELDS.get(model)
+    if wanted is None:
+        wanted = _PASS_FIELDS[model] = _TIMING_FIELDS + tuple(sorted(model.weather_fields - set(_TIMING_FIELDS)))
+    return wanted
+
+
+_PASS_FIELDS: weakref.WeakKeyDictionary[FailureModel, tuple[str, ...]] = weakref.WeakKeyDictionary()
 
 
 def _finite(time_h: FloatArray) -> FloatArray:
