@@ -234,7 +234,7 @@ class _Block:
             cols, index = self.columns(wanted)
             names = [self.names[j] for j in cols]
             rows = _pair_rows(names) if convert else (-1, -1, -1, -1)
-            named = dict(zip(names, range(len(names))))
+            named = {name: row for row, name in enumerate(names)}
             for (a, b), (ra, rb), fields in zip(_PAIRS, (rows[:2], rows[2:]), _TURNED, strict=True):
                 if ra >= 0:
                     del named[a], named[b]
