@@ -804,17 +804,19 @@ class _Pricing:
             self.cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costed.costs.p_f, reason=reason))
         total = np.where(live, problem.arrive(t0 + time_h if pen is None else (t0 + time_h) + pen), np.inf)
         if self.lazy or costed.pending:
+            judged = bool(costed.pending)
             times = _block_times(problem, t0) if self.lazy else None
             for s in (None,) if side is None else (PORT, STARBOARD):  # each label's best arc must be judged
                 total, found = _settle(costed, total, side, s, problem.blocked if self.lazy else None, k, times)
                 hit = found if found is not None else hit
-            time_h = np.where(np.isfinite(costed.costs.time_h), time_h, np.inf)  # forbidden on pieces now
+            if judged:  # (nothing judged on pieces: the times are those of the costs)
+                time_h = np.where(np.isfinite(costed.costs.time_h), time_h, np.inf)  # forbidden on pieces now
             if self.lazy:
                 total = np.where(hit, np.inf, total)
                 time_h = np.where(hit, np.inf, time_h)
-        reason = np.where(live, costed.costs.reason, 0).astype(np.uint8)
+        reason = np.where(live, costed.costs.reason, np.uint8(0)).astype(np.uint8, copy=False)
         if hit is not None:
-            reason = reason | np.where(hit & live, REASONS["obstacle"], 0).astype(np.uint8)
+            np.bitwise_or(reason, np.uint8(REASONS["obstacle"]), out=reason, where=hit & live)
         return _Priced(
             time_h=time_h,
             total_h=total,
@@ -902,6 +904,8 @@ def _settle(
         cand = total if label is None else np.where(side == label, total, np.inf)
         if blocked is not None:
             hit = _lazy_obstacles(blocked, k, cand, times)
+            if not costed.pending:  # nothing to judge on pieces
+                return total, hit
             cand = np.where(hit, np.inf, cand)
         bad = _lazy_pieces(costed, cand)
         if bad.size:
@@ -1028,11 +1032,13 @@ class _Tally:
     ) -> None:
         """Count one rank's arcs: ``reason`` the flags of arcs forbidden at every departure tried, ``fired`` the
         criteria fired along each arc at the first."""
-        self.evaluated += int(counted.sum())
-        self.pruned += int(live.sum()) - int(counted.sum())
+        n_counted = int(np.count_nonzero(counted))
+        self.evaluated += n_counted
+        self.pruned += int(np.count_nonzero(live)) - n_counted
         bad = live & (reason != 0)
-        self.forbidden += int(bad.sum())
-        if not bad.any():
+        n_bad = int(np.count_nonzero(bad))
+        self.forbidden += n_bad
+        if not n_bad:
             return
         values = np.bincount(reason[bad], minlength=256)  # one pass: arcs per combination of flags
         flags = np.arange(256)
@@ -1074,8 +1080,8 @@ def _rank_step(
         arcs = _RankArcs(k=k, src=src, live=live, t_src=np.where(live, t_src, 0.0), geom=geom)
         cols.append((live, *_best_over_waits(arcs, pricing, line if k < grid.n_ranks else None, from_side)))
     _tally_columns(tally, cols, problem.failure)
-    t_new, j_best, c_best = label_min(np.stack([c[1] for c in cols]))
-    src_best = np.take_along_axis(src, j_best, axis=1)
+    t_new, j_best, c_best = label_min(cols[0][1][None] if len(cols) == 1 else np.stack([c[1] for c in cols]))
+    src_best = src[np.arange(src.shape[0])[:, None], j_best]  # np.take_along_axis(src, j_best, axis=1)
     lab_best = np.asarray(prev_sides, dtype=np.intp)[c_best]
     wait_best = None
     if problem.n_wait:
@@ -1212,6 +1218,10 @@ def _best_over_waits(
     step = problem.time_step_h or 0.0
     shape = arcs.live.shape
     n_lab = 2 if problem.sides else 1
+    if problem.n_wait == 0 and n_lab == 1 and line is None:  # one departure, one label: the loop below, once
+        priced = pricing.price(arcs, arcs.t_src, first=True, from_side=from_side)
+        total_1 = np.where(priced.total_h < np.inf, priced.total_h, np.inf)  # (NaN: not better than inf)
+        return total_1[None], np.zeros((1, *shape)), priced.reason, priced.counted, priced.fired
     total = np.full((n_lab, *shape), np.inf)
     wait = np.zeros((n_lab, *shape))
     reason = np.zeros(shape, dtype=np.uint8)
@@ -1392,12 +1402,11 @@ def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[
     """Obstacle hits among the arcs the DP would pick: for each destination its cheapest arcs are checked
     (4, then 16, 64, ...) until its best arc is known to be free, so the minimum is exactly that of the fully
     checked arcs while most arcs far from the optimum are never tested."""
-    tot = total.copy()
-    width = tot.shape[1]
-    rows = np.arange(tot.shape[0])
+    width = total.shape[1]
+    rows = np.arange(total.shape[0])
     m = 4
     hit = blocked.hits(k, times)
-    tot[hit] = np.inf
+    tot = np.where(hit, np.inf, total)
     while True:
         best = np.argmin(tot, axis=1)
         known = blocked.known(k)
