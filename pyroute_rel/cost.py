@@ -32,6 +32,7 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 
 from __future__ import annotations
 
+import math
 import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
@@ -505,10 +506,12 @@ def _geometry_costs(
     shape = geom.shape
     weather = options.weather
     steady = bool(weather.steady)
-    n = default_workers() if workers is None else int(workers)
+    n = 1 if workers is None else int(workers)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
-    if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
-        return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
+    if shape and not steady and math.prod(shape) >= PARALLEL_MIN_ARCS:
+        n = default_workers() if workers is None else n  # (looked up only where threads may be used)
+        if n > 1:
+            return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
     if steady:
         dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
         costs = _arc_totals(dt, p_f, reason, fired)
@@ -580,14 +583,15 @@ def _pieces_todo(
     no arc can be forbidden by it and ``exact_p_f`` is False."""
     model = options.failure
     assert model is not None
-    if not options.exact_p_f and options.apf >= float(np.max(model.p_flat)):
+    p_max = _p_max(model)
+    if not options.exact_p_f and options.apf >= p_max:
         return None  # nothing to forbid
     shape = geom.shape
     time_h = np.broadcast_to(costs.time_h, shape).reshape(-1)
     p_f = np.broadcast_to(costs.p_f, shape).reshape(-1)
     # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more; an arc
     # far from any change of conditions and of criteria is judged by its samples
-    todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
+    todo = np.isfinite(time_h) & (p_f < p_max)
     close = needs_pieces(
         geom.lon_deg,
         geom.lat_deg,
@@ -603,6 +607,17 @@ def _pieces_todo(
     if close is not None:
         todo &= np.broadcast_to(close, shape).reshape(-1)
     return todo if todo.any() else None
+
+
+def _p_max(model: FailureModel) -> float:
+    """The largest p_f of a model's table (kept while the model lives: :func:`_pieces_todo` asks at every rank)."""
+    p_max = _P_MAX.get(model)
+    if p_max is None:
+        p_max = _P_MAX[model] = float(np.max(model.p_flat))
+    return p_max
+
+
+_P_MAX: weakref.WeakKeyDictionary[FailureModel, float] = weakref.WeakKeyDictionary()
 
 
 def _judge_pieces(

@@ -1041,16 +1041,21 @@ class _Tally:
         if not n_bad:
             return
         values = np.bincount(reason[bad], minlength=256)  # one pass: arcs per combination of flags
-        flags = np.arange(256)
-        for name, bit in REASONS.items():
-            self.by_reason[name] += int(values[(flags & bit) != 0].sum())
-        any_failed = values[(flags & REASONS["failure"]) != 0].any()
+        per_reason = (_REASON_OF_FLAGS @ values).tolist()  # arcs with each reason's bit among their flags
+        for name, n in zip(REASONS, per_reason, strict=True):
+            self.by_reason[name] += n
+        any_failed = per_reason[_FAILURE_ROW] > 0
         if failure is not None and fired is not None and any_failed:
             failed = bad & (reason & REASONS["failure"] != 0)
             bits = np.broadcast_to(fired, failed.shape)[failed]
             for i, c in enumerate(failure.criteria):
                 n = int(np.count_nonzero(bits & np.uint32(1 << i)))
                 self.by_criterion[c.describe()] = self.by_criterion.get(c.describe(), 0) + n
+
+
+#: Per reason of :data:`~pyroute_rel.cost.REASONS` (rows), which of the 256 combinations of flags hold its bit (1).
+_REASON_OF_FLAGS = np.array([(np.arange(256) & bit) != 0 for bit in REASONS.values()], dtype=np.intp)
+_FAILURE_ROW = list(REASONS).index("failure")
 
 
 def _rank_step(
