@@ -417,7 +417,9 @@ def deferred_costs(
     may then be finite where :func:`geometry_costs` forbids it).
     """
     options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f=False)
-    t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape)
+    t0 = t0_h  # the DP's departures have the block's shape: taken as they are
+    if not (type(t0) is np.ndarray and t0.dtype == np.float64 and t0.shape == geom.shape):
+        t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape)
     costs, todo = _geometry_costs(geom, t0, options, workers, defer=True)
     if todo is None or not todo.any():
         return costs, None
@@ -789,7 +791,7 @@ def _wind_passes(
     course, seg = geom.course_deg, geom.seg_nm
     t0 = t_samples[..., 0]
     # each arc's departure repeated over its samples (contiguous: the source samples it without another copy)
-    depart = np.repeat(_finite(t0), geom.samples).reshape(t_samples.shape)
+    depart = _finite(t0).repeat(geom.samples).reshape(t_samples.shape)
     cond = weather.sample_at(prepared, o.departure, offset_h=depart, fields=_WIND_FIELDS)
     dt = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[2]
     arrive = arrival_offsets(dt, t0)

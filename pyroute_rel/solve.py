@@ -1200,7 +1200,7 @@ def label_min(total_h: FloatArray) -> tuple[FloatArray, npt.NDArray[np.intp], np
     c_out = np.zeros((n_dst, n_lab), dtype=np.intp)
     for s in range(n_lab):
         for c in range(n_src):
-            j = np.argmin(total_h[c, s], axis=1)
+            j = total_h[c, s].argmin(axis=1)
             t = total_h[c, s][rows, j]
             if c == 0:
                 t_out[:, s], j_out[:, s] = t, j
@@ -1413,7 +1413,7 @@ def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[
     hit = blocked.hits(k, times)
     tot = np.where(hit, np.inf, total)
     while True:
-        best = np.argmin(tot, axis=1)
+        best = tot.argmin(axis=1)
         known = blocked.known(k)
         need = np.isfinite(tot[rows, best]) & ~known[rows, best]
         if not need.any():
