@@ -32,6 +32,8 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 
 from __future__ import annotations
 
+import math
+import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -415,7 +417,9 @@ def deferred_costs(
     may then be finite where :func:`geometry_costs` forbids it).
     """
     options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f=False)
-    t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape)
+    t0 = t0_h  # the DP's departures have the block's shape: taken as they are
+    if not (type(t0) is np.ndarray and t0.dtype == np.float64 and t0.shape == geom.shape):
+        t0 = np.broadcast_to(np.asarray(t0_h, dtype=float), geom.shape)
     costs, todo = _geometry_costs(geom, t0, options, workers, defer=True)
     if todo is None or not todo.any():
         return costs, None
@@ -504,10 +508,12 @@ def _geometry_costs(
     shape = geom.shape
     weather = options.weather
     steady = bool(weather.steady)
-    n = default_workers() if workers is None else int(workers)
+    n = 1 if workers is None else int(workers)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
-    if n > 1 and shape and not steady and int(np.prod(shape)) >= PARALLEL_MIN_ARCS:
-        return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
+    if shape and not steady and math.prod(shape) >= PARALLEL_MIN_ARCS:
+        n = default_workers() if workers is None else n  # (looked up only where threads may be used)
+        if n > 1:
+            return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
     if steady:
         dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
         costs = _arc_totals(dt, p_f, reason, fired)
@@ -579,14 +585,15 @@ def _pieces_todo(
     no arc can be forbidden by it and ``exact_p_f`` is False."""
     model = options.failure
     assert model is not None
-    if not options.exact_p_f and options.apf >= float(np.max(model.p_flat)):
+    p_max = _p_max(model)
+    if not options.exact_p_f and options.apf >= p_max:
         return None  # nothing to forbid
     shape = geom.shape
     time_h = np.broadcast_to(costs.time_h, shape).reshape(-1)
     p_f = np.broadcast_to(costs.p_f, shape).reshape(-1)
     # arcs already forbidden stay so; an arc whose samples met the table's largest p_f cannot meet more; an arc
     # far from any change of conditions and of criteria is judged by its samples
-    todo = np.isfinite(time_h) & (p_f < float(np.max(model.p_flat)))
+    todo = np.isfinite(time_h) & (p_f < p_max)
     close = needs_pieces(
         geom.lon_deg,
         geom.lat_deg,
@@ -602,6 +609,17 @@ def _pieces_todo(
     if close is not None:
         todo &= np.broadcast_to(close, shape).reshape(-1)
     return todo if todo.any() else None
+
+
+def _p_max(model: FailureModel) -> float:
+    """The largest p_f of a model's table (kept while the model lives: :func:`_pieces_todo` asks at every rank)."""
+    p_max = _P_MAX.get(model)
+    if p_max is None:
+        p_max = _P_MAX[model] = float(np.max(model.p_flat))
+    return p_max
+
+
+_P_MAX: weakref.WeakKeyDictionary[FailureModel, float] = weakref.WeakKeyDictionary()
 
 
 def _judge_pieces(
@@ -767,26 +785,43 @@ def _wind_passes(
     (:func:`~pyroute_rel.cost_compiled.sail_wind`, :func:`~pyroute_rel.cost_compiled.arrival_offsets`,
     :func:`~pyroute_rel.cost_compiled.evidence_index`, :func:`~pyroute_rel.cost_compiled.judge_samples`), with the
     same arithmetic: the same numbers as :func:`_sample_and_cost` and :func:`_arc_totals`."""
-    from .cost_compiled import arrival_offsets, evidence_index, judge_samples, sail_wind
+    from .cost_compiled import arrival_offsets, evidence_index, judge_samples, judge_tables, sail_wind
 
     o, weather, model = options, options.weather, options.failure
     course, seg = geom.course_deg, geom.seg_nm
-    depart = np.broadcast_to(_finite(t_samples[..., :1]), t_samples.shape)  # per arc, then to its samples
-    cond = weather.sample_at(prepared, o.departure, offset_h=depart, fields=("tws_kn", "twd_deg"))
+    t0 = t_samples[..., 0]
+    # each arc's departure repeated over its samples (contiguous: the source samples it without another copy)
+    depart = _finite(t0).repeat(geom.samples).reshape(t_samples.shape)
+    cond = weather.sample_at(prepared, o.departure, offset_h=depart, fields=_WIND_FIELDS)
     dt = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[2]
-    arrive = arrival_offsets(dt, t_samples[..., 0])
-    wanted: tuple[str, ...] = _TIMING_FIELDS
-    if model is not None:
-        wanted += tuple(sorted(model.weather_fields - set(wanted)))
-    cond = weather.sample_at(prepared, o.departure, offset_h=arrive, fields=wanted)
+    arrive = arrival_offsets(dt, t0)
+    cond = weather.sample_at(prepared, o.departure, offset_h=arrive, fields=_second_pass_fields(model))
     v = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[1]
     evidence = None
     if model is not None:  # the quantities (arc_quantities; the TWA is the one sail_wind gives) and their evidence
         flat, unknown = evidence_index(model, cond, course)
-        evidence = (flat, unknown, model.p_flat, model.p_flat > o.apf, model.fired_bits_flat)
+        evidence = (flat, unknown, *judge_tables(model, o.apf))
     flags = (REASONS["polar"], REASONS["weather"], REASONS["failure"])
     time_h, p_f, reason, fired = judge_samples(cond.tws_kn, cond.twd_deg, v, seg, evidence, flags)
     return ArcCosts(time_h=time_h, p_f=p_f, reason=reason, fired_bits=fired), cond
+
+
+#: Conditions the first pass of :func:`_wind_passes` samples.
+_WIND_FIELDS = ("tws_kn", "twd_deg")
+
+
+def _second_pass_fields(model: FailureModel | None) -> tuple[str, ...]:
+    """Conditions the second pass of :func:`_wind_passes` samples: those of the timing pass, and the failure model's
+    (kept while the model lives: the DP asks at every rank)."""
+    if model is None:
+        return _TIMING_FIELDS
+    wanted = _PASS_FIELDS.get(model)
+    if wanted is None:
+        wanted = _PASS_FIELDS[model] = _TIMING_FIELDS + tuple(sorted(model.weather_fields - set(_TIMING_FIELDS)))
+    return wanted
+
+
+_PASS_FIELDS: weakref.WeakKeyDictionary[FailureModel, tuple[str, ...]] = weakref.WeakKeyDictionary()
 
 
 def _finite(time_h: FloatArray) -> FloatArray:

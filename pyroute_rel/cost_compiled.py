@@ -20,6 +20,7 @@ which the default routes do not pay.
 
 from __future__ import annotations
 
+import math
 import weakref
 from typing import Any
 
@@ -33,7 +34,7 @@ from .polar import MIN_SPEED_KN, Polar, check_beyond
 from .polar_compiled import SHORT_AXIS, blend, fold_twa, sub_time, table_edges
 from .weather.base import Conditions
 
-__all__ = ["arrival_offsets", "evidence_index", "judge_samples", "sail_wind"]
+__all__ = ["arrival_offsets", "evidence_index", "judge_samples", "judge_tables", "sail_wind"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -65,14 +66,16 @@ def sail_wind(
     without a failure model).
     """
     check_beyond(beyond)
-    shape = np.broadcast_shapes(tws_kn.shape, twd_deg.shape, course_deg.shape, seg_nm.shape)
+    shape = tws_kn.shape
+    if not (twd_deg.shape == shape and course_deg.shape == shape and seg_nm.shape == shape[:-1] + (1,)):
+        shape = np.broadcast_shapes(tws_kn.shape, twd_deg.shape, course_deg.shape, seg_nm.shape)
     # contiguous, writable float64 everywhere (one compiled signature: a read-only array would be another); an
     # input of the full shape is passed as it is when it already is that (no copy), and the sub-segment lengths
     # of shape (..., 1) (one per arc, the geometry's) are passed once per arc, each used for ``every`` points
     flat = [_flat(a, shape) for a in (tws_kn, twd_deg, course_deg)]
     every = 1
     if shape and seg_nm.shape == shape[:-1] + (1,) and shape[-1] > 1:
-        seg, every = np.require(seg_nm, np.float64, ("C", "W")).reshape(-1), shape[-1]
+        seg, every = _vector(seg_nm, np.float64), shape[-1]
     else:
         seg = _flat(seg_nm, shape)
     twa, v, dt = (np.empty(flat[0].size) for _ in range(3))
@@ -115,8 +118,8 @@ def arrival_offsets(dt_h: FloatArray, t0_h: FloatArray) -> FloatArray:
     (..., samples): the numpy path's ``0.5 dt`` accumulated sample by sample, in its order of operations.
     """
     shape = dt_h.shape
-    dt = np.require(dt_h, np.float64, ("C", "W")).reshape(-1)
-    t0 = np.require(np.broadcast_to(t0_h, shape[:-1]), np.float64, ("C", "W")).reshape(-1)
+    dt = _vector(dt_h, np.float64)
+    t0 = _flat(t0_h, shape[:-1])
     out = np.empty(dt.size)
     _offsets_kernel(dt, t0, shape[-1], out)
     return out.reshape(shape)
@@ -155,13 +158,11 @@ def evidence_index(
     ``(index, unknown)`` with ``course_deg``'s shape; ``unknown`` None where no point's evidence is unknown.
     """
     shape = course_deg.shape
-    edges, n_edges, contrib, right, fill = _rules(model)
-    sources = [QUANTITY_FIELDS[c.quantity] for c in model.criteria]
-    values = np.empty((len(sources), int(np.prod(shape, dtype=np.int64))))
-    for row, (attr, _) in zip(values, sources, strict=True):
+    edges, n_edges, contrib, right, fill, attrs, relative = _rules(model)
+    values = np.empty((len(attrs), math.prod(shape)))
+    for row, attr in zip(values, attrs, strict=True):
         value = getattr(conditions, attr)
         row[:] = (value if value.shape == shape else np.broadcast_to(value, shape)).reshape(-1)
-    relative = np.array([rel for _, rel in sources], dtype=np.bool_)
     index = np.empty(values.shape[1], dtype=np.intp)
     unknown = np.empty(values.shape[1], dtype=np.bool_)
     course = _flat(course_deg, shape)
@@ -174,14 +175,38 @@ _RULES: dict[int, tuple[weakref.ref[FailureModel], tuple[Any, ...]]] = {}
 
 
 def _rules(model: FailureModel) -> tuple[Any, ...]:
-    """:meth:`~pyroute_rel.failure.FailureModel.evidence_rules` of a model, made once."""
+    """:meth:`~pyroute_rel.failure.FailureModel.evidence_rules` of a model, followed by each criterion's
+    :class:`~pyroute_rel.weather.Conditions` field and whether it is taken relative to the course
+    (:data:`~pyroute_rel.failure.QUANTITY_FIELDS`), made once."""
     key = id(model)
     kept = _RULES.get(key)
     if kept is not None and kept[0]() is model:
         return kept[1]
-    rules = model.evidence_rules()
+    sources = [QUANTITY_FIELDS[c.quantity] for c in model.criteria]
+    relative = np.array([rel for _, rel in sources], dtype=np.bool_)
+    rules = (*model.evidence_rules(), tuple(attr for attr, _ in sources), relative)
     _RULES[key] = (weakref.ref(model, lambda _, key=key: _RULES.pop(key, None)), rules)
     return rules
+
+
+def judge_tables(model: FailureModel, apf: float) -> tuple[FloatArray, npt.NDArray[np.bool_], npt.NDArray[np.uint32]]:
+    """A model's table (:attr:`~pyroute_rel.failure.FailureModel.p_flat`), its entries above ``apf`` and its fired
+    criteria (:attr:`~pyroute_rel.failure.FailureModel.fired_bits_flat`), as :func:`judge_samples` takes them
+    (contiguous, writable copies), made once per model and apf (the DP costs every rank with the same)."""
+    key = id(model)
+    kept = _JUDGE.get(key)
+    if kept is None or kept[0]() is not model:
+        kept = _JUDGE[key] = (weakref.ref(model, lambda _, key=key: _JUDGE.pop(key, None)), {})
+    tables = kept[1].get(apf)
+    if tables is None:
+        p_flat = np.array(model.p_flat, dtype=np.float64)
+        bits = np.array(model.fired_bits_flat, dtype=np.uint32)
+        tables = kept[1][apf] = (p_flat, np.array(p_flat > apf, dtype=np.bool_), bits)
+    return tables
+
+
+#: :func:`judge_tables` of the models, by the model's id (as :data:`_TABLES`), then by apf.
+_JUDGE: dict[int, tuple[weakref.ref[FailureModel], dict[float, tuple[Any, ...]]]] = {}
 
 
 @numba.njit(nogil=True, cache=True)
@@ -244,24 +269,18 @@ def judge_samples(
     per-sample costs give, summed (times, in sample order), maximised (``p_f``, NaN first) and or-ed per arc.
     """
     shape = tws_kn.shape
-    n_arcs = int(np.prod(shape[:-1], dtype=np.int64))
+    n_arcs = math.prod(shape[:-1])
     flat = [_flat(a, shape) for a in (tws_kn, twd_deg, speed_kn)]
-    seg = _flat(np.broadcast_to(seg_nm, shape[:-1] + (1,)), shape[:-1] + (1,))
+    seg = _flat(seg_nm, shape[:-1] + (1,))
     if evidence is None:
         index = np.zeros(0, np.intp)
         unknown = np.zeros(0, np.bool_)
         p_flat, over, bits = np.zeros(1), np.zeros(1, np.bool_), np.zeros(1, np.uint32)
     else:
         idx, unk, p_flat, over, bits = evidence
-        index = np.require(np.broadcast_to(idx, shape), np.intp, ("C", "W")).reshape(-1)
-        unknown = (
-            np.zeros(0, np.bool_)
-            if unk is None
-            else np.require(np.broadcast_to(unk, shape), np.bool_, ("C", "W")).reshape(-1)
-        )
-        p_flat = np.require(p_flat, np.float64, ("C", "W"))
-        over = np.require(over, np.bool_, ("C", "W"))
-        bits = np.require(bits, np.uint32, ("C", "W"))
+        index = _flat(idx, shape, np.intp)
+        unknown = np.zeros(0, np.bool_) if unk is None else _flat(unk, shape, np.bool_)
+        p_flat, over, bits = _vector(p_flat, np.float64), _vector(over, np.bool_), _vector(bits, np.uint32)
     time_h, p_f = np.empty(n_arcs), np.empty(n_arcs)
     reason = np.empty(n_arcs, np.uint8)
     fired = np.empty(n_arcs, np.uint32)
@@ -343,11 +362,19 @@ def _judge_kernel(
     return any_over
 
 
-def _flat(a: FloatArray, shape: tuple[int, ...]) -> FloatArray:
-    """``a`` broadcast to ``shape`` as a contiguous, writable float64 vector (copied only if it is not one)."""
+def _flat(a: npt.NDArray[Any], shape: tuple[int, ...], dtype: Any = np.float64) -> npt.NDArray[Any]:
+    """``a`` broadcast to ``shape`` as a contiguous, writable vector of ``dtype`` (copied only if it is not one)."""
     if a.shape != shape:
-        a = np.broadcast_to(a, shape)  # read-only: np.require copies it
-    return np.require(a, np.float64, ("C", "W")).reshape(-1)
+        a = np.broadcast_to(a, shape)  # read-only: copied
+    return _vector(a, dtype)
+
+
+def _vector(a: npt.NDArray[Any], dtype: Any) -> npt.NDArray[Any]:
+    """``a`` as a contiguous, writable vector of ``dtype``: a view where it is one (the kernels' one signature), else
+    a copy (what ``np.require(a, dtype, ("C", "W"))`` gives, without its cost per call in the DP's loop)."""
+    if a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable:
+        return a.reshape(-1)
+    return np.require(a, dtype, ("C", "W")).reshape(-1)
 
 
 @numba.njit(nogil=True, cache=True)

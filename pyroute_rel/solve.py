@@ -804,17 +804,19 @@ class _Pricing:
             self.cost_hook(k, ArcCosts(time_h=np.where(live, time_h, np.inf), p_f=costed.costs.p_f, reason=reason))
         total = np.where(live, problem.arrive(t0 + time_h if pen is None else (t0 + time_h) + pen), np.inf)
         if self.lazy or costed.pending:
+            judged = bool(costed.pending)
             times = _block_times(problem, t0) if self.lazy else None
             for s in (None,) if side is None else (PORT, STARBOARD):  # each label's best arc must be judged
                 total, found = _settle(costed, total, side, s, problem.blocked if self.lazy else None, k, times)
                 hit = found if found is not None else hit
-            time_h = np.where(np.isfinite(costed.costs.time_h), time_h, np.inf)  # forbidden on pieces now
+            if judged:  # (nothing judged on pieces: the times are those of the costs)
+                time_h = np.where(np.isfinite(costed.costs.time_h), time_h, np.inf)  # forbidden on pieces now
             if self.lazy:
                 total = np.where(hit, np.inf, total)
                 time_h = np.where(hit, np.inf, time_h)
-        reason = np.where(live, costed.costs.reason, 0).astype(np.uint8)
+        reason = np.where(live, costed.costs.reason, np.uint8(0)).astype(np.uint8, copy=False)
         if hit is not None:
-            reason = reason | np.where(hit & live, REASONS["obstacle"], 0).astype(np.uint8)
+            np.bitwise_or(reason, np.uint8(REASONS["obstacle"]), out=reason, where=hit & live)
         return _Priced(
             time_h=time_h,
             total_h=total,
@@ -902,6 +904,8 @@ def _settle(
         cand = total if label is None else np.where(side == label, total, np.inf)
         if blocked is not None:
             hit = _lazy_obstacles(blocked, k, cand, times)
+            if not costed.pending:  # nothing to judge on pieces
+                return total, hit
             cand = np.where(hit, np.inf, cand)
         bad = _lazy_pieces(costed, cand)
         if bad.size:
@@ -1028,23 +1032,30 @@ class _Tally:
     ) -> None:
         """Count one rank's arcs: ``reason`` the flags of arcs forbidden at every departure tried, ``fired`` the
         criteria fired along each arc at the first."""
-        self.evaluated += int(counted.sum())
-        self.pruned += int(live.sum()) - int(counted.sum())
+        n_counted = int(np.count_nonzero(counted))
+        self.evaluated += n_counted
+        self.pruned += int(np.count_nonzero(live)) - n_counted
         bad = live & (reason != 0)
-        self.forbidden += int(bad.sum())
-        if not bad.any():
+        n_bad = int(np.count_nonzero(bad))
+        self.forbidden += n_bad
+        if not n_bad:
             return
         values = np.bincount(reason[bad], minlength=256)  # one pass: arcs per combination of flags
-        flags = np.arange(256)
-        for name, bit in REASONS.items():
-            self.by_reason[name] += int(values[(flags & bit) != 0].sum())
-        any_failed = values[(flags & REASONS["failure"]) != 0].any()
+        per_reason = (_REASON_OF_FLAGS @ values).tolist()  # arcs with each reason's bit among their flags
+        for name, n in zip(REASONS, per_reason, strict=True):
+            self.by_reason[name] += n
+        any_failed = per_reason[_FAILURE_ROW] > 0
         if failure is not None and fired is not None and any_failed:
             failed = bad & (reason & REASONS["failure"] != 0)
             bits = np.broadcast_to(fired, failed.shape)[failed]
             for i, c in enumerate(failure.criteria):
                 n = int(np.count_nonzero(bits & np.uint32(1 << i)))
                 self.by_criterion[c.describe()] = self.by_criterion.get(c.describe(), 0) + n
+
+
+#: Per reason of :data:`~pyroute_rel.cost.REASONS` (rows), which of the 256 combinations of flags hold its bit (1).
+_REASON_OF_FLAGS = np.array([(np.arange(256) & bit) != 0 for bit in REASONS.values()], dtype=np.intp)
+_FAILURE_ROW = list(REASONS).index("failure")
 
 
 def _rank_step(
@@ -1074,8 +1085,8 @@ def _rank_step(
         arcs = _RankArcs(k=k, src=src, live=live, t_src=np.where(live, t_src, 0.0), geom=geom)
         cols.append((live, *_best_over_waits(arcs, pricing, line if k < grid.n_ranks else None, from_side)))
     _tally_columns(tally, cols, problem.failure)
-    t_new, j_best, c_best = label_min(np.stack([c[1] for c in cols]))
-    src_best = np.take_along_axis(src, j_best, axis=1)
+    t_new, j_best, c_best = label_min(cols[0][1][None] if len(cols) == 1 else np.stack([c[1] for c in cols]))
+    src_best = src[np.arange(src.shape[0])[:, None], j_best]  # np.take_along_axis(src, j_best, axis=1)
     lab_best = np.asarray(prev_sides, dtype=np.intp)[c_best]
     wait_best = None
     if problem.n_wait:
@@ -1189,7 +1200,7 @@ def label_min(total_h: FloatArray) -> tuple[FloatArray, npt.NDArray[np.intp], np
     c_out = np.zeros((n_dst, n_lab), dtype=np.intp)
     for s in range(n_lab):
         for c in range(n_src):
-            j = np.argmin(total_h[c, s], axis=1)
+            j = total_h[c, s].argmin(axis=1)
             t = total_h[c, s][rows, j]
             if c == 0:
                 t_out[:, s], j_out[:, s] = t, j
@@ -1212,6 +1223,10 @@ def _best_over_waits(
     step = problem.time_step_h or 0.0
     shape = arcs.live.shape
     n_lab = 2 if problem.sides else 1
+    if problem.n_wait == 0 and n_lab == 1 and line is None:  # one departure, one label: the loop below, once
+        priced = pricing.price(arcs, arcs.t_src, first=True, from_side=from_side)
+        total_1 = np.where(priced.total_h < np.inf, priced.total_h, np.inf)  # (NaN: not better than inf)
+        return total_1[None], np.zeros((1, *shape)), priced.reason, priced.counted, priced.fired
     total = np.full((n_lab, *shape), np.inf)
     wait = np.zeros((n_lab, *shape))
     reason = np.zeros(shape, dtype=np.uint8)
@@ -1392,14 +1407,13 @@ def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[
     """Obstacle hits among the arcs the DP would pick: for each destination its cheapest arcs are checked
     (4, then 16, 64, ...) until its best arc is known to be free, so the minimum is exactly that of the fully
     checked arcs while most arcs far from the optimum are never tested."""
-    tot = total.copy()
-    width = tot.shape[1]
-    rows = np.arange(tot.shape[0])
+    width = total.shape[1]
+    rows = np.arange(total.shape[0])
     m = 4
     hit = blocked.hits(k, times)
-    tot[hit] = np.inf
+    tot = np.where(hit, np.inf, total)
     while True:
-        best = np.argmin(tot, axis=1)
+        best = tot.argmin(axis=1)
         known = blocked.known(k)
         need = np.isfinite(tot[rows, best]) & ~known[rows, best]
         if not need.any():

@@ -221,6 +221,27 @@ class _Block:
             cols = self._columns[wanted] = (picked, np.asarray(picked, dtype=np.intp))
         return cols
 
+    def plan(
+        self, wanted: frozenset[str] | None, convert: bool
+    ) -> tuple[IntArray, tuple[int, int, int, int], list[tuple[str, int]]]:
+        """How :meth:`GriddedWeather._interpolate_at` samples the columns ``wanted`` (None: all): the columns' indices,
+        the rows :meth:`interpolate_at` turns (``convert``: :func:`_pair_rows`, else none) and the name of each row
+        it keeps (a turned pair's fields in place of its columns: :data:`_TURNED`); kept per set (with
+        :meth:`columns`' under another kind of key)."""
+        key = (wanted, convert)
+        kept = self._columns.get(key)  # type: ignore[call-overload]
+        if kept is None:
+            cols, index = self.columns(wanted)
+            names = [self.names[j] for j in cols]
+            rows = _pair_rows(names) if convert else (-1, -1, -1, -1)
+            named = {name: row for row, name in enumerate(names)}
+            for (a, b), (ra, rb), fields in zip(_PAIRS, (rows[:2], rows[2:]), _TURNED, strict=True):
+                if ra >= 0:
+                    del named[a], named[b]
+                    named.update(zip(fields, (ra, rb)[: len(fields)], strict=True))
+            kept = self._columns[key] = (index, rows, list(named.items()))  # type: ignore[index]
+        return kept  # type: ignore[return-value]
+
 
 #: :meth:`GriddedWeather.sample_at` turns the wind's (u, v) into speed and direction, and the wave direction's (sine,
 #: cosine) into its angle, as it interpolates each point (one compiled loop, no arrays of components; False: the
@@ -240,6 +261,19 @@ def _pair_rows(names: list[str]) -> tuple[int, int, int, int]:
     for a, b in _PAIRS:
         rows += [names.index(a), names.index(b)] if a in names and b in names else [-1, -1]
     return rows[0], rows[1], rows[2], rows[3]
+
+
+#: :class:`Conditions` fields :meth:`GriddedWeather._conditions` takes as the columns give them.
+_DIRECT_FIELDS = (*_TURNED_FIELDS, "hs_m", "wave_period_s", "current_u_ms", "current_v_ms")
+
+
+@functools.cache
+def _wanted_columns(fields: Collection[str]) -> frozenset[str]:
+    """The stored columns :class:`Conditions` fields ``fields`` are made of (kept per collection of fields)."""
+    unknown = sorted(set(fields) - set(_NEEDS))
+    if unknown:
+        raise WeatherError(f"'fields' must be Conditions fields {sorted(_NEEDS)} (got {unknown})")
+    return frozenset(col for name in fields for col in _NEEDS[name])
 
 
 #: Time axis of a block steady in time (any time is valid).
@@ -654,16 +688,10 @@ class GriddedWeather:
         in place of their stored columns (:data:`FUSED_SAMPLING`)."""
         out: dict[str, FloatArray] = {}
         for block, w in zip(self._blocks, where, strict=True):
-            cols, index = block.columns(wanted)
-            if cols:
-                names = [block.names[j] for j in cols]
-                rows = _pair_rows(names) if convert else (-1, -1, -1, -1)
+            index, rows, named = block.plan(wanted, convert)
+            if named:
                 values = block.interpolate_at(w, origin, offset, index, scale, rows)
-                out.update(zip(names, values, strict=True))
-                for (a, b), (ra, rb), fields in zip(_PAIRS, (rows[:2], rows[2:]), _TURNED, strict=True):
-                    if ra >= 0:
-                        del out[a], out[b]
-                        out.update(zip(fields, (values[ra], values[rb])[: len(fields)], strict=True))
+                out.update((name, values[row]) for name, row in named)
         return out
 
     def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> PreparedPoints:
@@ -737,12 +765,7 @@ class GriddedWeather:
         t = np.asarray(departure)
         if t.dtype.kind != "M":
             raise WeatherError(f"'departure' must be datetime64 (got dtype {t.dtype})")
-        wanted = None
-        if fields is not None:
-            unknown = sorted(set(fields) - set(_NEEDS))
-            if unknown:
-                raise WeatherError(f"'fields' must be Conditions fields {sorted(_NEEDS)} (got {unknown})")
-            wanted = frozenset(col for name in fields for col in _NEEDS[name])
+        wanted = None if fields is None else _wanted_columns(fields if isinstance(fields, tuple) else tuple(fields))
         if offset_h is None:
             origin, offset = _offsets(np.broadcast_to(t.astype("datetime64[ns]"), prepared.shape).ravel())
             scale = 1.0
@@ -750,10 +773,17 @@ class GriddedWeather:
             if t.ndim:
                 raise WeatherError(f"with 'offset_h', 'departure' must be one origin (got shape {t.shape})")
             origin = np.datetime64(t.astype("datetime64[ns]").item(), "ns")
-            # hours, turned into seconds in the kernel (offset_h * 3600, then the block's origin added)
-            offset = np.ascontiguousarray(
-                np.broadcast_to(np.asarray(offset_h, dtype=np.float64), prepared.shape).ravel()
-            )
+            # hours, turned into seconds in the kernel (offset_h * 3600, then the block's origin added); a contiguous
+            # float64 array of the points' shape (the cost kernel's) is passed as it is
+            offset = offset_h
+            if not (
+                isinstance(offset, np.ndarray)
+                and offset.dtype == np.float64
+                and offset.shape == prepared.shape
+                and offset.flags.c_contiguous
+            ):
+                offset = np.ascontiguousarray(np.broadcast_to(np.asarray(offset_h, dtype=np.float64), prepared.shape))
+            offset = offset.reshape(-1)
             scale = 3600.0
         values = self._interpolate_at(prepared.where, origin, offset, wanted, scale, convert=FUSED_SAMPLING)
         return self._conditions(prepared.shape, values, fields)
@@ -792,20 +822,19 @@ class GriddedWeather:
         self, shape: tuple[int, ...], v: dict[str, FloatArray], fields: Collection[str] | None = None
     ) -> Conditions:
         n = math.prod(shape)
-        nan = np.full(n, np.nan)
-        out = dict.fromkeys(_NEEDS, nan)
-        out.update((name, v[name]) for name in _TURNED_FIELDS if name in v)  # turned as they were interpolated
+        out = {name: v[name] for name in _DIRECT_FIELDS if name in v}  # stored, or turned as they were interpolated
         if "wind_u_ms" in v:
             out["tws_kn"], out["twd_deg"] = np.empty(n), np.empty(n)
             _vector_kernel(v["wind_u_ms"], v["wind_v_ms"], -1.0, KN_PER_MS, out["tws_kn"], out["twd_deg"])
         if "_wave_sin" in v:
             out["wave_dir_deg"] = np.empty(n)
             _vector_kernel(v["_wave_sin"], v["_wave_cos"], 1.0, 1.0, _NO_TIME, out["wave_dir_deg"])
-        for name in ("hs_m", "wave_period_s", "current_u_ms", "current_v_ms"):
-            if name in v:
-                out[name] = v[name]
-            elif name.startswith("current") and (fields is None or name in fields):
-                out[name] = np.zeros(n)  # no current in the data
+        if len(out) < len(_NEEDS):
+            nan = np.full(n, np.nan)  # one array for every field not sampled
+            for name in _NEEDS:
+                if name not in out:
+                    none = name.startswith("current") and (fields is None or name in fields)
+                    out[name] = np.zeros(n) if none else nan  # no current in the data
         return Conditions(**{k: a.reshape(shape) for k, a in out.items()})
 
     def check_coverage(
