@@ -68,6 +68,7 @@ __all__ = [
     "weather_from_mapping",
     "ensemble_size",
     "keep_files_open",
+    "files_kept_open",
     "files_opened",
     "MEAN_READ_BYTES",
     "accumulate_member",
@@ -256,6 +257,7 @@ def open_weather(
 # Files kept open by this process (keep_files_open), by (resolved path, size, modification time); and how many times
 # each file was opened here (files_opened).
 _KEEP = False
+_KEEP_CALLS = 0
 _KEPT: dict[tuple[str, int, int], list[xr.Dataset]] = {}
 _OPENED: dict[str, int] = {}
 
@@ -267,12 +269,20 @@ def keep_files_open(keep: bool) -> None:
     element). Either way, the files kept so far are closed (a file changed since is opened again: it is kept by
     its path, size and modification time). The ensemble mean (``member = "mean"``) opens its own file, read without
     dask as well."""
-    global _KEEP
+    global _KEEP, _KEEP_CALLS
     for datasets in _KEPT.values():
         for ds in datasets:
             _close(ds)
     _KEPT.clear()
     _KEEP = bool(keep)
+    _KEEP_CALLS += 1
+
+
+def files_kept_open() -> int | None:
+    """None when this process does not keep files open (:func:`keep_files_open`); else a number that changes at each
+    call of :func:`keep_files_open`: what a caller keeps along with the files (:mod:`pyroute_rel.members` keeps a
+    scenario file's settings) is dropped with them."""
+    return _KEEP_CALLS if _KEEP else None
 
 
 def files_opened(reset: bool = False) -> dict[str, int]:
