@@ -1102,19 +1102,18 @@ def _look_up(codes, it, iy, ix, table, lookup, with_codes):  # type: ignore[no-u
     whether any of them is finite)."""
     nt, ny, nx = it.size, iy.size, ix.size
     out = np.empty((ny, nx, nt), np.float32)
-    kept = np.empty((ny, nx, nt) if with_codes else (0, 0, 0), codes.dtype)
+    kept = np.empty((ny, nx, nt if with_codes else 0), codes.dtype)
     seen = np.zeros(table.size, np.bool_)
     for y in range(ny):
         yy = iy[y]
         for x in range(nx):
-            xx, row = ix[x], out[y, x]
+            xx, row, kept_row = ix[x], out[y, x], kept[y, x]
             for t in range(nt):  # (written in order, read across)
                 c = codes[it[t], yy, xx]
                 seen[c] = True
                 row[t] = lookup[c]
-            if with_codes:
-                for t in range(nt):
-                    kept[y, x, t] = codes[it[t], yy, xx]
+                if with_codes:
+                    kept_row[t] = c
     lo = np.float32(np.nan)
     hi = np.float32(np.nan)
     finite = False
