@@ -548,10 +548,11 @@ class _RawFile:
         self._nc: Any = None
         self._variables: dict[str, _RawVariable | None] = {}
 
-    def variable(self, var: str, da: xr.DataArray) -> _RawVariable | None:
-        """The variable ``var`` of the file (``da``: as xarray decodes it), or None when it is not read here (not
-        stored as numbers on ``da``'s dimensions, or not decoded to ``da``'s type)."""
+    def variable(self, var: str, array: Callable[[], xr.DataArray]) -> _RawVariable | None:
+        """The variable ``var`` of the file (``array()``: as xarray decodes it), or None when it is not read here (not
+        stored as numbers on its dimensions, or not decoded to its type)."""
         if var not in self._variables:
+            da = array()
             try:
                 with _NETCDF4_LOCK:
                     self._variables[var] = _raw_variable(self._open(), var, da)
@@ -715,7 +716,7 @@ def read_fields(
         for name, (ds, var) in found.items():
             raw = _RAW.get(id(ds))
             field, had_members = _extract(
-                ds[var], name, source, var, box, window, member, margin_deg, out_of_range,
+                lambda ds=ds, var=var: ds[var], name, source, var, box, window, member, margin_deg, out_of_range,
                 raw=None if raw is None or raw[0] is not ds else raw[1],
             )  # fmt: skip
             used_member |= had_members
@@ -874,7 +875,7 @@ def _dim_kind(da: xr.DataArray, dim: Hashable) -> str:
 
 
 def _extract(
-    da: xr.DataArray,
+    array: Callable[[], xr.DataArray],
     name: str,
     source: str,
     var: str,
@@ -889,13 +890,15 @@ def _extract(
     """Cut one variable to the box and window, load it, convert units, check its values -> (field or None, had
     members). A variable with a single time is kept whatever the window (it may be steady weather).
 
-    ``raw``: the file's stored values (:class:`_RawFile`), read and decoded here when the variable allows it (the
-    same numbers as xarray's), its plan kept for the next member."""
-    stored = raw.variable(var, da) if raw is not None else None
+    ``array``: the variable, as xarray reads it (not asked for when a kept plan reads the stored values). ``raw``:
+    the file's stored values (:class:`_RawFile`), read and decoded here when the variable allows it (the same numbers
+    as xarray's), its plan kept for the next member."""
+    stored = raw.variable(var, array) if raw is not None else None
     key = (source, var, name, box, window, margin, member == "mean")
     plan = raw.plans.get(key) if raw is not None and stored is not None else None
+    da: Any = None
     if plan is None:
-        plan, da = _plan(da, name, source, var, box, window, member, margin, stored)
+        plan, da = _plan(array(), name, source, var, box, window, member, margin, stored)
         if stored is not None and plan.fixed is not None and not plan.member_dims:
             raw.plans[key] = plan  # type: ignore[union-attr]
     elif plan.member_dim is not None:  # a kept plan: the member checked as _drop_extra_dims does
@@ -905,7 +908,9 @@ def _extract(
     fixed = None if stored is None or plan.fixed is None else _fixed_with_member(plan, member)
     if plan.member_dims:  # each member's values outside the valid range are missing before the mean
         raw_read = None if fixed is None else _Stored(stored, fixed)  # type: ignore[arg-type]
-        values = _load_mean(da, plan.member_dims, plan.dims, plan.index, plan.where, plan.valid, raw_read)
+        values = _load_mean(
+            array() if da is None else da, plan.member_dims, plan.dims, plan.index, plan.where, plan.valid, raw_read
+        )
     elif fixed is not None and plan.tables is not None:
         return _finish_coded(plan, stored, fixed, name, source, var, out_of_range), plan.had_members  # type: ignore[arg-type]
     elif fixed is not None:
@@ -913,7 +918,7 @@ def _extract(
         values = _reorder(stored.decode(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where)), inverse)  # type: ignore[union-attr]
         values = values.astype(np.float32, copy=False)
     else:
-        values = _load(da, plan.dims, plan.index, plan.where)
+        values = _load(array() if da is None else da, plan.dims, plan.index, plan.where)
     values = _in_units(values, plan, name)
     return _finish(values, plan, name, source, var, out_of_range), plan.had_members
 
