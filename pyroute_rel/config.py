@@ -51,6 +51,7 @@ __all__ = [
     "WeatherBuilder",
     "register_weather_kind",
     "parse_tables",
+    "weather_course",
     "parse_options",
     "parse_departure",
     "MIN_LEG_KM",
@@ -640,6 +641,13 @@ def _course_bbox(marks: Mapping[str, Any], grid: Mapping[str, Any]) -> tuple[flo
         min(float(lon.max()) + pad_lon, 180.0),
         min(float(lat.max()) + pad_lat, 89.0),
     )
+
+
+def weather_course(table: Mapping[str, Any]) -> tuple[tuple[float, float, float, float], np.datetime64]:
+    """The lon/lat box [deg] and the departure a scenario's ``[weather]`` is read for (as :func:`parse_tables` reads
+    it: the course's box widened by the grid; the data from the departure on)."""
+    route = parse_route(table.get("route", {}), [])
+    return _course_bbox(route, parse_grid(table.get("grid", {}))), route["departure"]
 
 
 def parse_tables(table: Mapping[str, Any], base_dir: Path) -> dict[str, Any]:

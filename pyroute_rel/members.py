@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ScenarioError, brief
+from .errors import PyrouteError, ScenarioError, brief
 from .files import brief_path, read_regular_bytes
 from .scenario import SCENARIO_MAX_BYTES, Scenario, scenario_from_mapping
 
@@ -109,6 +109,9 @@ def member_scenario(
     member : Member index from 0, or ``"mean"``.
     member_files : One weather file per member (see the module notes); None: the member dimension of the files.
     """
+    kept = _kept_member(scenario, member, member_files)
+    if kept is not None:
+        return kept
     tables, base, name = _source(scenario)
     weather = _weather_table(tables, name)
     if member_files is not None and member == "mean":
@@ -125,6 +128,53 @@ def member_scenario(
     if isinstance(scenario, Scenario):
         return replace(scenario, weather=other.weather)
     return other
+
+
+#: A scenario file's settings kept by this process while it keeps weather files open
+#: (:func:`~pyroute_rel.weather.readers.keep_files_open`), by the file's path, size and modification time: (the number
+#: :func:`~pyroute_rel.weather.readers.files_kept_open` gave, the file's tables, the scenario read with them, its
+#: folder, the box and departure its weather is read for).
+_KEPT: dict[tuple[str, int, int], tuple[int, dict[str, Any], Scenario, Path, Any]] = {}
+
+
+def _kept_member(
+    scenario: Scenario | str | Path, member: int | str, member_files: Sequence[str | Path] | None
+) -> Scenario | None:
+    """Member ``member`` (an integer, of a file's member dimension) of a scenario file while the weather files are
+    kept open: the file's settings read once and kept (while the file is unchanged), each member reading only its
+    weather, as :func:`~pyroute_rel.scenario.scenario_from_mapping` reads it (the other settings do not depend on the
+    weather); None otherwise (read in full)."""
+    from .config import parse_weather, weather_course
+    from .weather.cache import file_stamps
+    from .weather.readers import files_kept_open
+
+    calls = files_kept_open()
+    if calls is None or isinstance(scenario, Scenario) or member_files is not None:
+        _KEPT.clear()
+        return None
+    if isinstance(member, bool) or not isinstance(member, int):
+        return None
+    stamp = file_stamps([scenario])[0]
+    entry = _KEPT.get(stamp)
+    if entry is None or entry[0] != calls or stamp[1] < 0:
+        _KEPT.clear()
+        tables, base, name = _source(scenario)
+        weather = _weather_table(tables, name)
+        weather["member"] = member
+        first = scenario_from_mapping({**tables, "weather": weather}, base_dir=base, source=name)
+        bbox, departure = weather_course(tables)
+        if stamp[1] >= 0:
+            _KEPT[stamp] = (calls, tables, first, base, (bbox, departure))
+        return first
+    _, tables, first, base, (bbox, departure) = entry
+    weather = _weather_table(tables, first.source)
+    weather["member"] = member
+    try:
+        return replace(first, weather=parse_weather(weather, base, bbox=bbox, departure=departure))
+    except PyrouteError as exc:  # named as scenario_from_mapping names it
+        if not str(exc).startswith(first.source):
+            raise type(exc)(f"{first.source}: {exc}") from None
+        raise
 
 
 def mean_scenario(scenario: Scenario | str | Path, *, member_files: Sequence[str | Path] | None = None) -> Scenario:

@@ -148,6 +148,8 @@ class _Block:
             values, table = f.values, None
             if f.coded is not None and f.coded.values is values and op is not None:  # each code's sine (cosine)
                 values, table, op = f.coded.codes, op(np.deg2rad(f.coded.table.astype(np.float32))), None  # looked up
+            if op is None and _fill_column(self.data, j, values, table):
+                continue
             for y0 in range(0, ny, rows):  # in bands of latitude: no full-size temporaries
                 band = np.asarray(values[:, y0 : y0 + rows, :])  # type: ignore[index]
                 chunk = np.moveaxis(band if table is None else np.take(table, band), 0, -1)
@@ -241,6 +243,44 @@ class _Block:
                     named.update(zip(fields, (ra, rb)[: len(fields)], strict=True))
             kept = self._columns[key] = (index, rows, list(named.items()))  # type: ignore[index]
         return kept  # type: ignore[return-value]
+
+
+def _fill_column(data: npt.NDArray[np.float32], j: int, values: Any, table: npt.NDArray[np.float32] | None) -> bool:
+    """Column ``j`` of a block's (lat, lon, time, field) data set to ``values`` (n_time, n_lat, n_lon), float32 (or,
+    with a ``table``, 8- or 16-bit codes looked up in it) in one compiled pass; False (nothing done) for other
+    values (:class:`_Block` copies them with numpy: the same numbers)."""
+    if not isinstance(values, np.ndarray) or values.ndim != 3 or data.dtype != np.float32:
+        return False
+    source = np.moveaxis(values, 0, -1)  # (lat, lon, time): contiguous when values are a view of that layout
+    if table is None and values.dtype == np.float32:
+        _copy_kernel(data, j, source)
+        return True
+    if table is not None and values.dtype in (np.uint8, np.uint16) and table.dtype == np.float32:
+        if table.size < 1 << (8 * values.dtype.itemsize):
+            return False
+        _look_up_kernel(data, j, source, table)
+        return True
+    return False
+
+
+@numba.njit(nogil=True, cache=True)
+def _copy_kernel(data, j, source):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """``data[..., j] = source``, both (lat, lon, time)."""
+    ny, nx, nt = source.shape
+    for y in range(ny):
+        for x in range(nx):
+            for t in range(nt):
+                data[y, x, t, j] = source[y, x, t]
+
+
+@numba.njit(nogil=True, cache=True)
+def _look_up_kernel(data, j, codes, table):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """``data[..., j] = table[codes]``, both (lat, lon, time)."""
+    ny, nx, nt = codes.shape
+    for y in range(ny):
+        for x in range(nx):
+            for t in range(nt):
+                data[y, x, t, j] = table[codes[y, x, t]]
 
 
 #: :meth:`GriddedWeather.sample_at` turns the wind's (u, v) into speed and direction, and the wave direction's (sine,

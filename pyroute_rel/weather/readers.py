@@ -35,6 +35,7 @@ from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
 import numpy.typing as npt
 import xarray as xr
@@ -51,6 +52,7 @@ from ..errors import (
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
 from . import cache
+from .base import RANGES
 from .gridded import OUT_OF_RANGE, CodedValues, GriddedWeather, PreparedPoints, WeatherField, check_plausible
 
 __all__ = [
@@ -66,6 +68,7 @@ __all__ = [
     "weather_from_mapping",
     "ensemble_size",
     "keep_files_open",
+    "files_kept_open",
     "files_opened",
     "MEAN_READ_BYTES",
     "accumulate_member",
@@ -254,6 +257,7 @@ def open_weather(
 # Files kept open by this process (keep_files_open), by (resolved path, size, modification time); and how many times
 # each file was opened here (files_opened).
 _KEEP = False
+_KEEP_CALLS = 0
 _KEPT: dict[tuple[str, int, int], list[xr.Dataset]] = {}
 _OPENED: dict[str, int] = {}
 
@@ -265,12 +269,20 @@ def keep_files_open(keep: bool) -> None:
     element). Either way, the files kept so far are closed (a file changed since is opened again: it is kept by
     its path, size and modification time). The ensemble mean (``member = "mean"``) opens its own file, read without
     dask as well."""
-    global _KEEP
+    global _KEEP, _KEEP_CALLS
     for datasets in _KEPT.values():
         for ds in datasets:
             _close(ds)
     _KEPT.clear()
     _KEEP = bool(keep)
+    _KEEP_CALLS += 1
+
+
+def files_kept_open() -> int | None:
+    """None when this process does not keep files open (:func:`keep_files_open`); else a number that changes at each
+    call of :func:`keep_files_open`: what a caller keeps along with the files (:mod:`pyroute_rel.members` keeps a
+    scenario file's settings) is dropped with them."""
+    return _KEEP_CALLS if _KEEP else None
 
 
 def files_opened(reset: bool = False) -> dict[str, int]:
@@ -536,10 +548,11 @@ class _RawFile:
         self._nc: Any = None
         self._variables: dict[str, _RawVariable | None] = {}
 
-    def variable(self, var: str, da: xr.DataArray) -> _RawVariable | None:
-        """The variable ``var`` of the file (``da``: as xarray decodes it), or None when it is not read here (not
-        stored as numbers on ``da``'s dimensions, or not decoded to ``da``'s type)."""
+    def variable(self, var: str, array: Callable[[], xr.DataArray]) -> _RawVariable | None:
+        """The variable ``var`` of the file (``array()``: as xarray decodes it), or None when it is not read here (not
+        stored as numbers on its dimensions, or not decoded to its type)."""
         if var not in self._variables:
+            da = array()
             try:
                 with _NETCDF4_LOCK:
                     self._variables[var] = _raw_variable(self._open(), var, da)
@@ -703,7 +716,7 @@ def read_fields(
         for name, (ds, var) in found.items():
             raw = _RAW.get(id(ds))
             field, had_members = _extract(
-                ds[var], name, source, var, box, window, member, margin_deg, out_of_range,
+                lambda ds=ds, var=var: ds[var], name, source, var, box, window, member, margin_deg, out_of_range,
                 raw=None if raw is None or raw[0] is not ds else raw[1],
             )  # fmt: skip
             used_member |= had_members
@@ -862,7 +875,7 @@ def _dim_kind(da: xr.DataArray, dim: Hashable) -> str:
 
 
 def _extract(
-    da: xr.DataArray,
+    array: Callable[[], xr.DataArray],
     name: str,
     source: str,
     var: str,
@@ -877,13 +890,15 @@ def _extract(
     """Cut one variable to the box and window, load it, convert units, check its values -> (field or None, had
     members). A variable with a single time is kept whatever the window (it may be steady weather).
 
-    ``raw``: the file's stored values (:class:`_RawFile`), read and decoded here when the variable allows it (the
-    same numbers as xarray's), its plan kept for the next member."""
-    stored = raw.variable(var, da) if raw is not None else None
+    ``array``: the variable, as xarray reads it (not asked for when a kept plan reads the stored values). ``raw``:
+    the file's stored values (:class:`_RawFile`), read and decoded here when the variable allows it (the same numbers
+    as xarray's), its plan kept for the next member."""
+    stored = raw.variable(var, array) if raw is not None else None
     key = (source, var, name, box, window, margin, member == "mean")
     plan = raw.plans.get(key) if raw is not None and stored is not None else None
+    da: Any = None
     if plan is None:
-        plan, da = _plan(da, name, source, var, box, window, member, margin, stored)
+        plan, da = _plan(array(), name, source, var, box, window, member, margin, stored)
         if stored is not None and plan.fixed is not None and not plan.member_dims:
             raw.plans[key] = plan  # type: ignore[union-attr]
     elif plan.member_dim is not None:  # a kept plan: the member checked as _drop_extra_dims does
@@ -893,7 +908,9 @@ def _extract(
     fixed = None if stored is None or plan.fixed is None else _fixed_with_member(plan, member)
     if plan.member_dims:  # each member's values outside the valid range are missing before the mean
         raw_read = None if fixed is None else _Stored(stored, fixed)  # type: ignore[arg-type]
-        values = _load_mean(da, plan.member_dims, plan.dims, plan.index, plan.where, plan.valid, raw_read)
+        values = _load_mean(
+            array() if da is None else da, plan.member_dims, plan.dims, plan.index, plan.where, plan.valid, raw_read
+        )
     elif fixed is not None and plan.tables is not None:
         return _finish_coded(plan, stored, fixed, name, source, var, out_of_range), plan.had_members  # type: ignore[arg-type]
     elif fixed is not None:
@@ -901,7 +918,7 @@ def _extract(
         values = _reorder(stored.decode(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where)), inverse)  # type: ignore[union-attr]
         values = values.astype(np.float32, copy=False)
     else:
-        values = _load(da, plan.dims, plan.index, plan.where)
+        values = _load(array() if da is None else da, plan.dims, plan.index, plan.where)
     values = _in_units(values, plan, name)
     return _finish(values, plan, name, source, var, out_of_range), plan.had_members
 
@@ -1038,13 +1055,82 @@ def _finish_coded(
     tables (the field's value for every stored value: the same numbers as decoding, converting and normalising
     each)."""
     selectors, inverse = plan.selection
-    codes = stored.codes(_reorder(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where), inverse))
+    read = stored.codes(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where))
     table, normalised = plan.tables  # type: ignore[misc]
+    quick = _finish_looked_up(plan, read, inverse, table, normalised, name, source, var)
+    if quick is not None:
+        return quick
+    codes = _reorder(read, inverse)
     values = np.take(table, codes)
     if _KIND[name] != "direction":
         return _finish(values, plan, name, source, var, out_of_range)
     later = lambda: CodedValues(np.take(normalised, codes), codes, normalised)  # noqa: E731
     return _finish(values, plan, name, source, var, out_of_range, later)
+
+
+def _finish_looked_up(
+    plan: _Plan,
+    codes: npt.NDArray[np.unsignedinteger],
+    inverse: Sequence[IntArray | None],
+    table: npt.NDArray[np.float32],
+    normalised: npt.NDArray[np.float32],
+    name: str,
+    source: str,
+    var: str,
+) -> WeatherField | None:
+    """:func:`_finish_coded` in one pass over the codes read (``inverse``: as :func:`_reorder` reorders them) when
+    every value is plausible and some finite (else None: :func:`_finish` says what is wrong): each code looked up
+    (:func:`_look_up`) into an array laid out (lat, lon, time), the layout of
+    :class:`~pyroute_rel.weather.gridded.GriddedWeather`'s blocks, the field's values its (time, lat, lon) view; the
+    same numbers."""
+    if codes.ndim != 3 or codes.size == 0 or table.dtype != np.float32 or normalised.dtype != np.float32:
+        return None
+    order = [
+        np.arange(n) if k is None else np.asarray(k, dtype=np.intp) for n, k in zip(codes.shape, inverse, strict=True)
+    ]
+    direction = _KIND[name] == "direction"
+    lookup = normalised if direction else table
+    values, kept, lo, hi, finite = _look_up(codes, *order, table, lookup, direction)
+    rng = RANGES[name]
+    if lo < rng.lo or hi > rng.hi or not finite:  # (NaN only when all NaN; check_plausible's test)
+        return None
+    values = values.transpose(2, 0, 1)
+    coded = CodedValues(values, kept.transpose(2, 0, 1), lookup) if direction else None
+    return WeatherField(name, values, plan.lon, plan.lat, plan.times, source, var, plan.periodic, coded=coded)
+
+
+@numba.njit(nogil=True, cache=True)
+def _look_up(codes, it, iy, ix, table, lookup, with_codes):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Codes read (time, lat, lon), taken along each axis at ``it``, ``iy``, ``ix`` -> (``lookup[codes]`` on (lat,
+    lon, time); the codes on (lat, lon, time) when ``with_codes``, else empty; the smallest and largest
+    ``table[codes]``, NaN ignored (NaN when all are NaN, as :func:`numpy.fmin.reduce` and :func:`numpy.fmax.reduce`);
+    whether any of them is finite)."""
+    nt, ny, nx = it.size, iy.size, ix.size
+    out = np.empty((ny, nx, nt), np.float32)
+    kept = np.empty((ny, nx, nt if with_codes else 0), codes.dtype)
+    seen = np.zeros(table.size, np.bool_)
+    for y in range(ny):
+        yy = iy[y]
+        for x in range(nx):
+            xx, row, kept_row = ix[x], out[y, x], kept[y, x]
+            for t in range(nt):  # (written in order, read across)
+                c = codes[it[t], yy, xx]
+                seen[c] = True
+                row[t] = lookup[c]
+                if with_codes:
+                    kept_row[t] = c
+    lo = np.float32(np.nan)
+    hi = np.float32(np.nan)
+    finite = False
+    for c in range(table.size):
+        v = table[c]
+        if seen[c] and v == v:
+            if not (lo <= v):  # (NaN so far)
+                lo = v
+            if not (hi >= v):
+                hi = v
+            finite |= abs(v) < np.inf
+    return out, kept, lo, hi, finite
 
 
 def _fixed_with_member(plan: _Plan, member: int | str | None) -> dict[Hashable, Any]:
