@@ -93,8 +93,9 @@ def _fields(rng: np.random.Generator, *, layout: str) -> list[WeatherField]:
 
 @pytest.mark.parametrize("layout", ["c", "view", "float64"])
 def test_blocks_filled_by_the_compiled_copies_equal_the_numpy_construction(layout, monkeypatch):
-    """The blocks built with the compiled fills equal, bit for bit, those numpy builds (the fill switched off), for
-    float32 values in either layout, float64 values, and a coded wave direction with a missing code."""
+    """The blocks built with the compiled fill (a coded wave direction's sine and cosine, with a missing code) equal,
+    bit for bit, those numpy builds (the fill switched off), beside float32 values in either layout and float64
+    values (copied by numpy both ways)."""
     fields = _fields(np.random.default_rng(11), layout=layout)
     fast = GriddedWeather(fields)
     monkeypatch.setattr(gridded, "_fill_column", lambda *args: False)

@@ -161,7 +161,7 @@ class _Block:
         self.time_s = _NO_TIME if ref.time is None else (ref.time - self.t0) / np.timedelta64(1, "s")
         self.lon_mid = 0.5 * (self.lon[0] + self.lon[-1])
         self.strides = (nf, nx * nt * nf, nt * nf)  # time, lat, lon
-        self._columns: dict[frozenset[str] | None, tuple[list[int], IntArray]] = {}
+        self._plans: dict[tuple[frozenset[str] | None, bool], _SamplingPlan] = {}
 
     def locate(self, lon: FloatArray, lat: FloatArray) -> _Where:
         """Where points (1-D arrays) fall on this block's grid (reused by every time at which they are sampled)."""
@@ -215,62 +215,41 @@ class _Block:
         )
         return out
 
-    def columns(self, wanted: frozenset[str] | None) -> tuple[list[int], IntArray]:
-        """Indices of the stored columns among ``wanted`` (None: all), as a list and an array; kept per set."""
-        cols = self._columns.get(wanted)
-        if cols is None:
-            picked = [j for j, name in enumerate(self.names) if wanted is None or name in wanted]
-            cols = self._columns[wanted] = (picked, np.asarray(picked, dtype=np.intp))
-        return cols
-
-    def plan(
-        self, wanted: frozenset[str] | None, convert: bool
-    ) -> tuple[IntArray, tuple[int, int, int, int], list[tuple[str, int]]]:
+    def plan(self, wanted: frozenset[str] | None, convert: bool) -> _SamplingPlan:
         """How :meth:`GriddedWeather._interpolate_at` samples the columns ``wanted`` (None: all): the columns' indices,
         the rows :meth:`interpolate_at` turns (``convert``: :func:`_pair_rows`, else none) and the name of each row
-        it keeps (a turned pair's fields in place of its columns: :data:`_TURNED`); kept per set (with
-        :meth:`columns`' under another kind of key)."""
+        it keeps (a turned pair's fields in place of its columns: :data:`_TURNED`); kept per set."""
         key = (wanted, convert)
-        kept = self._columns.get(key)  # type: ignore[call-overload]
+        kept = self._plans.get(key)
         if kept is None:
-            cols, index = self.columns(wanted)
-            names = [self.names[j] for j in cols]
+            names = [name for name in self.names if wanted is None or name in wanted]
+            index = np.asarray([self.names.index(name) for name in names], dtype=np.intp)
             rows = _pair_rows(names) if convert else (-1, -1, -1, -1)
             named = {name: row for row, name in enumerate(names)}
             for (a, b), (ra, rb), fields in zip(_PAIRS, (rows[:2], rows[2:]), _TURNED, strict=True):
                 if ra >= 0:
                     del named[a], named[b]
                     named.update(zip(fields, (ra, rb)[: len(fields)], strict=True))
-            kept = self._columns[key] = (index, rows, list(named.items()))  # type: ignore[index]
-        return kept  # type: ignore[return-value]
+            kept = self._plans[key] = (index, rows, list(named.items()))
+        return kept
+
+
+#: A block's sampling plan (:meth:`_Block.plan`): the stored columns' indices, the rows turned, each row's name.
+_SamplingPlan = tuple[IntArray, tuple[int, int, int, int], list[tuple[str, int]]]
 
 
 def _fill_column(data: npt.NDArray[np.float32], j: int, values: Any, table: npt.NDArray[np.float32] | None) -> bool:
-    """Column ``j`` of a block's (lat, lon, time, field) data set to ``values`` (n_time, n_lat, n_lon), float32 (or,
-    with a ``table``, 8- or 16-bit codes looked up in it) in one compiled pass; False (nothing done) for other
-    values (:class:`_Block` copies them with numpy: the same numbers)."""
-    if not isinstance(values, np.ndarray) or values.ndim != 3 or data.dtype != np.float32:
+    """Column ``j`` of a block's (lat, lon, time, field) data set to ``table[values]``, ``values`` 8- or 16-bit codes
+    (n_time, n_lat, n_lon), in one compiled pass (no full-size temporary); False (nothing done) for anything else
+    (:class:`_Block` copies it with numpy, which copies float32 values as fast: the same numbers)."""
+    if table is None or not isinstance(values, np.ndarray) or values.ndim != 3 or data.dtype != np.float32:
         return False
-    source = np.moveaxis(values, 0, -1)  # (lat, lon, time): contiguous when values are a view of that layout
-    if table is None and values.dtype == np.float32:
-        _copy_kernel(data, j, source)
-        return True
-    if table is not None and values.dtype in (np.uint8, np.uint16) and table.dtype == np.float32:
+    if values.dtype in (np.uint8, np.uint16) and table.dtype == np.float32:
         if table.size < 1 << (8 * values.dtype.itemsize):
             return False
-        _look_up_kernel(data, j, source, table)
+        _look_up_kernel(data, j, np.moveaxis(values, 0, -1), table)
         return True
     return False
-
-
-@numba.njit(nogil=True, cache=True)
-def _copy_kernel(data, j, source):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """``data[..., j] = source``, both (lat, lon, time)."""
-    ny, nx, nt = source.shape
-    for y in range(ny):
-        for x in range(nx):
-            for t in range(nt):
-                data[y, x, t, j] = source[y, x, t]
 
 
 @numba.njit(nogil=True, cache=True)
