@@ -109,9 +109,9 @@ def member_scenario(
     member : Member index from 0, or ``"mean"``.
     member_files : One weather file per member (see the module notes); None: the member dimension of the files.
     """
-    kept = _kept_member(scenario, member, member_files)
-    if kept is not None:
-        return kept
+    key = _kept_key(scenario, member, member_files)
+    if key is not None and key in _KEPT:
+        return _kept_member(key, member)
     tables, base, name = _source(scenario)
     weather = _weather_table(tables, name)
     if member_files is not None and member == "mean":
@@ -127,24 +127,26 @@ def member_scenario(
     other = scenario_from_mapping(tables, base_dir=base, source=name)
     if isinstance(scenario, Scenario):
         return replace(scenario, weather=other.weather)
+    if key is not None:
+        from .config import weather_course
+
+        _KEPT[key] = (tables, other, base, weather_course(tables))
     return other
 
 
 #: A scenario file's settings kept by this process while it keeps weather files open
-#: (:func:`~pyroute_rel.weather.readers.keep_files_open`), by the file's path, size and modification time: (the number
-#: :func:`~pyroute_rel.weather.readers.files_kept_open` gave, the file's tables, the scenario read with them, its
-#: folder, the box and departure its weather is read for).
-_KEPT: dict[tuple[str, int, int], tuple[int, dict[str, Any], Scenario, Path, Any]] = {}
+#: (:func:`~pyroute_rel.weather.readers.keep_files_open`), by :func:`_kept_key`: (the file's tables, a member's
+#: scenario read with them, its folder, the box and departure its weather is read for).
+_KEPT: dict[tuple[int, str, int, int], tuple[dict[str, Any], Scenario, Path, Any]] = {}
 
 
-def _kept_member(
+def _kept_key(
     scenario: Scenario | str | Path, member: int | str, member_files: Sequence[str | Path] | None
-) -> Scenario | None:
-    """Member ``member`` (an integer, of a file's member dimension) of a scenario file while the weather files are
-    kept open: the file's settings read once and kept (while the file is unchanged), each member reading only its
-    weather, as :func:`~pyroute_rel.scenario.scenario_from_mapping` reads it (the other settings do not depend on the
-    weather); None otherwise (read in full)."""
-    from .config import parse_weather, weather_course
+) -> tuple[int, str, int, int] | None:
+    """Where :func:`member_scenario` keeps a scenario file's settings while the weather files are kept open: (the
+    number :func:`~pyroute_rel.weather.readers.files_kept_open` gives, the file's path, size and modification time),
+    taken before the file is read; None when they are not kept (a Scenario, member files, the mean, files not kept
+    open, a file that cannot be examined). Settings kept under another key are dropped."""
     from .weather.cache import file_stamps
     from .weather.readers import files_kept_open
 
@@ -154,19 +156,19 @@ def _kept_member(
         return None
     if isinstance(member, bool) or not isinstance(member, int):
         return None
-    stamp = file_stamps([scenario])[0]
-    entry = _KEPT.get(stamp)
-    if entry is None or entry[0] != calls or stamp[1] < 0:
+    path, size, mtime = file_stamps([scenario])[0]
+    key = (calls, path, size, mtime)
+    if key not in _KEPT:
         _KEPT.clear()
-        tables, base, name = _source(scenario)
-        weather = _weather_table(tables, name)
-        weather["member"] = member
-        first = scenario_from_mapping({**tables, "weather": weather}, base_dir=base, source=name)
-        bbox, departure = weather_course(tables)
-        if stamp[1] >= 0:
-            _KEPT[stamp] = (calls, tables, first, base, (bbox, departure))
-        return first
-    _, tables, first, base, (bbox, departure) = entry
+    return key if size >= 0 else None
+
+
+def _kept_member(key: tuple[int, str, int, int], member: int | str) -> Scenario:
+    """Member ``member`` of the scenario file kept under ``key``: only its weather read, as
+    :func:`~pyroute_rel.scenario.scenario_from_mapping` reads it (the other settings do not depend on the weather)."""
+    from .config import parse_weather
+
+    tables, first, base, (bbox, departure) = _KEPT[key]
     weather = _weather_table(tables, first.source)
     weather["member"] = member
     try:
