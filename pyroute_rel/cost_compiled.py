@@ -170,22 +170,19 @@ def evidence_index(
     return index.reshape(shape), unknown.reshape(shape) if lost else None
 
 
-#: Failure models' classifiers as the evidence kernel takes them, by the model's id (as :data:`_TABLES`).
-_RULES: dict[int, tuple[weakref.ref[FailureModel], tuple[Any, ...]]] = {}
+#: Failure models' classifiers as the evidence kernel takes them, by model (models compare by identity).
+_RULES: weakref.WeakKeyDictionary[FailureModel, tuple[Any, ...]] = weakref.WeakKeyDictionary()
 
 
 def _rules(model: FailureModel) -> tuple[Any, ...]:
     """:meth:`~pyroute_rel.failure.FailureModel.evidence_rules` of a model, followed by each criterion's
     :class:`~pyroute_rel.weather.Conditions` field and whether it is taken relative to the course
     (:data:`~pyroute_rel.failure.QUANTITY_FIELDS`), made once."""
-    key = id(model)
-    kept = _RULES.get(key)
-    if kept is not None and kept[0]() is model:
-        return kept[1]
-    sources = [QUANTITY_FIELDS[c.quantity] for c in model.criteria]
-    relative = np.array([rel for _, rel in sources], dtype=np.bool_)
-    rules = (*model.evidence_rules(), tuple(attr for attr, _ in sources), relative)
-    _RULES[key] = (weakref.ref(model, lambda _, key=key: _RULES.pop(key, None)), rules)
+    rules = _RULES.get(model)
+    if rules is None:
+        sources = [QUANTITY_FIELDS[c.quantity] for c in model.criteria]
+        relative = np.array([rel for _, rel in sources], dtype=np.bool_)
+        rules = _RULES[model] = (*model.evidence_rules(), tuple(attr for attr, _ in sources), relative)
     return rules
 
 
@@ -193,20 +190,19 @@ def judge_tables(model: FailureModel, apf: float) -> tuple[FloatArray, npt.NDArr
     """A model's table (:attr:`~pyroute_rel.failure.FailureModel.p_flat`), its entries above ``apf`` and its fired
     criteria (:attr:`~pyroute_rel.failure.FailureModel.fired_bits_flat`), as :func:`judge_samples` takes them
     (contiguous, writable copies), made once per model and apf (the DP costs every rank with the same)."""
-    key = id(model)
-    kept = _JUDGE.get(key)
-    if kept is None or kept[0]() is not model:
-        kept = _JUDGE[key] = (weakref.ref(model, lambda _, key=key: _JUDGE.pop(key, None)), {})
-    tables = kept[1].get(apf)
+    per_apf = _JUDGE.get(model)
+    if per_apf is None:
+        per_apf = _JUDGE[model] = {}
+    tables = per_apf.get(apf)
     if tables is None:
         p_flat = np.array(model.p_flat, dtype=np.float64)
         bits = np.array(model.fired_bits_flat, dtype=np.uint32)
-        tables = kept[1][apf] = (p_flat, np.array(p_flat > apf, dtype=np.bool_), bits)
+        tables = per_apf[apf] = (p_flat, np.array(p_flat > apf, dtype=np.bool_), bits)
     return tables
 
 
-#: :func:`judge_tables` of the models, by the model's id (as :data:`_TABLES`), then by apf.
-_JUDGE: dict[int, tuple[weakref.ref[FailureModel], dict[float, tuple[Any, ...]]]] = {}
+#: :func:`judge_tables` of the models, by model (models compare by identity), then by apf.
+_JUDGE: weakref.WeakKeyDictionary[FailureModel, dict[float, tuple[Any, ...]]] = weakref.WeakKeyDictionary()
 
 
 @numba.njit(nogil=True, cache=True)
