@@ -36,6 +36,7 @@ import math
 import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
+from dataclasses import fields as dataclass_fields
 from typing import Any
 
 import numpy as np
@@ -46,10 +47,12 @@ from .crab import steer
 from .crossings import arc_extremes, needs_pieces
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
+from .march import Step, march
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .times import hours_after
 from .weather.base import Conditions, WeatherSource
+from .weather.gridded import GriddedWeather
 
 __all__ = [
     "ArcCosts",
@@ -91,12 +94,16 @@ class ArcCosts:
     reason : Bit flags of :data:`REASONS` (0 where the arc is allowed).
     fired_bits : With a failure model and some arc it forbids: bit ``c`` is set where criterion ``c`` of the
         model fired somewhere along the arc (read it where ``reason`` has the failure flag); None otherwise.
+    marks_h : With time-varying weather, the time the craft reaches each sub-segment end [h after the departure
+        origin], shape (..., samples + 1) (:attr:`pyroute_rel.march.Marched.marks_h`); None with steady weather
+        (the time along an arc is then its departure plus its share of the arc's time).
     """
 
     time_h: FloatArray
     p_f: FloatArray
     reason: npt.NDArray[np.uint8]
     fired_bits: npt.NDArray[np.uint32] | None = None
+    marks_h: FloatArray | None = None
 
     def bits(self) -> npt.NDArray[np.uint32]:
         """:attr:`fired_bits` with the block's shape (zeros when there are none)."""
@@ -424,7 +431,7 @@ def deferred_costs(
     if todo is None or not todo.any():
         return costs, None
     time_h = np.broadcast_to(costs.time_h, geom.shape)
-    return costs, PendingPieces(np.flatnonzero(todo), geom, t0, time_h, options)
+    return costs, PendingPieces(np.flatnonzero(todo), geom, t0, time_h, options, marks_h=costs.marks_h)
 
 
 @dataclass
@@ -439,6 +446,8 @@ class PendingPieces:
         flat indices in ``geom``).
     t0_h, time_h : Departure [h after departure] and the samples' sailing time [h] of each arc of ``geom``.
     options : The cost settings.
+    marks_h : With time-varying weather, when the craft reaches each sub-segment end of each arc of ``geom``
+        (:attr:`ArcCosts.marks_h`).
     """
 
     index: npt.NDArray[np.intp]
@@ -448,6 +457,7 @@ class PendingPieces:
     options: _CostOptions
     local: npt.NDArray[np.intp] | None = None
     done: npt.NDArray[np.bool_] | None = None
+    marks_h: FloatArray | None = None
 
     def __post_init__(self) -> None:
         if self.local is None:
@@ -490,6 +500,7 @@ class PendingPieces:
             apf=o.apf,
             beyond=o.beyond,
             speed_factor=None if o.wave_loss is None else o.wave_loss.factor,
+            marks_h=None if self.marks_h is None else self.marks_h.reshape(-1, g.samples + 1)[self.local[at]],
         )
         over = ext.p_f > o.apf
         return over, np.where(over, ext.fired_bits, 0).astype(np.uint32)
@@ -518,21 +529,8 @@ def _geometry_costs(
         dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
         costs = _arc_totals(dt, p_f, reason, fired)
     else:
-        # time-varying weather samples the same points at two sets of times: the source prepares them once; pass 1
-        # times the sub-segments at the departure time (speeds only: the failure model decides nothing here),
-        # pass 2 samples each at the time the craft gets there
-        prepared = _located(geom, weather)
-        t_samples = np.broadcast_to(np.asarray(t0_h, dtype=float)[..., None], shape + (geom.samples,))
-        if COMPILED_GLUE and _wind_only(options):
-            costs, cond = _wind_passes(geom, t_samples, options, prepared)
-        else:
-            dt = _sample_and_cost(geom, options, prepared, t_samples, timing=True)[0]
-            elapsed = 0.5 * dt
-            for s in range(1, geom.samples):
-                elapsed[..., s] += elapsed[..., s - 1] + 0.5 * dt[..., s - 1]
-            elapsed = np.where(np.isfinite(elapsed), elapsed, 0.0)
-            dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, prepared, t_samples + elapsed)
-            costs = _arc_totals(dt, p_f, reason, fired)
+        # time-varying weather: every arc is sailed sub-segment by sub-segment (pyroute_rel.march)
+        costs, cond = _marched_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options)
     if options.failure is None or geom.a_xyz is None or geom.b_xyz is None:
         return costs, None
     t0 = np.asarray(t0_h, dtype=float)
@@ -540,6 +538,95 @@ def _geometry_costs(
     if defer:
         return costs, None if todo is None else todo.reshape(shape)
     return (costs if todo is None else _judge_pieces(geom, t0, costs, options, todo)), None
+
+
+def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -> tuple[ArcCosts, Conditions]:
+    """Arcs of time-varying weather sailed by :func:`pyroute_rel.march.march`: their costs (with the marks) and the
+    weather at their samples when the craft was last there (for :func:`_pieces_todo`)."""
+    o, weather = options, options.weather
+    shape, samples = geom.shape, geom.samples
+    n = math.prod(shape)
+    course = np.broadcast_to(geom.course_deg, shape + (samples,)).reshape(n, samples)
+    seg = np.broadcast_to(geom.seg_nm[..., 0], shape).reshape(n)
+    timing = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ())
+    judged = timing if o.failure is None else timing + tuple(sorted(o.failure.weather_fields - set(timing)))
+    sample = _column_sampler(geom, weather, o.departure)
+    names = [f.name for f in dataclass_fields(Conditions)]
+    kept = {name: np.full((n, samples), 0.0 if name.startswith("current") else np.nan) for name in names}
+
+    def speed(k: int, idx: npt.NDArray[np.intp] | None, t_h: FloatArray, judge: bool) -> Step:
+        cond = sample(k, idx, t_h, judged if judge else timing)
+        c = course[:, k] if idx is None else course[idx, k]
+        sog, p, reason, fired = _sample_speeds(
+            cond, c, o.polar, o.failure if judge else None, o.apf, o.beyond, o.wave_loss
+        )
+        if judge:
+            at = slice(None) if idx is None else idx
+            for name in names:
+                kept[name][at, k] = getattr(cond, name)
+        return Step(sog_kn=sog, p_f=p, reason=reason, fired=fired)
+
+    steps = weather.time_steps
+    steps_h = None if steps is None else (steps - o.departure) / np.timedelta64(3600, "s")
+    m = march(
+        t0_h.reshape(n),
+        seg,
+        samples,
+        speed,
+        None if steps_h is None else np.asarray(steps_h, dtype=float),
+        missing_flag=REASONS["weather"],
+        failure_flag=REASONS["failure"],
+        polar_flag=REASONS["polar"],
+    )
+    costs = ArcCosts(
+        time_h=m.time_h.reshape(shape),
+        p_f=m.p_f.reshape(shape),
+        reason=m.reason.reshape(shape),
+        fired_bits=None if m.fired is None else m.fired.reshape(shape),
+        marks_h=m.marks_h.reshape(shape + (samples + 1,)),
+    )
+    cond = Conditions(**{name: kept[name].reshape(shape + (samples,)) for name in names})
+    return costs, cond
+
+
+def _column_sampler(geom: ArcGeometry, weather: WeatherSource, departure: np.datetime64) -> Any:
+    """``sample(k, idx, t_h, fields)``: the weather at sample ``k`` of the arcs ``idx`` (flat; None: all) at times
+    ``t_h`` [h after ``departure``], as flat :class:`Conditions`.
+
+    A gridded source samples just those points (located once per geometry and kept, :func:`_located`); any other
+    source is asked for the whole column of the block, in the block's shape (a source may answer each row of a
+    query from its own member or run), and the points wanted are taken from its answer."""
+    shape, samples = geom.shape, geom.samples
+    n = math.prod(shape)
+    if isinstance(weather, GriddedWeather):
+        prepared = _located(geom, weather)
+        columns: dict[int, Any] = {}
+
+        def gridded(k: int, idx: Any, t_h: FloatArray, fields: tuple[str, ...]) -> Conditions:
+            if idx is None:
+                points = columns.get(k)
+                if points is None:
+                    points = columns[k] = weather.take(prepared, np.arange(n, dtype=np.intp) * samples + k)
+            else:
+                points = weather.take(prepared, idx * samples + k)
+            return weather.sample_at(points, departure, offset_h=np.ascontiguousarray(t_h), fields=fields)
+
+        return gridded
+    prepared_columns: dict[int, Any] = {}
+
+    def any_source(k: int, idx: Any, t_h: FloatArray, fields: tuple[str, ...]) -> Conditions:
+        points = prepared_columns.get(k)
+        if points is None:
+            points = prepared_columns[k] = weather.prepare(geom.lon_deg[..., k], geom.lat_deg[..., k])
+        offset = np.zeros(n)
+        offset[slice(None) if idx is None else idx] = t_h
+        cond = weather.sample_at(points, departure, offset_h=offset.reshape(shape), fields=fields)
+        at = slice(None) if idx is None else idx
+        return Conditions(
+            **{f.name: np.broadcast_to(getattr(cond, f.name), shape).reshape(n)[at] for f in dataclass_fields(cond)}
+        )
+
+    return any_source
 
 
 #: The cost kernel keeps each arc geometry's sample points located on the weather grids of time-varying sources
@@ -646,13 +733,14 @@ def _judge_pieces(
         apf=options.apf,
         beyond=options.beyond,
         speed_factor=None if options.wave_loss is None else options.wave_loss.factor,
+        marks_h=None if costs.marks_h is None else costs.marks_h.reshape(-1, geom.samples + 1)[pick],
     )
     new_p = p_f.copy()
     new_p[pick] = np.maximum(p_f[pick], ext.p_f)
     over = np.zeros(p_f.shape, dtype=bool)
     over[pick] = ext.p_f > options.apf
     if not over.any():
-        return ArcCosts(time_h=costs.time_h, p_f=new_p.reshape(shape), reason=costs.reason, fired_bits=costs.fired_bits)
+        return replace(costs, p_f=new_p.reshape(shape))
     reason = np.broadcast_to(costs.reason, shape).reshape(-1).copy()
     reason[over] |= np.uint8(REASONS["failure"])
     bits = np.broadcast_to(costs.bits(), shape).reshape(-1).copy()
@@ -664,6 +752,7 @@ def _judge_pieces(
         p_f=new_p.reshape(shape),
         reason=reason.reshape(shape),
         fired_bits=bits.reshape(shape),
+        marks_h=costs.marks_h,
     )
 
 
@@ -717,6 +806,7 @@ def _threaded_costs(
         p_f=np.concatenate([c.p_f for c in done]),
         reason=np.concatenate([c.reason for c in done]),
         fired_bits=bits,
+        marks_h=None if done[0].marks_h is None else np.concatenate([c.marks_h for c in done]),  # type: ignore[misc]
     )
     return costs, todo
 
@@ -877,6 +967,26 @@ def _sample_costs(
     ``wind``: TWA [deg] and polar speed [kn] already computed for the course (no current), e.g. by
     :func:`pyroute_rel.cost_compiled.sail_wind`.
     """
+    sog, p, reason, fired = _sample_speeds(cond, course_deg, polar, failure, apf, beyond, wave_loss, wind=wind)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        dt = seg_nm / sog
+    dt = np.where(reason != 0, np.inf, dt)
+    return dt, p, reason, fired
+
+
+def _sample_speeds(
+    cond: Conditions,
+    course_deg: FloatArray,
+    polar: Polar,
+    failure: FailureModel | None,
+    apf: float,
+    beyond: str,
+    wave_loss: WaveLoss | None = None,
+    *,
+    wind: tuple[FloatArray, FloatArray] | None = None,
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], npt.NDArray[np.uint32] | None]:
+    """Per-sample speed over ground along the course [kn] (0 below :data:`~pyroute_rel.polar.MIN_SPEED_KN`, NaN
+    where the weather is missing), p_f, reason flags and fired criteria (:func:`_sample_costs`)."""
     reason = np.zeros(course_deg.shape, dtype=np.uint8)
     heading = course_deg
     current = cond.has_current
@@ -928,7 +1038,4 @@ def _sample_costs(
     else:
         p = np.zeros(course_deg.shape)
     reason |= _flag(missing, "weather")
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        dt = seg_nm / sog
-    dt = np.where(reason != 0, np.inf, dt)
-    return dt, p, reason, fired
+    return sog, p, reason, fired

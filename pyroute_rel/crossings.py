@@ -31,8 +31,10 @@ What this guarantees:
 - *Gridded fields* (:class:`~pyroute_rel.weather.GriddedWeather`, bilinear in space): the arc is cut at every grid
   line; within a cell a bilinear field along the piece is a product of two nearly linear functions, a parabola,
   whose extremum is sampled. The residual is the curvature of the great circle in lon/lat within one cell, far
-  below 100 m on cells of a degree or less. Time varies linearly between the piece ends (the arc's time at
-  departure plus its fraction of the arc's sailing time).
+  below 100 m on cells of a degree or less. In time, the arc is also cut wherever the craft crosses one of the
+  file's time steps, at the times the march of :mod:`pyroute_rel.march` gives (linear between the ends of its
+  sub-segments): within a piece every field is then linear in time as well, and the piece is judged along its path
+  in space and time.
 - *Smooth sources without boundaries*: the arc is one piece: its ends, middle and the extremum of each quantity's
   parabola are sampled, exact for quantities monotonic or quadratic along the arc.
 
@@ -57,6 +59,7 @@ import numpy.typing as npt
 from . import geodesy
 from .crab import steer
 from .failure import QUANTITY_FIELDS, FailureModel
+from .march import time_along
 from .polar import Polar
 from .times import hours_after
 from .units import KM_PER_NM
@@ -71,6 +74,7 @@ __all__ = [
     "arc_pieces",
     "needs_pieces",
     "split_fractions",
+    "time_fractions",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -638,6 +642,7 @@ def arc_extremes(
     beyond: str = "clamp",
     speed_factor: Any = None,
     pieces: ArcPieces | None = None,
+    marks_h: FloatArray | None = None,
 ) -> ArcExtremes:
     """The largest failure probability met anywhere along great-circle arcs (see the module notes).
 
@@ -654,17 +659,25 @@ def arc_extremes(
         weather whose answers depend on the query's row (first axis), such as one answering each piece in its own
         ensemble member, is queried with one row per piece, and gives ``take_rows(rows)``: the same weather for
         queries whose rows are those pieces.
+    marks_h : The time the craft reaches each of the arc's ``S`` equal sub-segments' ends [h after ``departure``],
+        shape (n, S + 1) (:attr:`~pyroute_rel.cost.ArcCosts.marks_h`, the march of :mod:`pyroute_rel.march`), or
+        None: ``t0_h + f * time_h``. With marks the time along the arc is linear between them, and every piece is
+        also cut where the craft crosses one of the weather's :attr:`~pyroute_rel.weather.WeatherSource.time_steps`,
+        so that a piece lies within one step of the file in time as in one cell in space.
     """
     judge = _Judge(departure, weather, polar, failure, float(apf), beyond, speed_factor)
     if pieces is None:
         pieces = arc_pieces(a_xyz, b_xyz, getattr(weather, "boundaries", None))
+    timing = None if weather.steady else _Timing(np.asarray(t0_h, float), np.asarray(time_h, float), marks_h)
+    if timing is not None and marks_h is not None:
+        pieces = _cut_in_time(pieces, marks_h, weather.time_steps, departure)
     arc, s0, s1 = pieces.arc, pieces.s0, pieces.s1
     r = _FRACTIONS
-    t = None if weather.steady else _times(t0_h, time_h, arc, s0[:, None] + (s1 - s0)[:, None] * r)
+    t = None if timing is None else timing.at(arc, s0[:, None] + (s1 - s0)[:, None] * r)
     q = _quantities(judge, pieces.lon_deg, pieces.lat_deg, pieces.course_deg, t)
     if pieces.continuous:  # the extremum of each quantity's parabola through the three points
         rv = np.stack([_vertex(v, r) for v, _ in q.values()], axis=-1)
-        qv = _at_vertices(judge, pieces, t0_h, time_h, rv, q)
+        qv = _at_vertices(judge, pieces, timing, rv, q)
         q = {k: (np.concatenate([v, qv[k]], axis=-1), rel) for k, (v, rel) in q.items()}
     ranges = {k: _ranges(v, rel) for k, (v, rel) in q.items()}
     best, bits = _box_max(failure, ranges, judge.apf)
@@ -681,8 +694,7 @@ def arc_extremes(
 def _at_vertices(
     judge: _Judge,
     pieces: ArcPieces,
-    t0_h: FloatArray,
-    time_h: FloatArray,
+    timing: _Timing | None,
     rv: FloatArray,
     q: dict[str, tuple[FloatArray, bool]],
 ) -> dict[str, FloatArray]:
@@ -698,7 +710,7 @@ def _at_vertices(
     if new.any():
         at = np.broadcast_to(arc[:, None], rv.shape)[new]
         fv = (s0 + (s1 - s0) * rv)[new][:, None]
-        tv = None if judge.weather.steady else _times(t0_h, time_h, at, fv)
+        tv = None if timing is None else timing.at(at, fv)
         lon_v, lat_v, course_v = _points(pieces.a_xyz, pieces.u_xyz, pieces.omega, at, fv)
         take_rows = getattr(judge.weather, "take_rows", None)  # a weather answering each piece from its own source
         if take_rows is not None:
@@ -709,8 +721,67 @@ def _at_vertices(
     return out
 
 
-def _times(t0_h: FloatArray, time_h: FloatArray, arc: npt.NDArray[np.intp], f: FloatArray) -> FloatArray:
-    """Time [h after departure] at fractions ``f`` of arcs ``arc``: the arc's departure plus that share of its time."""
-    t0 = np.asarray(t0_h, float)[arc][:, None]
-    dt = np.asarray(time_h, float)[arc][:, None]
-    return np.where(np.isfinite(dt), t0 + f * dt, t0)
+@dataclass(frozen=True)
+class _Timing:
+    """When the craft is at each fraction of each arc: its departure ``t0_h`` plus that share of its time ``time_h``
+    [h], or, with ``marks_h`` (n, S + 1), linear between the times it reaches the ends of its S equal sub-segments."""
+
+    t0_h: FloatArray
+    time_h: FloatArray
+    marks_h: FloatArray | None
+
+    def at(self, arc: npt.NDArray[np.intp], f: FloatArray) -> FloatArray:
+        """Time [h after departure] at fractions ``f`` (m, r) of arcs ``arc`` (m,)."""
+        if self.marks_h is not None:
+            return time_along(self.marks_h[arc], f)
+        t0 = self.t0_h[arc][:, None]
+        dt = self.time_h[arc][:, None]
+        return np.where(np.isfinite(dt), t0 + f * dt, t0)
+
+
+def time_fractions(
+    marks_h: FloatArray, steps: npt.NDArray[np.datetime64] | None, departure: np.datetime64
+) -> tuple[npt.NDArray[np.intp], FloatArray]:
+    """Where the craft crosses the weather's time steps along each arc: the arcs (increasing) and fractions along
+    them (strictly inside, by more than :data:`NUDGE`), from the times ``marks_h`` (n, S + 1) [h after
+    ``departure``] it reaches its S equal sub-segments' ends (time linear between them)."""
+    n, samples = marks_h.shape[0], marks_h.shape[1] - 1
+    if steps is None or not len(steps) or not n:
+        return np.zeros(0, dtype=np.intp), np.zeros(0)
+    steps_h = np.asarray((steps - departure) / np.timedelta64(3600, "s"), dtype=float)
+    marks = np.where(np.isfinite(marks_h), marks_h, -np.inf)
+    j = np.searchsorted(steps_h, marks, side="right")  # the first step after each mark
+    counts = np.maximum(j[:, 1:] - j[:, :-1], 0)  # steps in (mark k, mark k + 1], per sub-segment
+    total = int(counts.sum())
+    if not total:
+        return np.zeros(0, dtype=np.intp), np.zeros(0)
+    flat = counts.reshape(-1)
+    owner = np.repeat(np.arange(flat.size), flat)
+    first = np.cumsum(flat) - flat
+    step = j[:, :-1].reshape(-1)[owner] + (np.arange(total) - first[owner])
+    arc, k = np.divmod(owner, samples)
+    t_lo, t_hi = marks[arc, k], marks[arc, k + 1]
+    f = (k + (steps_h[step] - t_lo) / (t_hi - t_lo)) / samples
+    keep = (f > NUDGE) & (f < 1.0 - NUDGE)
+    return arc[keep], f[keep]
+
+
+def _cut_in_time(
+    pieces: ArcPieces, marks_h: FloatArray, steps: npt.NDArray[np.datetime64] | None, departure: np.datetime64
+) -> ArcPieces:
+    """``pieces`` cut again where the craft crosses a time step of the weather (:func:`time_fractions`)."""
+    arc_t, f_t = time_fractions(marks_h, steps, departure)
+    if not arc_t.size:
+        return pieces
+    n = pieces.omega.size
+    ends = np.unique(pieces.arc)
+    arc_all = np.concatenate([pieces.arc, arc_t, ends])
+    f_all = np.concatenate([pieces.s0, f_t, np.ones(ends.size)])
+    order = np.lexsort((f_all, arc_all))
+    arc_all, f_all = arc_all[order], f_all[order]
+    same = (arc_all[1:] == arc_all[:-1]) & (f_all[1:] > f_all[:-1])
+    arc, s0, s1 = arc_all[:-1][same], f_all[:-1][same], f_all[1:][same]
+    f = s0[:, None] + (s1 - s0)[:, None] * _FRACTIONS
+    lon, lat, course = _points(pieces.a_xyz, pieces.u_xyz, pieces.omega, arc, f)
+    assert arc.size >= pieces.arc.size and (n == 0 or arc.max() < n)
+    return replace(pieces, arc=arc, s0=s0, s1=s1, lon_deg=lon, lat_deg=lat, course_deg=course)

@@ -523,6 +523,8 @@ class _Sailing:
     land: npt.NDArray[np.bool_]
     zone: npt.NDArray[np.bool_]
     man: _Manoeuvres | None
+    #: Time-varying weather: when each leg's sub-segment ends are reached, (rows, legs, samples + 1); else None.
+    marks: FloatArray | None = None
 
     def sailed(self) -> list[list[Sailed]]:
         """Each row's :class:`Sailed`, ``out[j][i]``."""
@@ -533,7 +535,8 @@ class _Sailing:
             for i, t in enumerate(self.tracks):
                 r, n = j * n_c + i, int(self.n_legs[i])
                 sailed = _sailed(t, self.elapsed[r, : n + 1], self.time_h[r, :n], self.p_f[r, :n], self.reason[r, :n],
-                                 self.land[r, :n], self.zone[r, :n], float(problem.apf))  # fmt: skip
+                                 self.land[r, :n], self.zone[r, :n], float(problem.apf),
+                                 None if self.marks is None else self.marks[r, :n])  # fmt: skip
                 out[j].append(sailed if man is None else replace(sailed, manoeuvres=man.track(r, n, sailed.elapsed_h)))
         return out
 
@@ -581,6 +584,7 @@ def _sail_rows(
     elapsed = np.where(np.arange(width + 1)[None, :] <= legs[:, None], 0.0, np.nan)
     time_h, p_f = np.full(has.shape, np.nan), np.full(has.shape, np.nan)
     reason = np.zeros(has.shape, dtype=np.uint8)
+    marks = None
     man = _Manoeuvres.of(first, has.shape, manoeuvres)
     if first.weather.steady and first.time_step_h is None:
         for j, problem in enumerate(problems):  # every leg at once, judged on its pieces in the same call
@@ -603,8 +607,9 @@ def _sail_rows(
         legs1 = _Legs.of(lon1, lat1, has1, first.samples)
         make_stack = _member_stack(problems)
         stack = None if make_stack is None else make_stack(box=legs1.box())
-        _sail_legs(problems, legs1, stack, has, elapsed, time_h, p_f, reason, man)
-        _judge_legs(problems, legs1, stack, elapsed, time_h, p_f)
+        marks = np.full(has.shape + (first.samples + 1,), np.nan)
+        _sail_legs(problems, legs1, stack, has, elapsed, time_h, p_f, reason, man, marks)
+        _judge_legs(problems, legs1, stack, elapsed, time_h, p_f, marks)
     land1 = None
     if avoid is not None and avoid.land:  # the same in every weather
         land1, _ = _obstacles(first, replace(avoid, zones=()), lon1, lat1, elapsed[:n_c], has1)
@@ -612,7 +617,7 @@ def _sail_rows(
     if avoid is not None and avoid.zones:
         _, zone = _obstacles(first, replace(avoid, land=False), lon, lat, elapsed, has)
     land = np.zeros(has.shape, dtype=bool) if land1 is None else np.tile(land1, (n_m, 1))
-    return _Sailing(tr, problems, n_legs, elapsed, time_h, p_f, reason, land, zone, man)
+    return _Sailing(tr, problems, n_legs, elapsed, time_h, p_f, reason, land, zone, man, marks)
 
 
 @dataclass
@@ -679,10 +684,13 @@ def _sailed(
     land: npt.NDArray[np.bool_],
     zone: npt.NDArray[np.bool_],
     apf: float,
+    marks: FloatArray | None = None,
 ) -> Sailed:
     """One track's :class:`Sailed` from its rows (copies), the legs after one that cannot be sailed cleared."""
     e = elapsed.copy()
-    costs = ArcCosts(time_h=time_h.copy(), p_f=p_f.copy(), reason=reason.copy())
+    costs = ArcCosts(
+        time_h=time_h.copy(), p_f=p_f.copy(), reason=reason.copy(), marks_h=None if marks is None else marks.copy()
+    )
     hit_land, hit_zone = land.copy(), zone.copy()
     stop = np.flatnonzero(~np.isfinite(e))
     if stop.size:  # the legs after the one that cannot be sailed are not sailed
@@ -752,6 +760,7 @@ def _sail_legs(
     p_f: FloatArray,
     reason: npt.NDArray[np.uint8],
     man: _Manoeuvres | None = None,
+    marks: FloatArray | None = None,
 ) -> None:
     """Time-varying weather: the k-th legs of every row costed together (their samples' ``p_f``), leg after leg,
     filling the arrays in place; ``man``: each leg's side found at its departure and its manoeuvre charged. The
@@ -780,6 +789,8 @@ def _sail_legs(
             workers=1 if len(problems) > 1 else None,  # threads split rows: the weather's rows must stay whole
         )
         time_h[rows, k], p_f[rows, k], reason[rows, k] = c.time_h, c.p_f, c.reason
+        if marks is not None and c.marks_h is not None:
+            marks[rows, k] = c.marks_h
         if man is None:
             elapsed[rows, k + 1] = first.arrive(t0 + c.time_h)
         else:
@@ -823,6 +834,7 @@ def _judge_legs(
     elapsed: FloatArray,
     time_h: FloatArray,
     p_f: FloatArray,
+    marks: FloatArray | None = None,
 ) -> None:
     """Each weather's legs judged on every piece they cross, as the cost function judges an arc
     (:func:`~pyroute_rel.cost.geometry_costs` with its end points): the legs sailed whose samples did not meet the
@@ -877,6 +889,7 @@ def _judge_legs(
             beyond=first.beyond,
             speed_factor=None if first.wave_loss is None else first.wave_loss.factor,
             pieces=pieces,
+            marks_h=None if marks is None else marks[r, k],
         )
         p_f[r, k] = np.maximum(p_f[r, k], ext.p_f)
 
@@ -900,6 +913,8 @@ class _MemberRows:
     def __init__(self, sources: Sequence[Any], cuts: npt.NDArray[np.intp], stack: Any = None) -> None:
         self.parts = [(s, int(a), int(b)) for s, a, b in zip(sources, cuts[:-1], cuts[1:], strict=True) if b > a]
         self.steady = bool(sources[0].steady)
+        steps = [s.time_steps for s in sources if s.time_steps is not None]
+        self.time_steps = np.unique(np.concatenate(steps)) if steps else None
         self.fields = frozenset(sources[0].fields)
         self.max_current_ms = max(float(s.max_current_ms) for s in sources)
         self.stack = stack
@@ -1148,7 +1163,9 @@ def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | 
     cols["wait_h"] = np.zeros(n)
     exposure: dict[str, float] = {}
     if k > 0:
-        part = ArcCosts(time_h=sailed.costs.time_h[:k], p_f=sailed.costs.p_f[:k], reason=sailed.costs.reason[:k])
+        c = sailed.costs
+        marks = None if c.marks_h is None else c.marks_h[:k]
+        part = ArcCosts(time_h=c.time_h[:k], p_f=c.p_f[:k], reason=c.reason[:k], marks_h=marks)
         legs, exp = track_legs(problem, lon[: k + 1], lat[: k + 1], e[: k + 1], np.zeros(k), part)
         for name in cols:
             cols[name][:k] = legs[name]

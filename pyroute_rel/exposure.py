@@ -34,6 +34,7 @@ import numpy.typing as npt
 from . import geodesy
 from .cost import arc_quantities
 from .crab import steer
+from .march import time_along
 
 if TYPE_CHECKING:
     from .solve import RoutingProblem
@@ -130,6 +131,7 @@ def leg_exposure(
     p_f: npt.ArrayLike,
     *,
     step_km: float = EXPOSURE_STEP_KM,
+    marks_h: FloatArray | None = None,
 ) -> LegExposure:
     """Hazard and hours per criterion of each leg of a track (see the module notes).
 
@@ -142,6 +144,11 @@ def leg_exposure(
     p_f : Each leg's largest failure probability as the router costed it [-]: used for a sub-arc whose weather
         is missing at its midpoint (the router found the leg sailable, but a finer sample fell into a hole).
     step_km : Longest sub-arc [km] (> 0).
+    marks_h : With time-varying weather, when the craft reaches each leg's sub-segment ends [h after
+        ``problem.departure``], shape (legs, samples + 1) (:attr:`~pyroute_rel.cost.ArcCosts.marks_h`): each sub-arc
+        is then timed on them (:func:`~pyroute_rel.march.time_along`), as the cost function sailed it and judged its
+        pieces. None: the sub-arcs are timed by the cost function from their own departures, then scaled to the
+        leg's time.
 
     Returns
     -------
@@ -149,7 +156,9 @@ def leg_exposure(
         Zero hazards and no criteria without a failure model.
     """
     lon, lat = np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float)
-    return arc_exposure(problem, lon[:-1], lat[:-1], lon[1:], lat[1:], start_h, time_h, p_f, step_km=step_km)
+    return arc_exposure(
+        problem, lon[:-1], lat[:-1], lon[1:], lat[1:], start_h, time_h, p_f, step_km=step_km, marks_h=marks_h
+    )
 
 
 def arc_exposure(
@@ -163,6 +172,7 @@ def arc_exposure(
     p_f: npt.ArrayLike,
     *,
     step_km: float = EXPOSURE_STEP_KM,
+    marks_h: FloatArray | None = None,
 ) -> LegExposure:
     """Hazard and hours per criterion of separate arcs, each from ``(lon0, lat0)`` to ``(lon1, lat1)`` [deg] (1-D
     arrays of one value per arc); the other arguments as in :func:`leg_exposure`, one value per arc.
@@ -191,7 +201,8 @@ def arc_exposure(
                 hazard=_spread(out.hazard, keep, n),
                 criterion_h={k: _spread(v, keep, n) for k, v in out.criterion_h.items()},
             )
-    return _sub_arc_exposure(problem, a0, b0, a1, b1, start_leg, t_leg, p_leg, step_km)
+    marks = None if marks_h is None or problem.weather.steady else np.asarray(marks_h, dtype=float)
+    return _sub_arc_exposure(problem, a0, b0, a1, b1, start_leg, t_leg, p_leg, step_km, marks)
 
 
 @dataclass(frozen=True)
@@ -291,6 +302,7 @@ def _sub_arc_exposure(
     t_leg: FloatArray,
     p_leg: FloatArray,
     step_km: float,
+    marks: FloatArray | None = None,
 ) -> LegExposure:
     """:func:`arc_exposure` on every arc: each cut into sub-arcs, timed, and its hazard and hours summed."""
     model = problem.failure
@@ -298,17 +310,23 @@ def _sub_arc_exposure(
     n_legs = t_leg.size
     sub = _SubArcs.cut(a0, b0, a1, b1, step_km)
     leg, f0, f1 = sub.leg, sub.f0, sub.f1
-    timing = replace(problem, samples=1, apf=1.0)  # times only: the failure model forbids nothing here
-    start = start_leg[leg]
-    share = (f1 - f0) * t_leg[leg]  # the leg's time shared by length, a first guess (and where a sub-arc has none)
-    t0 = start + f0 * t_leg[leg]
-    ends = sub.ends()
-    dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
-    if not problem.weather.steady:  # again, each sub-arc leaving when the craft gets there
-        before = np.cumsum(dt) - dt  # time sailed before each sub-arc, from the first arc's start
-        t0 = start + before - before[sub.first][leg]
+    if marks is not None:  # the times the cost function sailed each arc at, linear within its sub-segments
+        t0 = time_along(marks[leg], f0)
+        dt = time_along(marks[leg], f1) - t0
+        t_mid = time_along(marks[leg], 0.5 * (f0 + f1))
+    else:
+        timing = replace(problem, samples=1, apf=1.0)  # times only: the failure model forbids nothing here
+        start = start_leg[leg]
+        share = (f1 - f0) * t_leg[leg]  # the leg's time shared by length, a first guess (and where a sub-arc has none)
+        t0 = start + f0 * t_leg[leg]
+        ends = sub.ends()
         dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
-    p, unknown, fired = sub.conditions(problem, t0 + 0.5 * dt)
+        if not problem.weather.steady:  # again, each sub-arc leaving when the craft gets there
+            before = np.cumsum(dt) - dt  # time sailed before each sub-arc, from the first arc's start
+            t0 = start + before - before[sub.first][leg]
+            dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
+        t_mid = t0 + 0.5 * dt
+    p, unknown, fired = sub.conditions(problem, t_mid)
     if unknown is not None:  # missing weather at a sub-arc's midpoint: the leg's p_f as the router costed it
         p = np.where(unknown, p_leg[leg], p)
     h = hazard(p, dt, model.exposure_h)

@@ -197,6 +197,11 @@ class PerturbedWind:
         return frozenset(self.inner.fields)
 
     @property
+    def time_steps(self) -> Any:
+        """As the wrapped source."""
+        return self.inner.time_steps
+
+    @property
     def max_current_ms(self) -> float:
         """As the wrapped source."""
         return float(self.inner.max_current_ms)

@@ -18,6 +18,7 @@ import numpy.typing as npt
 from . import geodesy
 from .cost import arc_quantities
 from .crab import steer
+from .march import time_along
 
 if TYPE_CHECKING:
     from .failure import FailureModel
@@ -185,7 +186,8 @@ class RiskField:
 def track_samples(route: Route, *, spacing_km: float = 10.0) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Points along a route's legs at most ``spacing_km`` [km] apart (mid-points of equal sub-segments, as the
     cost samples an arc), with the great-circle course there [deg] and the time the route passes [h after
-    departure, linear in distance along each leg].
+    departure: in time-varying weather the times its legs were sailed at (:attr:`~pyroute_rel.route.Route.leg_marks_h`),
+    else linear in distance along each leg].
 
     Returns
     -------
@@ -199,6 +201,8 @@ def track_samples(route: Route, *, spacing_km: float = 10.0) -> tuple[FloatArray
     frac = (k + 0.5) / n[leg]
     s_lon, s_lat = geodesy.intermediate_point(lon[leg], lat[leg], lon[leg + 1], lat[leg + 1], frac)
     course = geodesy.initial_bearing_deg(s_lon, s_lat, lon[leg + 1], lat[leg + 1])
+    if route.leg_marks_h is not None:  # the times the legs were sailed at (time-varying weather)
+        return s_lon, s_lat, course, time_along(route.leg_marks_h[leg], frac)
     sail_from = route.elapsed_h[:-1] + route.legs.wait_h
     elapsed = sail_from[leg] + frac * route.legs.time_h[leg]
     return s_lon, s_lat, course, elapsed

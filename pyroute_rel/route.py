@@ -25,6 +25,7 @@ from .cost import REASONS, ArcCosts, arc_quantities
 from .errors import NoFeasibleRouteError, ScenarioError, check_flag, check_instance
 from .exposure import LegExposure, combined_failure_probability, leg_exposure
 from .manoeuvre import TrackManoeuvres
+from .march import time_along
 from .solve import DPResult, RoutingProblem, explain_infeasible, forward_dp, grid_geometry, leg_manoeuvres
 from .times import hours_after, iso_utc
 
@@ -224,6 +225,10 @@ class Route:
         description (e.g. ``"WH: hs_m >= 4 m"``) [h]; empty without a failure model.
     manoeuvres : Side of the wind of each leg, the tack or gybe at its start and the time it cost
         (:class:`~pyroute_rel.manoeuvre.TrackManoeuvres`; penalties zero unless the boat has them).
+    leg_marks_h : In time-varying weather, when the craft reaches the end of each of a leg's sub-segments [h after
+        departure], shape (legs, samples + 1): the times the legs were sailed at (:mod:`pyroute_rel.march`; the time
+        along a sub-segment is linear between its marks, :func:`~pyroute_rel.march.time_along`); None with steady
+        weather (a leg's time is then shared along it by distance).
     """
 
     lon_deg: FloatArray
@@ -241,6 +246,7 @@ class Route:
     grid_track: GridTrack | None = None
     exposure_by_criterion_h: dict[str, float] = field(default_factory=dict)
     manoeuvres: TrackManoeuvres | None = None
+    leg_marks_h: FloatArray | None = None
 
     @property
     def weather(self) -> WeatherSource:
@@ -457,6 +463,7 @@ def build_route(grid: Grid, problem: RoutingProblem, result: DPResult) -> Route:
         meta=meta,
         exposure_by_criterion_h={k: float(v.sum()) for k, v in exposure.criterion_h.items()},
         manoeuvres=manoeuvres,
+        leg_marks_h=costs.marks_h,
     )
 
 
@@ -488,7 +495,8 @@ def track_legs(
     dist = geodesy.distance_nm(lon[:-1], lat[:-1], lon[1:], lat[1:])
     mlon, mlat = geodesy.intermediate_point(lon[:-1], lat[:-1], lon[1:], lat[1:], 0.5)
     course = geodesy.initial_bearing_deg(mlon, mlat, lon[1:], lat[1:])
-    mid_h = elapsed[:-1] + waits + 0.5 * costs.time_h
+    marks = costs.marks_h  # when the craft reaches each sub-segment end (time-varying weather), else None
+    mid_h = elapsed[:-1] + waits + 0.5 * costs.time_h if marks is None else time_along(marks, np.full(len(dist), 0.5))
     cond = problem.weather_at(mlon, mlat, mid_h)
     hole = ~(np.isfinite(cond.tws_kn) & np.isfinite(cond.twd_deg)) & np.isfinite(costs.time_h)
     if hole.any() and problem.samples > 1:
@@ -497,12 +505,17 @@ def track_legs(
         frac = (problem.samples // 2 - 0.5) / problem.samples
         i = np.flatnonzero(hole)
         slon, slat = geodesy.intermediate_point(lon[i], lat[i], lon[i + 1], lat[i + 1], frac)
-        at = problem.weather_at(slon, slat, (elapsed[:-1] + waits)[i] + frac * costs.time_h[i])
+        at_h = (
+            (elapsed[:-1] + waits)[i] + frac * costs.time_h[i]
+            if marks is None
+            else time_along(marks[i], np.full(i.size, frac))
+        )
+        at = problem.weather_at(slon, slat, at_h)
         cond = replace(cond, **{f.name: _put(vars(cond)[f.name], i, vars(at)[f.name]) for f in fields(cond)})
         course = course.copy()
         course[i] = geodesy.initial_bearing_deg(slon, slat, lon[i + 1], lat[i + 1])
     q = arc_quantities(cond, course)
-    exposure = leg_exposure(problem, lon, lat, elapsed[:-1] + waits, costs.time_h, costs.p_f)
+    exposure = leg_exposure(problem, lon, lat, elapsed[:-1] + waits, costs.time_h, costs.p_f, marks_h=marks)
     legs = Legs(
         distance_nm=dist,
         time_h=costs.time_h,
@@ -572,7 +585,17 @@ def join_routes(routes: list[Route]) -> Route:
             for k in r0.exposure_by_criterion_h
         },
         manoeuvres=_joined_manoeuvres(routes),
+        leg_marks_h=_joined_marks(routes, offsets),
     )
+
+
+def _joined_marks(routes: list[Route], offsets: list[float]) -> FloatArray | None:
+    """The legs' marks of a course's legs one after the other, each shifted by the time its leg of the course starts
+    [h] (None unless every leg has them, on as many samples)."""
+    marks = [r.leg_marks_h for r in routes]
+    if any(m is None for m in marks) or len({m.shape[1] for m in marks if m is not None}) != 1:
+        return None
+    return np.concatenate([o + m for o, m in zip(offsets, marks, strict=True) if m is not None])
 
 
 def _joined_manoeuvres(routes: list[Route]) -> TrackManoeuvres | None:

@@ -1628,6 +1628,7 @@ def _timed_legs(
     elapsed = np.zeros(n_legs + 1)
     times, p_f = np.empty(n_legs), np.empty(n_legs)
     reason = np.empty(n_legs, dtype=np.uint8)
+    marks: FloatArray | None = None  # when the craft reaches each sub-segment end (time-varying weather)
     side, twa, tws = np.zeros(n_legs, dtype=np.int8), np.zeros(n_legs), np.zeros(n_legs)
     if guess is not None:
         guess = guess.copy()
@@ -1640,6 +1641,10 @@ def _timed_legs(
         passes += many
         c = problem.costs(lon[idx], lat[idx], lon[idx + 1], lat[idx + 1], t0)
         times[idx], p_f[idx], reason[idx] = c.time_h, c.p_f, c.reason
+        if c.marks_h is not None:
+            if marks is None:
+                marks = np.full((n_legs, c.marks_h.shape[-1]), np.nan)
+            marks[idx] = c.marks_h
         one = ArcGeometry(geom.lon_deg[idx], geom.lat_deg[idx], geom.course_deg[idx], geom.seg_nm)
         side[idx], twa[idx], tws[idx] = first_sample_wind(problem, one, t0)
         pen = track_manoeuvres(side, twa, tws, penalties, initial_side=problem.initial_side).penalty_h
@@ -1655,7 +1660,7 @@ def _timed_legs(
         if many:
             guess = elapsed[:-1].copy()  # the next pass's departures: exact up to ``done``
     man = track_manoeuvres(side, twa, tws, penalties, initial_side=problem.initial_side)
-    return elapsed, ArcCosts(time_h=times, p_f=p_f, reason=reason), man
+    return elapsed, ArcCosts(time_h=times, p_f=p_f, reason=reason, marks_h=marks), man
 
 
 def first_sample_wind(

@@ -708,7 +708,8 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
     time_h = np.asarray(costs.time_h, dtype=float)
     ok = np.isfinite(time_h)
     p_pair = np.broadcast_to(costs.p_f, c_arc.shape)[ok]
-    hz = arc_exposure(problem, *(e[c_arc[ok]] for e in ends), t0[ok], time_h[ok], p_pair).hazard
+    marks = None if costs.marks_h is None else costs.marks_h[ok]  # the times the arcs were sailed at
+    hz = arc_exposure(problem, *(e[c_arc[ok]] for e in ends), t0[ok], time_h[ok], p_pair, marks_h=marks).hazard
     return _Candidates(
         node=c_arc[ok] // width,
         t=t0[ok] + time_h[ok],
@@ -896,6 +897,7 @@ def course_sensitivity(legs: Sequence[tuple[Grid, RoutingProblem]], route: Route
         route.elapsed_h[:-1] + route.legs.wait_h,
         route.legs.time_h,
         route.legs.p_f,
+        marks_h=route.leg_marks_h,
     )
     out = []
     for c in model.criteria:

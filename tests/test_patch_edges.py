@@ -43,6 +43,7 @@ class Boundless:
 
     inner: Any
     steady = False
+    time_steps = None
 
     @property
     def fields(self) -> frozenset[str]:
@@ -155,7 +156,8 @@ def test_steady_and_boundless_costing_agree_on_arcs_that_touch_a_patch_at_an_end
     boundless = arc_costs(*args, weather=Boundless(WEATHER), **kw)
     np.testing.assert_array_equal(steady.p_f, 0.0)
     np.testing.assert_array_equal(boundless.p_f, 0.0)
-    np.testing.assert_array_equal(steady.time_h, boundless.time_h)
+    # the time-varying march cuts its steps every MAX_STEP_H on a source without time steps: the same time to rounding
+    np.testing.assert_allclose(boundless.time_h, steady.time_h, rtol=1e-13)
 
 
 @pytest.mark.parametrize(("lon", "lat"), [(-14.0, 44.5), (-15.0, 44.0), (-13.0, 43.5), (-14.3, 43.5)])

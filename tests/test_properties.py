@@ -186,6 +186,7 @@ class VeeringWind(SamplesOnly):
 
     tws0: float
     steady = False
+    time_steps = None
 
     def sample(self, lon_deg: Any, lat_deg: Any, time: Any) -> Conditions:
         lon, lat, t = np.broadcast_arrays(
@@ -264,6 +265,7 @@ class NaNBox(SamplesOnly):
     lat: tuple[float, float]
     nan_fields: tuple[str, ...] = ("tws_kn",)
     steady = True
+    time_steps = None
 
     @property
     def max_current_ms(self) -> float:  # type: ignore[override]

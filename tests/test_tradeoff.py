@@ -86,6 +86,13 @@ class Unsteady:
     steady = False
 
     @property
+    def time_steps(self) -> np.ndarray:
+        """Where the conditions change in time: at the storm's start (none without a storm)."""
+        if self.storm_h is None:
+            return np.array([], dtype="datetime64[ns]")
+        return np.array([self.t0 + np.timedelta64(int(round(self.storm_h * 3600e9)), "ns")], dtype="datetime64[ns]")
+
+    @property
     def fields(self) -> frozenset[str]:
         return self.base.fields
 

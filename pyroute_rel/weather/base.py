@@ -201,6 +201,15 @@ class WeatherSource(Protocol):
         pruning bound is the polar's top speed plus this; a bound too small would make pruning inexact."""
         ...
 
+    @property
+    def time_steps(self) -> npt.NDArray[np.datetime64] | None:
+        """The times (``datetime64[ns]``, UTC, increasing) at which the source's conditions may change their rate in
+        time: a file's time steps, between which every field is linear in time. The cost function cuts each arc's
+        march where the craft crosses one (:mod:`pyroute_rel.cost`), so that no step is timed across a change of
+        the weather's trend. None: no such times (a steady source; or a source smooth in time, whose march steps are
+        then bounded by :data:`~pyroute_rel.cost.MAX_STEP_H` instead)."""
+        ...
+
     def sample(
         self,
         lon_deg: npt.ArrayLike,

@@ -158,6 +158,7 @@ class _Block:
         self.n_fields = nf
         self.lon, self.lat = ref.lon, ref.lat
         self.t0 = ref.time[0] if ref.time is not None else np.datetime64("NaT", "ns")
+        self.time = ref.time
         self.time_s = _NO_TIME if ref.time is None else (ref.time - self.t0) / np.timedelta64(1, "s")
         self.lon_mid = 0.5 * (self.lon[0] + self.lon[-1])
         self.strides = (nf, nx * nt * nf, nt * nf)  # time, lat, lon
@@ -631,6 +632,15 @@ class GriddedWeather:
         otherwise (every point is sampled at its own time)."""
         return self._steady
 
+    @functools.cached_property
+    def time_steps(self) -> npt.NDArray[np.datetime64] | None:
+        """Every field's times together (``datetime64[ns]``, increasing): between two of them each field is linear
+        in time. None when steady."""
+        times = [b.time.astype("datetime64[ns]") for b in self._blocks if b.time is not None]
+        if self._steady or not times:
+            return None
+        return np.unique(np.concatenate(times))
+
     @property
     def fields(self) -> frozenset[str]:
         """Names of :class:`~pyroute_rel.weather.Conditions` fields the data actually provide."""
@@ -759,6 +769,19 @@ class GriddedWeather:
         if not (prepared.grid is key or prepared.grid == key):  # (an owner's id alone may be a dead source's)
             return None
         return prepared if prepared.owner == id(self) else replace(prepared, owner=id(self))
+
+    def take(self, prepared: PreparedPoints, index: npt.NDArray[np.intp]) -> PreparedPoints:
+        """The points ``index`` (flat indices, C order) of points located by :meth:`prepare`, as a 1-D set: the same
+        numbers from :meth:`sample_at` as those points in the whole set (the march samples the arcs still sailing)."""
+        if prepared.owner != id(self):
+            raise WeatherError("these points were prepared for another weather source: use its prepare()")
+        where = tuple(
+            _Where(w.base[index], w.sx[index], w.sy[index], w.wx[index], w.wy[index], w.ok[index])
+            for w in prepared.where
+        )
+        return replace(
+            prepared, shape=(int(index.size),), lon=prepared.lon[index], lat=prepared.lat[index], where=where
+        )
 
     def sample_at(
         self,

@@ -126,6 +126,11 @@ class UniformWeather:
         return True
 
     @property
+    def time_steps(self) -> None:
+        """None: a control field does not change with time."""
+        return None
+
+    @property
     def fields(self) -> frozenset[str]:
         """Every field of :class:`~pyroute_rel.weather.base.Conditions` (all are defined everywhere)."""
         return frozenset(FIELDS)
