@@ -548,17 +548,28 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
     n = math.prod(shape)
     course = np.broadcast_to(geom.course_deg, shape + (samples,)).reshape(n, samples)
     seg = np.broadcast_to(geom.seg_nm[..., 0], shape).reshape(n)
+    if COMPILED_MARCH:
+        from .march_compiled import usable
+
+        block = usable(weather, o.failure, _wind_only(o))
+        if block is not None:
+            return _compiled_march(geom, t0_h, options, block, course, seg)
     timing = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ())
     judged = timing if o.failure is None else timing + tuple(sorted(o.failure.weather_fields - set(timing)))
     sample = _column_sampler(geom, weather, o.departure)
     names = [f.name for f in dataclass_fields(Conditions)]
     kept = {name: np.full((n, samples), 0.0 if name.startswith("current") else np.nan) for name in names}
 
+    wind_only = _wind_only(o) and isinstance(weather, GriddedWeather)
+    if wind_only:  # TWA and polar speed in compiled code (the same numbers: pyroute_rel.cost_compiled)
+        from .cost_compiled import sail_wind
+
     def speed(k: int, idx: npt.NDArray[np.intp] | None, t_h: FloatArray, judge: bool) -> Step:
         cond = sample(k, idx, t_h, judged if judge else timing)
-        c = course[:, k] if idx is None else course[idx, k]
+        c = np.ascontiguousarray(course[:, k] if idx is None else course[idx, k])
+        wind = sail_wind(cond.tws_kn, cond.twd_deg, c, _ONE_NM, o.polar, beyond=o.beyond)[:2] if wind_only else None
         sog, p, reason, fired = _sample_speeds(
-            cond, c, o.polar, o.failure if judge else None, o.apf, o.beyond, o.wave_loss
+            cond, c, o.polar, o.failure if judge else None, o.apf, o.beyond, o.wave_loss, wind=wind
         )
         if judge:
             at = slice(None) if idx is None else idx
@@ -586,6 +597,54 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
         marks_h=m.marks_h.reshape(shape + (samples + 1,)),
     )
     cond = Conditions(**{name: kept[name].reshape(shape + (samples,)) for name in names})
+    return costs, cond
+
+
+#: A sub-segment length [nm] for :func:`~pyroute_rel.cost_compiled.sail_wind` where only its speeds are wanted.
+_ONE_NM = np.ones(1)
+
+
+#: Time-varying gridded weather with wind only (no current, no wave speed loss) is sailed by the compiled twin of the
+#: march (:mod:`pyroute_rel.march_compiled`; False: the numpy march, for comparisons). The numbers are the same.
+COMPILED_MARCH = True
+
+
+def _compiled_march(
+    geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions, block: int, course: FloatArray, seg: FloatArray
+) -> tuple[ArcCosts, Conditions]:
+    """:func:`_marched_costs` by :func:`pyroute_rel.march_compiled.march_gridded`."""
+    from .march_compiled import KEPT_FIELDS, march_gridded
+
+    o, weather = options, options.weather
+    assert isinstance(weather, GriddedWeather)
+    shape, samples = geom.shape, geom.samples
+    n = math.prod(shape)
+    prepared = _located(geom, weather)
+    m, kept = march_gridded(
+        weather,
+        block,
+        prepared,
+        course,
+        seg,
+        t0_h.reshape(n),
+        samples,
+        departure=o.departure,
+        polar=o.polar,
+        beyond=o.beyond,
+        failure=o.failure,
+        apf=o.apf,
+        flags=(REASONS["polar"], REASONS["weather"], REASONS["failure"]),
+    )
+    costs = ArcCosts(
+        time_h=m.time_h.reshape(shape),
+        p_f=m.p_f.reshape(shape),
+        reason=m.reason.reshape(shape),
+        fired_bits=None if m.fired is None else m.fired.reshape(shape),
+        marks_h=m.marks_h.reshape(shape + (samples + 1,)),
+    )
+    values = {name: kept[r].reshape(shape + (samples,)) for r, name in enumerate(KEPT_FIELDS)}
+    zeros = np.zeros(shape + (samples,))
+    cond = Conditions(**values, current_u_ms=zeros, current_v_ms=zeros)
     return costs, cond
 
 

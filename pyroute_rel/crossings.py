@@ -75,6 +75,7 @@ __all__ = [
     "needs_pieces",
     "split_fractions",
     "time_fractions",
+    "cut_in_time",
 ]
 
 FloatArray = npt.NDArray[np.float64]
@@ -655,10 +656,10 @@ def arc_extremes(
     departure, weather, polar, failure, apf, beyond : As for :func:`~pyroute_rel.cost.geometry_costs`.
     speed_factor : Wave speed loss factor as a function of Hs (for the crab heading in a current), or None.
     pieces : The arcs' pieces (:func:`arc_pieces` with the weather's boundaries, e.g. cut once for many weathers
-        on one grid, then :meth:`ArcPieces.take`), or None: cut here. The numbers are the same either way. A
-        weather whose answers depend on the query's row (first axis), such as one answering each piece in its own
-        ensemble member, is queried with one row per piece, and gives ``take_rows(rows)``: the same weather for
-        queries whose rows are those pieces.
+        on one grid, then :meth:`ArcPieces.take`, then :func:`cut_in_time` with ``marks_h``), or None: cut here.
+        The numbers are the same either way. A weather whose answers depend on the query's row (first axis), such as
+        one answering each piece in its own ensemble member, is queried with one row per piece, and gives
+        ``take_rows(rows)``: the same weather for queries whose rows are those pieces.
     marks_h : The time the craft reaches each of the arc's ``S`` equal sub-segments' ends [h after ``departure``],
         shape (n, S + 1) (:attr:`~pyroute_rel.cost.ArcCosts.marks_h`, the march of :mod:`pyroute_rel.march`), or
         None: ``t0_h + f * time_h``. With marks the time along the arc is linear between them, and every piece is
@@ -666,11 +667,11 @@ def arc_extremes(
         so that a piece lies within one step of the file in time as in one cell in space.
     """
     judge = _Judge(departure, weather, polar, failure, float(apf), beyond, speed_factor)
+    timing = None if weather.steady else _Timing(np.asarray(t0_h, float), np.asarray(time_h, float), marks_h)
     if pieces is None:
         pieces = arc_pieces(a_xyz, b_xyz, getattr(weather, "boundaries", None))
-    timing = None if weather.steady else _Timing(np.asarray(t0_h, float), np.asarray(time_h, float), marks_h)
-    if timing is not None and marks_h is not None:
-        pieces = _cut_in_time(pieces, marks_h, weather.time_steps, departure)
+        if timing is not None and marks_h is not None:
+            pieces = cut_in_time(pieces, marks_h, weather.time_steps, departure)
     arc, s0, s1 = pieces.arc, pieces.s0, pieces.s1
     r = _FRACTIONS
     t = None if timing is None else timing.at(arc, s0[:, None] + (s1 - s0)[:, None] * r)
@@ -766,10 +767,11 @@ def time_fractions(
     return arc[keep], f[keep]
 
 
-def _cut_in_time(
+def cut_in_time(
     pieces: ArcPieces, marks_h: FloatArray, steps: npt.NDArray[np.datetime64] | None, departure: np.datetime64
 ) -> ArcPieces:
-    """``pieces`` cut again where the craft crosses a time step of the weather (:func:`time_fractions`)."""
+    """``pieces`` cut again where the craft crosses a time step of the weather (:func:`time_fractions`), from the
+    times ``marks_h`` (n, S + 1) [h after ``departure``] the craft reaches the arcs' sub-segment ends."""
     arc_t, f_t = time_fractions(marks_h, steps, departure)
     if not arc_t.size:
         return pieces

@@ -845,7 +845,7 @@ def _judge_legs(
     model = first.failure
     if model is None:
         return
-    from .crossings import arc_extremes, arc_pieces, needs_pieces
+    from .crossings import arc_extremes, arc_pieces, cut_in_time, needs_pieces
 
     n_c = legs.index.shape[0]
     top = float(np.max(model.p_flat))
@@ -872,6 +872,8 @@ def _judge_legs(
         r, k, i = (np.concatenate([x[n] for x in picked]) for n in (1, 2, 3))
         which, at = np.unique(i, return_inverse=True)
         cut = arc_pieces(g.a_xyz[which], g.b_xyz[which], getattr(first.weather, "boundaries", None)).take(at)
+        if marks is not None:  # and where each row's craft crosses a time step of the weather
+            cut = cut_in_time(cut, marks[r, k], first.weather.time_steps, first.departure)
         calls = [(r, k, i, cut, _rows_weather(problems, (r // n_c)[cut.arc], stack))]
     else:
         calls = [(r, k, i, None, problems[j].weather) for j, r, k, i in picked]

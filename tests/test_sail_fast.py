@@ -155,9 +155,9 @@ def test_vertices_that_are_a_pieces_points_are_not_sampled_again_and_change_noth
     fast = arc_extremes(a, b, t0, dt, failure=model, apf=0.02, **kw)
     sampled = []
 
-    def every_vertex(judge, pieces, t0_h, time_h, rv, q):  # the vertices sampled, all of them
+    def every_vertex(judge, pieces, timing, rv, q):  # the vertices sampled, all of them
         fv = pieces.s0[:, None] + (pieces.s1 - pieces.s0)[:, None] * rv
-        tv = crossings._times(t0_h, time_h, pieces.arc, fv)
+        tv = timing.at(pieces.arc, fv)
         lon, lat, course = crossings._points(pieces.a_xyz, pieces.u_xyz, pieces.omega, pieces.arc, fv)
         sampled.append(lon.size)
         return {k: v for k, (v, _) in crossings._quantities(judge, lon, lat, course, tv).items()}

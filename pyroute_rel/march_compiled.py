@@ -1,0 +1,432 @@
+"""Compiled twin of :func:`pyroute_rel.march.march` for gridded weather with wind only (no current, no wave speed
+loss), the failure model included.
+
+The numpy march advances every arc of a block one step per round, and a block's slowest arc (a craft waiting days
+in irons for the wind to shift) sets the number of rounds; each round costs two sampling calls and a few dozen array
+operations. Here each arc is sailed from its departure to its end in one compiled loop: the same steps, the same
+sampling arithmetic as :meth:`~pyroute_rel.weather.GriddedWeather.sample_at` (trilinear in the block's stored
+float32 values, the wind turned into speed and direction as :func:`~pyroute_rel.weather.gridded._speed_bearing`
+does), the polar of :mod:`pyroute_rel.polar_compiled` and the failure model's evidence as
+:func:`pyroute_rel.cost_compiled.evidence_index` classifies it; the same numbers as the numpy march (tested in
+``tests/test_march.py``, which pins the two).
+
+It covers sources whose fields the march needs (wind, and the fields the failure model judges) share one grid (one
+block); :func:`pyroute_rel.cost.geometry_costs` uses the numpy march for everything else.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numba
+import numpy as np
+import numpy.typing as npt
+
+from .cost_compiled import _rules, judge_tables
+from .failure import FailureModel
+from .march import MIN_STEP_H, SPEED_CHANGE, Marched
+from .polar import MIN_SPEED_KN, Polar
+from .polar_compiled import fold_twa, speed_kn, tables
+from .units import KN_PER_MS
+from .weather.gridded import GriddedWeather, PreparedPoints, _cell, _lerp, _speed_bearing
+
+__all__ = ["KEPT_FIELDS", "march_gridded", "usable"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: The :class:`~pyroute_rel.weather.Conditions` fields the kernel reports at each sample (the last step's middle).
+KEPT_FIELDS = ("tws_kn", "twd_deg", "hs_m", "wave_dir_deg", "wave_period_s")
+
+#: How the kernel gets each field: 0 the wind's speed, 1 its direction, 2 a stored column, 3 a direction stored as a
+#: sine and a cosine (columns a and b).
+_KIND = {"tws_kn": 0, "twd_deg": 1, "hs_m": 2, "wave_period_s": 2, "wave_dir_deg": 3}
+
+
+def usable(weather: Any, failure: FailureModel | None, wind_only: bool) -> int | None:
+    """The block of ``weather`` that holds every field the compiled march needs (its index), or None where it does not
+    apply (not gridded, not wind only, or the fields on several grids)."""
+    if not wind_only or not isinstance(weather, GriddedWeather) or weather.steady:
+        return None
+    need = {"wind_u_ms", "wind_v_ms"}
+    if failure is not None:
+        for name in failure.weather_fields:
+            if name in ("tws_kn", "twd_deg"):
+                continue
+            if name not in weather.fields:
+                return None
+            need |= {"_wave_sin", "_wave_cos"} if name == "wave_dir_deg" else {name}
+    for i, block in enumerate(weather._blocks):
+        if need <= set(block.names):
+            return i
+    return None
+
+
+def march_gridded(
+    weather: GriddedWeather,
+    block: int,
+    prepared: PreparedPoints,
+    course_deg: FloatArray,
+    seg_nm: FloatArray,
+    t0_h: FloatArray,
+    samples: int,
+    *,
+    departure: np.datetime64,
+    polar: Polar,
+    beyond: str,
+    failure: FailureModel | None,
+    apf: float,
+    flags: tuple[int, int, int],
+) -> tuple[Marched, FloatArray]:
+    """:func:`pyroute_rel.march.march` of ``n`` arcs in a gridded weather, in one compiled loop.
+
+    Parameters
+    ----------
+    weather, block : The source and its block holding every field needed (:func:`usable`).
+    prepared : The arcs' sample points located by ``weather.prepare``, ``n * samples`` of them, arc by arc.
+    course_deg : The great circle's course at each sample [deg], (n, samples).
+    seg_nm, t0_h : Each arc's sub-segment length [nm] and departure [h after ``departure``], (n,).
+    samples : Sub-segments per arc.
+    departure, polar, beyond, failure, apf : The cost settings.
+    flags : The reason bits of no speed, missing weather and a failure above apf.
+
+    Returns
+    -------
+    The arcs sailed, and the weather at each sample's last step middle (rows :data:`KEPT_FIELDS`, NaN where not
+    sampled), shape (len(KEPT_FIELDS), n * samples).
+    """
+    b = weather._blocks[block]
+    w = prepared.where[block]
+    n = t0_h.size
+    names = b.names
+    col = {name: j for j, name in enumerate(names)}
+    wanted = set() if failure is None else set(failure.weather_fields)
+    kinds = np.full(len(KEPT_FIELDS), -1, dtype=np.intp)
+    col_a = np.zeros(len(KEPT_FIELDS), dtype=np.intp)
+    col_b = np.zeros(len(KEPT_FIELDS), dtype=np.intp)
+    for r, name in enumerate(KEPT_FIELDS):
+        if name in ("tws_kn", "twd_deg") or name in wanted:
+            kinds[r] = _KIND[name]
+            if kinds[r] == 2:
+                col_a[r] = col[name]
+            elif kinds[r] == 3:
+                col_a[r], col_b[r] = col["_wave_sin"], col["_wave_cos"]
+    if failure is None:
+        edges = np.zeros((1, 1))
+        contrib = np.zeros((1, 1), dtype=np.intp)
+        n_edges = np.zeros(1, dtype=np.intp)
+        right = np.zeros(1, dtype=np.bool_)
+        fill = np.zeros(1, dtype=np.intp)
+        source = np.zeros(0, dtype=np.intp)
+        p_flat, over, bits = np.zeros(1), np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.uint32)
+    else:
+        edges, n_edges, contrib, right, fill, attrs, _ = _rules(failure)
+        source = np.array([KEPT_FIELDS.index(a) for a in attrs], dtype=np.intp)
+        p_flat, over, bits = judge_tables(failure, apf)
+    shift = (np.datetime64(departure, "ns") - b.t0) / np.timedelta64(1, "s")
+    steps = weather.time_steps
+    steps_h = np.zeros(0) if steps is None else np.asarray((steps - departure) / np.timedelta64(3600, "s"), float)
+    twa_tab, tws_tab, speed_tab, twa_inv, tws_inv = tables(polar)
+    time_h, p_f = np.empty(n), np.empty(n)
+    marks = np.empty((n, samples + 1))
+    reason = np.zeros(n, dtype=np.uint8)
+    fired = np.zeros(n, dtype=np.uint32)
+    kept = np.full((len(KEPT_FIELDS), n * samples), np.nan)
+    any_fired = _march_kernel(
+        b.flat,
+        np.int64(b.n_fields),
+        b.time_s,
+        float(shift),
+        w.base,
+        w.sx,
+        w.sy,
+        w.wx,
+        w.wy,
+        w.ok,
+        np.int64(col["wind_u_ms"]),
+        np.int64(col["wind_v_ms"]),
+        kinds,
+        col_a,
+        col_b,
+        np.ascontiguousarray(course_deg, dtype=np.float64).reshape(-1),
+        np.ascontiguousarray(seg_nm, dtype=np.float64),
+        np.ascontiguousarray(t0_h, dtype=np.float64),
+        np.int64(samples),
+        steps_h,
+        twa_tab,
+        tws_tab,
+        speed_tab,
+        twa_inv,
+        tws_inv,
+        beyond == "forbid",
+        source,
+        edges,
+        n_edges,
+        contrib,
+        right,
+        fill,
+        p_flat,
+        over,
+        bits,
+        *(np.uint8(f) for f in flags),
+        MIN_SPEED_KN,
+        SPEED_CHANGE,
+        MIN_STEP_H,
+        KN_PER_MS,
+        time_h,
+        marks,
+        p_f,
+        reason,
+        fired,
+        kept,
+    )
+    return Marched(time_h=time_h, marks_h=marks, p_f=p_f, reason=reason, fired=fired if any_fired else None), kept
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, k, t_h, c):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Stored column ``c`` at point ``k`` and time ``t_h`` [h], as the sampling kernel interpolates it (NaN
+    outside)."""
+    nt = t_axis.size
+    it = 0
+    wt = 0.0
+    if not ok[k]:
+        return np.nan
+    if nt > 0:
+        x = t_h * 3600.0 + shift
+        if not (t_axis[0] <= x <= t_axis[nt - 1]):
+            return np.nan
+        t_inv = (nt - 1) / (t_axis[nt - 1] - t_axis[0]) if nt > 1 else 1.0
+        it, wt = _cell(t_axis, t_axis[0], t_inv, x)
+    st = np.uint64(nf) if wt > 0.0 else np.uint64(0)
+    b0 = np.uint64(base[k] + it * nf)
+    ax = wx[k]
+    ay = wy[k]
+    c00 = (1.0 - ax) * (1.0 - ay)
+    c10 = ax * (1.0 - ay)
+    c01 = (1.0 - ax) * ay
+    c11 = ax * ay
+    b10 = b0 + np.uint64(sx[k])
+    b01 = b0 + np.uint64(sy[k])
+    b11 = b10 + np.uint64(sy[k])
+    f = np.uint64(c)
+    return _lerp(flat, b0 + f, b10 + f, b01 + f, b11 + f, st, c00, c10, c01, c11, 1.0 - wt, wt)
+
+
+@numba.njit(nogil=True, cache=True)
+def _march_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
+    flat,
+    nf,
+    t_axis,
+    shift,
+    base,
+    sx,
+    sy,
+    wx,
+    wy,
+    ok,
+    cu,
+    cv,
+    kinds,
+    col_a,
+    col_b,
+    course,
+    seg,
+    t0,
+    samples,
+    steps_h,
+    twa_tab,
+    tws_tab,
+    speed_tab,
+    twa_inv,
+    tws_inv,
+    forbid,
+    source,
+    edges,
+    n_edges,
+    contrib,
+    right,
+    fill,
+    p_flat,
+    over,
+    bits,
+    polar_flag,
+    weather_flag,
+    failure_flag,
+    min_speed,
+    speed_change,
+    min_step,
+    kn,
+    time_out,
+    marks_out,
+    p_out,
+    reason_out,
+    fired_out,
+    kept,
+):
+    """:func:`march_gridded` into the outputs; returns whether any sample was judged above apf (fired criteria)."""
+    n_steps = steps_h.size
+    judged = source.size > 0
+    no_progress = np.uint8(~(weather_flag | failure_flag) & 0xFF)
+    vals = np.empty(kept.shape[0])
+    any_fired = False
+    for i in range(t0.size):
+        start = t0[i] if np.isfinite(t0[i]) else 0.0
+        e = 0.0
+        marks_out[i, 0] = start
+        p_arc = 0.0
+        flags_arc = np.uint8(0)
+        fired_arc = np.uint32(0)
+        going = True
+        j = 0  # the first time step after the craft's time (times only increase along an arc)
+        for k in range(samples):
+            if not going:
+                marks_out[i, k + 1] = start + e
+                continue
+            pk = i * samples + k
+            r = seg[i]
+            cap = np.inf
+            while True:
+                tk = start + e
+                while j < n_steps and steps_h[j] <= tk:
+                    j += 1
+                nxt = steps_h[j] if j < n_steps else np.inf
+                # predictor: the speed here and now (the wind only)
+                u = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tk, cu)
+                v = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tk, cv)
+                tws0, twd0 = _speed_bearing(-1.0 * u, -1.0 * v, kn)
+                v0, r0 = _sog(tws0, twd0, course[pk], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
+                hp = r / v0 if v0 > 0.0 else np.inf
+                h = min(min(hp, nxt - tk), cap)
+                cut = h < hp
+                stuck = not np.isfinite(h)
+                tm = tk if stuck else tk + 0.5 * h
+                # corrector: the speed, and what the failure model says, at the step's middle
+                _conditions(
+                    flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tm, cu, cv, kinds, col_a, col_b, kn, vals
+                )
+                for q in range(kinds.size):
+                    kept[q, pk] = vals[q]
+                vm, rm = _sog(
+                    vals[0], vals[1], course[pk], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed
+                )
+                pm = 0.0
+                fm = np.uint32(0)
+                if judged:
+                    ev, lost = _evidence(vals, kinds, course[pk], source, edges, n_edges, contrib, right, fill)
+                    if lost:
+                        pm = np.nan
+                        rm |= weather_flag
+                    else:
+                        pm = p_flat[ev]
+                        if over[ev]:
+                            rm |= failure_flag
+                            fm = bits[ev]
+                missing = ((r0 | rm) & weather_flag) != 0
+                rough = abs(vm - v0) > speed_change * _fmax(vm, v0) and h > min_step and not stuck and not missing
+                moves = vm > 0.0
+                done = (not rough) and moves and ((not cut) or vm * h >= r) and not missing and not stuck
+                progress = vm * h if ((not rough) and cut and moves) else 0.0
+                if (not rough) and not stuck:
+                    if p_arc == p_arc and (pm != pm or pm > p_arc):  # np.maximum: NaN wins
+                        p_arc = pm
+                    flags_arc |= rm & failure_flag
+                    if (rm & failure_flag) != 0:
+                        fired_arc |= fm
+                        any_fired = True
+                wait_for_ever = (
+                    (not rough)
+                    and not done
+                    and not missing
+                    and (stuck or ((not cut) and (not moves) and not np.isfinite(nxt)))
+                )
+                if missing:
+                    flags_arc |= weather_flag
+                if wait_for_ever:
+                    why = (r0 if stuck else rm) & no_progress
+                    flags_arc |= why if why != 0 else polar_flag
+                if missing or wait_for_ever:
+                    going = False
+                    break
+                if done:
+                    e = e + r / vm
+                    break
+                if not rough:
+                    e = e + h
+                r = r - progress
+                cap = 0.5 * h if rough else (2.0 * cap if h >= cap else np.inf)
+            marks_out[i, k + 1] = start + e
+        time_out[i] = e if (going and flags_arc == 0) else np.inf
+        p_out[i] = p_arc
+        reason_out[i] = flags_arc
+        fired_out[i] = fired_arc
+    return any_fired
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _conditions(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cu, cv, kinds, col_a, col_b, kn, vals):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The fields :data:`KEPT_FIELDS` at point ``pk`` and time ``t_h`` [h] into ``vals`` (NaN where not wanted):
+    the wind turned into speed [kn] and direction, stored columns, a direction from its sine and cosine."""
+    for q in range(kinds.size):
+        kind = kinds[q]
+        if kind == 2:
+            vals[q] = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_a[q])
+        elif kind == 3:
+            s_ = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_a[q])
+            c_ = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_b[q])
+            vals[q] = _speed_bearing(s_, c_, 1.0)[1]
+        else:
+            vals[q] = np.nan
+    u = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cu)
+    v = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cv)
+    vals[0], vals[1] = _speed_bearing(-1.0 * u, -1.0 * v, kn)
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _evidence(vals, kinds, course, source, edges, n_edges, contrib, right, fill):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The failure model's flat evidence index of the conditions ``vals`` on ``course`` [deg] and whether it is
+    unknown, as :func:`pyroute_rel.cost_compiled._evidence_kernel` classifies a point (directions folded to their
+    angle to the course)."""
+    ev = 0
+    lost = False
+    for c in range(source.size):
+        x = vals[source[c]]
+        if kinds[source[c]] == 1 or kinds[source[c]] == 3:
+            x = fold_twa(x, course)
+        m = n_edges[c]
+        if x != x:
+            if fill[c] >= 0:
+                ev += fill[c]
+                continue
+            lost = True
+            bb = 0 if m == 1 else m
+        else:
+            bb = 0
+            for jj in range(m):
+                bb += (edges[c, jj] <= x) if right[c] else (edges[c, jj] < x)
+        ev += contrib[c, bb]
+    return ev, lost
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _fmax(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """numpy's fmax: the larger, NaN ignored."""
+    if a != a:
+        return b
+    if b != b:
+        return a
+    return a if a >= b else b
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _sog(tws, twd, course, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Speed along the course [kn] (0 below ``min_speed``, NaN where the wind is missing) and its flags (1 no speed,
+    2 missing wind), as :func:`pyroute_rel.cost._sample_speeds` gives them without a current."""
+    a = fold_twa(twd, course)
+    v = speed_kn(a, tws, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
+    sog = v if v >= min_speed else (np.nan if v != v else 0.0)
+    missing = not (np.isfinite(tws) and np.isfinite(twd))
+    if missing:
+        return sog, np.uint8(2)
+    if not sog > 0.0:
+        return sog, np.uint8(1)
+    return sog, np.uint8(0)
