@@ -50,7 +50,6 @@ from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .march import Step, march
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
-from .times import hours_after
 from .weather.base import Conditions, WeatherSource
 from .weather.gridded import GriddedWeather
 
@@ -526,7 +525,7 @@ def _geometry_costs(
         if n > 1:
             return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
     if steady:
-        dt, p_f, reason, fired, cond = _sample_and_cost(geom, options, None, None)
+        dt, p_f, reason, fired, cond = _steady_costs(geom, options)
         costs = _arc_totals(dt, p_f, reason, fired)
     else:
         # time-varying weather: every arc is sailed sub-segment by sub-segment (pyroute_rel.march)
@@ -870,112 +869,20 @@ def _threaded_costs(
     return costs, todo
 
 
-def _sample_and_cost(
-    geom: ArcGeometry, options: _CostOptions, prepared: object | None, time_h: FloatArray | None, timing: bool = False
+def _steady_costs(
+    geom: ArcGeometry, options: _CostOptions
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], Any, Conditions]:
-    """Per-sample time [h], p_f, reasons and fired criteria (:func:`_sample_costs`), and the weather, sampled at
-    ``time_h`` [h after departure] (None: at the departure); ``prepared``: the points from ``weather.prepare``
-    (None: steady weather, sampled directly). ``timing``: pass 1, only the times are wanted (no failure model).
-
-    Wind only, sampled in compiled code: TWA, speed and time come from the compiled twin of the numpy arithmetic
-    (bit-identical); with currents or a wave speed loss the numpy code does it all."""
-    o, weather = options, options.weather
-    wind = None
-    if prepared is not None:
-        # pass 1 needs the wind, the current (and Hs for a wave loss); pass 2 also what the failure model judges
-        wanted: tuple[str, ...] = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ())
-        if not timing and o.failure is not None:
-            wanted += tuple(sorted(o.failure.weather_fields - set(wanted)))
-        offset_h = None if time_h is None else np.where(np.isfinite(time_h), time_h, 0.0)
-        cond = weather.sample_at(prepared, o.departure, offset_h=offset_h, fields=wanted)
-        if o.wave_loss is None and not {"current_u_ms", "current_v_ms"} & weather.fields:
-            from .cost_compiled import sail_wind
-
-            wind = sail_wind(cond.tws_kn, cond.twd_deg, geom.course_deg, geom.seg_nm, o.polar, beyond=o.beyond)
-            if timing:
-                return wind[2], np.empty(0), np.empty(0, np.uint8), None, cond
-    else:
-        time = o.departure if time_h is None else hours_after(o.departure, time_h)
-        cond = weather.sample(geom.lon_deg, geom.lat_deg, time)
-    return (
-        *_sample_costs(
-            cond,
-            geom.course_deg,
-            geom.seg_nm,
-            o.polar,
-            None if timing else o.failure,
-            o.apf,
-            o.beyond,
-            o.wave_loss,
-            wind=None if wind is None else wind[:2],
-        ),
-        cond,
-    )
-
-
-#: Time-varying weather with wind only (no current, no wave speed loss) is costed with the compiled bookkeeping of
-#: :mod:`pyroute_rel.cost_compiled` between the sampling calls (:func:`_wind_passes`; False: the numpy path, for
-#: comparisons). The numbers are the same.
-COMPILED_GLUE = True
+    """Steady weather: per-sample time [h], p_f, reasons and fired criteria (:func:`_sample_costs`), and the weather,
+    sampled once (any time will do)."""
+    o = options
+    cond = o.weather.sample(geom.lon_deg, geom.lat_deg, o.departure)
+    return (*_sample_costs(cond, geom.course_deg, geom.seg_nm, o.polar, o.failure, o.apf, o.beyond, o.wave_loss), cond)
 
 
 def _wind_only(options: _CostOptions) -> bool:
     """True where the speed comes from the wind alone: no wave speed loss, no current in the weather (the case
     :func:`pyroute_rel.cost_compiled.sail_wind` covers)."""
     return options.wave_loss is None and not {"current_u_ms", "current_v_ms"} & options.weather.fields
-
-
-def _wind_passes(
-    geom: ArcGeometry, t_samples: FloatArray, options: _CostOptions, prepared: object
-) -> tuple[ArcCosts, Conditions]:
-    """The two passes of :func:`_geometry_costs` over time-varying weather with wind only (:func:`_wind_only`): the
-    per-arc costs and the weather at the samples of the second pass. The sources sample as on the numpy path; the
-    polar, the elapsed times, the failure model's evidence and the per-sample and per-arc bookkeeping are compiled
-    (:func:`~pyroute_rel.cost_compiled.sail_wind`, :func:`~pyroute_rel.cost_compiled.arrival_offsets`,
-    :func:`~pyroute_rel.cost_compiled.evidence_index`, :func:`~pyroute_rel.cost_compiled.judge_samples`), with the
-    same arithmetic: the same numbers as :func:`_sample_and_cost` and :func:`_arc_totals`."""
-    from .cost_compiled import arrival_offsets, evidence_index, judge_samples, judge_tables, sail_wind
-
-    o, weather, model = options, options.weather, options.failure
-    course, seg = geom.course_deg, geom.seg_nm
-    t0 = t_samples[..., 0]
-    # each arc's departure repeated over its samples (contiguous: the source samples it without another copy)
-    depart = _finite(t0).repeat(geom.samples).reshape(t_samples.shape)
-    cond = weather.sample_at(prepared, o.departure, offset_h=depart, fields=_WIND_FIELDS)
-    dt = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[2]
-    arrive = arrival_offsets(dt, t0)
-    cond = weather.sample_at(prepared, o.departure, offset_h=arrive, fields=_second_pass_fields(model))
-    v = sail_wind(cond.tws_kn, cond.twd_deg, course, seg, o.polar, beyond=o.beyond)[1]
-    evidence = None
-    if model is not None:  # the quantities (arc_quantities; the TWA is the one sail_wind gives) and their evidence
-        flat, unknown = evidence_index(model, cond, course)
-        evidence = (flat, unknown, *judge_tables(model, o.apf))
-    flags = (REASONS["polar"], REASONS["weather"], REASONS["failure"])
-    time_h, p_f, reason, fired = judge_samples(cond.tws_kn, cond.twd_deg, v, seg, evidence, flags)
-    return ArcCosts(time_h=time_h, p_f=p_f, reason=reason, fired_bits=fired), cond
-
-
-#: Conditions the first pass of :func:`_wind_passes` samples.
-_WIND_FIELDS = ("tws_kn", "twd_deg")
-
-
-def _second_pass_fields(model: FailureModel | None) -> tuple[str, ...]:
-    """Conditions the second pass of :func:`_wind_passes` samples: those of the timing pass, and the failure model's
-    (kept while the model lives: the DP asks at every rank)."""
-    if model is None:
-        return _TIMING_FIELDS
-    wanted = _PASS_FIELDS.get(model)
-    if wanted is None:
-        wanted = _PASS_FIELDS[model] = _TIMING_FIELDS + tuple(sorted(model.weather_fields - set(_TIMING_FIELDS)))
-    return wanted
-
-
-_PASS_FIELDS: weakref.WeakKeyDictionary[FailureModel, tuple[str, ...]] = weakref.WeakKeyDictionary()
-
-
-def _finite(time_h: FloatArray) -> FloatArray:
-    """Times [h] with 0 where not finite (how the cost kernel samples a time it could not compute)."""
-    return np.where(np.isfinite(time_h), time_h, 0.0)
 
 
 def _arc_totals(

@@ -1,18 +1,11 @@
-"""Compiled twin of the cost kernel's timing pass, for weather sampled in compiled code (gridded files).
+"""Compiled twins of the cost kernel's arithmetic, for weather sampled in compiled code (gridded files).
 
-With time-varying weather :func:`~pyroute_rel.cost.geometry_costs` first times every sub-segment with the
-weather at the departure time (speeds only), then samples each point at the time the craft gets there. On
-the paper's square 160 x 160 grid that first pass is 8 million points per route, and numpy spends more time
-allocating temporaries for the polar lookup than computing it. :func:`sail_wind` does the same arithmetic
-(TWA, polar speed, time), operation for operation, in one compiled loop (numba, no GIL), so its numbers are
-bit-identical to the numpy path's (tested); it covers wind only (no current, no wave speed loss), where the
-cost kernel uses it, in the second pass too (there the numpy code adds the failure model).
-
-:func:`arrival_offsets` turns the first pass's sub-segment times into the times each sample is reached (the
-elapsed-time sum of the numpy path), and :func:`judge_samples` does the second pass's bookkeeping after the failure
-model's evidence is known (speed floor, reason flags, ``p_f``, times) and sums each arc's samples: each one compiled
-loop in place of a dozen array operations and their temporaries over blocks of a few thousand points, with the same
-arithmetic in the same order (bit-identical, tested).
+:func:`sail_wind` computes the TWA, polar speed and time of sub-segments as the numpy cost kernel does, operation for
+operation, in one compiled loop (numba, no GIL), so its numbers are bit-identical to the numpy path's (tested); it
+covers wind only (no current, no wave speed loss). :func:`evidence_index` (and :func:`evidence_point`, one point)
+classify a failure model's quantities as :meth:`~pyroute_rel.failure.FailureModel.evidence_index` does;
+:func:`judge_tables` gives a model's tables as the kernels take them. The compiled march
+(:mod:`pyroute_rel.march_compiled`) is built from these.
 
 Imported only by routes over gridded weather, which load numba anyway: its import costs half a second,
 which the default routes do not pay.
@@ -34,7 +27,7 @@ from .polar import MIN_SPEED_KN, Polar, check_beyond
 from .polar_compiled import SHORT_AXIS, blend, fold_twa, sub_time, table_edges
 from .weather.base import Conditions
 
-__all__ = ["arrival_offsets", "evidence_index", "judge_samples", "judge_tables", "sail_wind"]
+__all__ = ["evidence_index", "evidence_point", "judge_tables", "sail_wind"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -103,46 +96,6 @@ def _tables(polar: Polar) -> tuple[Any, ...]:
     return tables
 
 
-def arrival_offsets(dt_h: FloatArray, t0_h: FloatArray) -> FloatArray:
-    """When each sample point is reached [h after the departure origin], as the cost kernel's second pass samples it.
-
-    Parameters
-    ----------
-    dt_h : Time to sail each sub-segment [h], shape (..., samples) (``inf`` where it cannot be timed).
-    t0_h : Departure of each arc [h], the block's shape (...).
-
-    Returns
-    -------
-    ``t0 + elapsed`` where ``elapsed`` is the time to the sample, half its own sub-segment after the whole ones
-    before it (0 where some sub-segment before it cannot be timed), and 0 where that sum is not finite, shape
-    (..., samples): the numpy path's ``0.5 dt`` accumulated sample by sample, in its order of operations.
-    """
-    shape = dt_h.shape
-    dt = _vector(dt_h, np.float64)
-    t0 = _flat(t0_h, shape[:-1])
-    out = np.empty(dt.size)
-    _offsets_kernel(dt, t0, shape[-1], out)
-    return out.reshape(shape)
-
-
-@numba.njit(nogil=True, cache=True)
-def _offsets_kernel(dt, t0, every, out):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """:func:`arrival_offsets` into ``out``: arc ``i``'s samples are ``i * every`` to ``(i + 1) * every - 1``."""
-    for i in range(t0.size):
-        k0 = i * every
-        prev = 0.5 * dt[k0]
-        out[k0] = prev
-        for k in range(k0 + 1, k0 + every):
-            prev = 0.5 * dt[k] + (prev + 0.5 * dt[k - 1])
-            out[k] = prev
-        for k in range(k0, k0 + every):
-            e = out[k]
-            if not np.isfinite(e):
-                e = 0.0
-            t = t0[i] + e
-            out[k] = t if np.isfinite(t) else 0.0
-
-
 def evidence_index(
     model: FailureModel, conditions: Conditions, course_deg: FloatArray
 ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_] | None]:
@@ -207,155 +160,42 @@ _JUDGE: weakref.WeakKeyDictionary[FailureModel, dict[float, tuple[Any, ...]]] = 
 
 @numba.njit(nogil=True, cache=True)
 def _evidence_kernel(values, relative, course, edges, n_edges, contrib, right, fill, index_out, unknown_out):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """:func:`evidence_index` into the outputs; returns whether any point's evidence is unknown. Per point and
-    criterion ``c``: the value ``values[c]`` (folded to its angle to the course where ``relative[c]``), its bin (the
-    edges below it, or at or below with ``right``: numpy's searchsorted; NaN: the fill, or unknown in the last bin, the
-    first with one edge, as numpy classifies a NaN) and that bin's contribution, summed over the criteria."""
+    """:func:`evidence_index` into the outputs (:func:`evidence_point` point by point); returns whether any point's
+    evidence is unknown."""
     any_lost = False
     for k in range(values.shape[1]):
-        e = 0
-        lost = False
-        for c in range(values.shape[0]):
-            x = values[c, k]
-            if relative[c]:
-                x = fold_twa(x, course[k])
-            m = n_edges[c]
-            if x != x:
-                if fill[c] >= 0:
-                    e += fill[c]
-                    continue
-                lost = True
-                b = 0 if m == 1 else m
-            else:
-                b = 0
-                for j in range(m):
-                    b += (edges[c, j] <= x) if right[c] else (edges[c, j] < x)
-            e += contrib[c, b]
+        e, lost = evidence_point(values[:, k], relative, course[k], edges, n_edges, contrib, right, fill)
         index_out[k] = e
         unknown_out[k] = lost
         any_lost |= lost
     return any_lost
 
 
-def judge_samples(
-    tws_kn: FloatArray,
-    twd_deg: FloatArray,
-    speed_kn: FloatArray,
-    seg_nm: FloatArray,
-    evidence: tuple[Any, Any, FloatArray, Any, Any] | None,
-    flags: tuple[int, int, int],
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], npt.NDArray[np.uint32] | None]:
-    """The cost kernel's second pass after the failure model's evidence, without current or wave speed loss: per arc
-    (the samples are the last axis) the time [h], largest ``p_f``, reason flags and fired criteria.
-
-    Parameters
-    ----------
-    tws_kn, twd_deg : The wind at the samples, shape (..., samples) (not finite: missing weather).
-    speed_kn : The polar speed there [kn] (:func:`sail_wind`), same shape.
-    seg_nm : Sub-segment lengths [nm], shape (..., 1).
-    evidence : ``(index, unknown, p_flat, over, fired_bits)``: the failure model's flat evidence index of each sample
-        and where the evidence is unknown (None: nowhere) (:meth:`~pyroute_rel.failure.FailureModel.evidence_index`),
-        its table, the table's entries above apf and its fired criteria; None without a failure model (``p_f`` 0).
-    flags : The reason flags for no speed, missing weather and ``p_f`` above apf.
-
-    Returns
-    -------
-    ``time_h`` (``inf`` where any flag is set), ``p_f`` (NaN where the evidence is unknown), ``reason`` and the
-    criteria fired anywhere along the arc, or None where no sample of the block is above apf: what the numpy path's
-    per-sample costs give, summed (times, in sample order), maximised (``p_f``, NaN first) and or-ed per arc.
-    """
-    shape = tws_kn.shape
-    n_arcs = math.prod(shape[:-1])
-    flat = [_flat(a, shape) for a in (tws_kn, twd_deg, speed_kn)]
-    seg = _flat(seg_nm, shape[:-1] + (1,))
-    if evidence is None:
-        index = np.zeros(0, np.intp)
-        unknown = np.zeros(0, np.bool_)
-        p_flat, over, bits = np.zeros(1), np.zeros(1, np.bool_), np.zeros(1, np.uint32)
-    else:
-        idx, unk, p_flat, over, bits = evidence
-        index = _flat(idx, shape, np.intp)
-        unknown = np.zeros(0, np.bool_) if unk is None else _flat(unk, shape, np.bool_)
-        p_flat, over, bits = _vector(p_flat, np.float64), _vector(over, np.bool_), _vector(bits, np.uint32)
-    time_h, p_f = np.empty(n_arcs), np.empty(n_arcs)
-    reason = np.empty(n_arcs, np.uint8)
-    fired = np.empty(n_arcs, np.uint32)
-    any_over = _judge_kernel(
-        *flat, seg, shape[-1], index, unknown, p_flat, over, bits, *flags, MIN_SPEED_KN, time_h, p_f, reason, fired
-    )
-    out = shape[:-1]
-    return time_h.reshape(out), p_f.reshape(out), reason.reshape(out), fired.reshape(out) if any_over else None
-
-
-@numba.njit(nogil=True, cache=True)
-def _judge_kernel(
-    tws,
-    twd,
-    speed,
-    seg,
-    every,
-    index,
-    unknown,
-    p_flat,
-    over,
-    bits,
-    polar_flag,
-    weather_flag,
-    failure_flag,
-    min_speed,
-    time_out,
-    p_out,
-    reason_out,
-    fired_out,
-):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """:func:`judge_samples` into the outputs (``index`` empty: no failure model); returns whether any sample is
-    above apf. Per sample, as the numpy path: the speed floored (below ``min_speed``: 0, NaN kept), no speed flagged
-    where the wind is known, ``p_f`` and the flag above apf from the table (NaN and no flag where the evidence is
-    unknown, which counts as missing weather), the time ``seg / speed`` (``inf`` where flagged)."""
-    judged = index.size > 0
-    with_unknown = unknown.size > 0
-    any_over = False
-    for i in range(seg.size):
-        s = seg[i]
-        total = 0.0
-        worst = 0.0
-        flags = np.uint8(0)
-        fired = np.uint32(0)
-        for k in range(i * every, (i + 1) * every):
-            v = speed[k]
-            sog = v if v >= min_speed else (np.nan if v != v else 0.0)
-            missing = not (np.isfinite(tws[k]) and np.isfinite(twd[k]))
-            flag = 0
-            if not missing and not sog > 0.0:
-                flag |= polar_flag
-            p = 0.0
-            if judged:
-                e = index[k]
-                p = p_flat[e]
-                fired |= bits[e]
-                lost = with_unknown and unknown[k]
-                if lost:
-                    p = np.nan
-                    missing = True
-                elif over[e]:
-                    flag |= failure_flag
-                    any_over = True
-            if missing:
-                flag |= weather_flag
-            dt = np.inf if flag != 0 else s / sog
-            if k == i * every:
-                total = dt
-                worst = p
-            else:
-                total += dt
-                if worst == worst and (p != p or p > worst):  # np.maximum: NaN wins
-                    worst = p
-            flags |= np.uint8(flag)
-        time_out[i] = np.inf if flags != 0 else total
-        p_out[i] = worst
-        reason_out[i] = flags
-        fired_out[i] = fired
-    return any_over
+@numba.njit(nogil=True, cache=True, inline="always")
+def evidence_point(values, relative, course, edges, n_edges, contrib, right, fill):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """One point's flat evidence index and whether it is unknown. Per criterion ``c``: the value ``values[c]``
+    (folded to its angle to ``course`` [deg] where ``relative[c]``), its bin (the edges below it, or at or below with
+    ``right``: numpy's searchsorted; NaN: the fill, or unknown in the last bin, the first with one edge, as numpy
+    classifies a NaN) and that bin's contribution, summed over the criteria."""
+    e = 0
+    lost = False
+    for c in range(values.size):
+        x = values[c]
+        if relative[c]:
+            x = fold_twa(x, course)
+        m = n_edges[c]
+        if x != x:
+            if fill[c] >= 0:
+                e += fill[c]
+                continue
+            lost = True
+            b = 0 if m == 1 else m
+        else:
+            b = 0
+            for j in range(m):
+                b += (edges[c, j] <= x) if right[c] else (edges[c, j] < x)
+        e += contrib[c, b]
+    return e, lost
 
 
 def _flat(a: npt.NDArray[Any], shape: tuple[int, ...], dtype: Any = np.float64) -> npt.NDArray[Any]:

@@ -213,11 +213,12 @@ def march(
             take = ok & ~stuck
             p_f[at[take]] = np.maximum(p_f[at[take]], mid.p_f[take])
             reason[at[take]] |= mid.reason[take] & np.uint8(failure_flag)
-            if mid.fired is not None:
-                if fired is None:
-                    fired = np.zeros(n, dtype=np.uint32)
+            if mid.fired is not None:  # criteria fired in the states above apf taken
                 over = take & ((mid.reason & np.uint8(failure_flag)) != 0)
-                fired[at[over]] |= mid.fired[over]
+                if over.any():
+                    if fired is None:
+                        fired = np.zeros(n, dtype=np.uint32)
+                    fired[at[over]] |= mid.fired[over]
             # a stop for ever: missing weather, or no speed with no later time step to wait for
             wait_for_ever = ok & ~done & ~missing & (stuck | (~cut & ~moves & ~np.isfinite(nxt)))
             reason[at[missing]] |= np.uint8(missing_flag)

@@ -22,7 +22,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from .cost_compiled import _rules, judge_tables
+from .cost_compiled import _rules, evidence_point, judge_tables
 from .failure import FailureModel
 from .march import MIN_STEP_H, SPEED_CHANGE, Marched
 from .polar import MIN_SPEED_KN, Polar
@@ -117,9 +117,10 @@ def march_gridded(
         right = np.zeros(1, dtype=np.bool_)
         fill = np.zeros(1, dtype=np.intp)
         source = np.zeros(0, dtype=np.intp)
+        relative = np.zeros(0, dtype=np.bool_)
         p_flat, over, bits = np.zeros(1), np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.uint32)
     else:
-        edges, n_edges, contrib, right, fill, attrs, _ = _rules(failure)
+        edges, n_edges, contrib, right, fill, attrs, relative = _rules(failure)
         source = np.array([KEPT_FIELDS.index(a) for a in attrs], dtype=np.intp)
         p_flat, over, bits = judge_tables(failure, apf)
     shift = (np.datetime64(departure, "ns") - b.t0) / np.timedelta64(1, "s")
@@ -159,6 +160,7 @@ def march_gridded(
         tws_inv,
         beyond == "forbid",
         source,
+        relative,
         edges,
         n_edges,
         contrib,
@@ -241,6 +243,7 @@ def _march_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     tws_inv,
     forbid,
     source,
+    relative,
     edges,
     n_edges,
     contrib,
@@ -266,6 +269,7 @@ def _march_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
     """:func:`march_gridded` into the outputs; returns whether any sample was judged above apf (fired criteria)."""
     n_steps = steps_h.size
     judged = source.size > 0
+    judged_vals = np.empty(source.size)
     no_progress = np.uint8(~(weather_flag | failure_flag) & 0xFF)
     vals = np.empty(kept.shape[0])
     any_fired = False
@@ -312,7 +316,9 @@ def _march_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
                 pm = 0.0
                 fm = np.uint32(0)
                 if judged:
-                    ev, lost = _evidence(vals, kinds, course[pk], source, edges, n_edges, contrib, right, fill)
+                    for c in range(source.size):
+                        judged_vals[c] = vals[source[c]]
+                    ev, lost = evidence_point(judged_vals, relative, course[pk], edges, n_edges, contrib, right, fill)
                     if lost:
                         pm = np.nan
                         rm |= weather_flag
@@ -379,32 +385,6 @@ def _conditions(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cu, 
     u = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cu)
     v = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cv)
     vals[0], vals[1] = _speed_bearing(-1.0 * u, -1.0 * v, kn)
-
-
-@numba.njit(nogil=True, cache=True, inline="always")
-def _evidence(vals, kinds, course, source, edges, n_edges, contrib, right, fill):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """The failure model's flat evidence index of the conditions ``vals`` on ``course`` [deg] and whether it is
-    unknown, as :func:`pyroute_rel.cost_compiled._evidence_kernel` classifies a point (directions folded to their
-    angle to the course)."""
-    ev = 0
-    lost = False
-    for c in range(source.size):
-        x = vals[source[c]]
-        if kinds[source[c]] == 1 or kinds[source[c]] == 3:
-            x = fold_twa(x, course)
-        m = n_edges[c]
-        if x != x:
-            if fill[c] >= 0:
-                ev += fill[c]
-                continue
-            lost = True
-            bb = 0 if m == 1 else m
-        else:
-            bb = 0
-            for jj in range(m):
-                bb += (edges[c, jj] <= x) if right[c] else (edges[c, jj] < x)
-        ev += contrib[c, bb]
-    return ev, lost
 
 
 @numba.njit(nogil=True, cache=True, inline="always")

@@ -234,12 +234,12 @@ def test_costs_reusing_points_equal_costs_locating_them(seed: int, samples: int,
         assert_same_costs(got, want)
 
 
-# --- the compiled bookkeeping between the sampling calls (cost.COMPILED_GLUE) -------------------------------------
+# --- the compiled bookkeeping between the sampling calls (cost.COMPILED_MARCH) -------------------------------------
 
 
 def numpy_path(geom, t0, **kw):  # type: ignore[no-untyped-def]
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cost_module, "COMPILED_GLUE", False)
+        mp.setattr(cost_module, "COMPILED_MARCH", False)
         return geometry_costs(geom, t0, **kw)
 
 

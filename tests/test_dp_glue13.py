@@ -3,7 +3,7 @@
 What the DP asks at every rank is now kept between ranks: the columns and turned rows a set of fields samples
 (``_Block.plan``), the fields a failure model needs, its table and its entries above apf (``judge_tables``), its
 largest p_f; contiguous inputs go to the kernels as they are (no copy). Whatever is kept must not leak from one
-route, member, model or apf into another: each is checked against the numpy reference paths (``cost.COMPILED_GLUE``
+route, member, model or apf into another: each is checked against the numpy reference paths (``cost.COMPILED_MARCH``
 and ``gridded.FUSED_SAMPLING`` off, which keep nothing of the sort) and against the same route computed alone.
 """
 
@@ -64,7 +64,7 @@ def dp(w: GriddedWeather, model: str, apf: float, *, n_wait: int = 0) -> solve.D
 def reference(w: GriddedWeather, model: str, apf: float, *, n_wait: int = 0) -> solve.DPResult:
     """The DP on the numpy paths: nothing kept between ranks but the located points."""
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cost_module, "COMPILED_GLUE", False)
+        mp.setattr(cost_module, "COMPILED_MARCH", False)
         mp.setattr(gridded_module, "FUSED_SAMPLING", False)
         return dp(w, model, apf, n_wait=n_wait)
 
