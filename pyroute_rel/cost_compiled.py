@@ -111,7 +111,7 @@ def evidence_index(
     ``(index, unknown)`` with ``course_deg``'s shape; ``unknown`` None where no point's evidence is unknown.
     """
     shape = course_deg.shape
-    edges, n_edges, contrib, right, fill, attrs, relative = _rules(model)
+    edges, n_edges, contrib, right, fill, attrs, relative = model_rules(model)
     values = np.empty((len(attrs), math.prod(shape)))
     for row, attr in zip(values, attrs, strict=True):
         value = getattr(conditions, attr)
@@ -127,7 +127,7 @@ def evidence_index(
 _RULES: weakref.WeakKeyDictionary[FailureModel, tuple[Any, ...]] = weakref.WeakKeyDictionary()
 
 
-def _rules(model: FailureModel) -> tuple[Any, ...]:
+def model_rules(model: FailureModel) -> tuple[Any, ...]:
     """:meth:`~pyroute_rel.failure.FailureModel.evidence_rules` of a model, followed by each criterion's
     :class:`~pyroute_rel.weather.Conditions` field and whether it is taken relative to the course
     (:data:`~pyroute_rel.failure.QUANTITY_FIELDS`), made once."""

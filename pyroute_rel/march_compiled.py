@@ -5,7 +5,7 @@ The numpy march advances every arc of a block one step per round, and a block's 
 in irons for the wind to shift) sets the number of rounds; each round costs two sampling calls and a few dozen array
 operations. Here each arc is sailed from its departure to its end in one compiled loop: the same steps, the same
 sampling arithmetic as :meth:`~pyroute_rel.weather.GriddedWeather.sample_at` (trilinear in the block's stored
-float32 values, the wind turned into speed and direction as :func:`~pyroute_rel.weather.gridded._speed_bearing`
+float32 values, the wind turned into speed and direction as :func:`~pyroute_rel.weather.gridded.speed_bearing`
 does), the polar of :mod:`pyroute_rel.polar_compiled` and the failure model's evidence as
 :func:`pyroute_rel.cost_compiled.evidence_index` classifies it; the same numbers as the numpy march (tested in
 ``tests/test_march.py``, which pins the two).
@@ -22,13 +22,13 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from .cost_compiled import _rules, evidence_point, judge_tables
+from .cost_compiled import evidence_point, judge_tables, model_rules
 from .failure import FailureModel
 from .march import MIN_STEP_H, SPEED_CHANGE, Marched
 from .polar import MIN_SPEED_KN, Polar
 from .polar_compiled import fold_twa, speed_kn, tables
 from .units import KN_PER_MS
-from .weather.gridded import GriddedWeather, PreparedPoints, _cell, _lerp, _speed_bearing
+from .weather.gridded import GriddedWeather, PreparedPoints, axis_cell, lerp, speed_bearing
 
 __all__ = ["KEPT_FIELDS", "march_gridded", "usable"]
 
@@ -120,74 +120,37 @@ def march_gridded(
         relative = np.zeros(0, dtype=np.bool_)
         p_flat, over, bits = np.zeros(1), np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.uint32)
     else:
-        edges, n_edges, contrib, right, fill, attrs, relative = _rules(failure)
+        edges, n_edges, contrib, right, fill, attrs, relative = model_rules(failure)
         source = np.array([KEPT_FIELDS.index(a) for a in attrs], dtype=np.intp)
         p_flat, over, bits = judge_tables(failure, apf)
     shift = (np.datetime64(departure, "ns") - b.t0) / np.timedelta64(1, "s")
     steps = weather.time_steps
     steps_h = np.zeros(0) if steps is None else np.asarray((steps - departure) / np.timedelta64(3600, "s"), float)
     twa_tab, tws_tab, speed_tab, twa_inv, tws_inv = tables(polar)
-    time_h, p_f = np.empty(n), np.empty(n)
-    marks = np.empty((n, samples + 1))
-    reason = np.zeros(n, dtype=np.uint8)
-    fired = np.zeros(n, dtype=np.uint32)
+    field = (b.flat, np.int64(b.n_fields), b.time_s, float(shift), w.base, w.sx, w.sy, w.wx, w.wy, w.ok)
+    cols = (np.int64(col["wind_u_ms"]), np.int64(col["wind_v_ms"]), kinds, col_a, col_b)
+    pol = (twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, beyond == "forbid", MIN_SPEED_KN)
+    model = (source, relative, edges, n_edges, contrib, right, fill, p_flat, over, bits)
+    rule = (*(np.uint8(f) for f in flags), SPEED_CHANGE, MIN_STEP_H, KN_PER_MS)
+    out = (np.empty(n), np.empty((n, samples + 1)), np.empty(n), np.zeros(n, np.uint8), np.zeros(n, np.uint32))
     kept = np.full((len(KEPT_FIELDS), n * samples), np.nan)
-    any_fired = _march_kernel(
-        b.flat,
-        np.int64(b.n_fields),
-        b.time_s,
-        float(shift),
-        w.base,
-        w.sx,
-        w.sy,
-        w.wx,
-        w.wy,
-        w.ok,
-        np.int64(col["wind_u_ms"]),
-        np.int64(col["wind_v_ms"]),
-        kinds,
-        col_a,
-        col_b,
+    arcs = (
         np.ascontiguousarray(course_deg, dtype=np.float64).reshape(-1),
         np.ascontiguousarray(seg_nm, dtype=np.float64),
         np.ascontiguousarray(t0_h, dtype=np.float64),
         np.int64(samples),
         steps_h,
-        twa_tab,
-        tws_tab,
-        speed_tab,
-        twa_inv,
-        tws_inv,
-        beyond == "forbid",
-        source,
-        relative,
-        edges,
-        n_edges,
-        contrib,
-        right,
-        fill,
-        p_flat,
-        over,
-        bits,
-        *(np.uint8(f) for f in flags),
-        MIN_SPEED_KN,
-        SPEED_CHANGE,
-        MIN_STEP_H,
-        KN_PER_MS,
-        time_h,
-        marks,
-        p_f,
-        reason,
-        fired,
-        kept,
     )
+    any_fired = _march_kernel(field, cols, pol, model, rule, arcs, out, kept)
+    time_h, marks, p_f, reason, fired = out
     return Marched(time_h=time_h, marks_h=marks, p_f=p_f, reason=reason, fired=fired if any_fired else None), kept
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, k, t_h, c):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _sample(field, k, t_h, c):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Stored column ``c`` at point ``k`` and time ``t_h`` [h], as the sampling kernel interpolates it (NaN
-    outside)."""
+    outside); ``field`` is the block's data and the points located on it."""
+    flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok = field
     nt = t_axis.size
     it = 0
     wt = 0.0
@@ -198,7 +161,7 @@ def _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, k, t_h, c):  # ty
         if not (t_axis[0] <= x <= t_axis[nt - 1]):
             return np.nan
         t_inv = (nt - 1) / (t_axis[nt - 1] - t_axis[0]) if nt > 1 else 1.0
-        it, wt = _cell(t_axis, t_axis[0], t_inv, x)
+        it, wt = axis_cell(t_axis, t_axis[0], t_inv, x)
     st = np.uint64(nf) if wt > 0.0 else np.uint64(0)
     b0 = np.uint64(base[k] + it * nf)
     ax = wx[k]
@@ -211,180 +174,134 @@ def _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, k, t_h, c):  # ty
     b01 = b0 + np.uint64(sy[k])
     b11 = b10 + np.uint64(sy[k])
     f = np.uint64(c)
-    return _lerp(flat, b0 + f, b10 + f, b01 + f, b11 + f, st, c00, c10, c01, c11, 1.0 - wt, wt)
+    return lerp(flat, b0 + f, b10 + f, b01 + f, b11 + f, st, c00, c10, c01, c11, 1.0 - wt, wt)
 
 
 @numba.njit(nogil=True, cache=True)
-def _march_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
-    flat,
-    nf,
-    t_axis,
-    shift,
-    base,
-    sx,
-    sy,
-    wx,
-    wy,
-    ok,
-    cu,
-    cv,
-    kinds,
-    col_a,
-    col_b,
-    course,
-    seg,
-    t0,
-    samples,
-    steps_h,
-    twa_tab,
-    tws_tab,
-    speed_tab,
-    twa_inv,
-    tws_inv,
-    forbid,
-    source,
-    relative,
-    edges,
-    n_edges,
-    contrib,
-    right,
-    fill,
-    p_flat,
-    over,
-    bits,
-    polar_flag,
-    weather_flag,
-    failure_flag,
-    min_speed,
-    speed_change,
-    min_step,
-    kn,
-    time_out,
-    marks_out,
-    p_out,
-    reason_out,
-    fired_out,
-    kept,
-):
-    """:func:`march_gridded` into the outputs; returns whether any sample was judged above apf (fired criteria)."""
-    n_steps = steps_h.size
-    judged = source.size > 0
-    judged_vals = np.empty(source.size)
-    no_progress = np.uint8(~(weather_flag | failure_flag) & 0xFF)
+def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`march_gridded` into ``out`` (time, marks, p_f, reason, fired) and ``kept``, arc after arc; returns
+    whether any sample was judged above apf (fired criteria)."""
+    course, seg, t0, samples, steps_h = arcs
+    time_out, marks_out, p_out, reason_out, fired_out = out
     vals = np.empty(kept.shape[0])
+    judged_vals = np.empty(model[0].size)
     any_fired = False
     for i in range(t0.size):
         start = t0[i] if np.isfinite(t0[i]) else 0.0
-        e = 0.0
         marks_out[i, 0] = start
-        p_arc = 0.0
-        flags_arc = np.uint8(0)
-        fired_arc = np.uint32(0)
-        going = True
-        j = 0  # the first time step after the craft's time (times only increase along an arc)
+        state = (0.0, 0.0, np.uint8(0), np.uint32(0), True, 0)  # elapsed, p_f, flags, fired, going, next step
         for k in range(samples):
-            if not going:
-                marks_out[i, k + 1] = start + e
-                continue
-            pk = i * samples + k
-            r = seg[i]
-            cap = np.inf
-            while True:
-                tk = start + e
-                while j < n_steps and steps_h[j] <= tk:
-                    j += 1
-                nxt = steps_h[j] if j < n_steps else np.inf
-                # predictor: the speed here and now (the wind only)
-                u = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tk, cu)
-                v = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tk, cv)
-                tws0, twd0 = _speed_bearing(-1.0 * u, -1.0 * v, kn)
-                v0, r0 = _sog(tws0, twd0, course[pk], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
-                hp = r / v0 if v0 > 0.0 else np.inf
-                h = min(min(hp, nxt - tk), cap)
-                cut = h < hp
-                stuck = not np.isfinite(h)
-                tm = tk if stuck else tk + 0.5 * h
-                # corrector: the speed, and what the failure model says, at the step's middle
-                _conditions(
-                    flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tm, cu, cv, kinds, col_a, col_b, kn, vals
-                )
-                for q in range(kinds.size):
-                    kept[q, pk] = vals[q]
-                vm, rm = _sog(
-                    vals[0], vals[1], course[pk], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed
-                )
-                pm = 0.0
-                fm = np.uint32(0)
-                if judged:
-                    for c in range(source.size):
-                        judged_vals[c] = vals[source[c]]
-                    ev, lost = evidence_point(judged_vals, relative, course[pk], edges, n_edges, contrib, right, fill)
-                    if lost:
-                        pm = np.nan
-                        rm |= weather_flag
-                    else:
-                        pm = p_flat[ev]
-                        if over[ev]:
-                            rm |= failure_flag
-                            fm = bits[ev]
-                missing = ((r0 | rm) & weather_flag) != 0
-                rough = abs(vm - v0) > speed_change * _fmax(vm, v0) and h > min_step and not stuck and not missing
-                moves = vm > 0.0
-                done = (not rough) and moves and ((not cut) or vm * h >= r) and not missing and not stuck
-                progress = vm * h if ((not rough) and cut and moves) else 0.0
-                if (not rough) and not stuck:
-                    if p_arc == p_arc and (pm != pm or pm > p_arc):  # np.maximum: NaN wins
-                        p_arc = pm
-                    flags_arc |= rm & failure_flag
-                    if (rm & failure_flag) != 0:
-                        fired_arc |= fm
-                        any_fired = True
-                wait_for_ever = (
-                    (not rough)
-                    and not done
-                    and not missing
-                    and (stuck or ((not cut) and (not moves) and not np.isfinite(nxt)))
-                )
-                if missing:
-                    flags_arc |= weather_flag
-                if wait_for_ever:
-                    why = (r0 if stuck else rm) & no_progress
-                    flags_arc |= why if why != 0 else polar_flag
-                if missing or wait_for_ever:
-                    going = False
-                    break
-                if done:
-                    e = e + r / vm
-                    break
-                if not rough:
-                    e = e + h
-                r = r - progress
-                cap = 0.5 * h if rough else (2.0 * cap if h >= cap else np.inf)
-            marks_out[i, k + 1] = start + e
+            if state[4]:
+                state = _sail_sub_segment(
+                    field, cols, pol, model, rule, course, steps_h, i * samples + k, seg[i], start, state, vals,
+                    judged_vals, kept
+                )  # fmt: skip
+            marks_out[i, k + 1] = start + state[0]
+        e, p_arc, flags_arc, fired_arc, going, _ = state
         time_out[i] = e if (going and flags_arc == 0) else np.inf
         p_out[i] = p_arc
         reason_out[i] = flags_arc
         fired_out[i] = fired_arc
+        any_fired |= (flags_arc & rule[2]) != 0
     return any_fired
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _conditions(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cu, cv, kinds, col_a, col_b, kn, vals):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _sail_sub_segment(field, cols, pol, model, rule, course, steps_h, pk, r, start, state, vals, judged_vals, kept):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Sail sub-segment ``pk`` (``r`` [nm]) from ``state`` (elapsed [h], the arc's p_f, flags, fired criteria,
+    whether it goes on, the index of the next time step): :func:`pyroute_rel.march.march`'s steps, one at a time."""
+    e, p_arc, flags_arc, fired_arc, going, j = state
+    polar_flag, weather_flag, failure_flag, speed_change, min_step, kn = rule
+    no_progress = np.uint8(~(weather_flag | failure_flag) & 0xFF)
+    n_steps = steps_h.size
+    cap = np.inf
+    while True:
+        tk = start + e
+        while j < n_steps and steps_h[j] <= tk:
+            j += 1
+        nxt = steps_h[j] if j < n_steps else np.inf
+        # predictor: the speed here and now (the wind only)
+        u = _sample(field, pk, tk, cols[0])
+        v = _sample(field, pk, tk, cols[1])
+        tws0, twd0 = speed_bearing(-1.0 * u, -1.0 * v, kn)
+        v0, r0 = _sog(tws0, twd0, course[pk], pol)
+        hp = r / v0 if v0 > 0.0 else np.inf
+        h = min(min(hp, nxt - tk), cap)
+        cut = h < hp
+        stuck = not np.isfinite(h)
+        # corrector: the speed, and what the failure model says, at the step's middle
+        tm = tk if stuck else tk + 0.5 * h
+        vm, rm, pm, fm = _judge_middle(field, cols, pol, model, rule, course, pk, tm, vals, judged_vals, kept)
+        missing = ((r0 | rm) & weather_flag) != 0
+        rough = abs(vm - v0) > speed_change * _fmax(vm, v0) and h > min_step and not stuck and not missing
+        moves = vm > 0.0
+        done = (not rough) and moves and ((not cut) or vm * h >= r) and not missing and not stuck
+        progress = vm * h if ((not rough) and cut and moves) else 0.0
+        if (not rough) and not stuck:
+            if p_arc == p_arc and (pm != pm or pm > p_arc):  # np.maximum: NaN wins
+                p_arc = pm
+            flags_arc |= rm & failure_flag
+            if (rm & failure_flag) != 0:
+                fired_arc |= fm
+        forever = (not rough) and not done and not missing and (stuck or ((not cut) and (not moves) and nxt == np.inf))
+        if missing:
+            flags_arc |= weather_flag
+        if forever:
+            why = (r0 if stuck else rm) & no_progress
+            flags_arc |= why if why != 0 else polar_flag
+        if missing or forever:
+            return e, p_arc, flags_arc, fired_arc, False, j
+        if done:
+            return e + r / vm, p_arc, flags_arc, fired_arc, True, j
+        if not rough:
+            e = e + h
+        r = r - progress
+        cap = 0.5 * h if rough else (2.0 * cap if h >= cap else np.inf)
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _judge_middle(field, cols, pol, model, rule, course, pk, tm, vals, judged_vals, kept):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Speed over ground [kn], flags, p_f and fired criteria at sample ``pk`` and time ``tm`` [h] (the step's
+    middle); the conditions kept in ``kept``."""
+    source, relative, edges, n_edges, contrib, right, fill, p_flat, over, bits = model
+    weather_flag, failure_flag = rule[1], rule[2]
+    _conditions(field, cols, pk, tm, rule[5], vals)
+    for q in range(vals.size):
+        kept[q, pk] = vals[q]
+    vm, rm = _sog(vals[0], vals[1], course[pk], pol)
+    pm = 0.0
+    fm = np.uint32(0)
+    if source.size > 0:
+        for c in range(source.size):
+            judged_vals[c] = vals[source[c]]
+        ev, lost = evidence_point(judged_vals, relative, course[pk], edges, n_edges, contrib, right, fill)
+        if lost:
+            pm = np.nan
+            rm |= weather_flag
+        else:
+            pm = p_flat[ev]
+            if over[ev]:
+                rm |= failure_flag
+                fm = bits[ev]
+    return vm, rm, pm, fm
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _conditions(field, cols, pk, t_h, kn, vals):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The fields :data:`KEPT_FIELDS` at point ``pk`` and time ``t_h`` [h] into ``vals`` (NaN where not wanted):
     the wind turned into speed [kn] and direction, stored columns, a direction from its sine and cosine."""
+    cu, cv, kinds, col_a, col_b = cols
     for q in range(kinds.size):
         kind = kinds[q]
         if kind == 2:
-            vals[q] = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_a[q])
+            vals[q] = _sample(field, pk, t_h, col_a[q])
         elif kind == 3:
-            s_ = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_a[q])
-            c_ = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_b[q])
-            vals[q] = _speed_bearing(s_, c_, 1.0)[1]
+            vals[q] = speed_bearing(_sample(field, pk, t_h, col_a[q]), _sample(field, pk, t_h, col_b[q]), 1.0)[1]
         else:
             vals[q] = np.nan
-    u = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cu)
-    v = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cv)
-    vals[0], vals[1] = _speed_bearing(-1.0 * u, -1.0 * v, kn)
+    u = _sample(field, pk, t_h, cu)
+    v = _sample(field, pk, t_h, cv)
+    vals[0], vals[1] = speed_bearing(-1.0 * u, -1.0 * v, kn)
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
@@ -398,14 +315,13 @@ def _fmax(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _sog(tws, twd, course, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Speed along the course [kn] (0 below ``min_speed``, NaN where the wind is missing) and its flags (1 no speed,
-    2 missing wind), as :func:`pyroute_rel.cost._sample_speeds` gives them without a current."""
-    a = fold_twa(twd, course)
-    v = speed_kn(a, tws, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
+def _sog(tws, twd, course, pol):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Speed along the course [kn] (0 below the polar's least speed, NaN where the wind is missing) and its flags (1
+    no speed, 2 missing wind), as :func:`pyroute_rel.cost._sample_speeds` gives them without a current."""
+    twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed = pol
+    v = speed_kn(fold_twa(twd, course), tws, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid)
     sog = v if v >= min_speed else (np.nan if v != v else 0.0)
-    missing = not (np.isfinite(tws) and np.isfinite(twd))
-    if missing:
+    if not (np.isfinite(tws) and np.isfinite(twd)):
         return sog, np.uint8(2)
     if not sog > 0.0:
         return sog, np.uint8(1)

@@ -377,7 +377,7 @@ def _load_kernels() -> None:
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _cell(axis, first, inv, x):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
+def axis_cell(axis, first, inv, x):  # type: ignore[no-untyped-def]  # pragma: no cover - compiled
     """(i, w): the cell ``axis[i] <= x < axis[i + 1]`` (clipped to the axis) and the weight of ``axis[i + 1]``.
 
     Regular axes are found by arithmetic (``inv``: cells per unit of the axis, its mean spacing's inverse), checked
@@ -420,7 +420,7 @@ def _locate_kernel(axis, x, stride, i_out, w_out, step_out, ok_out):  # type: ig
     inv = (n - 1) / (last - first) if n > 1 else 1.0
     for k in range(x.size):
         xk = x[k]
-        i, w = _cell(axis, first, inv, xk)
+        i, w = axis_cell(axis, first, inv, xk)
         i_out[k] = i
         w_out[k] = w
         step_out[k] = stride if w > 0.0 else 0
@@ -428,7 +428,7 @@ def _locate_kernel(axis, x, stride, i_out, w_out, step_out, ok_out):  # type: ig
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _lerp(flat, b00, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt):  # type: ignore[no-untyped-def]  # pragma: no cover
+def lerp(flat, b00, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt):  # type: ignore[no-untyped-def]  # pragma: no cover
     """One stored value, trilinear: corners ``b00`` .. ``b11`` of ``flat`` (unsigned indices, the column's own) with
     weights ``c00`` .. ``c11``, each at two times ``st`` apart with weights ``t0w`` and ``wt``."""
     return (
@@ -485,7 +485,7 @@ def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, scale, s
             if good:
                 if x != x_prev:
                     x_prev = x
-                    it_prev, wt_prev = _cell(t_axis, t_first, t_inv, x)
+                    it_prev, wt_prev = axis_cell(t_axis, t_first, t_inv, x)
                 it, wt = it_prev, wt_prev
         if not good:
             for c in range(columns.size):
@@ -508,26 +508,26 @@ def _interpolate_kernel(flat, nf, columns, base, sx, sy, wx, wy, ok, t, scale, s
             if mode == 0:
                 for c in range(columns.size):
                     f = np.uint64(columns[c])
-                    out[c, k] = _lerp(flat, b + f, b10 + f, b01 + f, b11 + f, st, c00, c10, c01, c11, t0w, wt)
+                    out[c, k] = lerp(flat, b + f, b10 + f, b01 + f, b11 + f, st, c00, c10, c01, c11, t0w, wt)
             else:
                 b, b10, b01, b11 = b + f0, b10 + f0, b01 + f0, b11 + f0
-                u = _lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
+                u = lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
                 one, two = np.uint64(1), np.uint64(2)
-                v = _lerp(flat, b + one, b10 + one, b01 + one, b11 + one, st, c00, c10, c01, c11, t0w, wt)
-                out[0, k], out[1, k] = _speed_bearing(-1.0 * u, -1.0 * v, kn)
+                v = lerp(flat, b + one, b10 + one, b01 + one, b11 + one, st, c00, c10, c01, c11, t0w, wt)
+                out[0, k], out[1, k] = speed_bearing(-1.0 * u, -1.0 * v, kn)
                 if mode == 2:
                     b, b10, b01, b11 = b + two, b10 + two, b01 + two, b11 + two
-                    out[2, k] = _lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
-                    sin = _lerp(flat, b + one, b10 + one, b01 + one, b11 + one, st, c00, c10, c01, c11, t0w, wt)
+                    out[2, k] = lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
+                    sin = lerp(flat, b + one, b10 + one, b01 + one, b11 + one, st, c00, c10, c01, c11, t0w, wt)
                     b, b10, b01, b11 = b + two, b10 + two, b01 + two, b11 + two
-                    cos = _lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
-                    out[3, k] = _speed_bearing(sin, cos, 1.0)[1]
+                    cos = lerp(flat, b, b10, b01, b11, st, c00, c10, c01, c11, t0w, wt)
+                    out[3, k] = speed_bearing(sin, cos, 1.0)[1]
                     out[4, k] = cos
         if mode_k == 0:
             if ru >= 0:  # the wind's speed and direction, from its (u, v) just computed
-                out[ru, k], out[rv, k] = _speed_bearing(-1.0 * out[ru, k], -1.0 * out[rv, k], kn)
+                out[ru, k], out[rv, k] = speed_bearing(-1.0 * out[ru, k], -1.0 * out[rv, k], kn)
             if rs >= 0:
-                out[rs, k] = _speed_bearing(out[rs, k], out[rc, k], 1.0)[1]
+                out[rs, k] = speed_bearing(out[rs, k], out[rc, k], 1.0)[1]
 
 
 @numba.njit(nogil=True, cache=True)
@@ -541,14 +541,14 @@ def _vector_kernel(east, north, sign, scale, speed_out, bearing_out):  # type: i
     """
     with_speed = speed_out.size > 0
     for k in range(east.size):
-        speed, bearing = _speed_bearing(sign * east[k], sign * north[k], scale)
+        speed, bearing = speed_bearing(sign * east[k], sign * north[k], scale)
         bearing_out[k] = bearing
         if with_speed:
             speed_out[k] = speed
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _speed_bearing(e, n, scale):  # type: ignore[no-untyped-def]  # pragma: no cover
+def speed_bearing(e, n, scale):  # type: ignore[no-untyped-def]  # pragma: no cover
     """:func:`_vector_kernel` for one vector (east, north): its length x ``scale`` and bearing [deg, [0, 360)]."""
     ae = abs(e)
     an = abs(n)
