@@ -198,7 +198,10 @@ def _code_lines(path: Path) -> dict[str, int]:
 
 
 #: Functions allowed to stay longer, each with the reason.
-LONG_FUNCTIONS: dict[str, str] = {}
+LONG_FUNCTIONS: dict[str, str] = {
+    "pyroute_rel.march_compiled._march_kernel": "one compiled loop: split into helpers over tuples, numba compiled it "
+    "4x slower and ran it 2x slower (measured, session 14)",
+}
 
 
 def test_functions_are_short():
