@@ -54,7 +54,7 @@ MAX_STEP_H = 1.0
 
 #: Largest change of the speed over ground between a step's start and its middle, relative to the larger of the two
 #: [-]: a step over which the speed changes more is tried again with half the time (down to :data:`MIN_STEP_H`).
-SPEED_CHANGE = 0.25
+SPEED_CHANGE = 0.1
 
 #: Shortest step [h] the march halves a step down to.
 MIN_STEP_H = 0.05
