@@ -111,10 +111,14 @@ class LegExposure:
     hazard : Hazard of each leg [-] (one value per leg; ``inf`` where it meets ``p_f = 1``).
     criterion_h : Hours of each leg spent where each criterion of the failure model fires, by the criterion's
         description (e.g. ``"WH: hs_m >= 4 m"``) [h].
+    p_max : The largest failure probability of the conditions met on each leg's sub-arcs [-] (0 where none; None
+        where not computed): a route reports at least this as the leg's ``p_f``, so that its largest ``p_f`` covers
+        every hour its exposure counts.
     """
 
     hazard: FloatArray
     criterion_h: dict[str, FloatArray]
+    p_max: FloatArray | None = None
 
     @property
     def p_fail_leg(self) -> FloatArray:
@@ -184,7 +188,7 @@ def arc_exposure(
     t_leg = np.asarray(time_h, dtype=float)
     model = problem.failure
     if model is None:
-        return LegExposure(hazard=np.zeros(t_leg.size), criterion_h={})
+        return LegExposure(hazard=np.zeros(t_leg.size), criterion_h={}, p_max=np.zeros(t_leg.size))
     if not step_km > 0:
         raise ValueError(f"step_km must be > 0 [km] (got {step_km!r})")
     a0, b0, a1, b1 = (np.asarray(x, dtype=float) for x in (lon0_deg, lat0_deg, lon1_deg, lat1_deg))
@@ -193,13 +197,18 @@ def arc_exposure(
     if problem.weather.steady:  # time the sub-arcs only of the arcs that meet some hazard or criterion
         keep = _exposed(problem, a0, b0, a1, b1, step_km)
         if not keep.all():
-            n, out = keep.size, LegExposure(np.zeros(0), {c.describe(): np.zeros(0) for c in model.criteria})
+            n, out = (
+                keep.size,
+                LegExposure(np.zeros(0), {c.describe(): np.zeros(0) for c in model.criteria}, np.zeros(0)),
+            )
             if keep.any():
                 sel = (a0[keep], b0[keep], a1[keep], b1[keep], start_leg[keep], t_leg[keep], p_leg[keep])
                 out = _sub_arc_exposure(problem, *sel, step_km)
+            assert out.p_max is not None
             return LegExposure(
                 hazard=_spread(out.hazard, keep, n),
                 criterion_h={k: _spread(v, keep, n) for k, v in out.criterion_h.items()},
+                p_max=_spread(out.p_max, keep, n),
             )
     marks = None if marks_h is None or problem.weather.steady else np.asarray(marks_h, dtype=float)
     return _sub_arc_exposure(problem, a0, b0, a1, b1, start_leg, t_leg, p_leg, step_km, marks)
@@ -330,12 +339,15 @@ def _sub_arc_exposure(
     if unknown is not None:  # missing weather at a sub-arc's midpoint: the leg's p_f as the router costed it
         p = np.where(unknown, p_leg[leg], p)
     h = hazard(p, dt, model.exposure_h)
+    p_max = np.zeros(n_legs)
+    np.fmax.at(p_max, leg, p)  # NaN (unknown) ignored
     return LegExposure(
         hazard=np.asarray(np.bincount(leg, weights=h, minlength=n_legs), float),  # hazards >= 0: a sum with inf is inf
         criterion_h={
             crit.describe(): np.asarray(np.bincount(leg, weights=np.where(fired[i], dt, 0.0), minlength=n_legs), float)
             for i, crit in enumerate(model.criteria)
         },
+        p_max=p_max,
     )
 
 

@@ -527,7 +527,8 @@ def track_legs(
         hs_m=np.asarray(cond.hs_m, dtype=float),
         wave_dir_deg=np.asarray(cond.wave_dir_deg, dtype=float),
         awd_deg=q["awd_deg"],
-        p_f=np.asarray(costs.p_f, dtype=float),
+        # the largest p_f judged along the leg, and at least that of every condition its exposure counts
+        p_f=np.asarray(costs.p_f if exposure.p_max is None else np.fmax(costs.p_f, exposure.p_max), dtype=float),
         wait_h=waits,
         p_fail_leg=exposure.p_fail_leg,
     )

@@ -481,11 +481,31 @@ def era5_scenario():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("n_ranks", [40, 80])
+@pytest.mark.parametrize("n_ranks", [40, 80, 160])
 def test_era5_example_reports_its_track_sailed_continuously(n_ranks):
-    """The ERA5 example (synthetic ERA5-layout file, ~850 h across the Atlantic) at 40 and 80 ranks: the reported
+    """The ERA5 example (synthetic ERA5-layout file, ~850 h across the Atlantic) at 40, 80 and 160 ranks: the reported
     voyage within 0.2 % of the route's track marched in 100 m steps (~55 000 of them)."""
     sc = era5_scenario().with_options(n_ranks=n_ranks)
     route = sc.route()
     times = march_track(sailor(sc), route.lon_deg, route.lat_deg, leave_h=route_leave_h(route), guess_h=route.elapsed_h)
     assert_times(route.elapsed_h, times, rel=REL_ROUTE, what=f"{n_ranks} ranks")
+
+
+@pytest.mark.slow
+def test_era5_example_at_apf_half_meets_no_condition_its_apf_forbids():
+    """The ERA5 example at apf 0.5 (40 ranks): issue 32 found it reporting a largest p_f of 0 while its own exposure
+    counted 0.733 h in ``WH: hs_m >= 4 m`` (p_f 0.9 alone). Now no hour is counted in a criterion whose state is
+    above apf, the reported largest p_f is at most apf, and the track marched at the craft's times in 100 m steps
+    meets no p_f above apf (a single edge step conceded, with the slack of the product's times, as for the storm)."""
+    model = load_failure_model("dickson2018")
+    sc = era5_scenario().with_options(n_ranks=40, apf=0.5)
+    route = sc.route()
+    assert route.max_failure_probability <= sc.apf
+    for criterion, hours in route.exposure_by_criterion_h.items():
+        assert hours == 0.0, (criterion, hours)  # each of dickson2018's criteria alone is above 0.5
+    times, path = march_track(
+        sailor(sc), route.lon_deg, route.lat_deg, leave_h=route_leave_h(route), guess_h=route.elapsed_h, record=True
+    )
+    slack = float(np.max(np.abs(route.elapsed_h - times)))
+    p = p_f_along(sc, model, path, slack)
+    assert longest_run(p > sc.apf) <= 1, f"{np.count_nonzero(p > sc.apf)} steps above apf, slack {slack:.2g} h"
