@@ -11,8 +11,10 @@ exposure_h)`` for ``T`` hours in uniform conditions, whatever the number of legs
 constraint is unchanged: it bounds the conditions' ``p_f`` (an arc with ``p_f > apf`` somewhere is forbidden).
 
 Where a leg's time goes: each leg of a route is cut into sub-arcs of at most :data:`EXPOSURE_STEP_KM` along its great
-circle; the cost function times each sub-arc (sampled at its midpoint, as the router samples arcs), and the times are
-scaled so that they add up to the leg's time exactly. Each sub-arc contributes the hazard of the conditions at its
+circle. In weather that changes in time each sub-arc is timed on the times the leg was sailed at (the march of
+:mod:`pyroute_rel.march`: linear between the ends of its sub-segments), the times the failure criteria were judged
+at; in steady weather the cost function times each sub-arc (sampled at its midpoint, as the router samples arcs),
+and the times are scaled so that they add up to the leg's time exactly. Each sub-arc contributes the hazard of the conditions at its
 midpoint (the failure model's ``p_f`` for the heading the craft steers there), so the hours in each condition are
 resolved to the step, not to the grid's legs: the voyage's figure converges as the grid is refined. Waits at a node
 are not counted (the model's conditions need a heading).
@@ -210,7 +212,12 @@ def arc_exposure(
                 criterion_h={k: _spread(v, keep, n) for k, v in out.criterion_h.items()},
                 p_max=_spread(out.p_max, keep, n),
             )
-    marks = None if marks_h is None or problem.weather.steady else np.asarray(marks_h, dtype=float)
+    if problem.weather.steady:
+        marks = None
+    elif marks_h is None:  # the times the arcs are sailed at (pyroute_rel.march), from their departures
+        marks = problem.costs(a0, b0, a1, b1, start_leg).marks_h
+    else:
+        marks = np.asarray(marks_h, dtype=float)
     return _sub_arc_exposure(problem, a0, b0, a1, b1, start_leg, t_leg, p_leg, step_km, marks)
 
 
@@ -323,17 +330,11 @@ def _sub_arc_exposure(
         t0 = time_along(marks[leg], f0)
         dt = time_along(marks[leg], f1) - t0
         t_mid = time_along(marks[leg], 0.5 * (f0 + f1))
-    else:
+    else:  # steady weather: each sub-arc timed, the times scaled to add up to its arc's (conditions at any time)
         timing = replace(problem, samples=1, apf=1.0)  # times only: the failure model forbids nothing here
-        start = start_leg[leg]
-        share = (f1 - f0) * t_leg[leg]  # the leg's time shared by length, a first guess (and where a sub-arc has none)
-        t0 = start + f0 * t_leg[leg]
-        ends = sub.ends()
-        dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
-        if not problem.weather.steady:  # again, each sub-arc leaving when the craft gets there
-            before = np.cumsum(dt) - dt  # time sailed before each sub-arc, from the first arc's start
-            t0 = start + before - before[sub.first][leg]
-            dt = _scaled(timing.costs(*ends, t0).time_h, share, leg, t_leg)
+        share = (f1 - f0) * t_leg[leg]  # the leg's time shared by length, where a sub-arc has no time
+        t0 = start_leg[leg] + f0 * t_leg[leg]
+        dt = _scaled(timing.costs(*sub.ends(), t0).time_h, share, leg, t_leg)
         t_mid = t0 + 0.5 * dt
     p, unknown, fired = sub.conditions(problem, t_mid)
     if unknown is not None:  # missing weather at a sub-arc's midpoint: the leg's p_f as the router costed it

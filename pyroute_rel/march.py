@@ -30,7 +30,8 @@ the continuously sailed track as the sample spacing shrinks (docs/method.md give
 steps).
 
 Where the source names no time steps (a source smooth in time, :attr:`~pyroute_rel.weather.WeatherSource.time_steps`
-None), the steps are cut every :data:`MAX_STEP_H` instead.
+None), steps are not cut in time (the halving above still resolves a fast change); a craft without speed looks again
+every :data:`MAX_STEP_H`, for at most :data:`MAX_WAIT_H` on one sub-segment (then the arc is forbidden).
 
 FIFO: sailing a sub-segment is the ordinary differential equation ``ds/dt = v(t) >= 0`` at its sample point, whose
 solutions do not cross: a craft that starts later never arrives earlier. The discrete march keeps this up to its
@@ -45,12 +46,24 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["MAX_STEP_H", "MIN_STEP_H", "SPEED_CHANGE", "Marched", "Step", "march", "next_steps", "time_along"]
+__all__ = [
+    "MAX_STEP_H",
+    "MAX_WAIT_H",
+    "MIN_STEP_H",
+    "SPEED_CHANGE",
+    "Marched",
+    "Step",
+    "march",
+    "next_steps",
+    "time_along",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
-#: Longest step [h] of the march where the weather names no time steps of its own.
+#: Where the weather names no time steps of its own: how long a craft without speed waits before it looks again [h],
+#: and for how long at most on one sub-segment [h].
 MAX_STEP_H = 1.0
+MAX_WAIT_H = 720.0
 
 #: Largest change of the speed over ground between a step's start and its middle, relative to the larger of the two
 #: [-]: a step over which the speed changes more is tried again with half the time (down to :data:`MIN_STEP_H`).
@@ -129,14 +142,13 @@ def time_along(marks_h: FloatArray, fraction: npt.ArrayLike) -> FloatArray:
 
 
 def next_steps(steps_h: FloatArray | None, t_h: FloatArray) -> FloatArray:
-    """The first time step strictly after each time [h] (``inf`` after the last); without steps, ``t_h`` plus
-    :data:`MAX_STEP_H`.
+    """The first time step strictly after each time [h] (``inf`` after the last, and without steps).
 
     >>> next_steps(np.array([0.0, 3.0, 6.0]), np.array([-1.0, 0.0, 2.5, 6.0])).tolist()
     [0.0, 3.0, 3.0, inf]
     """
     if steps_h is None:
-        return t_h + MAX_STEP_H
+        return np.full(np.shape(t_h), np.inf)
     i = np.searchsorted(steps_h, t_h, side="right")
     padded = np.append(steps_h, np.inf)
     return padded[i]
@@ -182,6 +194,7 @@ def march(
     no_progress = np.uint8(~(missing_flag | failure_flag) & 0xFF)  # polar, current: the craft waits
     for k in range(samples):
         left = np.array(seg_nm, dtype=float, copy=True)
+        t_sub = start + elapsed  # when each arc started this sub-segment
         cap = np.full(n, np.inf)  # the longest step to try next [h] (halved where the speed changed too fast)
         idx: npt.NDArray[np.intp] | None = None if going.all() else np.flatnonzero(going)
         while idx is None or idx.size:
@@ -196,6 +209,9 @@ def march(
             with np.errstate(divide="ignore", invalid="ignore"):
                 hp = np.where(v0 > 0.0, r / v0, np.inf)
                 h = np.minimum(np.minimum(hp, nxt - tk), c)
+                if steps_h is None:  # no time step to wait for: look again a while later, for a while
+                    wait = ~(v0 > 0.0) & (tk - t_sub[at] < MAX_WAIT_H)
+                    h = np.where(wait, np.minimum(MAX_STEP_H, c), h)
                 cut = h < hp  # the step ends before the sub-segment's end (as predicted)
             stuck = ~np.isfinite(h)  # no speed now, and no later time step to wait for
             mid = speed(k, idx, np.where(stuck, tk, tk + 0.5 * h), True)
@@ -220,7 +236,9 @@ def march(
                         fired = np.zeros(n, dtype=np.uint32)
                     fired[at[over]] |= mid.fired[over]
             # a stop for ever: missing weather, or no speed with no later time step to wait for
-            wait_for_ever = ok & ~done & ~missing & (stuck | (~cut & ~moves & ~np.isfinite(nxt)))
+            # (without time steps the craft looks again a while later: stuck says when it gives up)
+            last = ~np.isfinite(nxt) if steps_h is not None else np.zeros(nxt.shape, dtype=bool)
+            wait_for_ever = ok & ~done & ~missing & (stuck | (~cut & ~moves & last))
             reason[at[missing]] |= np.uint8(missing_flag)
             why = np.where(stuck, first.reason, mid.reason) & no_progress
             reason[at[wait_for_ever]] |= np.where(why[wait_for_ever] != 0, why[wait_for_ever], np.uint8(polar_flag))

@@ -14,6 +14,7 @@ from pyproj import Geod
 from pyroute_rel import geodesy
 from pyroute_rel.cost import arc_costs
 from pyroute_rel.errors import NoFeasibleRouteError
+from pyroute_rel.failure import load_failure_model
 from pyroute_rel.grid import FINISH, START, make_grid
 from pyroute_rel.polar import Polar, boat_speed_kn, get_polar
 from pyroute_rel.route import route_on_grid
@@ -235,12 +236,18 @@ def test_infinite_arcs_are_never_chosen_and_infeasible_is_explained() -> None:
 
 @dataclass(frozen=True)
 class PassingStorm(SamplesOnly):
-    """A band of no-go weather (wind too strong: above the polar with beyond='forbid') across the whole course
-    between 39 and 41 N until ``clears_h`` after departure; 15 kn from the north elsewhere and later."""
+    """A band of 6 m seas (the ``dickson2018`` criterion WH fires: p_f 0.9) across the whole course between 39 and
+    41 N until ``clears_h`` after departure; 15 kn from the north and 1 m seas from the north everywhere else and
+    later. At apf 0.5 the band forbids every arc through it while it lasts, and waiting inside the arc would be in
+    it: only a wait at a node gets through."""
 
     clears_h: float = 130.0
     steady = False
-    time_steps = None
+
+    @property
+    def time_steps(self) -> np.ndarray:
+        """The conditions change once, when the storm clears."""
+        return np.array([DEP + np.timedelta64(int(self.clears_h * 3600), "s")], dtype="datetime64[ns]")
 
     def sample(self, lon_deg, lat_deg, time) -> Conditions:
         lon, lat, t = np.broadcast_arrays(
@@ -249,9 +256,9 @@ class PassingStorm(SamplesOnly):
         z = np.zeros(lon.shape)
         storm = (lat >= 39.0) & (lat <= 41.0) & (t < self.clears_h)
         return Conditions(
-            tws_kn=np.where(storm, 60.0, 15.0),
+            tws_kn=z + 15.0,
             twd_deg=z,
-            hs_m=z + 1.0,
+            hs_m=np.where(storm, 6.0, 1.0),
             wave_dir_deg=z,
             wave_period_s=z * np.nan,
             current_u_ms=z,
@@ -266,19 +273,20 @@ class PassingStorm(SamplesOnly):
 def test_time_expanded_dp_waits_out_a_storm_and_matches_brute_force() -> None:
     grid = make_grid(START_PT, (-30.0, 30.0), n_ranks=2, n_nodes=3, spacing_km=60.0)
     polar = get_polar("maribot_vane")
-    plain = RoutingProblem(departure=DEP, weather=PassingStorm(), polar=polar, samples=4, beyond="forbid")
-    # without waiting at nodes the craft still waits inside the arc that crosses the band (no polar speed there
-    # until the storm clears: it makes no progress, pyroute_rel.march), so a route exists and arrives after clears_h
-    assert route_on_grid(grid, plain).voyage_time_h > PassingStorm().clears_h
+    storm = {"failure": load_failure_model("dickson2018"), "apf": 0.5}
+    plain = RoutingProblem(departure=DEP, weather=PassingStorm(), polar=polar, samples=4, **storm)
+    # without waiting at a node the storm band forbids every arc when the craft gets there: no route
+    with pytest.raises(NoFeasibleRouteError):
+        route_on_grid(grid, plain)
     step, max_wait = 20.0, 140.0
     waiting = RoutingProblem(
         departure=DEP,
         weather=PassingStorm(),
         polar=polar,
         samples=4,
-        beyond="forbid",
         time_step_h=step,
         max_wait_h=max_wait,
+        **storm,
     )
     route = route_on_grid(grid, waiting)
     assert route.legs["wait_h"].sum() > 0

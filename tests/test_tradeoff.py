@@ -124,8 +124,13 @@ class Unsteady:
         return self.sample(*prepared, time)
 
 
-def every_path(grid: Grid, problem: RoutingProblem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Voyage time [h], largest leg p_f and hazard of every sailable path, each costed leg by leg."""
+def every_path(
+    grid: Grid, problem: RoutingProblem, exposure: RoutingProblem | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Voyage time [h], largest leg p_f and hazard of every sailable path, each costed leg by leg; the hazard in
+    ``exposure``'s weather (default ``problem``'s): a steady problem's when ``problem`` wraps steady weather as
+    time-varying (to screen nothing), since exposure times a leg's sub-arcs by their own speeds in steady weather and
+    on the leg's sailed sub-segments (pyroute_rel.march) in weather that changes in time."""
     adj = []
     for k in range(grid.n_ranks + 1):
         src, valid = grid.pattern(k)
@@ -142,7 +147,9 @@ def every_path(grid: Grid, problem: RoutingProblem) -> tuple[np.ndarray, np.ndar
         elapsed, costs = leg_costs(problem, lon, lat)
         if not np.all(np.isfinite(costs.time_h)):
             continue
-        h = leg_exposure(problem, lon, lat, elapsed[:-1], costs.time_h, costs.p_f).hazard.sum()
+        h = leg_exposure(
+            exposure or problem, lon, lat, elapsed[:-1], costs.time_h, costs.p_f, marks_h=costs.marks_h
+        ).hazard.sum()
         out.append((elapsed[-1], float(np.max(costs.p_f)), h))
     a = np.array(out)
     return a[:, 0], a[:, 1], a[:, 2]
@@ -198,7 +205,7 @@ def test_voyage_front_equals_every_path_enumerated_on_steady_weather(seed: int) 
     front = voyage_front(grid, problem)
     check_sorted_nondominated(front, "hazard")
     reference = replace(problem, weather=Unsteady(problem.weather, problem.departure))  # nothing screened
-    t, _, h = every_path(grid, reference)
+    t, _, h = every_path(grid, reference, problem)
     same_points([(p.voyage_time_h, p.hazard) for p in front.points], nondominated(t, h))
     # the fastest and the safest paths are on it, and each point's route reports the voyage probability of its label
     assert front.points[0].voyage_time_h == pytest.approx(route_on_grid(grid, problem).voyage_time_h, rel=REL)
@@ -272,7 +279,7 @@ def every_course(sc: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for g in sc.leg_grids():
         problem = sc.problem(grid=g)
         t, m, _ = every_path(g, problem)  # p_f as the router costs it (as for one grid)
-        _, _, h = every_path(g, replace(problem, weather=Unsteady(problem.weather, problem.departure)))
+        _, _, h = every_path(g, replace(problem, weather=Unsteady(problem.weather, problem.departure)), problem)
         per_leg.append((t, m, h))
     (t1, m1, h1), (t2, m2, h2) = per_leg
     return (t1[:, None] + t2).ravel(), np.maximum(m1[:, None], m2).ravel(), (h1[:, None] + h2).ravel()
