@@ -47,7 +47,7 @@ from .crab import steer
 from .crossings import arc_extremes, needs_pieces
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
-from .march import Step, march
+from .march import Marched, Step, march, step_hours
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .weather.base import Conditions, WeatherSource
@@ -576,27 +576,29 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
                 kept[name][at, k] = getattr(cond, name)
         return Step(sog_kn=sog, p_f=p, reason=reason, fired=fired)
 
-    steps = weather.time_steps
-    steps_h = None if steps is None else (steps - o.departure) / np.timedelta64(3600, "s")
     m = march(
         t0_h.reshape(n),
         seg,
         samples,
         speed,
-        None if steps_h is None else np.asarray(steps_h, dtype=float),
+        step_hours(weather.time_steps, o.departure),
         missing_flag=REASONS["weather"],
         failure_flag=REASONS["failure"],
         polar_flag=REASONS["polar"],
     )
-    costs = ArcCosts(
+    cond = Conditions(**{name: kept[name].reshape(shape + (samples,)) for name in names})
+    return _sailed_costs(m, shape), cond
+
+
+def _sailed_costs(m: Marched, shape: tuple[int, ...]) -> ArcCosts:
+    """The costs of arcs sailed by the march (flat), laid out in the block's ``shape``."""
+    return ArcCosts(
         time_h=m.time_h.reshape(shape),
         p_f=m.p_f.reshape(shape),
         reason=m.reason.reshape(shape),
         fired_bits=None if m.fired is None else m.fired.reshape(shape),
-        marks_h=m.marks_h.reshape(shape + (samples + 1,)),
+        marks_h=m.marks_h.reshape(shape + (m.marks_h.shape[-1],)),
     )
-    cond = Conditions(**{name: kept[name].reshape(shape + (samples,)) for name in names})
-    return costs, cond
 
 
 #: A sub-segment length [nm] for :func:`~pyroute_rel.cost_compiled.sail_wind` where only its speeds are wanted.
@@ -634,17 +636,9 @@ def _compiled_march(
         apf=o.apf,
         flags=(REASONS["polar"], REASONS["weather"], REASONS["failure"]),
     )
-    costs = ArcCosts(
-        time_h=m.time_h.reshape(shape),
-        p_f=m.p_f.reshape(shape),
-        reason=m.reason.reshape(shape),
-        fired_bits=None if m.fired is None else m.fired.reshape(shape),
-        marks_h=m.marks_h.reshape(shape + (samples + 1,)),
-    )
     values = {name: kept[r].reshape(shape + (samples,)) for r, name in enumerate(KEPT_FIELDS)}
     zeros = np.zeros(shape + (samples,))
-    cond = Conditions(**values, current_u_ms=zeros, current_v_ms=zeros)
-    return costs, cond
+    return _sailed_costs(m, shape), Conditions(**values, current_u_ms=zeros, current_v_ms=zeros)
 
 
 def _column_sampler(geom: ArcGeometry, weather: WeatherSource, departure: np.datetime64) -> Any:

@@ -59,7 +59,7 @@ import numpy.typing as npt
 from . import geodesy
 from .crab import steer
 from .failure import QUANTITY_FIELDS, FailureModel
-from .march import time_along
+from .march import step_hours, time_along
 from .polar import Polar
 from .times import hours_after
 from .units import KM_PER_NM
@@ -749,7 +749,7 @@ def time_fractions(
     n, samples = marks_h.shape[0], marks_h.shape[1] - 1
     if steps is None or not len(steps) or not n:
         return np.zeros(0, dtype=np.intp), np.zeros(0)
-    steps_h = np.asarray((steps - departure) / np.timedelta64(3600, "s"), dtype=float)
+    steps_h = step_hours(steps, departure)
     marks = np.where(np.isfinite(marks_h), marks_h, -np.inf)
     j = np.searchsorted(steps_h, marks, side="right")  # the first step after each mark
     counts = np.maximum(j[:, 1:] - j[:, :-1], 0)  # steps in (mark k, mark k + 1], per sub-segment

@@ -14,10 +14,10 @@ Where a leg's time goes: each leg of a route is cut into sub-arcs of at most :da
 circle. In weather that changes in time each sub-arc is timed on the times the leg was sailed at (the march of
 :mod:`pyroute_rel.march`: linear between the ends of its sub-segments), the times the failure criteria were judged
 at; in steady weather the cost function times each sub-arc (sampled at its midpoint, as the router samples arcs),
-and the times are scaled so that they add up to the leg's time exactly. Each sub-arc contributes the hazard of the conditions at its
-midpoint (the failure model's ``p_f`` for the heading the craft steers there), so the hours in each condition are
-resolved to the step, not to the grid's legs: the voyage's figure converges as the grid is refined. Waits at a node
-are not counted (the model's conditions need a heading).
+and the times are scaled so that they add up to the leg's time exactly. Each sub-arc contributes the hazard of the
+conditions at its midpoint (the failure model's ``p_f`` for the heading the craft steers there), so the hours in
+each condition are resolved to the step, not to the grid's legs: the voyage's figure converges as the grid is
+refined. Waits at a node are not counted (the model's conditions need a heading).
 
 References
 ----------

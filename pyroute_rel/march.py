@@ -55,6 +55,7 @@ __all__ = [
     "Step",
     "march",
     "next_steps",
+    "step_hours",
     "time_along",
 ]
 
@@ -139,6 +140,18 @@ def time_along(marks_h: FloatArray, fraction: npt.ArrayLike) -> FloatArray:
     hi = np.take_along_axis(marks, k + 1, axis=1)
     out = lo + (x - k) * (hi - lo)
     return out[:, 0] if flat else out
+
+
+def step_hours(steps: npt.NDArray[np.datetime64] | None, departure: np.datetime64) -> FloatArray | None:
+    """A weather's :attr:`~pyroute_rel.weather.WeatherSource.time_steps` as hours after ``departure`` [h] (None:
+    none).
+
+    >>> step_hours(np.array(["2018-06-01T03", "2018-06-01T09"], "datetime64[ns]"), np.datetime64("2018-06-01")).tolist()
+    [3.0, 9.0]
+    """
+    if steps is None:
+        return None
+    return np.asarray((steps - np.datetime64(departure, "ns")) / np.timedelta64(3600, "s"), dtype=float)
 
 
 def next_steps(steps_h: FloatArray | None, t_h: FloatArray) -> FloatArray:

@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from .cost_compiled import evidence_point, judge_tables, model_rules
 from .failure import FailureModel
-from .march import MIN_STEP_H, SPEED_CHANGE, Marched
+from .march import MIN_STEP_H, SPEED_CHANGE, Marched, step_hours
 from .polar import MIN_SPEED_KN, Polar
 from .polar_compiled import fold_twa, speed_kn, tables
 from .units import KN_PER_MS
@@ -124,8 +124,9 @@ def march_gridded(
         source = np.array([KEPT_FIELDS.index(a) for a in attrs], dtype=np.intp)
         p_flat, over, bits = judge_tables(failure, apf)
     shift = (np.datetime64(departure, "ns") - b.t0) / np.timedelta64(1, "s")
-    steps = weather.time_steps
-    steps_h = np.zeros(0) if steps is None else np.asarray((steps - departure) / np.timedelta64(3600, "s"), float)
+    steps_h = step_hours(weather.time_steps, departure)
+    if steps_h is None:
+        steps_h = np.zeros(0)
     twa_tab, tws_tab, speed_tab, twa_inv, tws_inv = tables(polar)
     field = (b.flat, np.int64(b.n_fields), b.time_s, float(shift), w.base, w.sx, w.sy, w.wx, w.wy, w.ok)
     cols = (np.int64(col["wind_u_ms"]), np.int64(col["wind_v_ms"]), kinds, col_a, col_b)
