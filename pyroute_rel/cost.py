@@ -559,8 +559,8 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
     names = [f.name for f in dataclass_fields(Conditions)]
     kept = {name: np.full((n, samples), 0.0 if name.startswith("current") else np.nan) for name in names}
 
-    wind_only = _wind_only(o) and isinstance(weather, GriddedWeather)
-    if wind_only:  # TWA and polar speed in compiled code (the same numbers: pyroute_rel.cost_compiled)
+    wind_only = _wind_only(o)
+    if wind_only:  # TWA and polar speed in compiled code, as the compiled march has them (pyroute_rel.cost_compiled)
         from .cost_compiled import sail_wind
 
     def speed(k: int, idx: npt.NDArray[np.intp] | None, t_h: FloatArray, judge: bool) -> Step:

@@ -335,7 +335,11 @@ def test_evaluate_in_a_member_the_mean_and_monte_carlo_from_the_members_spread(t
     got = json.loads(capsys.readouterr().out)
     mc = got["monte_carlo"]
     assert mc["settings"]["wind_spread"] == "ensemble members"
-    assert mc["arrival_h"]["p5"] == mc["arrival_h"]["worst"] == mc["deterministic_h"] == got["voyage_time_h"]
+    # identical members: the wind errors drawn from their spread are ~1e-15 m/s (rounding in the spread), not 0, so the
+    # runs agree with the deterministic time to rounding (the march's steps may round differently), not to the bit
+    assert mc["deterministic_h"] == got["voyage_time_h"]
+    for q in ("p5", "p50", "worst"):
+        assert mc["arrival_h"][q] == pytest.approx(got["voyage_time_h"], rel=1e-13)
     assert main(["evaluate", str(wide), str(track), *mc_args]) == 0
     mc = json.loads(capsys.readouterr().out)["monte_carlo"]
     spread = mc["arrival_h"]

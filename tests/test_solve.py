@@ -274,7 +274,7 @@ def test_time_expanded_dp_waits_out_a_storm_and_matches_brute_force() -> None:
     grid = make_grid(START_PT, (-30.0, 30.0), n_ranks=2, n_nodes=3, spacing_km=60.0)
     polar = get_polar("maribot_vane")
     storm = {"failure": load_failure_model("dickson2018"), "apf": 0.5}
-    plain = RoutingProblem(departure=DEP, weather=PassingStorm(), polar=polar, samples=4, **storm)
+    plain = RoutingProblem(departure=DEP, weather=PassingStorm(), polar=polar, samples=2, **storm)
     # without waiting at a node the storm band forbids every arc when the craft gets there: no route
     with pytest.raises(NoFeasibleRouteError):
         route_on_grid(grid, plain)
@@ -283,7 +283,7 @@ def test_time_expanded_dp_waits_out_a_storm_and_matches_brute_force() -> None:
         departure=DEP,
         weather=PassingStorm(),
         polar=polar,
-        samples=4,
+        samples=2,
         time_step_h=step,
         max_wait_h=max_wait,
         **storm,
