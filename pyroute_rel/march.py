@@ -6,11 +6,16 @@ the weather is sampled) and the time to cross it is integrated along the time th
 
 1. **Predictor.** At the time ``t`` the craft starts (or goes on with) the sub-segment, the speed over ground
    ``v(t)`` at the sample point gives the time ``h = r / v(t)`` to sail the ``r`` [nm] left.
-2. **Cut at the weather's time steps.** Between two time steps of a weather file every field is linear in time; its
-   trend changes at the steps. When ``t + h`` passes the next step, the step is cut there: ``h = t_next - t``.
+2. **Cut at the weather's time steps while the craft crawls.** Between two time steps of a weather file every field
+   is linear in time. A craft slower than :data:`SPEED_FLOOR_KN` (in irons, in a calm) has its step end at the next
+   time step, where it is judged again; a craft under way is timed across time steps, and the halving below resolves
+   any change of trend within its step (cutting every step of an hourly file multiplied the steps by ten on long
+   arcs, for no measurable gain).
 3. **Corrector (midpoint rule).** The speed is taken again at the step's middle time, ``v_m = v(t + h / 2)``: an
    uncut step takes ``r / v_m``; a cut step makes ``v_m h`` of progress (finishing the sub-segment at
-   ``t + r / v_m`` if that is enough) and the march goes on from ``t_next``.
+   ``t + r / v_m`` if that is enough) and the march goes on from its end. Where ``v_m`` differs from the speed at the
+   step's start by more than :data:`SPEED_CHANGE` of the larger (or of :data:`SPEED_FLOOR_KN`), the step is tried
+   again with half the time, down to :data:`MIN_STEP_H`.
 4. **No progress, no borrowing.** Where the polar gives no speed (head to wind, calm) or the current holds the craft,
    it makes no progress until the next time step, and is judged again there; it never takes a later wind to cross
    now. An arc on which the craft can make no progress before the weather's last time step is forbidden (the
@@ -23,8 +28,8 @@ the times this march gives at the sub-segment ends (:attr:`Marched.marks_h`).
 
 Why the midpoint rule: it is second order in the step (the time at the middle of a step is known to first order
 from the predictor, which is all the midpoint rule needs), costs two samples a step, and is exact for a speed linear
-in time. Cutting at the file's time steps keeps every step inside one linear piece of the interpolant, so the error
-does not depend on where the steps fall; a craft crawling in a near-calm is re-judged at each time step instead of
+in time. The halving bounds how much the speed may change within a step, wherever the change comes from (a change
+of trend at a time step, a polar kink); a craft crawling in a near-calm is re-judged at each time step instead of
 being costed with a wind hours ahead. The steps are at most a sub-segment long, so the reported time converges to
 the continuously sailed track as the sample spacing shrinks (docs/method.md gives the measured error against 100 m
 steps).
@@ -51,6 +56,7 @@ __all__ = [
     "MAX_WAIT_H",
     "MIN_STEP_H",
     "SPEED_CHANGE",
+    "SPEED_FLOOR_KN",
     "Marched",
     "Step",
     "march",
@@ -67,8 +73,13 @@ MAX_STEP_H = 1.0
 MAX_WAIT_H = 720.0
 
 #: Largest change of the speed over ground between a step's start and its middle, relative to the larger of the two
-#: [-]: a step over which the speed changes more is tried again with half the time (down to :data:`MIN_STEP_H`).
+#: (and of :data:`SPEED_FLOOR_KN`) [-]: a step over which the speed changes more is tried again with half the time
+#: (down to :data:`MIN_STEP_H`).
 SPEED_CHANGE = 0.1
+
+#: The speed below which changes are measured against it rather than against the speed [kn]: a craft crawling in
+#: irons (a few hundredths of a knot) is not re-timed in minutes for changes that move it a few metres.
+SPEED_FLOOR_KN = 1.0
 
 #: Shortest step [h] the march halves a step down to.
 MIN_STEP_H = 0.05
@@ -221,7 +232,9 @@ def march(
             v0 = first.sog_kn
             with np.errstate(divide="ignore", invalid="ignore"):
                 hp = np.where(v0 > 0.0, r / v0, np.inf)
-                h = np.minimum(np.minimum(hp, nxt - tk), c)
+                # a craft under way is timed across the file's time steps (the halving below resolves a change of
+                # trend); a crawling or held one is judged again at each time step
+                h = np.minimum(np.minimum(hp, np.where(v0 < SPEED_FLOOR_KN, nxt, np.inf) - tk), c)
                 if steps_h is None:  # no time step to wait for: look again a while later, for a while
                     wait = ~(v0 > 0.0) & (tk - t_sub[at] < MAX_WAIT_H)
                     h = np.where(wait, np.minimum(MAX_STEP_H, c), h)
@@ -232,7 +245,8 @@ def march(
             missing = ((first.reason | mid.reason) & np.uint8(missing_flag)) != 0
             with np.errstate(invalid="ignore", divide="ignore"):
                 # the speed changes too much within the step for its middle to stand for it: try half the step
-                rough = (np.abs(vm - v0) > SPEED_CHANGE * np.fmax(vm, v0)) & (h > MIN_STEP_H) & ~stuck & ~missing
+                scale = np.fmax(np.fmax(vm, v0), SPEED_FLOOR_KN)
+                rough = (np.abs(vm - v0) > SPEED_CHANGE * scale) & (h > MIN_STEP_H) & ~stuck & ~missing
                 ok = ~rough
                 moves = vm > 0.0
                 done = ok & moves & (~cut | (vm * h >= r)) & ~missing & ~stuck

@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from .cost_compiled import evidence_point, judge_tables, model_rules
 from .failure import FailureModel
-from .march import MIN_STEP_H, SPEED_CHANGE, Marched, step_hours
+from .march import MIN_STEP_H, SPEED_CHANGE, SPEED_FLOOR_KN, Marched, step_hours
 from .polar import MIN_SPEED_KN, Polar
 from .polar_compiled import fold_twa, speed_kn, tables
 from .units import KN_PER_MS
@@ -132,7 +132,7 @@ def march_gridded(
     cols = (np.int64(col["wind_u_ms"]), np.int64(col["wind_v_ms"]), kinds, col_a, col_b)
     pol = (twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, beyond == "forbid", MIN_SPEED_KN)
     model = (source, relative, edges, n_edges, contrib, right, fill, p_flat, over, bits)
-    rule = (*(np.uint8(f) for f in flags), SPEED_CHANGE, MIN_STEP_H, KN_PER_MS)
+    rule = (*(np.uint8(f) for f in flags), SPEED_CHANGE, SPEED_FLOOR_KN, MIN_STEP_H, KN_PER_MS)
     out = (np.empty(n), np.empty((n, samples + 1)), np.empty(n), np.zeros(n, np.uint8), np.zeros(n, np.uint32))
     kept = np.full((len(KEPT_FIELDS), n * samples), np.nan)
     arcs = (
@@ -187,7 +187,7 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
     cu, cv, kinds, col_a, col_b = cols
     twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed = pol
     source, relative, edges, n_edges, contrib, right, fill, p_flat, over, bits = model
-    polar_flag, weather_flag, failure_flag, speed_change, min_step, kn = rule
+    polar_flag, weather_flag, failure_flag, speed_change, floor, min_step, kn = rule
     course, seg, t0, samples, steps_h = arcs
     time_out, marks_out, p_out, reason_out, fired_out = out
     n_steps = steps_h.size
@@ -223,7 +223,7 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                 tws0, twd0 = speed_bearing(-1.0 * u, -1.0 * v, kn)
                 v0, r0 = _sog(tws0, twd0, course[pk], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
                 hp = r / v0 if v0 > 0.0 else np.inf
-                h = min(min(hp, nxt - tk), cap)
+                h = min(min(hp, (nxt if v0 < floor else np.inf) - tk), cap)
                 cut = h < hp
                 stuck = not np.isfinite(h)
                 tm = tk if stuck else tk + 0.5 * h
@@ -251,7 +251,8 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                             rm |= failure_flag
                             fm = bits[ev]
                 missing = ((r0 | rm) & weather_flag) != 0
-                rough = abs(vm - v0) > speed_change * _fmax(vm, v0) and h > min_step and not stuck and not missing
+                scale = max(_fmax(vm, v0), floor)  # (max drops a NaN scale: then the step is missing anyway)
+                rough = abs(vm - v0) > speed_change * scale and h > min_step and not stuck and not missing
                 moves = vm > 0.0
                 done = (not rough) and moves and ((not cut) or vm * h >= r) and not missing and not stuck
                 progress = vm * h if ((not rough) and cut and moves) else 0.0
