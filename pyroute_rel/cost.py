@@ -51,7 +51,6 @@ from .march import Marched, Step, march, step_hours
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .weather.base import Conditions, WeatherSource
-from .weather.gridded import GriddedWeather
 
 __all__ = [
     "ArcCosts",
@@ -617,7 +616,7 @@ def _compiled_march(
     from .march_compiled import KEPT_FIELDS, march_gridded
 
     o, weather = options, options.weather
-    assert isinstance(weather, GriddedWeather)
+    assert type(weather).__name__ == "GriddedWeather"  # (usable() checked it; gridded is imported lazily, with numba)
     shape, samples = geom.shape, geom.samples
     n = math.prod(shape)
     prepared = _located(geom, weather)
@@ -650,6 +649,8 @@ def _column_sampler(geom: ArcGeometry, weather: WeatherSource, departure: np.dat
     query from its own member or run), and the points wanted are taken from its answer."""
     shape, samples = geom.shape, geom.samples
     n = math.prod(shape)
+    from .weather.gridded import GriddedWeather  # here: importing it loads numba, which steady routes never need
+
     if isinstance(weather, GriddedWeather):
         prepared = _located(geom, weather)
         columns: dict[int, Any] = {}
