@@ -15,7 +15,8 @@ the weather is sampled) and the time to cross it is integrated along the time th
    uncut step takes ``r / v_m``; a cut step makes ``v_m h`` of progress (finishing the sub-segment at
    ``t + r / v_m`` if that is enough) and the march goes on from its end. Where ``v_m`` differs from the speed at the
    step's start by more than :data:`SPEED_CHANGE` of the larger (or of :data:`SPEED_FLOOR_KN`), the step is tried
-   again with half the time, down to :data:`MIN_STEP_H`.
+   again with half the time, down to :data:`MIN_STEP_H` (the speed alone decides this; a step tried again judges
+   nothing and stops nothing).
 4. **No progress, no borrowing.** Where the polar gives no speed (head to wind, calm) or the current holds the craft,
    it makes no progress until the next time step, and is judged again there; it never takes a later wind to cross
    now. An arc on which the craft can make no progress before the weather's last time step is forbidden (the
@@ -246,7 +247,10 @@ def march(
             with np.errstate(invalid="ignore", divide="ignore"):
                 # the speed changes too much within the step for its middle to stand for it: try half the step
                 scale = np.fmax(np.fmax(vm, v0), SPEED_FLOOR_KN)
-                rough = (np.abs(vm - v0) > SPEED_CHANGE * scale) & (h > MIN_STEP_H) & ~stuck & ~missing
+                # (on the speed alone: NaN where the wind is missing compares False; fields only the failure
+                # model judges, missing at the middle of a step taken, stop the arc there)
+                rough = (np.abs(vm - v0) > SPEED_CHANGE * scale) & (h > MIN_STEP_H) & ~stuck
+                missing &= ~rough  # (a step tried again stops nothing)
                 ok = ~rough
                 moves = vm > 0.0
                 done = ok & moves & (~cut | (vm * h >= r)) & ~missing & ~stuck

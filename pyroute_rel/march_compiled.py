@@ -148,33 +148,39 @@ def march_gridded(
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, k, t_h, c):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Stored column ``c`` at point ``k`` and time ``t_h`` [h], as the sampling kernel interpolates it (NaN
-    outside)."""
+def _time_cell(t_axis, t_first, t_inv, shift, nf, t_h):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """(inside, offset, step, weight): where time ``t_h`` [h] falls on the block's time axis, as the sampling kernel
+    finds it: whether it is on the axis, the offset of its time index in the stored values (``index * nf``), the
+    offset to the next time (0 at the last) and the next time's weight. No time axis: (True, 0, 0, 0.0)."""
     nt = t_axis.size
-    it = 0
-    wt = 0.0
-    if not ok[k]:
-        return np.nan
-    if nt > 0:
-        x = t_h * 3600.0 + shift
-        if not (t_axis[0] <= x <= t_axis[nt - 1]):
-            return np.nan
-        t_inv = (nt - 1) / (t_axis[nt - 1] - t_axis[0]) if nt > 1 else 1.0
-        it, wt = axis_cell(t_axis, t_axis[0], t_inv, x)
-    st = np.uint64(nf) if wt > 0.0 else np.uint64(0)
-    b0 = np.uint64(base[k] + it * nf)
-    ax = wx[k]
-    ay = wy[k]
-    c00 = (1.0 - ax) * (1.0 - ay)
-    c10 = ax * (1.0 - ay)
-    c01 = (1.0 - ax) * ay
-    c11 = ax * ay
-    b10 = b0 + np.uint64(sx[k])
-    b01 = b0 + np.uint64(sy[k])
-    b11 = b10 + np.uint64(sy[k])
-    f = np.uint64(c)
-    return lerp(flat, b0 + f, b10 + f, b01 + f, b11 + f, st, c00, c10, c01, c11, 1.0 - wt, wt)
+    if nt == 0:
+        return True, np.uint64(0), np.uint64(0), 0.0
+    x = t_h * 3600.0 + shift
+    if not (t_axis[0] <= x <= t_axis[nt - 1]):
+        return False, np.uint64(0), np.uint64(0), 0.0
+    it, wt = axis_cell(t_axis, t_first, t_inv, x)
+    return True, np.uint64(it * nf), np.uint64(nf) if wt > 0.0 else np.uint64(0), wt
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _column(flat, corners, weights, at, st, wt, c):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Stored column ``c`` at a point whose four corners (offsets) and weights are ``corners``, ``weights``, at the
+    time cell ``at``, ``st``, ``wt`` (:func:`_time_cell`): the sampling kernel's trilinear arithmetic."""
+    f = at + np.uint64(c)
+    return lerp(
+        flat,
+        corners[0] + f,
+        corners[1] + f,
+        corners[2] + f,
+        corners[3] + f,
+        st,
+        weights[0],
+        weights[1],
+        weights[2],
+        weights[3],
+        1.0 - wt,
+        wt,
+    )
 
 
 @numba.njit(nogil=True, cache=True)
@@ -182,7 +188,12 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
     """:func:`march_gridded` into ``out`` (time, marks, p_f, reason, fired) and ``kept``, arc after arc, sub-segment
     after sub-segment, step after step (:func:`pyroute_rel.march.march`'s steps); returns whether any sample was
     judged above apf (fired criteria). One flat loop: split into helpers taking these tuples, numba compiled it 4x
-    slower and ran it 2x slower (measured)."""
+    slower and ran it 2x slower (measured).
+
+    What the numpy march computes and this loop does not (the same numbers): the sample point's corners and weights
+    are found once per sub-segment, the time's cell once per time for every field, the speed at a step's start is
+    not sampled again when a step is tried again shorter (the same time), and the fields the failure model judges
+    are sampled only at the middle of a step that is taken (not one tried again)."""
     flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok = field
     cu, cv, kinds, col_a, col_b = cols
     twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed = pol
@@ -191,6 +202,9 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
     course, seg, t0, samples, steps_h = arcs
     time_out, marks_out, p_out, reason_out, fired_out = out
     n_steps = steps_h.size
+    nt = t_axis.size
+    t_first = t_axis[0] if nt > 0 else 0.0
+    t_inv = (nt - 1) / (t_axis[nt - 1] - t_axis[0]) if nt > 1 else 1.0
     judged = source.size > 0
     no_progress = np.uint8(~(weather_flag | failure_flag) & 0xFF)
     vals = np.empty(kept.shape[0])
@@ -210,38 +224,60 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                 marks_out[i, k + 1] = start + e
                 continue
             pk = i * samples + k
+            # the sample point: its four corners and weights (the same for every step of the sub-segment)
+            here = ok[pk]
+            ax = wx[pk]
+            ay = wy[pk]
+            b00 = np.uint64(base[pk])
+            b10 = b00 + np.uint64(sx[pk])
+            b01 = b00 + np.uint64(sy[pk])
+            b11 = b10 + np.uint64(sy[pk])
+            corners = (b00, b10, b01, b11)
+            weights = ((1.0 - ax) * (1.0 - ay), ax * (1.0 - ay), (1.0 - ax) * ay, ax * ay)
+            crs = course[pk]
             r = seg[i]
             cap = np.inf
+            t_pred = np.nan  # the time of the last predictor (a step tried again starts at the same time)
+            v0 = np.nan
+            r0 = np.uint8(0)
             while True:
                 tk = start + e
                 while j < n_steps and steps_h[j] <= tk:
                     j += 1
                 nxt = steps_h[j] if j < n_steps else np.inf
                 # predictor: the speed here and now (the wind only)
-                u = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tk, cu)
-                v = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tk, cv)
-                tws0, twd0 = speed_bearing(-1.0 * u, -1.0 * v, kn)
-                v0, r0 = _sog(tws0, twd0, course[pk], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
+                if tk != t_pred:
+                    wind0 = _wind(flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, tk, cu, cv, kn)
+                    tws0, twd0 = wind0[0], wind0[1]
+                    v0, r0 = _sog(tws0, twd0, crs, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
+                    t_pred = tk
                 hp = r / v0 if v0 > 0.0 else np.inf
                 h = min(min(hp, (nxt if v0 < floor else np.inf) - tk), cap)
                 cut = h < hp
                 stuck = not np.isfinite(h)
                 tm = tk if stuck else tk + 0.5 * h
-                # corrector: the speed, and what the failure model says, at the step's middle
-                _conditions(
-                    flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, tm, cu, cv, kinds, col_a, col_b, kn, vals
+                # corrector: the speed at the step's middle
+                tws_m, twd_m, inside, at, st, wt = _wind(
+                    flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, tm, cu, cv, kn
                 )
+                vm, rm = _sog(tws_m, twd_m, crs, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
+                scale = max(_fmax(vm, v0), floor)  # (max drops a NaN scale: then the comparison is False)
+                rough = abs(vm - v0) > speed_change * scale and h > min_step and not stuck
+                if rough:  # tried again with half the time, from the same start
+                    cap = 0.5 * h
+                    continue
+                # a step taken: what the failure model says where and when the craft is
+                vals[0] = tws_m
+                vals[1] = twd_m
+                _fields(flat, corners, weights, at, st, wt, inside, kinds, col_a, col_b, vals)
                 for q in range(kinds.size):
                     kept[q, pk] = vals[q]
-                vm, rm = _sog(
-                    vals[0], vals[1], course[pk], twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed
-                )
                 pm = 0.0
                 fm = np.uint32(0)
                 if judged:
                     for c in range(source.size):
                         judged_vals[c] = vals[source[c]]
-                    ev, lost = evidence_point(judged_vals, relative, course[pk], edges, n_edges, contrib, right, fill)
+                    ev, lost = evidence_point(judged_vals, relative, crs, edges, n_edges, contrib, right, fill)
                     if lost:
                         pm = np.nan
                         rm |= weather_flag
@@ -251,12 +287,10 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                             rm |= failure_flag
                             fm = bits[ev]
                 missing = ((r0 | rm) & weather_flag) != 0
-                scale = max(_fmax(vm, v0), floor)  # (max drops a NaN scale: then the step is missing anyway)
-                rough = abs(vm - v0) > speed_change * scale and h > min_step and not stuck and not missing
                 moves = vm > 0.0
-                done = (not rough) and moves and ((not cut) or vm * h >= r) and not missing and not stuck
-                progress = vm * h if ((not rough) and cut and moves) else 0.0
-                if (not rough) and not stuck:
+                done = moves and ((not cut) or vm * h >= r) and not missing and not stuck
+                progress = vm * h if (cut and moves) else 0.0
+                if not stuck:
                     if p_arc == p_arc and (pm != pm or pm > p_arc):  # np.maximum: NaN wins
                         p_arc = pm
                     flags_arc |= rm & failure_flag
@@ -264,10 +298,7 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                         fired_arc |= fm
                         any_fired = True
                 wait_for_ever = (
-                    (not rough)
-                    and not done
-                    and not missing
-                    and (stuck or ((not cut) and (not moves) and not np.isfinite(nxt)))
+                    (not done) and not missing and (stuck or ((not cut) and (not moves) and not np.isfinite(nxt)))
                 )
                 if missing:
                     flags_arc |= weather_flag
@@ -280,10 +311,9 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                 if done:
                     e = e + r / vm
                     break
-                if not rough:
-                    e = e + h
+                e = e + h
                 r = r - progress
-                cap = 0.5 * h if rough else (2.0 * cap if h >= cap else np.inf)
+                cap = 2.0 * cap if h >= cap else np.inf
             marks_out[i, k + 1] = start + e
         time_out[i] = e if (going and flags_arc == 0) else np.inf
         p_out[i] = p_arc
@@ -293,22 +323,34 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _conditions(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cu, cv, kinds, col_a, col_b, kn, vals):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """The fields :data:`KEPT_FIELDS` at point ``pk`` and time ``t_h`` [h] into ``vals`` (NaN where not wanted):
-    the wind turned into speed [kn] and direction, stored columns, a direction from its sine and cosine."""
-    for q in range(kinds.size):
+def _wind(flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, t_h, cu, cv, kn):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The wind's speed [kn] and direction [deg] at a point (``here``: on the block) and time ``t_h`` [h], as the
+    sampling kernel turns u and v (NaN outside), and the time's cell (inside, offset, step, weight)."""
+    inside, at, st, wt = _time_cell(t_axis, t_first, t_inv, shift, nf, t_h)
+    inside = here and inside
+    u = np.nan
+    v = np.nan
+    if inside:
+        u = _column(flat, corners, weights, at, st, wt, cu)
+        v = _column(flat, corners, weights, at, st, wt, cv)
+    tws, twd = speed_bearing(-1.0 * u, -1.0 * v, kn)
+    return tws, twd, inside, at, st, wt
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def _fields(flat, corners, weights, at, st, wt, inside, kinds, col_a, col_b, vals):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The fields :data:`KEPT_FIELDS` after the wind (rows 2 on) at a point and time cell into ``vals``: a stored
+    column, a direction from its sine and cosine, NaN where not wanted (or outside the block)."""
+    for q in range(2, kinds.size):
         kind = kinds[q]
-        if kind == 2:
-            vals[q] = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_a[q])
-        elif kind == 3:
-            s_ = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_a[q])
-            c_ = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, col_b[q])
-            vals[q] = speed_bearing(s_, c_, 1.0)[1]
-        else:
+        if not inside or kind < 2:
             vals[q] = np.nan
-    u = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cu)
-    v = _sample(flat, nf, t_axis, shift, base, sx, sy, wx, wy, ok, pk, t_h, cv)
-    vals[0], vals[1] = speed_bearing(-1.0 * u, -1.0 * v, kn)
+        elif kind == 2:
+            vals[q] = _column(flat, corners, weights, at, st, wt, col_a[q])
+        else:
+            s_ = _column(flat, corners, weights, at, st, wt, col_a[q])
+            c_ = _column(flat, corners, weights, at, st, wt, col_b[q])
+            vals[q] = speed_bearing(s_, c_, 1.0)[1]
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
