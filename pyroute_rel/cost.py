@@ -549,9 +549,10 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
     if COMPILED_MARCH:
         from .march_compiled import usable
 
-        block = usable(weather, o.failure, _wind_only(o))
+        inner, errors = _wind_errors(weather, shape)
+        block = usable(inner, o.failure, _wind_only(o))
         if block is not None:
-            return _compiled_march(geom, t0_h, options, block, course, seg)
+            return _compiled_march(geom, t0_h, options, inner, block, course, seg, errors)
     timing = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ())
     judged = timing if o.failure is None else timing + tuple(sorted(o.failure.weather_fields - set(timing)))
     sample = _column_sampler(geom, weather, o.departure)
@@ -609,13 +610,37 @@ _ONE_NM = np.ones(1)
 COMPILED_MARCH = True
 
 
+def _wind_errors(weather: WeatherSource, shape: tuple[int, ...]) -> tuple[Any, tuple[FloatArray, FloatArray] | None]:
+    """The source the compiled march samples and the wind error east and north [kn] it adds at each arc (flat), for
+    a source that offsets its wind per row of the query (:meth:`pyroute_rel.monte_carlo.PerturbedWind.wind_errors`;
+    None: no error)."""
+    errors = getattr(type(weather), "wind_errors", None)
+    found = None if errors is None else errors(weather)
+    if found is None:
+        return weather, None
+    inner, east, north = found
+    n = math.prod(shape)
+    rows = (slice(None),) + (None,) * (len(shape) - 1)
+    return inner, tuple(
+        np.ascontiguousarray(np.broadcast_to(np.asarray(e, dtype=float)[rows], shape).reshape(n)) for e in (east, north)
+    )
+
+
 def _compiled_march(
-    geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions, block: int, course: FloatArray, seg: FloatArray
+    geom: ArcGeometry,
+    t0_h: FloatArray,
+    options: _CostOptions,
+    weather: Any,
+    block: int,
+    course: FloatArray,
+    seg: FloatArray,
+    errors: tuple[FloatArray, FloatArray] | None,
 ) -> tuple[ArcCosts, Conditions]:
-    """:func:`_marched_costs` by :func:`pyroute_rel.march_compiled.march_gridded`."""
+    """:func:`_marched_costs` by :func:`pyroute_rel.march_compiled.march_gridded` over ``weather`` (the options'
+    source, or the source it wraps, whose wind it offsets by ``errors`` [kn] at each arc)."""
     from .march_compiled import KEPT_FIELDS, march_gridded
 
-    o, weather = options, options.weather
+    o = options
     assert type(weather).__name__ == "GriddedWeather"  # (usable() checked it; gridded is imported lazily, with numba)
     shape, samples = geom.shape, geom.samples
     n = math.prod(shape)
@@ -634,6 +659,7 @@ def _compiled_march(
         failure=o.failure,
         apf=o.apf,
         flags=(REASONS["polar"], REASONS["weather"], REASONS["failure"]),
+        wind_error_kn=errors,
     )
     values = {name: kept[r].reshape(shape + (samples,)) for r, name in enumerate(KEPT_FIELDS)}
     zeros = np.zeros(shape + (samples,))

@@ -16,6 +16,7 @@ block); :func:`pyroute_rel.cost.geometry_costs` uses the numpy march for everyth
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numba
@@ -76,6 +77,7 @@ def march_gridded(
     failure: FailureModel | None,
     apf: float,
     flags: tuple[int, int, int],
+    wind_error_kn: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[Marched, FloatArray]:
     """:func:`pyroute_rel.march.march` of ``n`` arcs in a gridded weather, in one compiled loop.
 
@@ -88,6 +90,8 @@ def march_gridded(
     samples : Sub-segments per arc.
     departure, polar, beyond, failure, apf : The cost settings.
     flags : The reason bits of no speed, missing weather and a failure above apf.
+    wind_error_kn : An error east and north added to the wind at each arc [kn], shape (n,) each, as
+        :class:`~pyroute_rel.monte_carlo.PerturbedWind` adds it (the same arithmetic), or None.
 
     Returns
     -------
@@ -141,6 +145,7 @@ def march_gridded(
         np.ascontiguousarray(t0_h, dtype=np.float64),
         np.int64(samples),
         steps_h,
+        *((np.zeros(0), np.zeros(0)) if wind_error_kn is None else wind_error_kn),
     )
     any_fired = _march_kernel(field, cols, pol, model, rule, arcs, out, kept)
     time_h, marks, p_f, reason, fired = out
@@ -199,7 +204,7 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
     twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed = pol
     source, relative, edges, n_edges, contrib, right, fill, p_flat, over, bits = model
     polar_flag, weather_flag, failure_flag, speed_change, floor, min_step, kn = rule
-    course, seg, t0, samples, steps_h = arcs
+    course, seg, t0, samples, steps_h, err_e, err_n = arcs
     time_out, marks_out, p_out, reason_out, fired_out = out
     n_steps = steps_h.size
     nt = t_axis.size
@@ -210,7 +215,10 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
     vals = np.empty(kept.shape[0])
     judged_vals = np.empty(source.size)
     any_fired = False
+    perturbed = err_e.size > 0
     for i in range(t0.size):
+        de = err_e[i] if perturbed else 0.0
+        dn = err_n[i] if perturbed else 0.0
         start = t0[i] if np.isfinite(t0[i]) else 0.0
         e = 0.0
         marks_out[i, 0] = start
@@ -247,7 +255,24 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                 nxt = steps_h[j] if j < n_steps else np.inf
                 # predictor: the speed here and now (the wind only)
                 if tk != t_pred:
-                    wind0 = _wind(flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, tk, cu, cv, kn)
+                    wind0 = _wind(
+                        flat,
+                        corners,
+                        weights,
+                        here,
+                        t_axis,
+                        t_first,
+                        t_inv,
+                        shift,
+                        nf,
+                        tk,
+                        cu,
+                        cv,
+                        kn,
+                        perturbed,
+                        de,
+                        dn,
+                    )
                     tws0, twd0 = wind0[0], wind0[1]
                     v0, r0 = _sog(tws0, twd0, crs, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
                     t_pred = tk
@@ -258,7 +283,7 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                 tm = tk if stuck else tk + 0.5 * h
                 # corrector: the speed at the step's middle
                 tws_m, twd_m, inside, at, st, wt = _wind(
-                    flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, tm, cu, cv, kn
+                    flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, tm, cu, cv, kn, perturbed, de, dn
                 )
                 vm, rm = _sog(tws_m, twd_m, crs, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
                 scale = max(_fmax(vm, v0), floor)  # (max drops a NaN scale: then the comparison is False)
@@ -323,9 +348,11 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
 
 
 @numba.njit(nogil=True, cache=True, inline="always")
-def _wind(flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, t_h, cu, cv, kn):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _wind(flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, t_h, cu, cv, kn, perturbed, de, dn):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The wind's speed [kn] and direction [deg] at a point (``here``: on the block) and time ``t_h`` [h], as the
-    sampling kernel turns u and v (NaN outside), and the time's cell (inside, offset, step, weight)."""
+    sampling kernel turns u and v (NaN outside), with the error east ``de`` and north ``dn`` [kn] added where
+    ``perturbed`` (as :class:`~pyroute_rel.monte_carlo.PerturbedWind` adds it), and the time's cell (inside, offset,
+    step, weight)."""
     inside, at, st, wt = _time_cell(t_axis, t_first, t_inv, shift, nf, t_h)
     inside = here and inside
     u = np.nan
@@ -334,6 +361,12 @@ def _wind(flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, t_h, 
         u = _column(flat, corners, weights, at, st, wt, cu)
         v = _column(flat, corners, weights, at, st, wt, cv)
     tws, twd = speed_bearing(-1.0 * u, -1.0 * v, kn)
+    if perturbed:
+        rad = math.radians(twd)
+        ue = de - tws * math.sin(rad)  # the wind's velocity (to), east and north [kn]
+        vn = dn - tws * math.cos(rad)
+        tws = math.hypot(ue, vn)
+        twd = math.degrees(math.atan2(-ue, -vn)) % 360.0
     return tws, twd, inside, at, st, wt
 
 

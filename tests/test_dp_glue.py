@@ -338,3 +338,36 @@ def test_a_pickled_geometry_leaves_its_located_points_behind() -> None:
     assert len(pickle.dumps(geom)) == len(pickle.dumps(arcs(6)[0]))  # as a geometry never costed
     np.testing.assert_array_equal(back.lon_deg, geom.lon_deg)
     assert_same_costs(costs(back, t0, w), want)
+
+
+@settings(max_examples=10, derandomize=True, deadline=None, database=None)
+@given(
+    st.integers(0, 2**31),
+    st.integers(1, 3),
+    st.sampled_from([None, "dickson2018"]),
+    st.floats(0.5, 6.0),
+)
+def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
+    seed: int, samples: int, model: str | None, sigma_ms: float
+) -> None:
+    """Monte Carlo's per-run wind error (:class:`~pyroute_rel.monte_carlo.PerturbedWind`) sailed by the compiled march
+    gives the costs of the numpy march sampling the perturbed source (rows are runs)."""
+    from pyroute_rel.monte_carlo import PerturbedWind
+
+    from pyroute_rel.cost import ArcGeometry
+
+    rng = np.random.default_rng(seed)
+    g, t0 = arcs(seed, shape=(6, 5), samples=samples)
+    geom = ArcGeometry(g.lon_deg, g.lat_deg, g.course_deg, g.seg_nm)  # as Monte Carlo builds its legs: no end points
+    east, north = rng.normal(0.0, sigma_ms, 6), rng.normal(0.0, sigma_ms, 6)
+    w = PerturbedWind(weather(seed), east, north)
+    kw = dict(departure=DEP, weather=w, polar=POLAR, failure=None if model is None else load_failure_model(model))
+    got = geometry_costs(geom, t0, apf=0.5, **kw)
+    want = numpy_path(geom, t0, apf=0.5, **kw)
+    assert_same_costs(got, want)
+    np.testing.assert_array_equal(got.marks_h, want.marks_h)
+    # the error matters: without it the times differ
+    plain = geometry_costs(geom, t0, apf=1.0, **{**kw, "weather": weather(seed)})
+    again = geometry_costs(geom, t0, apf=1.0, **kw)
+    both = np.isfinite(plain.time_h) & np.isfinite(again.time_h)
+    assert both.any() and not np.array_equal(plain.time_h[both], again.time_h[both])
