@@ -165,7 +165,7 @@ def test_member_stack_points_are_not_reused_by_a_member() -> None:
 
 
 def test_split_between_threads_the_parts_keep_their_points(located: Located, monkeypatch) -> None:  # type: ignore[no-untyped-def]
-    monkeypatch.setattr(cost_module, "PARALLEL_MIN_ARCS", 1)
+    monkeypatch.setattr(cost_module, "PARALLEL_MIN_MARCHED", 1)
     geom, t0 = arcs(4, shape=(9, 5))
     w1, w2 = weather(1), weather(2)
     one = costs(geom, t0, w1, workers=1)
