@@ -555,9 +555,14 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
         from .march_compiled import usable
 
         inner, errors = _wind_errors(weather, shape)
+        points_from = None
+        view = getattr(type(inner), "compiled_source", None)  # rows from stacked members (pyroute_rel.evaluate)
+        if view is not None and errors is None:
+            joined = view(inner)
+            inner, points_from = (inner, None) if joined is None else (joined, inner)
         block = usable(inner, o.failure, _wind_only(o))
         if block is not None:
-            return _compiled_march(geom, t0_h, options, inner, block, course, seg, errors)
+            return _compiled_march(geom, t0_h, options, inner, block, course, seg, errors, points_from)
     timing = _TIMING_FIELDS + (("hs_m",) if o.wave_loss is not None else ())
     judged = timing if o.failure is None else timing + tuple(sorted(o.failure.weather_fields - set(timing)))
     sample = _column_sampler(geom, weather, o.departure)
@@ -640,16 +645,21 @@ def _compiled_march(
     course: FloatArray,
     seg: FloatArray,
     errors: tuple[FloatArray, FloatArray] | None,
+    points_from: Any = None,
 ) -> tuple[ArcCosts, Conditions]:
     """:func:`_marched_costs` by :func:`pyroute_rel.march_compiled.march_gridded` over ``weather`` (the options'
-    source, or the source it wraps, whose wind it offsets by ``errors`` [kn] at each arc)."""
+    source, or the source it wraps, whose wind it offsets by ``errors`` [kn] at each arc; or the data of stacked
+    members, whose points ``points_from`` locates, each row in its member's data)."""
     from .march_compiled import KEPT_FIELDS, march_gridded
 
     o = options
     assert type(weather).__name__ == "GriddedWeather"  # (usable() checked it; gridded is imported lazily, with numba)
     shape, samples = geom.shape, geom.samples
     n = math.prod(shape)
-    prepared = _located(geom, weather)
+    if points_from is None:
+        prepared = _located(geom, weather)
+    else:
+        prepared = points_from.prepare(np.broadcast_to(geom.lon_deg, shape + (samples,)), geom.lat_deg)
     m, kept = march_gridded(
         weather,
         block,

@@ -929,6 +929,11 @@ class _MemberRows:
         stack = None if self.stack is None else (self.stack[0], self.stack[1][rows])
         return _MemberRows(sources, cuts, stack)
 
+    def compiled_source(self) -> Any:
+        """With the members stacked, the gridded source whose data points located by :meth:`prepare` index (the
+        compiled march samples it there: :mod:`pyroute_rel.march_compiled`); else None."""
+        return None if self.stack is None else self.stack[0].joined
+
     def prepare(self, lon_deg: Any, lat_deg: Any) -> Any:
         lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
         if self.stack is not None:

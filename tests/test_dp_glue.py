@@ -371,3 +371,40 @@ def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
     again = geometry_costs(geom, t0, apf=1.0, **kw)
     both = np.isfinite(plain.time_h) & np.isfinite(again.time_h)
     assert both.any() and not np.array_equal(plain.time_h[both], again.time_h[both])
+
+
+@settings(max_examples=8, derandomize=True, deadline=None, database=None)
+@given(st.integers(0, 2**31), st.integers(1, 3), st.sampled_from([None, "dickson2018"]))
+def test_compiled_march_sails_rows_in_stacked_members_as_the_numpy_march(
+    seed: int, samples: int, model: str | None
+) -> None:
+    """Rows of a query answered by different members of an ensemble, stacked (how ``sail_in_members`` sails every
+    track in every member): the compiled march reads each row in its member's data and gives the numpy march's
+    costs, each row those of its member alone."""
+    from pyroute_rel.cost import ArcGeometry
+    from pyroute_rel.evaluate import _MemberRows
+
+    members = [weather(seed + m) for m in range(3)]
+    g, t0 = arcs(seed, shape=(6, 5), samples=samples)
+    flat = [a.reshape(30, -1) for a in (g.lon_deg, g.lat_deg, g.course_deg)]
+    geom = ArcGeometry(*flat, g.seg_nm.reshape(30, 1))
+    t0 = t0.reshape(30)
+    of = np.repeat(np.arange(3), 10)  # rows 0-9 in member 0, 10-19 in member 1, ...
+    rows = _MemberRows(members, np.array([0, 10, 20, 30]), (stack_members(members), of))
+    kw = dict(departure=DEP, polar=POLAR, failure=None if model is None else load_failure_model(model), apf=0.5)
+    import pyroute_rel.march_compiled as march_compiled
+
+    calls = []
+    with pytest.MonkeyPatch.context() as mp:  # the compiled march does sail them
+        kernel = march_compiled.march_gridded
+        mp.setattr(march_compiled, "march_gridded", lambda *a, **k: calls.append(1) or kernel(*a, **k))
+        got = geometry_costs(geom, t0, weather=rows, **kw)
+    assert calls
+    want = numpy_path(geom, t0, weather=rows, **kw)
+    assert_same_costs(got, want)
+    np.testing.assert_array_equal(got.marks_h, want.marks_h)
+    for m in range(3):  # and each row is its member's own
+        part = slice(10 * m, 10 * (m + 1))
+        one = ArcGeometry(*(a[part] for a in flat), geom.seg_nm[part])
+        alone = geometry_costs(one, t0[part], weather=members[m], **kw)
+        np.testing.assert_array_equal(got.time_h[part], alone.time_h)

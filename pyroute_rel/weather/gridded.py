@@ -965,6 +965,12 @@ class MemberStack:
         """Memory held by the stacked data [bytes]."""
         return sum(b.flat.nbytes for b in self._joined._blocks)
 
+    @property
+    def joined(self) -> GriddedWeather:
+        """The first source's grids over every source's data: what points located by :meth:`prepare` index (the
+        compiled march, :mod:`pyroute_rel.march_compiled`, reads it)."""
+        return self._joined
+
     def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, member: npt.ArrayLike) -> PreparedPoints:
         """Locate points (as :meth:`GriddedWeather.prepare`) whose rows (first axis) are in members ``member``
         (one index per row), for :meth:`sample_at`."""
