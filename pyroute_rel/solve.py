@@ -42,7 +42,6 @@ from .cost import (
     WaveLoss,
     arc_costs,
     arc_geometry,
-    arc_quantities,
     deferred_costs,
     geometry_costs,
     geometry_from_xyz,
@@ -1464,9 +1463,13 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
     parts: list[str] = []
     failure_arcs = live & (reason & REASONS["failure"] != 0)
     if problem.failure is not None and failure_arcs.any():
-        counts = _criteria_counts(grid, problem, k, t0, failure_arcs)
-        # the criteria are counted at the arcs' samples at their departure: an arc refused for conditions met
-        # later along it, or between samples, is counted without its criterion
+        # the criteria fired in the states above apf met along each arc, where and when the craft sails it (the
+        # costs' own record: the march's steps and the pieces judged in space and time)
+        bits = np.broadcast_to(costs.bits(), failure_arcs.shape)[failure_arcs]
+        counts = {
+            c.describe(): int(np.count_nonzero(bits & np.uint32(1 << i)))
+            for i, c in enumerate(problem.failure.criteria)
+        }
         crit = ", ".join(f"{name} on {n} arcs" for name, n in counts.items() if n) or (
             f"on {int(failure_arcs.sum())} arcs, conditions met along them as sailed"
         )
@@ -1525,28 +1528,6 @@ def _coverage_short(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray,
     except WeatherCoverageError as exc:
         return str(exc)
     return None
-
-
-def _criteria_counts(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray, arcs: BoolArray) -> dict[str, int]:
-    """How many of the given arcs have each failure criterion fired somewhere along them."""
-    model = problem.failure
-    assert model is not None
-    lon0, lat0, lon1, lat1, _, _ = grid.arcs(k)
-    sel = np.nonzero(arcs)
-    a = [np.asarray(np.broadcast_to(x, arcs.shape))[sel] for x in (lon0, lat0, lon1, lat1, t0)]
-    frac = (np.arange(problem.samples) + 0.5) / problem.samples
-    lon_s, lat_s = geodesy.intermediate_point(a[0][:, None], a[1][:, None], a[2][:, None], a[3][:, None], frac)
-    course = geodesy.initial_bearing_deg(lon_s, lat_s, a[2][:, None], a[3][:, None])
-    time = (
-        problem.departure
-        if problem.weather.steady
-        else hours_after(problem.departure, np.broadcast_to(a[4][:, None], lon_s.shape))
-    )
-    cond = problem.weather.sample(lon_s, lat_s, time)
-    q = arc_quantities(cond, course)
-    fired = np.asarray(model.fired({name: q[name] for name in model.quantities}))
-    per_arc = np.asarray(fired.any(axis=-1))
-    return {c.describe(): int(per_arc[i].sum()) for i, c in enumerate(model.criteria)}
 
 
 def path_costs(

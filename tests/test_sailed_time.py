@@ -21,6 +21,7 @@ one.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -509,3 +510,25 @@ def test_era5_example_at_apf_half_meets_no_condition_its_apf_forbids():
     slack = float(np.max(np.abs(route.elapsed_h - times)))
     p = p_f_along(sc, model, path, slack)
     assert longest_run(p > sc.apf) <= 1, f"{np.count_nonzero(p > sc.apf)} steps above apf, slack {slack:.2g} h"
+
+
+def test_why_no_route_names_the_criterion_met_later_along_the_arcs():
+    """Seas that build after the departure (Hs 1 m until 2 h, 6 m from 3 h, everywhere) forbid every arc at apf 0.5:
+    the explanation counts the arcs in the criterion met where and when the craft sails them (``WH``, Hs >= 4 m),
+    though none meets it at its departure."""
+    from pyroute_rel.errors import NoFeasibleRouteError
+
+    lon, lat = np.arange(-27.0, -11.99, 0.5), np.arange(26.0, 34.01, 0.5)
+    t = np.arange(0.0, 48.01, 1.0)
+    hs = np.where(t < 2.5, 1.0, 6.0)[:, None, None] * np.ones((1, lat.size, lon.size))
+    w = gridded(t, lon, lat, 15.0, 0.0, hs_m=hs, wave_dir_deg=90.0)
+    sc = scenario(w, (-20.0, 30.0), (-23.0, 30.0), failure={"model": "dickson2018", "apf": 0.5}, n_ranks=4)
+    assert w.sample(np.array(-20.0), np.array(30.0), DEP).hs_m < 4.0  # calm seas at the departure
+    with pytest.raises(NoFeasibleRouteError) as info:
+        sc.route()
+    msg = str(info.value)
+    assert "front died at rank 1 of 4" in msg  # the first leg already ends after 3 h (about 45 nm at 4 kn)
+    arcs = re.search(r"WH: hs_m >= 4 m on (\d+) arcs", msg)
+    assert arcs is not None, msg
+    grid = sc.make_grid()
+    assert int(arcs.group(1)) == int(np.count_nonzero(grid.arcs(0)[5]))  # every arc out of the start
