@@ -15,6 +15,7 @@ the arcs the solver would pick.
 
 from __future__ import annotations
 
+import hashlib
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -80,9 +81,16 @@ class Avoid:
         return self.land or bool(self.zones)
 
     def key(self) -> str:
-        """Cache key of the spatial tests (land, margin and every zone's geometry; windows are applied later)."""
-        names = tuple(z.name for z in self.zones)
-        return f"avoid:{self.land}:{self.margin_km}:{self.resolution}:{names}:{id(self.zones)}"
+        """Cache key of the spatial tests: land, margin, resolution and every zone's name and geometry, in order (a
+        digest of their well-known binary: the same zones read twice share a key, other zones never do); windows are
+        applied later."""
+        import shapely
+
+        digest = hashlib.blake2b(digest_size=16)
+        for z in self.zones:
+            digest.update(z.name.encode("utf-8") + b"\0")
+            digest.update(shapely.to_wkb(z.geometry, output_dimension=2, byte_order=1, include_srid=False))
+        return f"avoid:{self.land}:{self.margin_km}:{self.resolution}:{len(self.zones)}:{digest.hexdigest()}"
 
 
 def _bbox(grid: Grid, pad_deg: float = 1.0) -> tuple[float, float, float, float]:
