@@ -205,17 +205,47 @@ class MemberRoute:
 # ------------------------------------------------------------------------------------------------ workers
 
 # What a process keeps during one route_ensemble call: each member's scenario (and its weather) from its routing
-# to its sailing (a member is sailed in the process that routed it), and the course's grids.
-_CACHE: dict[tuple[str, Any, tuple[str, ...] | None, str], Scenario] = {}
-_GRIDS: dict[str, Any] = {}
+# to its sailing (a member is sailed in the process that routed it), with the stamps of the files it was read from,
+# and the course's grids, with the scenario file's stamp.
+_CACHE: dict[tuple[str, Any, tuple[str, ...] | None, str], tuple[Scenario, tuple[Any, ...], tuple[str, ...]]] = {}
+_GRIDS: dict[str, tuple[Any, tuple[Any, ...]]] = {}
+
+
+def _inputs(path: str, files: tuple[str, ...] | None, weather: tuple[str, ...]) -> tuple[Any, ...]:
+    """The stamps (path, size, modification time) of a member's files: the scenario file, the member files and the
+    weather files the scenario names: a kept scenario is used again only while they are unchanged."""
+    from .weather.cache import file_stamps
+
+    return file_stamps([path, *(files or ()), *weather])
+
+
+def _weather_files(path: str) -> tuple[str, ...]:
+    """The weather files a scenario file names (``[weather] paths``, resolved from its folder; none if it names
+    none: reading it then says why)."""
+    from .members import scenario_table
+
+    try:
+        weather = scenario_table(Path(path)).get("weather", {})
+    except ScenarioError:  # an unreadable file: the reading that follows says why
+        return ()
+    paths = weather.get("paths", []) if isinstance(weather, dict) else []
+    if not isinstance(paths, list):
+        return ()
+    return tuple(str(Path(path).parent / str(p)) for p in paths)
 
 
 def _scenario(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> Scenario:
-    """The member's scenario with the options, kept for the process."""
+    """The member's scenario with the options, kept for the process while the files it was read from are
+    unchanged (a scenario or weather file edited between calls is read again)."""
     key = (path, member, files, repr(sorted(options.items())))
-    if key not in _CACHE:
-        _CACHE[key] = member_scenario(path, member, member_files=files).with_options(**options)
-    return _CACHE[key]
+    kept = _CACHE.get(key)
+    if kept is not None and _inputs(path, files, kept[2]) == kept[1]:
+        return kept[0]
+    weather = _weather_files(path)
+    stamps = _inputs(path, files, weather)  # before reading: an edit while it is read is seen next time
+    sc = member_scenario(path, member, member_files=files).with_options(**options)
+    _CACHE[key] = (sc, stamps, weather)
+    return sc
 
 
 def route_member(
@@ -233,11 +263,15 @@ def route_member(
     track again in every member)."""
     files = None if member_files is None else tuple(str(f) for f in member_files)
     opts = dict(options or {})
+    stamp = _inputs(str(path), None, ())
     sc = _scenario(str(path), member, files, opts)
     key = f"{path}:{sorted(opts.items())}"
-    grids = _GRIDS.get(key)
-    if grids is None:
-        grids = _GRIDS[key] = sc.leg_grids()  # arc geometry and obstacle masks computed once per process
+    kept = _GRIDS.get(key)
+    if kept is not None and kept[1] == stamp:
+        grids = kept[0]
+    else:  # arc geometry and obstacle masks computed once per process (while the scenario file is unchanged)
+        grids = sc.leg_grids()
+        _GRIDS[key] = (grids, stamp)
     try:
         lon, lat, hours = _track(sc, grids)
     except (NoFeasibleRouteError, WeatherCoverageError) as exc:

@@ -309,3 +309,32 @@ def test_ensemble_spread_of_a_track_leaving_the_members_data_is_a_clear_error(tm
         ScenarioError, match=r"the track leaves the members' data \(wind: lon \[-40, 0\], lat .*\); 2 legs in all$"
     ):
         spread_from_members(path, out)
+
+
+def test_route_member_reads_an_edited_scenario_or_weather_file_again(tmp_path: Path):
+    """``route_member`` keeps a member's scenario and grids in the process: only while the scenario file, and the
+    weather file it names, are unchanged. The finish moved in the file, then the ensemble file replaced by another:
+    each call gives the route a fresh read gives."""
+    import os
+
+    from pyroute_rel.ensemble import route_member
+
+    def touched(p: Path) -> None:  # a later modification time, whatever the file system's clock resolution
+        st = p.stat()
+        os.utime(p, ns=(st.st_atime_ns, st.st_mtime_ns + 2_000_000_000))
+
+    path = write_ensemble_scenario(tmp_path, n_members=2)
+    first = route_member(path, 0)
+    assert first.lon_deg[-1] == pytest.approx(-22.0)
+    path.write_text(path.read_text().replace("finish = [-22.0, 25.0]", "finish = [-18.0, 25.0]"))
+    touched(path)
+    moved = route_member(path, 0)
+    ref = load_scenario(_member_toml(path, 0)).route()
+    assert moved.lon_deg[-1] == pytest.approx(-18.0)
+    assert moved.voyage_time_h == ref.voyage_time_h
+    write_ensemble_scenario(tmp_path, n_members=2, spread=4.0)  # another ensemble file (and the finish back)
+    touched(tmp_path / "ens.nc")
+    again = route_member(path, 0)
+    ref = load_scenario(_member_toml(path, 0)).route()
+    assert again.voyage_time_h == ref.voyage_time_h and again.voyage_time_h != first.voyage_time_h
+    np.testing.assert_array_equal(again.lon_deg, ref.lon_deg)
