@@ -524,7 +524,7 @@ def _geometry_costs(
     steady = bool(weather.steady)
     n = 1 if workers is None else int(workers)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
-    if shape and not steady and math.prod(shape) >= PARALLEL_MIN_MARCHED:
+    if shape and not steady and math.prod(shape) >= PARALLEL_MIN_MARCHED and not _rows_aligned(weather):
         n = default_workers() if workers is None else n  # (looked up only where threads may be used)
         if n > 1:
             return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
@@ -620,15 +620,23 @@ _ONE_NM = np.ones(1)
 COMPILED_MARCH = True
 
 
+def _rows_aligned(weather: WeatherSource) -> bool:
+    """Whether the source answers each row of a query (first axis) from its own run or member (Monte Carlo's
+    perturbed wind, members sailed side by side): a block split between threads would misalign its rows."""
+    kind = type(weather)
+    return hasattr(kind, "wind_errors") or hasattr(kind, "take_rows")
+
+
 def _wind_errors(weather: WeatherSource, shape: tuple[int, ...]) -> tuple[Any, tuple[FloatArray, FloatArray] | None]:
     """The source the compiled march samples and the wind error east and north [kn] it adds at each arc (flat), for
     a source that offsets its wind per row of the query (:meth:`pyroute_rel.monte_carlo.PerturbedWind.wind_errors`;
     None: no error)."""
     errors = getattr(type(weather), "wind_errors", None)
-    found = None if errors is None else errors(weather)
-    if found is None:
+    if errors is None:
         return weather, None
-    inner, east, north = found
+    inner, east, north = errors(weather)
+    if east is None or north is None:  # no error: the wrapped source's conditions, unchanged
+        return inner, None
     n = math.prod(shape)
     rows = (slice(None),) + (None,) * (len(shape) - 1)
     return inner, tuple(
@@ -1036,7 +1044,7 @@ def _sample_speeds(
                 over &= ~unknown
             if over.any():
                 reason |= over.view(np.uint8) * np.uint8(REASONS["failure"])
-                fired = failure.fired_bits_flat.take(flat)
+                fired = np.where(over, failure.fired_bits_flat.take(flat), np.uint32(0))  # in states above apf
     else:
         p = np.zeros(course_deg.shape)
     reason |= _flag(missing, "weather")

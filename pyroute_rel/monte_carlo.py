@@ -210,12 +210,12 @@ class PerturbedWind:
         """As the wrapped source."""
         self.inner.check_coverage(*args, **kwargs)
 
-    def wind_errors(self) -> tuple[Any, FloatArray, FloatArray] | None:
+    def wind_errors(self) -> tuple[Any, FloatArray | None, FloatArray | None]:
         """The wrapped source and each run's error east and north [kn] (what :meth:`sample_at` adds to the wind's
-        components), or None when every error is 0 (the wrapped source's conditions, unchanged): how the compiled
-        march (:mod:`pyroute_rel.march_compiled`) samples this source, with the same arithmetic."""
+        components; None when every error is 0: the wrapped source's conditions, unchanged): how the compiled march
+        (:mod:`pyroute_rel.march_compiled`) samples this source, with the same arithmetic."""
         if not (self.east_ms.any() or self.north_ms.any()):
-            return None
+            return self.inner, None, None
         return self.inner, self.east_ms * KN_PER_MS, self.north_ms * KN_PER_MS
 
     def _perturb(self, cond: Conditions) -> Conditions:

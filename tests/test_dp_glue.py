@@ -352,9 +352,8 @@ def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
 ) -> None:
     """Monte Carlo's per-run wind error (:class:`~pyroute_rel.monte_carlo.PerturbedWind`) sailed by the compiled march
     gives the costs of the numpy march sampling the perturbed source (rows are runs)."""
-    from pyroute_rel.monte_carlo import PerturbedWind
-
     from pyroute_rel.cost import ArcGeometry
+    from pyroute_rel.monte_carlo import PerturbedWind
 
     rng = np.random.default_rng(seed)
     g, t0 = arcs(seed, shape=(6, 5), samples=samples)
@@ -408,3 +407,25 @@ def test_compiled_march_sails_rows_in_stacked_members_as_the_numpy_march(
         one = ArcGeometry(*(a[part] for a in flat), geom.seg_nm[part])
         alone = geometry_costs(one, t0[part], weather=members[m], **kw)
         np.testing.assert_array_equal(got.time_h[part], alone.time_h)
+
+
+def test_rows_of_a_perturbed_source_stay_whole_when_blocks_are_split_between_threads(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """A block whose rows are runs (Monte Carlo's wind errors) is never split between threads (each part would get
+    every run's errors); with all errors 0 the compiled march reads the wrapped source directly."""
+    import pyroute_rel.march_compiled as march_compiled
+    from pyroute_rel.cost import ArcGeometry
+    from pyroute_rel.monte_carlo import PerturbedWind
+
+    monkeypatch.setattr(cost_module, "PARALLEL_MIN_MARCHED", 1)
+    g, t0 = arcs(3, shape=(6, 5), samples=2)
+    geom = ArcGeometry(g.lon_deg, g.lat_deg, g.course_deg, g.seg_nm)
+    w = PerturbedWind(weather(3), np.linspace(-3.0, 3.0, 6), np.linspace(2.0, -2.0, 6))
+    kw = dict(departure=DEP, weather=w, polar=POLAR, failure=MODEL, apf=0.5)
+    assert_same_costs(geometry_costs(geom, t0, workers=2, **kw), geometry_costs(geom, t0, workers=1, **kw))
+    calls = []
+    kernel = march_compiled.march_gridded
+    monkeypatch.setattr(march_compiled, "march_gridded", lambda *a, **k: calls.append(1) or kernel(*a, **k))
+    still = PerturbedWind(weather(3), np.zeros(6), np.zeros(6))
+    got = geometry_costs(geom, t0, workers=1, **{**kw, "weather": still})
+    assert calls  # compiled
+    assert_same_costs(got, geometry_costs(geom, t0, workers=1, **{**kw, "weather": weather(3)}))
