@@ -15,6 +15,7 @@ the arcs the solver would pick.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import numbers
 from collections.abc import Sequence
@@ -84,13 +85,19 @@ class Avoid:
         """Cache key of the spatial tests: land, margin, resolution and every zone's name and geometry, in order (a
         digest of their well-known binary: the same zones read twice share a key, other zones never do); windows are
         applied later."""
+        return f"avoid:{self.land}:{self.margin_km}:{self.resolution}:{len(self.zones)}:{self._zones_digest}"
+
+    @functools.cached_property
+    def _zones_digest(self) -> str:
+        """The zones' digest, computed once per Avoid (a zone file may hold millions of positions; the key is asked
+        for by every mask built from it)."""
         import shapely
 
         digest = hashlib.blake2b(digest_size=16)
         for z in self.zones:
             digest.update(z.name.encode("utf-8") + b"\0")
             digest.update(shapely.to_wkb(z.geometry, output_dimension=2, byte_order=1, include_srid=False))
-        return f"avoid:{self.land}:{self.margin_km}:{self.resolution}:{len(self.zones)}:{digest.hexdigest()}"
+        return digest.hexdigest()
 
 
 def _bbox(grid: Grid, pad_deg: float = 1.0) -> tuple[float, float, float, float]:
