@@ -250,6 +250,9 @@ def geometry_from_xyz(
     axis between threads (trigonometry on arrays releases the GIL); every arc's numbers are the same either way.
     """
     a, b = np.broadcast_arrays(a_xyz, b_xyz)
+    # kept as given where they have the full shape (a writable array, not a view flagged by broadcast_arrays)
+    keep_a = a_xyz if isinstance(a_xyz, np.ndarray) and a_xyz.shape == a.shape else a
+    keep_b = b_xyz if isinstance(b_xyz, np.ndarray) and b_xyz.shape == b.shape else b
     n = default_workers() if workers is None else int(workers)
     if n > 1 and a.ndim > 1 and a.size // 3 * samples >= PARALLEL_MIN_ARCS:
         parts = thread_map(
@@ -260,8 +263,8 @@ def geometry_from_xyz(
             lat_deg=np.concatenate([g.lat_deg for g in parts]),
             course_deg=np.concatenate([g.course_deg for g in parts]),
             seg_nm=np.concatenate([g.seg_nm for g in parts]),
-            a_xyz=a,
-            b_xyz=b,
+            a_xyz=keep_a,
+            b_xyz=keep_b,
         )
     # component by component: numpy's reductions over a last axis of 3 cost more than the arithmetic
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
@@ -293,7 +296,7 @@ def geometry_from_xyz(
     course = geodesy.bearing_deg(x * by - y * bx, rho2 * bz - z * (x * bx + y * by))
     lon = np.degrees(np.arctan2(y, x))
     lat = np.degrees(np.arcsin(np.clip(z, -1.0, 1.0)))  # asin is twice as fast as atan2 here
-    return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm, a_xyz=a, b_xyz=b)
+    return ArcGeometry(lon_deg=lon, lat_deg=lat, course_deg=course, seg_nm=seg_nm, a_xyz=keep_a, b_xyz=keep_b)
 
 
 def _midpoint(

@@ -1,4 +1,5 @@
-"""Compiled twin of one rank of the forward DP, for steady wind-only problems (issue 18).
+"""Compiled twin of one rank of the forward DP, for steady wind-only problems (issue 18) and, on uniform weather with
+patches, with a failure model (issue 32).
 
 Where the arc costs need nothing but the wind (steady weather, no failure model, wave speed loss, current, obstacle
 mask, waiting or finish line), :func:`~pyroute_rel.solve.forward_dp` hands each rank to :func:`rank_step`, which
@@ -10,7 +11,7 @@ see ``RoutingProblem.prune``), the arrival from each source label with the time 
 arrival at each label -- without a temporary array per step. Its results are bit-identical to the numpy path's
 (arrival times, back-pointers, labels, counts; property-tested).
 
-Four ways through a rank share the per-arc arithmetic:
+Five ways through a rank share the per-arc arithmetic:
 
 - with one label per node and pruning (the paper's square grid) on uniform weather (a :class:`BoxWind`: one wind
   everywhere but in patches), the whole rank is one compiled call, :func:`_boxed_rank`: per node the bounds of its
@@ -18,6 +19,13 @@ Four ways through a rank share the per-arc arithmetic:
   160 x 160 grid 0.89 M of 4.07 M arcs), the wind sampled in the kernel and the polar's interpolation along its
   wind-speed axis done once per wind speed (the same arithmetic as
   :func:`~pyroute_rel.polar_compiled.speed_kn`);
+- the same with a failure model on uniform weather with patches, :func:`_boxed_fail_rank`: each arc costed is also
+  judged at its samples as the cost function judges it, and each node's best arc, where its samples cannot judge it
+  alone, on every piece it crosses (:mod:`pyroute_rel.crossings_compiled`, the numbers of
+  :func:`~pyroute_rel.crossings.arc_extremes`), the next best tried while the best is forbidden: the numpy path's
+  lazy judgement (:func:`~pyroute_rel.solve._lazy_pieces`), one arc at a time. Arrival times, back-pointers and the
+  arcs costed are the numpy path's; the arcs counted as forbidden by the failure model are at most the eager count
+  (only the arcs judged are counted, as in the numpy path's lazy judgement, which judges in batches);
 - with side labels on uniform weather, the whole rank is one compiled call too, :func:`_boxed_sides_rank`: per node
   the side of each arc (the wind at its first sample), and with pruning each side's four arcs of smallest bound
   costed, then the arcs whose bound does not exceed their side's best (each label pruned against its own best), the
@@ -41,11 +49,12 @@ import numpy as np
 import numpy.typing as npt
 
 from . import polar_compiled
+from .crossings_compiled import BoxFields, arc_p_f, needs_judging, sample_evidence
 from .manoeuvre import ManoeuvrePenalties
 from .polar import MIN_SPEED_KN, Polar
 from .polar_compiled import cell, fold_twa, speed_kn, sub_time
 
-__all__ = ["BoxWind", "RankStep", "rank_step"]
+__all__ = ["BoxWind", "FailureJudge", "RankStep", "rank_step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -90,6 +99,20 @@ class RankStep(NamedTuple):
     forbidden: int
     no_speed: int
     no_wind: int
+    #: Of the forbidden arcs, those forbidden by the failure model, and of those, how many fire each criterion.
+    failed: int = 0
+    by_criterion: npt.NDArray[np.int64] | None = None
+
+
+class FailureJudge(NamedTuple):
+    """A failure model on uniform weather with patches, as :func:`rank_step` judges arcs with it: the fields and
+    classifier (:func:`~pyroute_rel.crossings_compiled.box_fields`) and each arc's ends as unit vectors."""
+
+    #: :func:`~pyroute_rel.crossings_compiled.box_fields` of the weather, model and apf.
+    fields: BoxFields
+    #: Each arc's start, shape (nodes, arcs, 3), and each node's position, shape (nodes, 3) (unit vectors).
+    a_xyz: FloatArray
+    b_xyz: FloatArray
 
 
 def _c(a: npt.ArrayLike, dtype: type = np.float64) -> npt.NDArray:
@@ -145,6 +168,7 @@ def rank_step(
     bound_kn: float | None,
     from_sides: tuple[int, ...] = (-1,),
     penalties: ManoeuvrePenalties | None = None,
+    failure: FailureJudge | None = None,
 ) -> RankStep | None:
     """One rank of the DP: the earliest arrival at each label [h] and the arc and source label it comes by.
 
@@ -168,6 +192,9 @@ def rank_step(
         :func:`~pyroute_rel.manoeuvre.manoeuvre_kind` and
         :meth:`~pyroute_rel.manoeuvre.ManoeuvrePenalties.penalty_h` compute them (``numpy.interp``'s arithmetic).
         None: one label per node.
+    failure : A failure model on uniform weather with patches (``wind`` a :class:`BoxWind`, one label, pruning):
+        each arc costed is judged at its samples and, where they cannot judge it alone and it is its node's best, on
+        the pieces it crosses (:func:`_boxed_fail_rank`). None: no failure model.
 
     Returns
     -------
@@ -183,8 +210,23 @@ def rank_step(
     t_best = np.empty((n_dst, n_out))
     j_best = np.empty((n_dst, n_out), dtype=np.intp)
     c_best = np.zeros((n_dst, n_out), dtype=np.intp)
-    counts = np.zeros(5, dtype=np.int64)
+    counts = np.zeros(6, dtype=np.int64)
     boxed = isinstance(wind, BoxWind)
+    if failure is not None:
+        assert isinstance(wind, BoxWind) and n_out == 1 and tp.shape[1] == 1 and bound_kn is not None
+        f = failure.fields
+        judge = (f.base, f.boxes, f.values, f.relative, f.edges, f.n_edges, f.right, f.contrib, f.fill, f.p_flat,
+                 f.over, f.bits)  # fmt: skip
+        pieces = (f.base, f.boxes, f.values, f.relative, f.edges, f.n_edges, f.right, f.bin_state, f.fill_state,
+                  f.n_slots, f.stride, f.p_flat, f.over, f.bits)  # fmt: skip
+        by_criterion = np.zeros(f.base.size, dtype=np.int64)
+        _boxed_fail_rank(  # type: ignore[call-arg]
+            tp, src, valid, seg, course, _c(wind.lon_deg), _c(wind.lat_deg), float(bound_kn), wind.tws_kn,
+            wind.twd_deg, wind.boxes, wind.values, *tables, forbid, MIN_SPEED_KN, _c(failure.a_xyz),
+            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, f.p_max, t_best, j_best, counts,
+            by_criterion,
+        )  # fmt: skip
+        return RankStep(t_best, j_best, c_best, *(int(n) for n in counts), by_criterion)
     if n_out == 1 and tp.shape[1] == 1 and bound_kn is not None and boxed:
         assert isinstance(wind, BoxWind)
         _boxed_rank(  # type: ignore[call-arg]
@@ -212,7 +254,7 @@ def rank_step(
             -1.0 if bound_kn is None else float(bound_kn), _sides_array(from_sides),
             *_penalty_tables(penalties or _NO_PENALTIES), t_best, j_best, c_best, counts,
         )  # fmt: skip
-    return RankStep(t_best, j_best, c_best, *(int(n) for n in counts))
+    return RankStep(t_best, j_best, c_best, *(int(n) for n in counts[:5]))
 
 
 def _box_sampled(wind: BoxWind, shape: tuple[int, ...]) -> tuple[FloatArray, FloatArray]:
@@ -408,6 +450,137 @@ def _best_picked(pick, n, t0s, times, flags, best, jb, tally):  # type: ignore[n
             if tot < best or (tot == best and a < jb):
                 best, jb = tot, a
     return best, jb
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
+    t_prev, src, valid, seg, course, lon, lat, bound, tws0, twd0, boxes, values, twa_tab, tws_tab, speed_tab, twa_inv,
+    tws_inv, forbid, min_speed, a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, p_max, t_best, j_best, counts,
+    crit_counts,
+):  # fmt: skip
+    """:func:`_boxed_rank` with a failure model on uniform weather with patches: each arc costed is also judged at its
+    samples (:func:`~pyroute_rel.crossings_compiled.sample_evidence`: p_f over apf forbids it, as the cost function's
+    flags do); an arc its samples cannot judge alone (:func:`~pyroute_rel.crossings_compiled.needs_judging`) is
+    judged on the pieces it crosses (:func:`~pyroute_rel.crossings_compiled.arc_p_f`) when it is its node's earliest
+    arrival: among the first four before the rest are pruned against their best, then among all, until the best is
+    allowed (the DP's lazy judgement, :func:`~pyroute_rel.solve._lazy_pieces`: the same minimum as judging every
+    arc). ``judge``: the fields and classifier (base, boxes, values, relative, edges, n_edges, right, contrib, fill,
+    p_flat, over, bits); ``pieces``: those :func:`arc_p_f` takes. ``counts``: live, costed, forbidden, no speed,
+    missing weather, failure arcs; ``crit_counts``: arcs forbidden for failure with each criterion fired (added to)."""
+    n_dst, width = seg.shape
+    speeds, cols, ratio, amax = _columns(tws0, values, twa_tab, tws_tab, speed_tab, tws_inv, forbid)
+    amin = twa_tab[0] if twa_tab[0] > 0.0 else -np.inf
+    n_crit = judge[0].size
+    lower = np.empty(width)
+    t0s = np.empty(width)
+    pick = np.empty(width + 4, dtype=np.intp)  # the first four costed, then the rest
+    times = np.empty(width + 4)
+    flags = np.zeros(width + 4, dtype=np.uint8)
+    fired = np.zeros(width + 4, dtype=np.uint32)
+    pend = np.zeros(width + 4, dtype=np.bool_)
+    work = np.empty(n_crit)
+    pwork = np.empty((n_crit, 4))
+    reach = np.zeros((n_crit, int(pieces[9].max())), dtype=np.bool_)
+    cuts = np.empty(3 * lon_lines.size + 2 * lat_lines.size + 4)
+    tally = np.zeros(6, dtype=np.int64)
+    for d in range(n_dst):
+        live = _bounds(t_prev, src, valid, seg, course.shape[2], bound, d, lower, t0s, pick)
+        tally[0] += live
+        n = min(live, 4)
+        for q in range(n):
+            lower[pick[q]] = np.nan
+        _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
+                    amin, amax, min_speed, times, flags)  # fmt: skip
+        _judge_samples(pick, 0, n, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend)
+        best = _settle_judged(pick, n, d, t0s, times, flags, fired, pend, lon, lat, course, seg, a_xyz, b_xyz, judge,
+                              pieces, lon_lines, lat_lines, apf, work, cuts, pwork, reach)[0]  # fmt: skip
+        m = n
+        for a in range(width):  # the rest are pruned against the best over the first four (judged) only
+            pick[m] = a
+            m += lower[a] <= best
+        _cost_boxed(pick[n:], m - n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols,
+                    ratio, amin, amax, min_speed, times[n:], flags[n:])  # fmt: skip
+        _judge_samples(pick, n, m, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend)
+        t_best[d, 0], j_best[d, 0] = _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course, seg,
+                                                    a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, work,
+                                                    cuts, pwork, reach)  # fmt: skip
+        failed = 0
+        for q in range(m):
+            f = flags[q]
+            if f != 0:
+                tally[2] += 1
+                tally[3] += f & 1
+                tally[4] += (f >> 1) & 1
+                if f & 4:
+                    failed += 1
+                    for c in range(crit_counts.size):
+                        crit_counts[c] += (fired[q] >> c) & 1
+        tally[1] += m
+        tally[5] += failed
+    counts += tally
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _judge_samples(pick, q0, q1, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The arcs ``pick[q0:q1]`` into node ``d`` costed already (``times``, ``flags`` at the same positions) judged at
+    their samples (:func:`~pyroute_rel.crossings_compiled.sample_evidence`): the cost function's reason flags and
+    criteria fired (:func:`~pyroute_rel.cost._sample_speeds`: an arc with a flag takes forever), and whether it
+    waits to be judged on its pieces (allowed and below the table's largest p_f at its samples: whether its samples
+    cannot judge it alone is asked when it is its node's best)."""
+    fbase, fboxes, fvalues, relative, edges, n_edges, right, contrib, fill, p_flat, over, bits = judge
+    for q in range(q0, q1):
+        a = pick[q]
+        f = flags[q]
+        fb = np.uint32(0)
+        p_arc = 0.0
+        for s in range(course.shape[2]):
+            p, ov, b, lost = sample_evidence(lon[d, a, s], lat[d, a, s], course[d, a, s], fbase, fboxes, fvalues,
+                                             relative, edges, n_edges, right, contrib, fill, p_flat, over, bits,
+                                             work)  # fmt: skip
+            p_arc = p if s == 0 or p != p or p_arc != p_arc else max(p_arc, p)  # numpy.maximum: NaN wins
+            if lost:
+                f |= 2
+            if ov:
+                f |= 4
+                fb |= b
+        if f != 0:
+            times[q] = np.inf
+        flags[q] = f
+        fired[q] = fb
+        pend[q] = f == 0 and p_arc < p_max
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course, seg, a_xyz, b_xyz, judge, pieces,
+                   lon_lines, lat_lines, apf, work, cuts, pwork, reach):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+    """Node ``d``'s earliest arrival over the arcs ``pick[:m]`` costed that can be sailed and its arc (first of equal
+    ones: lowest index; inf and 0 where none), the best judged on its pieces until it is allowed where its samples
+    cannot judge it alone (one found forbidden gets the failure flag and the criteria fired along it, and the next
+    best is tried)."""
+    fbase, fboxes, fvalues, relative, edges, n_edges = judge[0], judge[1], judge[2], judge[3], judge[4], judge[5]
+    while True:
+        best = np.inf
+        jb = -1
+        qb = -1
+        for q in range(m):
+            if flags[q] == 0:
+                a = pick[q]
+                tot = t0s[a] + times[q]
+                if tot < best or (tot == best and a < jb):
+                    best, jb, qb = tot, a, q
+        if jb < 0:
+            return np.inf, 0
+        if not pend[qb]:
+            return best, jb
+        pend[qb] = False
+        if not needs_judging(lon[d, jb], lat[d, jb], course[d, jb], seg[d, jb], fboxes, fbase, fvalues, relative,
+                             edges, n_edges, work):  # fmt: skip
+            return best, jb
+        p, b = arc_p_f(a_xyz[d, jb], b_xyz[d], lon_lines, lat_lines, pieces, cuts, pwork, reach)
+        if p > apf:
+            flags[qb] |= 4
+            fired[qb] |= b
+            times[qb] = np.inf
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")

@@ -730,6 +730,9 @@ class _Pricing:
     #: With the compiled step on uniform weather: its wind (:meth:`~pyroute_rel.weather.UniformWeather.wind_boxes`),
     #: sampled in the kernel.
     wind_boxes: tuple[float, float, FloatArray, FloatArray] | None = None
+    #: With the compiled step and a failure model (uniform weather with patches): the fields and classifier it judges
+    #: arcs with (:func:`~pyroute_rel.crossings_compiled.box_fields`).
+    fail_fields: Any = None
 
     @classmethod
     def of(
@@ -748,10 +751,21 @@ class _Pricing:
         )
         lazy = problem.blocked is not None and cost_hook is None
         lazy_pieces = LAZY_PIECES and problem.failure is not None and cost_hook is None and not finish_line
+        fail_fields = None
+        if (  # a failure model on uniform weather with patches: judged in the compiled step (one label, pruning)
+            COMPILED_RANK_STEP
+            and problem.failure is not None
+            and lazy_pieces
+            and prune
+            and type(problem.weather) is UniformWeather
+        ):
+            from .crossings_compiled import box_fields
+
+            fail_fields = box_fields(problem.weather, problem.failure, problem.apf)
         compiled = (
             COMPILED_RANK_STEP
             and problem.weather.steady
-            and problem.failure is None
+            and (problem.failure is None or fail_fields is not None)
             and problem.wave_loss is None
             and problem.blocked is None
             and problem.time_step_h is None
@@ -770,6 +784,7 @@ class _Pricing:
             lazy_pieces=lazy_pieces,
             compiled=compiled,
             wind_boxes=boxes,
+            fail_fields=fail_fields if compiled else None,
         )
 
     def price(self, arcs: _RankArcs, t0: FloatArray, *, first: bool, from_side: int = -1) -> _Priced:
@@ -1095,8 +1110,9 @@ def _rank_step(
     return t_new, src_best, lab_best, wait_best
 
 
-#: Steady wind-only problems take the compiled rank step (:mod:`pyroute_rel.dp_compiled`, bit-identical to the numpy
-#: path; False: always numpy, for comparisons).
+#: Steady wind-only problems, and problems with a failure model on uniform weather with patches (one label, pruning),
+#: take the compiled rank step (:mod:`pyroute_rel.dp_compiled`: the numpy path's arrivals and back-pointers, bit for
+#: bit; False: always numpy, for comparisons).
 COMPILED_RANK_STEP = True
 
 
@@ -1110,11 +1126,12 @@ def _compiled_step(
     pricing: _Pricing,
     tally: _Tally,
 ) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], None] | None:
-    """:func:`_rank_step` of a steady wind-only problem in compiled code (:func:`pyroute_rel.dp_compiled.
-    rank_step`): the weather sampled here, at the arcs the step asks for (with pruning, only those it costs), the
-    rest there. None when the weather turns out to have a current there (NaN included): the numpy path then costs
-    the rank."""
-    from .dp_compiled import BoxWind, rank_step
+    """:func:`_rank_step` of a steady wind-only problem, or of a failure model on uniform weather with patches, in
+    compiled code (:func:`pyroute_rel.dp_compiled.rank_step`): the weather sampled here, at the arcs the step asks
+    for (with pruning, only those it costs), the rest there. None when the weather turns out to have a current there
+    (NaN included), or a failure model's rank is too narrow to prune (the first): the numpy path then costs the
+    rank."""
+    from .dp_compiled import BoxWind, FailureJudge, rank_step
 
     shape = valid.shape + (geom.samples,)
 
@@ -1128,13 +1145,26 @@ def _compiled_step(
         wind = _sampler(problem, geom, shape)
     bound_kn = pricing.bound_kn
     prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
+    failure = None
+    if pricing.fail_fields is not None:
+        if prune is None or geom.a_xyz is None or geom.b_xyz is None:
+            return None  # a narrow rank (the first, from the start): the numpy path judges it
+        xyz = valid.shape + (3,)
+        a_xyz = geom.a_xyz if geom.a_xyz.shape == xyz else np.array(np.broadcast_to(geom.a_xyz, xyz), order="C")
+        b_xyz = np.array(np.broadcast_to(geom.b_xyz, xyz)[:, 0, :], order="C")  # a node's arcs end at it
+        failure = FailureJudge(pricing.fail_fields, a_xyz, b_xyz)
     step = rank_step(
         wind, full(geom.course_deg, shape), full(geom.seg_nm[..., 0], valid.shape), t_prev, full(src, valid.shape),
         valid, problem.polar, beyond=problem.beyond, bound_kn=prune, from_sides=prev_sides,
-        penalties=problem.manoeuvres if problem.sides else None,
+        penalties=problem.manoeuvres if problem.sides else None, failure=failure,
     )  # fmt: skip
     if step is None:
         return None
+    if step.by_criterion is not None and step.failed:
+        assert problem.failure is not None
+        tally.by_reason["failure"] += step.failed
+        for c, n in zip(problem.failure.criteria, step.by_criterion.tolist(), strict=True):
+            tally.by_criterion[c.describe()] = tally.by_criterion.get(c.describe(), 0) + n
     tally.evaluated += step.costed
     tally.pruned += step.live - step.costed
     tally.forbidden += step.forbidden
