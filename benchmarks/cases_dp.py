@@ -4,8 +4,8 @@
   compiled rank step, :mod:`pyroute_rel.dp_compiled`): warm DP time per candidate arc (every arc of the grid, pruned
   or not), against the issue's 25 ns; ``kernel_ns_per_arc`` is the compiled kernel alone doing the same per-arc work
   (TWA, polar, time, earliest arrival, every arc, the weather sampled beforehand, one thread), and ``ratio`` the
-  DP's time over it (target: at most 3); ``numpy_ns_per_arc`` the numpy path of the same DP (``COMPILED_RANK_STEP =
-  False``). Interleaved, best of 5.
+  DP's time over it (target: at most 3); ``numpy_ns_per_arc`` the numpy path of the same DP
+  (``settings_context(compiled_rank_step=False)``). Interleaved, best of 5.
 - ``dp_manoeuvres_160`` and ``dp_manoeuvres_default``: the DP with manoeuvre state (Tagliaferri's penalties, labels
   (node, side)) against the same DP without, interleaved, min of 5 each: on the square grid above (wind from 250
   deg: a beat) and on the default angular grid of the beat example (failure model dickson2018); target ratio < 2.5.
@@ -20,7 +20,7 @@ EXAMPLE = ROOT / "examples" / "microtransat_control.toml"
 BEAT = ROOT / "examples" / "microtransat_beat.toml"
 
 _PER_ARC = f"""
-import pyroute_rel.solve as S
+from pyroute_rel.settings import settings_context
 from pyroute_rel.dp_compiled import _rank_kernel
 from pyroute_rel.polar_compiled import tables
 from pyroute_rel.solve import grid_geometry
@@ -53,11 +53,10 @@ def kernel():
 kernel()
 a, b, c = [], [], []
 for _ in range(repeats(5)):
-    S.COMPILED_RANK_STEP = True
     t_ = time.perf_counter(); r = forward_dp(grid, problem); a.append(time.perf_counter() - t_)
     t_ = time.perf_counter(); kernel(); b.append(time.perf_counter() - t_)
-    S.COMPILED_RANK_STEP = False
-    t_ = time.perf_counter(); r0 = forward_dp(grid, problem); c.append(time.perf_counter() - t_)
+    with settings_context(compiled_rank_step=False):
+        t_ = time.perf_counter(); r0 = forward_dp(grid, problem); c.append(time.perf_counter() - t_)
 assert r.finish_h == r0.finish_h
 dp, k_, nb = min(a), min(b), min(c)
 print(json.dumps({{"seconds": dp, "arcs": int(arcs), "ns_per_arc": dp / arcs * 1e9,

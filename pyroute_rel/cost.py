@@ -50,6 +50,7 @@ from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
 from .march import Marched, Step, march, step_hours
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
+from .settings import get_settings
 from .weather.base import Conditions, WeatherSource
 
 __all__ = [
@@ -188,7 +189,7 @@ class ArcGeometry:
         are judged at their samples only, not on every piece they cross (:mod:`pyroute_rel.crossings`).
 
     The arrays are never written to: the cost kernel keeps, with the geometry, its sample points located on the
-    weather grids it was costed on (see :data:`LOCATE_CACHE`).
+    weather grids it was costed on (see :attr:`~pyroute_rel.settings.Settings.locate_cache`).
     """
 
     lon_deg: FloatArray
@@ -554,7 +555,7 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
     n = math.prod(shape)
     course = np.broadcast_to(geom.course_deg, shape + (samples,)).reshape(n, samples)
     seg = np.broadcast_to(geom.seg_nm[..., 0], shape).reshape(n)
-    if COMPILED_MARCH:
+    if get_settings().compiled_march:  # (the numpy march below: the same numbers)
         from .march_compiled import usable
 
         inner, errors = _wind_errors(weather, shape)
@@ -616,11 +617,6 @@ def _sailed_costs(m: Marched, shape: tuple[int, ...]) -> ArcCosts:
 
 #: A sub-segment length [nm] for :func:`~pyroute_rel.cost_compiled.sail_wind` where only its speeds are wanted.
 _ONE_NM = np.ones(1)
-
-
-#: Time-varying gridded weather with wind only (no current, no wave speed loss) is sailed by the compiled twin of the
-#: march (:mod:`pyroute_rel.march_compiled`; False: the numpy march, for comparisons). The numbers are the same.
-COMPILED_MARCH = True
 
 
 def _rows_aligned(weather: WeatherSource) -> bool:
@@ -734,22 +730,17 @@ def _column_sampler(geom: ArcGeometry, weather: WeatherSource, departure: np.dat
     return any_source
 
 
-#: The cost kernel keeps each arc geometry's sample points located on the weather grids of time-varying sources
-#: (``weather.prepare``), and reuses them for every source on the same grid (the source's ``reuse``): a process
-#: routing many members of one ensemble file, or many departures, locates them once (False: every time, for
-#: comparisons). The numbers are the same either way.
-LOCATE_CACHE = True
-
 #: Grids whose located points are kept per geometry (the most recently used): each costs about 40 bytes a sample
 #: point, 1.7 times the geometry's own arrays.
 LOCATED_PER_GEOMETRY = 2
 
 
 def _located(geom: ArcGeometry, weather: WeatherSource) -> object:
-    """``weather.prepare`` of the geometry's sample points, kept with the geometry (:data:`LOCATE_CACHE`) where the
-    source can reuse points located on its grid by another source."""
+    """``weather.prepare`` of the geometry's sample points, kept with the geometry where the source can reuse points
+    located on its grid by another source (a process routing many members of one ensemble file, or many departures,
+    locates them once; :attr:`~pyroute_rel.settings.Settings.locate_cache` False: located every time)."""
     reuse = getattr(type(weather), "reuse", None)  # on the type: a wrapper that forwards attributes does not count
-    if not LOCATE_CACHE or reuse is None:
+    if reuse is None or not get_settings().locate_cache:
         return weather.prepare(geom.lon_deg, geom.lat_deg)
     kept = geom._located
     for i, points in enumerate(kept):

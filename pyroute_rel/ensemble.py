@@ -63,6 +63,7 @@ from .evaluate import evaluation_problem, member_figures
 from .members import member_count, member_scenario
 from .progress import progress_bar
 from .scenario import Scenario
+from .settings import Settings, get_settings, set_settings
 
 __all__ = [
     "Risk",
@@ -336,9 +337,12 @@ def _sail_in_members(
     return fig.voyage_time_h, fig.max_p_f, fig.over_apf, fig.feasible, fig.on_land
 
 
-def _worker_init() -> None:
-    """A worker's set-up for one route_ensemble call: one thread, then :func:`_begin`."""
+def _worker_init(engines: Settings | None = None) -> None:
+    """A worker's set-up for one route_ensemble call: one thread, the caller's ``engines``
+    (:mod:`pyroute_rel.settings`), then :func:`_begin`."""
     os.environ["PYROUTE_REL_THREADS"] = "1"  # one process per core: no threads inside
+    if engines is not None:
+        set_settings(engines)
     _begin()
 
 
@@ -395,7 +399,10 @@ class _Workers:
             # forked at the first task (forking one waits until the server has imported everything)
             forkserver.ensure_running()
             self.pools = [
-                ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_worker_init) for _ in range(n)
+                ProcessPoolExecutor(
+                    max_workers=1, mp_context=context, initializer=_worker_init, initargs=(get_settings(),)
+                )
+                for _ in range(n)
             ]
 
     @property

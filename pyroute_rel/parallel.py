@@ -7,6 +7,7 @@ work whose pieces are independent, so results do not depend on the number of thr
 
 from __future__ import annotations
 
+import contextvars
 import os
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
@@ -42,14 +43,16 @@ def default_workers() -> int:
 
 
 def thread_map(fn: Callable[[T], R], items: Iterable[T], workers: int) -> list[R]:
-    """``[fn(x) for x in items]``, in a shared pool of ``workers`` threads when ``workers`` > 1; order kept."""
+    """``[fn(x) for x in items]``, in a shared pool of ``workers`` threads when ``workers`` > 1; order kept. Each
+    call runs in a copy of the caller's context (its :mod:`pyroute_rel.settings` among others)."""
     global _POOL, _POOL_SIZE
     items = list(items)
     if workers <= 1 or len(items) <= 1:
         return [fn(x) for x in items]
     if _POOL is None or _POOL_SIZE < workers:
         _POOL, _POOL_SIZE = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pyroute_rel"), workers
-    return list(_POOL.map(fn, items))
+    contexts = [contextvars.copy_context() for _ in items]  # (a context is entered by one thread at a time)
+    return list(_POOL.map(lambda c, x: c.run(fn, x), contexts, items))
 
 
 def row_blocks(n_rows: int, parts: int) -> list[slice]:

@@ -61,6 +61,7 @@ from .manoeuvre import (
 from .memory import MemoryEstimate, check_budget, parse_bytes, route_estimate
 from .polar import MIN_SPEED_KN, Polar, check_beyond
 from .progress import progress_bar
+from .settings import get_settings
 from .times import hours_after
 from .units import KN_PER_MS
 from .weather import Conditions, UniformWeather, WeatherSource
@@ -750,10 +751,11 @@ class _Pricing:
             and not problem.sides
         )
         lazy = problem.blocked is not None and cost_hook is None
-        lazy_pieces = LAZY_PIECES and problem.failure is not None and cost_hook is None and not finish_line
+        engines = get_settings()
+        lazy_pieces = engines.lazy_pieces and problem.failure is not None and cost_hook is None and not finish_line
         fail_fields = None
         if (  # a failure model on uniform weather with patches: judged in the compiled step (one label, pruning)
-            COMPILED_RANK_STEP
+            engines.compiled_rank_step
             and problem.failure is not None
             and lazy_pieces
             and prune
@@ -763,7 +765,7 @@ class _Pricing:
 
             fail_fields = box_fields(problem.weather, problem.failure, problem.apf)
         compiled = (
-            COMPILED_RANK_STEP
+            engines.compiled_rank_step
             and problem.weather.steady
             and (problem.failure is None or fail_fields is not None)
             and problem.wave_loss is None
@@ -841,10 +843,6 @@ class _Pricing:
             penalty_h=pen,
         )
 
-
-#: The DP judges arcs on the pieces they cross lazily (:func:`_lazy_pieces`; False: eagerly, every arc the
-#: cost function would, for comparisons). The routes are the same.
-LAZY_PIECES = True
 
 #: How many of each node's earliest arrivals not judged yet :func:`_lazy_pieces` judges at first (then 4 times more
 #: each round). One call judges a batch at a fixed cost of a few ms with gridded weather: 4 judged 4x the arcs of 1
@@ -1108,12 +1106,6 @@ def _rank_step(
         n_dst, n_lab = t_new.shape
         wait_best = waits[c_best, np.arange(n_lab)[None, :], np.arange(n_dst)[:, None], j_best]
     return t_new, src_best, lab_best, wait_best
-
-
-#: Steady wind-only problems, and problems with a failure model on uniform weather with patches (one label, pruning),
-#: take the compiled rank step (:mod:`pyroute_rel.dp_compiled`: the numpy path's arrivals and back-pointers, bit for
-#: bit; False: always numpy, for comparisons).
-COMPILED_RANK_STEP = True
 
 
 def _compiled_step(

@@ -74,6 +74,7 @@ from .errors import (
     show,
 )
 from .files import atomic_write, atomic_write_text, brief_path
+from .settings import Settings, get_settings, set_settings
 from .times import iso_utc
 
 if TYPE_CHECKING:
@@ -678,9 +679,12 @@ def _inline(todo: Sequence[tuple[str, Run]], retries: int) -> Iterator[dict[str,
 _PINNED: list[Any] = []
 
 
-def _pin_threads() -> None:
+def _pin_threads(engines: Settings | None = None) -> None:
     """One thread in this worker process: :data:`WORKER_ENV` for what reads it later, and the BLAS/OpenMP pools
-    already loaded limited to 1 (``threadpoolctl``) for a ``dask worker`` started without that environment."""
+    already loaded limited to 1 (``threadpoolctl``) for a ``dask worker`` started without that environment; and the
+    caller's ``engines`` (:mod:`pyroute_rel.settings`; None: the defaults)."""
+    if engines is not None:
+        set_settings(engines)
     if _PINNED:
         return
     os.environ.update(WORKER_ENV)
@@ -851,7 +855,9 @@ def _processes(todo: Sequence[tuple[str, Run]], workers: int, retries: int) -> I
         i = queue.take(w)
         if i is not None:
             if w not in pools:
-                pools[w] = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_pin_threads)
+                pools[w] = ProcessPoolExecutor(
+                    max_workers=1, mp_context=ctx, initializer=_pin_threads, initargs=(get_settings(),)
+                )
             running[pools[w].submit(run_batch, batches[i], retries)] = (w, i)
 
     try:

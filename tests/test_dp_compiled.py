@@ -14,6 +14,7 @@ import pyroute_rel.solve as solve
 from pyroute_rel.grid import make_grid
 from pyroute_rel.manoeuvre import ManoeuvrePenalties, wind_side
 from pyroute_rel.polar import Polar
+from pyroute_rel.settings import settings_context
 from pyroute_rel.weather import Patch, UniformWeather
 from tests.test_properties import NaNBox
 from tests.test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weather
@@ -21,9 +22,8 @@ from tests.test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weat
 
 def both(grid, problem, monkeypatch: pytest.MonkeyPatch) -> tuple[solve.DPResult, solve.DPResult]:
     compiled = solve.forward_dp(grid, problem)
-    monkeypatch.setattr(solve, "COMPILED_RANK_STEP", False)
-    numpy_path = solve.forward_dp(grid, problem)
-    monkeypatch.setattr(solve, "COMPILED_RANK_STEP", True)
+    with settings_context(compiled_rank_step=False):
+        numpy_path = solve.forward_dp(grid, problem)
     return compiled, numpy_path
 
 

@@ -21,6 +21,7 @@ from pyroute_rel.grid import make_grid
 from pyroute_rel.polar import get_polar
 from pyroute_rel.route import build_route
 from pyroute_rel.scenario import load_scenario
+from pyroute_rel.settings import settings_context
 from pyroute_rel.solve import RoutingProblem, forward_dp
 from pyroute_rel.weather import Patch, UniformWeather
 
@@ -158,11 +159,10 @@ def three_ways(grid, problem: RoutingProblem):  # type: ignore[no-untyped-def]
         ranks = counted(mp)
         compiled = forward_dp(grid, problem)
     assert ranks[0] > 0 or not np.isfinite(compiled.arrival_h[0]).any()  # (or nothing got past the first rank)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(solve, "COMPILED_RANK_STEP", False)
+    with settings_context(compiled_rank_step=False):
         lazy = forward_dp(grid, problem)
-        mp.setattr(solve, "LAZY_PIECES", False)
-        eager = forward_dp(grid, problem)
+        with settings_context(lazy_pieces=False):
+            eager = forward_dp(grid, problem)
     return compiled, lazy, eager
 
 

@@ -1,6 +1,6 @@
 """The forward DP's hot loops over gridded weather, made shorter (issue 19): the same numbers as the separate kernels.
 
-- ``weather.gridded.FUSED_SAMPLING``: :meth:`GriddedWeather.sample_at` turns the wind's (u, v) and the wave
+- ``Settings.fused_sampling``: :meth:`GriddedWeather.sample_at` turns the wind's (u, v) and the wave
   direction's (sin, cos) as it interpolates each point; the reference is the components interpolated, then turned by
   ``_vector_kernel`` (the switch off). The interpolation kernel also keeps the last time's cell for the points that
   share it: the reference for that is :meth:`GriddedWeather.sample` at explicit times (other points in between).
@@ -19,12 +19,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import pyroute_rel.weather.gridded as gridded
 from pyroute_rel.cost_compiled import sail_wind
 from pyroute_rel.failure import list_failure_models, load_failure_model
 from pyroute_rel.grid import make_grid
 from pyroute_rel.polar import Polar, boat_speed_kn
 from pyroute_rel.polar_compiled import cell_finder
+from pyroute_rel.settings import settings_context
 from pyroute_rel.weather import GriddedWeather, WeatherField
 from tests.test_dp_glue import DEP, dp
 
@@ -66,8 +66,7 @@ def _points(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray, n
 
 
 def _sample(w: GriddedWeather, prepared, offset_h, fields, fused: bool):  # type: ignore[no-untyped-def]
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(gridded, "FUSED_SAMPLING", fused)
+    with settings_context(fused_sampling=fused):
         return w.sample_at(prepared, DEP, offset_h=offset_h, fields=fields)
 
 
@@ -183,8 +182,7 @@ def test_dp_is_the_same_with_the_fused_sampling_on_and_off(apf: float) -> None:
     grid = make_grid((-13.0, 44.0), (-17.0, 41.0), n_ranks=5, n_nodes=7, spacing_km=30.0)
     w = weather(11)
     got = dp(grid, w, apf)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(gridded, "FUSED_SAMPLING", False)
+    with settings_context(fused_sampling=False):
         want = dp(grid, weather(11), apf)
     assert np.isfinite(got.finish_h) or apf < 1.0
     assert np.isfinite(got.arrival_h).sum() > got.arrival_h.shape[1]  # beyond the first rank

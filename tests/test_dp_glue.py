@@ -1,6 +1,6 @@
 """The forward DP over time-varying gridded weather without repeated work (issue 19: the 52 DPs of the ensemble).
 
-The cost kernel keeps each arc geometry's sample points located on the weather grid (``cost.LOCATE_CACHE``) and
+The cost kernel keeps each arc geometry's sample points located on the weather grid (``Settings.locate_cache``) and
 reuses them for every source on the same grid: the members of one file are routed on one grid, so a process locates
 the points once. The reference is the kernel locating them every time (the switch off): costs and DP results must be
 the same to the bit. A cache keyed wrongly (two grids of equal shape but other axes, or another memory layout) would
@@ -19,6 +19,7 @@ from pyroute_rel.cost import REASONS, arc_geometry, deferred_costs, geometry_cos
 from pyroute_rel.failure import load_failure_model
 from pyroute_rel.grid import make_grid
 from pyroute_rel.polar import get_polar
+from pyroute_rel.settings import settings_context
 from pyroute_rel.solve import RoutingProblem, forward_dp
 from pyroute_rel.weather import GriddedWeather, WeatherField
 from pyroute_rel.weather.gridded import stack_members
@@ -66,8 +67,7 @@ def assert_same_costs(a, b) -> None:  # type: ignore[no-untyped-def]
 
 
 def uncached(geom, t0, w, **kw):  # type: ignore[no-untyped-def]
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cost_module, "LOCATE_CACHE", False)
+    with settings_context(locate_cache=False):
         return costs(geom, t0, w, **kw)
 
 
@@ -183,8 +183,7 @@ def test_deferred_costs_are_the_same_with_and_without_the_cache() -> None:
     kw = dict(departure=DEP, polar=POLAR, failure=MODEL, apf=0.2)
     deferred_costs(geom, t0, weather=w1, **kw)
     got, pending = deferred_costs(geom, t0, weather=w2, **kw)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cost_module, "LOCATE_CACHE", False)
+    with settings_context(locate_cache=False):
         want, pending_want = deferred_costs(geom, t0, weather=w2, **kw)
     assert_same_costs(got, want)
     assert (pending is None) == (pending_want is None)
@@ -204,8 +203,7 @@ def test_dp_over_members_is_the_same_with_and_without_the_cache(located: Located
     got = [dp(grid, w, apf) for w in members]
     geoms = list(grid.cache.geometry.values())
     assert located(*geoms) == len(geoms)  # once per rank
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cost_module, "LOCATE_CACHE", False)
+    with settings_context(locate_cache=False):
         want = [dp(grid, w, apf) for w in members]
     if apf == 1.0:  # every member reaches the finish: each rank costed once per member
         assert all(np.isfinite(r.finish_h) for r in got)
@@ -228,18 +226,16 @@ def test_costs_reusing_points_equal_costs_locating_them(seed: int, samples: int,
     w1, w2 = weather(seed % 7, lon0=lon0), weather(seed % 5 + 7, lon0=lon0)
     for w in (w1, w2):
         got = geometry_costs(geom, t0, departure=DEP, weather=w, polar=POLAR, failure=MODEL, apf=apf)
-        with pytest.MonkeyPatch.context() as mp:
-            mp.setattr(cost_module, "LOCATE_CACHE", False)
+        with settings_context(locate_cache=False):
             want = geometry_costs(geom, t0, departure=DEP, weather=w, polar=POLAR, failure=MODEL, apf=apf)
         assert_same_costs(got, want)
 
 
-# --- the compiled bookkeeping between the sampling calls (cost.COMPILED_MARCH) -------------------------------------
+# --- the compiled bookkeeping between the sampling calls (Settings.compiled_march) ----------------------------------
 
 
 def numpy_path(geom, t0, **kw):  # type: ignore[no-untyped-def]
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cost_module, "COMPILED_MARCH", False)
+    with settings_context(compiled_march=False):
         return geometry_costs(geom, t0, **kw)
 
 

@@ -3,8 +3,9 @@
 What the DP asks at every rank is now kept between ranks: the columns and turned rows a set of fields samples
 (``_Block.plan``), the fields a failure model needs, its table and its entries above apf (``judge_tables``), its
 largest p_f; contiguous inputs go to the kernels as they are (no copy). Whatever is kept must not leak from one
-route, member, model or apf into another: each is checked against the numpy reference paths (``cost.COMPILED_MARCH``
-and ``gridded.FUSED_SAMPLING`` off, which keep nothing of the sort) and against the same route computed alone.
+route, member, model or apf into another: each is checked against the numpy reference paths (the settings
+``compiled_march`` and ``fused_sampling`` off, which keep nothing of the sort) and against the same route computed
+alone.
 """
 
 from __future__ import annotations
@@ -12,8 +13,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import pyroute_rel.cost as cost_module
-import pyroute_rel.weather.gridded as gridded_module
 from pyroute_rel import solve
 from pyroute_rel.cost import REASONS
 from pyroute_rel.cost_compiled import judge_tables, sail_wind
@@ -21,6 +20,7 @@ from pyroute_rel.errors import WeatherError
 from pyroute_rel.failure import load_failure_model
 from pyroute_rel.grid import make_grid
 from pyroute_rel.polar import get_polar
+from pyroute_rel.settings import settings_context
 from pyroute_rel.solve import RoutingProblem, forward_dp
 from pyroute_rel.weather import GriddedWeather, WeatherField
 
@@ -63,9 +63,7 @@ def dp(w: GriddedWeather, model: str, apf: float, *, n_wait: int = 0) -> solve.D
 
 def reference(w: GriddedWeather, model: str, apf: float, *, n_wait: int = 0) -> solve.DPResult:
     """The DP on the numpy paths: nothing kept between ranks but the located points."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cost_module, "COMPILED_MARCH", False)
-        mp.setattr(gridded_module, "FUSED_SAMPLING", False)
+    with settings_context(compiled_march=False, fused_sampling=False):
         return dp(w, model, apf, n_wait=n_wait)
 
 
@@ -121,7 +119,7 @@ def points() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def test_sampled_fields_equal_sampling_every_point(fields: list[str] | tuple[str, ...] | None) -> None:
     """:meth:`GriddedWeather.sample_at` (its plan kept per set of fields, a contiguous offset passed as it is)
     against every field sampled at points prepared anew, the components turned afterwards
-    (``FUSED_SAMPLING`` off): the fields asked for equal, the others NaN (no current in the data: 0 where asked
+    (``fused_sampling`` off): the fields asked for equal, the others NaN (no current in the data: 0 where asked
     for)."""
     w = weather(4)
     lon, lat, hours = points()
@@ -130,8 +128,7 @@ def test_sampled_fields_equal_sampling_every_point(fields: list[str] | tuple[str
     for _ in range(2):  # the second time from the plans kept
         got = w.sample_at(prepared, DEP, offset_h=offset, fields=fields)
         strided = w.sample_at(prepared, DEP, offset_h=np.asfortranarray(hours), fields=fields)  # copied
-        with pytest.MonkeyPatch.context() as mp:  # every field, its components turned afterwards
-            mp.setattr(gridded_module, "FUSED_SAMPLING", False)
+        with settings_context(fused_sampling=False):  # every field, its components turned afterwards
             want = w.sample_at(w.prepare(lon, lat), DEP, offset_h=hours[::-1][::-1])
         np.testing.assert_array_equal(offset, hours)  # not written
         for name in ("tws_kn", "twd_deg", "hs_m", "wave_dir_deg", "wave_period_s", "current_u_ms", "current_v_ms"):

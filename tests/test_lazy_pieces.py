@@ -2,10 +2,10 @@
 
 The DP costs every arc on its samples and judges on pieces (:mod:`pyroute_rel.crossings`) only the arcs it would pick
 (:func:`pyroute_rel.solve._lazy_pieces`). The reference is the eager judgement of every arc the cost function can
-judge (``solve.LAZY_PIECES = False``, or a ``cost_hook``, which sees every arc's costs): the DP's arrival times,
-back-pointers, waits and labels, and the route built from them (voyage time, track, per-leg p_f, largest and voyage
-p_f), must be the same to the bit, on random small problems (patches and gridded weather, steady and time-varying,
-apf < 1, with waits, with side labels, with pruning) and on the example scenarios at apf 0.2 and 0.02.
+judge (``settings_context(lazy_pieces=False)``, or a ``cost_hook``, which sees every arc's costs): the DP's arrival
+times, back-pointers, waits and labels, and the route built from them (voyage time, track, per-leg p_f, largest and
+voyage p_f), must be the same to the bit, on random small problems (patches and gridded weather, steady and
+time-varying, apf < 1, with waits, with side labels, with pruning) and on the example scenarios at apf 0.2 and 0.02.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from pyroute_rel.manoeuvre import ManoeuvrePenalties
 from pyroute_rel.polar import get_polar
 from pyroute_rel.route import build_route
 from pyroute_rel.scenario import load_scenario, scenario_from_mapping
+from pyroute_rel.settings import settings_context
 from pyroute_rel.solve import RoutingProblem, forward_dp
 from pyroute_rel.weather import GriddedWeather, Patch, UniformWeather, WeatherField
 
@@ -57,8 +58,7 @@ def counting(monkeypatch_or_context: pytest.MonkeyPatch) -> list[int]:
 
 
 def eager_and_lazy(grid, problem: RoutingProblem) -> tuple[solve.DPResult, solve.DPResult]:
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(solve, "LAZY_PIECES", False)
+    with settings_context(lazy_pieces=False):
         eager = forward_dp(grid, problem)
     return eager, forward_dp(grid, problem)
 

@@ -8,10 +8,10 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from pyroute_rel import solve
 from pyroute_rel.cost import REASONS
 from pyroute_rel.route import LEG_FIELDS, ForbiddenArcs, Legs, Route
 from pyroute_rel.scenario import scenario_from_mapping
+from pyroute_rel.settings import settings_context
 from pyroute_rel.solve import forward_dp
 
 #: The paper's control course on a small grid, with its two patches and the dickson2018 model; apf 0.5 forbids
@@ -236,8 +236,7 @@ def test_forbidden_arcs_over_time_varying_weather_and_land() -> None:
     arcs = route.forbidden_arcs()
     # the map judges every arc on its pieces, as the DP does when it judges eagerly; the DP's own count covers the
     # arcs it judged (lazily: only those it would pick), never more
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(solve, "LAZY_PIECES", False)
+    with settings_context(lazy_pieces=False):
         eager = forward_dp(grid, problem)
     assert len(arcs) == eager.arcs_forbidden and {"failure", "weather"} <= set(arcs.reason)
     assert route.dp.arcs_forbidden <= eager.arcs_forbidden

@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import WeatherCoverageError, WeatherError, WeatherWarning, brief, check_numbers
+from ..settings import get_settings
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
 from .base import RANGES, Boundaries, Conditions, Variation, sample_points
@@ -262,11 +263,6 @@ def _look_up_kernel(data, j, codes, table):  # type: ignore[no-untyped-def]  # p
             for t in range(nt):
                 data[y, x, t, j] = table[codes[y, x, t]]
 
-
-#: :meth:`GriddedWeather.sample_at` turns the wind's (u, v) into speed and direction, and the wave direction's (sine,
-#: cosine) into its angle, as it interpolates each point (one compiled loop, no arrays of components; False: the
-#: components are interpolated, then turned by :func:`_vector_kernel`, for comparisons). The numbers are the same.
-FUSED_SAMPLING = True
 
 #: Stored column pairs turned into :class:`Conditions` fields (:data:`_TURNED`) as they are interpolated.
 _PAIRS = (("wind_u_ms", "wind_v_ms"), ("_wave_sin", "_wave_cos"))
@@ -714,7 +710,8 @@ class GriddedWeather:
 
         ``convert``: the wind and the wave direction stored in one block come as :class:`Conditions` fields
         (``tws_kn``, ``twd_deg``; ``wave_dir_deg``) turned as they are interpolated (:meth:`_Block.interpolate_at`),
-        in place of their stored columns (:data:`FUSED_SAMPLING`)."""
+        in place of their stored columns (:attr:`~pyroute_rel.settings.Settings.fused_sampling`: one compiled loop,
+        no arrays of components; False: the components are interpolated, then turned by :func:`_vector_kernel`)."""
         out: dict[str, FloatArray] = {}
         for block, w in zip(self._blocks, where, strict=True):
             index, rows, named = block.plan(wanted, convert)
@@ -827,7 +824,8 @@ class GriddedWeather:
                 offset = np.ascontiguousarray(np.broadcast_to(np.asarray(offset_h, dtype=np.float64), prepared.shape))
             offset = offset.reshape(-1)
             scale = 3600.0
-        values = self._interpolate_at(prepared.where, origin, offset, wanted, scale, convert=FUSED_SAMPLING)
+        fused = get_settings().fused_sampling
+        values = self._interpolate_at(prepared.where, origin, offset, wanted, scale, convert=fused)
         return self._conditions(prepared.shape, values, fields)
 
     def interpolate(self, name: str, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike) -> FloatArray:
