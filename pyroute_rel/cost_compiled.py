@@ -72,28 +72,8 @@ def sail_wind(
     else:
         seg = _flat(seg_nm, shape)
     twa, v, dt = (np.empty(flat[0].size) for _ in range(3))
-    _wind_kernel(*flat, seg, every, *_tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)
+    _wind_kernel(*flat, seg, every, *polar_compiled.finder_tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)
     return twa.reshape(shape), v.reshape(shape), dt.reshape(shape)
-
-
-#: The polars' tables as the kernels take them, by the polar's id, with a weak reference to it (made anew they cost
-#: more than the kernel on a rank of the default grid: the polar's arrays are read-only, so each is copied). An entry
-#: goes when its polar does.
-_TABLES: dict[int, tuple[weakref.ref[Polar], tuple[Any, ...]]] = {}
-
-
-def _tables(polar: Polar) -> tuple[Any, ...]:
-    """The polar's table and axes as :func:`pyroute_rel.polar_compiled.tables` gives them, each axis followed by its
-    :func:`~pyroute_rel.polar_compiled.cell_finder` (``twa, tws, speed, twa_finder, tws_finder``), made once (looked
-    up by identity: comparing polars compares their tables)."""
-    key = id(polar)
-    kept = _TABLES.get(key)
-    if kept is not None and kept[0]() is polar:
-        return kept[1]
-    twa, tws, speed, _, _ = polar_compiled.tables(polar)
-    tables = (twa, tws, speed, polar_compiled.cell_finder(twa), polar_compiled.cell_finder(tws))
-    _TABLES[key] = (weakref.ref(polar, lambda _, key=key: _TABLES.pop(key, None)), tables)
-    return tables
 
 
 def evidence_index(

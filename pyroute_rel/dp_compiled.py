@@ -121,30 +121,21 @@ def _c(a: npt.ArrayLike, dtype: type = np.float64) -> npt.NDArray:
     return np.require(a, dtype, ("C", "W"))
 
 
-_TABLES: list[tuple[Polar, tuple[FloatArray, FloatArray, FloatArray, float, float]]] = []
-
-
-def _tables(polar: Polar) -> tuple[FloatArray, FloatArray, FloatArray, float, float]:
-    """:func:`~pyroute_rel.polar_compiled.tables` of the polar, kept for the last polar seen (the DP asks once per
-    rank; a :class:`~pyroute_rel.polar.Polar` does not change)."""
-    if not _TABLES or _TABLES[0][0] is not polar:
-        _TABLES[:] = [(polar, polar_compiled.tables(polar))]
-    return _TABLES[0][1]
-
-
 _NO_PENALTIES = ManoeuvrePenalties()
-_PENALTIES: list[tuple[ManoeuvrePenalties, tuple[FloatArray, FloatArray, FloatArray, FloatArray]]] = []
 _SIDES: dict[tuple[int, ...], npt.NDArray[np.int64]] = {}
 
 
 def _penalty_tables(penalties: ManoeuvrePenalties) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """The tack and gybe tables (wind speeds [kn], penalties [s]) as the kernels take them, kept for the last
-    penalties seen (a :class:`~pyroute_rel.manoeuvre.ManoeuvrePenalties` does not change)."""
-    if not _PENALTIES or _PENALTIES[0][0] is not penalties:
+    """The tack and gybe tables (wind speeds [kn], penalties [s]) as the kernels take them, kept by the penalties
+    (a :class:`~pyroute_rel.manoeuvre.ManoeuvrePenalties` does not change; :func:`~pyroute_rel.polar_compiled.
+    kept_by`)."""
+
+    def make() -> tuple[FloatArray, ...]:
         p = penalties
-        t = (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn, p.gybe_penalty_s)
-        _PENALTIES[:] = [(p, tuple(_c(np.asarray(a, dtype=float)) for a in t))]  # type: ignore[list-item]
-    return _PENALTIES[0][1]
+        return tuple(_c(np.asarray(a, dtype=float)) for a in (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn,
+                                                               p.gybe_penalty_s))  # fmt: skip
+
+    return polar_compiled.kept_by(penalties, "_kernel_tables", make)  # type: ignore[no-any-return]
 
 
 def _sides_array(from_sides: tuple[int, ...]) -> npt.NDArray[np.int64]:
@@ -203,7 +194,7 @@ def rank_step(
     """
     n_dst = seg_nm.shape[0]
     n_out = 1 if penalties is None else 2
-    tables = _tables(polar)
+    tables = polar_compiled.tables(polar)
     forbid = beyond == "forbid"
     course, seg, tp = _c(course_deg), _c(seg_nm), _c(t_prev)
     src, valid = _c(src, np.intp), _c(valid, np.bool_)

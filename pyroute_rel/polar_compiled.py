@@ -18,6 +18,9 @@ after editing this module, delete the ``__pycache__`` caches (or touch ``cost_co
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numba
 import numpy as np
 import numpy.typing as npt
@@ -35,7 +38,7 @@ SHORT_AXIS = 16
 
 
 def tables(polar: Polar) -> tuple[FloatArray, FloatArray, FloatArray, float, float]:
-    """The polar as the compiled functions take it.
+    """The polar as the compiled functions take it, made once per polar and kept by it (:func:`kept_by`).
 
     Parameters
     ----------
@@ -47,10 +50,35 @@ def tables(polar: Polar) -> tuple[FloatArray, FloatArray, FloatArray, float, flo
     contiguous, writable float64 (one compiled signature), and the inverse mean spacing of each axis's inner rows
     (0 with fewer than two) for :func:`cell`'s first guess.
     """
-    twa, tws, speed = (
-        np.require(t, np.float64, ("C", "W")).reshape(-1) for t in (polar.twa_deg, polar.tws_kn, polar.speed_kn)
-    )
-    return twa, tws, speed, _inverse_step(twa), _inverse_step(tws)
+
+    def make() -> tuple[FloatArray, FloatArray, FloatArray, float, float]:
+        twa, tws, speed = (
+            np.require(t, np.float64, ("C", "W")).reshape(-1) for t in (polar.twa_deg, polar.tws_kn, polar.speed_kn)
+        )
+        return twa, tws, speed, _inverse_step(twa), _inverse_step(tws)
+
+    return kept_by(polar, "_kernel_tables", make)  # type: ignore[no-any-return]
+
+
+def finder_tables(polar: Polar) -> tuple[Any, ...]:
+    """The polar's table and axes as :func:`tables` gives them, each axis followed by its :func:`cell_finder`
+    (``twa, tws, speed, twa_finder, tws_finder``), made once per polar and kept by it (:func:`kept_by`)."""
+
+    def make() -> tuple[Any, ...]:
+        twa, tws, speed, _, _ = tables(polar)
+        return twa, tws, speed, cell_finder(twa), cell_finder(tws)
+
+    return kept_by(polar, "_kernel_finders", make)  # type: ignore[no-any-return]
+
+
+def kept_by(owner: Any, name: str, make: Callable[[], Any]) -> Any:
+    """What ``make()`` derives from the immutable object ``owner``, made once and kept in the object's own
+    ``__dict__`` under ``name`` (as :func:`functools.cached_property` keeps it): it lives and dies with the object,
+    and no table outside it is keyed by the object's identity."""
+    kept = owner.__dict__.get(name)
+    if kept is None:
+        kept = owner.__dict__[name] = make()
+    return kept
 
 
 def _inverse_step(axis: FloatArray) -> float:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import math
 import warnings
+import weakref
 from collections.abc import Collection, Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -316,7 +317,7 @@ class PreparedPoints:
     lon: FloatArray
     lat: FloatArray
     where: tuple[_Where, ...]
-    owner: int  # id of the GriddedWeather that located them
+    owner: weakref.ref[Any]  # the GriddedWeather that located them (a reference: its id may be a dead one's)
     grid: tuple[Any, ...] = ()  # its grids (GriddedWeather.grid_key): sources with an equal key may reuse them
 
 
@@ -742,7 +743,7 @@ class GriddedWeather:
             shape=shape,
             lon=lon_f,
             lat=lat_f,
-            owner=id(self),
+            owner=weakref.ref(self),
             where=tuple(b.locate(lon_f, lat_f) for b in self._blocks),
             grid=self.grid_key,
         )
@@ -763,14 +764,14 @@ class GriddedWeather:
         gridded weather.
         """
         key = self.grid_key
-        if not (prepared.grid is key or prepared.grid == key):  # (an owner's id alone may be a dead source's)
+        if not (prepared.grid is key or prepared.grid == key):
             return None
-        return prepared if prepared.owner == id(self) else replace(prepared, owner=id(self))
+        return prepared if prepared.owner() is self else replace(prepared, owner=weakref.ref(self))
 
     def take(self, prepared: PreparedPoints, index: npt.NDArray[np.intp]) -> PreparedPoints:
         """The points ``index`` (flat indices, C order) of points located by :meth:`prepare`, as a 1-D set: the same
         numbers from :meth:`sample_at` as those points in the whole set (the march samples the arcs still sailing)."""
-        if prepared.owner != id(self):
+        if prepared.owner() is not self:
             raise WeatherError("these points were prepared for another weather source: use its prepare()")
         where = tuple(
             _Where(w.base[index], w.sx[index], w.sy[index], w.wx[index], w.wy[index], w.ok[index])
@@ -799,7 +800,7 @@ class GriddedWeather:
         fields : :class:`~pyroute_rel.weather.Conditions` fields wanted (default all); the others are not
             interpolated and come back NaN (the cost kernel's timing pass needs only wind and current).
         """
-        if prepared.owner != id(self):
+        if prepared.owner() is not self:
             raise WeatherError("these points were prepared for another weather source: use its prepare()")
         t = np.asarray(departure)
         if t.dtype.kind != "M":
