@@ -414,14 +414,15 @@ def needs_pieces(
 ) -> npt.NDArray[np.bool_] | None:
     """Which arcs the cost function's samples cannot judge alone (None: any of them may need it), from the samples.
 
-    Every point of an arc is within half a sub-segment of a sample, and the course along a great circle turns by at
-    most ``|tan(lat)| / R`` per unit length. With patches (steady, no current) an arc needs its pieces judged when
-    it may reach a patch edge, or when its course may carry a heading-dependent quantity across a bin edge of its
-    criterion; elsewhere the samples' conditions hold all along it and every criterion stays in one bin. With a
-    gridded source, when some quantity at some sample is closer to a bin edge than the field can change within that
-    distance and time (:meth:`~pyroute_rel.weather.GriddedWeather.variation`; the arc's whole sailing time bounds
-    the time), plus the course's turn for a heading-dependent one. Other sources, and currents (the heading is then
-    not the course): None.
+    Every point of an arc is within half a sub-segment of a sample, and the course along a great circle turns by at most
+    ``|tan(lat)| / R`` per unit length (an arc that may come within a degree of a pole is always judged). With patches
+    (steady, no current) an arc needs its pieces judged when it may reach a patch edge (a turn either way too: the
+    samples' longitudes and the patch's may be on either side of the antimeridian), or when its course may carry a
+    heading-dependent quantity across a bin edge of its criterion; elsewhere the samples' conditions hold all along it
+    and every criterion stays in one bin. With a gridded source, when some quantity at some sample is closer to a bin
+    edge than the field can change within that distance and time (:meth:`~pyroute_rel.weather.GriddedWeather.variation`;
+    the arc's whole sailing time bounds the time), plus the course's turn for a heading-dependent one. Other sources,
+    and currents (the heading is then not the course): None.
 
     Parameters
     ----------
@@ -456,7 +457,8 @@ def needs_pieces(
             cond = _sample_cond(weather, lon_deg, lat_deg, t0_h, time_h, departure)
         if cond is None or cond.has_current:
             return None
-        return _near_bin_edges(cond, course_deg, margin, failure, variation, span)
+        near = _near_bin_edges(cond, course_deg, margin, failure, variation, span)
+        return None if near is None else near | (la_hi > 89.0) | (la_lo < -89.0)  # (near a pole: judged whole)
     if bounds.boxes is None or not weather.steady:
         return None
     near = _near_edges(lon_deg, la_lo, la_hi, half_deg / math.cos(math.radians(big)), bounds.boxes)
@@ -493,21 +495,23 @@ def _near_edges(
     lo_lo = _last_axis(np.minimum, lon_deg) - lon_margin
     lo_hi = _last_axis(np.maximum, lon_deg) + lon_margin
     near = (lo_hi - lo_lo) > 180.0  # across the antimeridian: judge it whole
+    near |= (la_hi > 89.0) | (la_lo < -89.0)  # near a pole (the course turns without bound there): judge it whole
     union = (la_hi >= boxes[:, 2].min()) & (la_lo <= boxes[:, 3].max())
-    union &= (lo_hi >= boxes[:, 0].min()) & (lo_lo <= boxes[:, 1].max())
     pick = np.flatnonzero(union.reshape(-1))
     if not pick.size:
         return near
     x0, x1 = lo_lo.reshape(-1)[pick], lo_hi.reshape(-1)[pick]
     y0, y1 = la_lo.reshape(-1)[pick], la_hi.reshape(-1)[pick]
     hit = np.zeros(pick.size, dtype=bool)
-    for bx0, bx1, by0, by1 in boxes:
+    for bx0_, bx1_, by0, by1 in boxes:
         lat_in = (y1 >= by0) & (y0 <= by1)
-        lon_in = (x1 >= bx0) & (x0 <= bx1)
-        for x in (bx0, bx1):
-            hit |= lat_in & (x0 <= x) & (x1 >= x)
-        for y in (by0, by1):
-            hit |= lon_in & (y0 <= y) & (y1 >= y)
+        for shift in (-360.0, 0.0, 360.0):  # a patch's edges a turn either way (the samples' longitudes may be)
+            bx0, bx1 = bx0_ + shift, bx1_ + shift
+            lon_in = (x1 >= bx0) & (x0 <= bx1)
+            for x in (bx0, bx1):
+                hit |= lat_in & (x0 <= x) & (x1 >= x)
+            for y in (by0, by1):
+                hit |= lon_in & (y0 <= y) & (y1 >= y)
     flat = near.reshape(-1).copy()
     flat[pick] |= hit
     return flat.reshape(near.shape)

@@ -132,7 +132,7 @@ def box_fields(weather: Any, model: FailureModel, apf: float) -> BoxFields | Non
     )
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _fields_at(lon, lat, base, boxes, values, out):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Each criterion's field at a point into ``out``: the base, overridden by each closed box holding the point
     that sets it (in order)."""
@@ -146,7 +146,7 @@ def _fields_at(lon, lat, base, boxes, values, out):  # type: ignore[no-untyped-d
                     out[c] = v
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def sample_evidence(lon, lat, course, base, boxes, values, relative, edges, n_edges, right, contrib, fill, p_flat, over,
                     bits, work):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
     """The cost function's judgement at one sample (lon, lat, course [deg]) with the fields and classifier of a
@@ -177,19 +177,19 @@ def sample_evidence(lon, lat, course, base, boxes, values, relative, edges, n_ed
     return p_flat[e], over[e], bits[e] if over[e] else np.uint32(0), False
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _lonlat(x, y, z):  # type: ignore[no-untyped-def]  # pragma: no cover
     return np.degrees(np.arctan2(y, x)), np.degrees(np.arcsin(min(max(z, -1.0), 1.0)))
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _add_parallel(ax, ay, az, ux, uy, uz, omega, lat, out, n):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The fractions where the arc crosses parallel ``lat`` [deg] appended to ``out[n:]`` (crossings' arithmetic);
     returns the new count."""
     r = math.hypot(az, uz)
     phi = math.atan2(uz, az)
     s = math.sin(np.radians(lat))
-    if not abs(s) <= r:
+    if not abs(s) <= r or r == 0.0:  # (an arc along the equator: numpy's 0 / 0 is NaN there, no crossing)
         return n
     d = math.acos(min(max(s / r, -1.0), 1.0))
     for t in ((phi - d) % (2.0 * np.pi), (phi + d) % (2.0 * np.pi)):
@@ -199,7 +199,7 @@ def _add_parallel(ax, ay, az, ux, uy, uz, omega, lat, out, n):  # type: ignore[n
     return n
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, error_model="numpy")
 def arc_p_f(a, b, lon_lines, lat_lines, f, cuts, work, reach):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The largest p_f met along the great-circle arc from unit vector ``a`` to ``b`` (3,) and the criteria fired in
     the entries above apf it meets (:func:`~pyroute_rel.crossings.arc_extremes` for one arc of steady patches
@@ -248,7 +248,7 @@ def arc_p_f(a, b, lon_lines, lat_lines, f, cuts, work, reach):  # type: ignore[n
     return max(best, 0.0), fired
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _cuts(frame, b, boxes, lon_lines, lat_lines, cuts):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Where the arc (``frame``: its start, tangent and central angle) to ``b`` crosses the patches' lines (when its
     bounding box meets a patch, the lines within its ranges: :func:`~pyroute_rel.crossings._candidates`) and the
@@ -291,7 +291,7 @@ def _cuts(frame, b, boxes, lon_lines, lat_lines, cuts):  # type: ignore[no-untyp
     return m
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _add_meridian(frame, lon, cuts, n):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The fraction where the arc crosses meridian ``lon`` [deg] (its plane, normal (-sin L, cos L, 0), on the
     meridian's half) appended to ``cuts[n:]``; returns the new count."""
@@ -309,7 +309,7 @@ def _add_meridian(frame, lon, cuts, n):  # type: ignore[no-untyped-def]  # pragm
     return n
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _piece_values(frame, s0, s1, base, boxes, values, relative, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Each criterion's quantity at the piece ``[s0, s1]``'s ends (nudged inside) and middle into ``work[:, 0:3]``
     (:func:`~pyroute_rel.crossings._points`, :func:`~pyroute_rel.crossings._quantities`: a relative angle as
@@ -338,7 +338,7 @@ def _piece_values(frame, s0, s1, base, boxes, values, relative, work):  # type: 
             work[c, j] = v
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _reach(work, relative, edges, n_edges, right, bin_state, fill_state, n_slots, reach):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The states each criterion's range over the piece reaches (``reach[c, slot]``, from its values in
     ``work[c, 0:3]``: :func:`~pyroute_rel.crossings._ranges` and :func:`~pyroute_rel.crossings._box_max`'s
@@ -367,7 +367,7 @@ def _reach(work, relative, edges, n_edges, right, bin_state, fill_state, n_slots
     return True
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _entries(reach, n_slots, stride, p_flat, p_over, bits, best, fired):  # type: ignore[no-untyped-def]  # pragma: no cover
     """``best`` and ``fired`` updated with every table entry whose states are all reached (an odometer over each
     criterion's reached slots): the largest p_f, and the criteria of the entries above apf."""
@@ -400,7 +400,7 @@ def _entries(reach, n_slots, stride, p_flat, p_over, bits, best, fired):  # type
             return best, fired
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _bin(x, edges, m, right, c):  # type: ignore[no-untyped-def]  # pragma: no cover
     """numpy's searchsorted of ``x`` in criterion ``c``'s edges (side "right" where ``right``)."""
     b = 0
@@ -409,7 +409,7 @@ def _bin(x, edges, m, right, c):  # type: ignore[no-untyped-def]  # pragma: no c
     return b
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _fmin(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
     """numpy.fmin: the smaller, NaN ignored."""
     if a != a:
@@ -419,7 +419,7 @@ def _fmin(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
     return a if a <= b else b
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _fmax(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
     """numpy.fmax: the larger, NaN ignored."""
     if a != a:
@@ -429,7 +429,7 @@ def _fmax(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
     return a if a >= b else b
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _fold(x):  # type: ignore[no-untyped-def]  # pragma: no cover
     """:func:`~pyroute_rel.geodesy.fold_angle_deg` of one value below 720 deg."""
     d = abs(x)
@@ -438,7 +438,7 @@ def _fold(x):  # type: ignore[no-untyped-def]  # pragma: no cover
     return min(d, 360.0 - d)
 
 
-@numba.njit(nogil=True, cache=True, inline="always")
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _fold_range(lo, hi):  # type: ignore[no-untyped-def]  # pragma: no cover
     """:func:`~pyroute_rel.crossings._fold_range` of one range."""
     m = lo % 360.0
@@ -452,7 +452,7 @@ def _fold_range(lo, hi):  # type: ignore[no-untyped-def]  # pragma: no cover
     return fmin, fmax
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, error_model="numpy")
 def needs_judging(lon, lat, course, seg_nm, boxes, base, values, relative, edges, n_edges, work):  # type: ignore[no-untyped-def]  # pragma: no cover
     """Whether an arc's samples (``lon``, ``lat``, ``course`` [deg], one value per sample) cannot judge it alone:
     :func:`~pyroute_rel.crossings.needs_pieces` for patches (an arc that may reach a patch edge, or whose course may
@@ -467,20 +467,24 @@ def needs_judging(lon, lat, course, seg_nm, boxes, base, values, relative, edges
         lo_lo, lo_hi = min(lo_lo, lon[s]), max(lo_hi, lon[s])
     la_lo -= half
     la_hi += half
-    big = min(max(abs(la_lo), abs(la_hi)), 89.0)
+    big = max(abs(la_lo), abs(la_hi))
+    if big > 89.0:
+        return True  # near a pole: judged on its pieces (the course turns without bound there)
     lon_margin = half / math.cos(np.radians(big))
     lo_lo -= lon_margin
     lo_hi += lon_margin
-    if lo_hi - lo_lo > 180.0:
+    if lo_hi - lo_lo > 180.0:  # across the antimeridian: judged whole
         return True
     for p in range(boxes.shape[0]):
-        bx0, bx1, by0, by1 = boxes[p, 0], boxes[p, 1], boxes[p, 2], boxes[p, 3]
+        by0, by1 = boxes[p, 2], boxes[p, 3]
         lat_in = la_hi >= by0 and la_lo <= by1
-        lon_in = lo_hi >= bx0 and lo_lo <= bx1
-        if lat_in and ((lo_lo <= bx0 and lo_hi >= bx0) or (lo_lo <= bx1 and lo_hi >= bx1)):
-            return True
-        if lon_in and ((la_lo <= by0 and la_hi >= by0) or (la_lo <= by1 and la_hi >= by1)):
-            return True
+        for shift in (-360.0, 0.0, 360.0):  # a patch's edges a turn either way (the samples' longitudes may be)
+            bx0, bx1 = boxes[p, 0] + shift, boxes[p, 1] + shift
+            lon_in = lo_hi >= bx0 and lo_lo <= bx1
+            if lat_in and ((lo_lo <= bx0 and lo_hi >= bx0) or (lo_lo <= bx1 and lo_hi >= bx1)):
+                return True
+            if lon_in and ((la_lo <= by0 and la_hi >= by0) or (la_lo <= by1 and la_hi >= by1)):
+                return True
     turn = half * (math.tan(np.radians(big)) * 1.01) + 1e-9
     c0 = course[0]
     _fields_at(lon[0], lat[0], base, boxes, values, work)

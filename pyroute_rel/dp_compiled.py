@@ -211,10 +211,12 @@ def rank_step(
         pieces = (f.base, f.boxes, f.values, f.relative, f.edges, f.n_edges, f.right, f.bin_state, f.fill_state,
                   f.n_slots, f.stride, f.p_flat, f.over, f.bits)  # fmt: skip
         by_criterion = np.zeros(f.base.size, dtype=np.int64)
+        # at an apf no entry of the table exceeds, no arc waits for its pieces: nothing there can forbid it
+        p_max = f.p_max if f.apf < f.p_max else -np.inf
         _boxed_fail_rank(  # type: ignore[call-arg]
             tp, src, valid, seg, course, _c(wind.lon_deg), _c(wind.lat_deg), float(bound_kn), wind.tws_kn,
             wind.twd_deg, wind.boxes, wind.values, *tables, forbid, MIN_SPEED_KN, _c(failure.a_xyz),
-            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, f.p_max, t_best, j_best, counts,
+            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, p_max, t_best, j_best, counts,
             by_criterion,
         )  # fmt: skip
         return RankStep(t_best, j_best, c_best, *(int(n) for n in counts), by_criterion)
@@ -528,7 +530,8 @@ def _judge_samples(pick, q0, q1, d, course, lon, lat, judge, p_max, work, times,
             p, ov, b, lost = sample_evidence(lon[d, a, s], lat[d, a, s], course[d, a, s], fbase, fboxes, fvalues,
                                              relative, edges, n_edges, right, contrib, fill, p_flat, over, bits,
                                              work)  # fmt: skip
-            p_arc = p if s == 0 or p != p or p_arc != p_arc else max(p_arc, p)  # numpy.maximum: NaN wins
+            if s == 0 or p != p or (p_arc == p_arc and p > p_arc):  # numpy.maximum: a NaN stays
+                p_arc = p
             if lost:
                 f |= 2
             if ov:
