@@ -1,7 +1,7 @@
-"""Issue 18 acceptance, the parts tests/test_sweep.py does not reach: rows over grids (with a refinement), polars and
-failure models equal `pyroute-rel route --json` on the scenario file edited by hand; the progress bar counts the runs
-done and failed and shows the rate; `route --departures` routes through the sweep library; the printed table has a
-row per run."""
+"""Sweeps against the command line (the parts tests/test_sweep.py does not reach; issue 18): rows over grids (with a
+refinement), polars and failure models equal `pyroute-rel route --json` on the scenario file edited by hand; the
+progress bar counts the runs done and failed and shows the rate; `route --departures` routes through the sweep
+library; the printed table has a row per run."""
 
 from __future__ import annotations
 

@@ -1,8 +1,8 @@
-"""Issue 19 acceptance, the parts tests/test_evaluate.py, test_ensemble.py and test_ensemble_members.py do not reach:
-GPX routes and tracks and bare GeoJSON LineStrings written by hand (not by our writer); the member dimension named
-``realization`` or ``member``; a list of files as the members; ``--risk p90`` on the sorted times; what the figures
-draw (the chosen route highlighted, each candidate's empirical CDF, the regret matrix with its infeasible cells
-masked, the Monte-Carlo histogram); the example script's synthetic 20-member ensemble."""
+"""Ensemble inputs and figures (the parts tests/test_evaluate.py, test_ensemble.py and test_ensemble_members.py do not
+reach; issue 19): GPX routes and tracks and bare GeoJSON LineStrings written by hand (not by our writer); the member
+dimension named ``realization`` or ``member``; a list of files as the members; ``--risk p90`` on the sorted times;
+what the figures draw (the chosen route highlighted, each candidate's empirical CDF, the regret matrix with its
+infeasible cells masked, the Monte-Carlo histogram); the example script's synthetic 20-member ensemble."""
 
 from __future__ import annotations
 
