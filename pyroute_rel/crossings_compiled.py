@@ -26,9 +26,9 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
+from .cost_compiled import evidence_point
 from .crossings import NUDGE
 from .failure import QUANTITY_FIELDS, FailureModel
-from .polar_compiled import fold_twa
 from .units import EARTH_RADIUS_KM, KM_PER_NM
 
 __all__ = ["BoxFields", "box_fields", "arc_p_f", "needs_judging", "sample_evidence"]
@@ -154,24 +154,7 @@ def sample_evidence(lon, lat, course, base, boxes, values, relative, edges, n_ed
     criteria it fires then, and whether the evidence is unknown (:func:`~pyroute_rel.cost_compiled.evidence_point`'s
     classification). ``work``: scratch of one value per criterion."""
     _fields_at(lon, lat, base, boxes, values, work)
-    e = 0
-    lost = False
-    for c in range(base.size):
-        x = work[c]
-        if relative[c]:
-            x = fold_twa(x, course)
-        m = n_edges[c]
-        if x != x:
-            if fill[c] >= 0:
-                e += fill[c]
-                continue
-            lost = True
-            b = 0 if m == 1 else m
-        else:
-            b = 0
-            for j in range(m):
-                b += (edges[c, j] <= x) if right[c] else (edges[c, j] < x)
-        e += contrib[c, b]
+    e, lost = evidence_point(work, relative, course, edges, n_edges, contrib, right, fill)
     if lost:
         return np.nan, False, np.uint32(0), True
     return p_flat[e], over[e], bits[e] if over[e] else np.uint32(0), False
