@@ -29,6 +29,7 @@ import numpy.typing as npt
 from .cost_compiled import evidence_point
 from .crossings import NUDGE
 from .failure import QUANTITY_FIELDS, FailureModel
+from .polar_compiled import fmax, fmin
 from .units import EARTH_RADIUS_KM, KM_PER_NM
 
 __all__ = ["BoxFields", "box_fields", "arc_p_f", "needs_judging", "sample_evidence"]
@@ -332,8 +333,8 @@ def _reach(work, relative, edges, n_edges, right, bin_state, fill_state, n_slots
             v0 = v1 + (v0 - v1 + 180.0) % 360.0 - 180.0
             v2 = v1 + (v2 - v1 + 180.0) % 360.0 - 180.0
             v1 = v1 + (v1 - v1 + 180.0) % 360.0 - 180.0
-        lo = _fmin(_fmin(v0, v1), v2)
-        hi = _fmax(_fmax(v0, v1), v2)
+        lo = fmin(fmin(v0, v1), v2)
+        hi = fmax(fmax(v0, v1), v2)
         if relative[c]:
             lo, hi = _fold_range(lo, hi)
         for k in range(n_slots[c]):
@@ -393,26 +394,6 @@ def _bin(x, edges, m, right, c):  # type: ignore[no-untyped-def]  # pragma: no c
 
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
-def _fmin(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """numpy.fmin: the smaller, NaN ignored."""
-    if a != a:
-        return b
-    if b != b:
-        return a
-    return a if a <= b else b
-
-
-@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
-def _fmax(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """numpy.fmax: the larger, NaN ignored."""
-    if a != a:
-        return b
-    if b != b:
-        return a
-    return a if a >= b else b
-
-
-@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _fold(x):  # type: ignore[no-untyped-def]  # pragma: no cover
     """:func:`~pyroute_rel.geodesy.fold_angle_deg` of one value below 720 deg."""
     d = abs(x)
@@ -427,12 +408,12 @@ def _fold_range(lo, hi):  # type: ignore[no-untyped-def]  # pragma: no cover
     m = lo % 360.0
     h = m + (hi - lo)
     fm, fh = _fold(m), _fold(h)
-    fmin, fmax = min(fm, fh), max(fm, fh)
+    lo, hi = min(fm, fh), max(fm, fh)
     if (m <= 180.0 and h >= 180.0) or (m <= 540.0 and h >= 540.0):
-        fmax = 180.0
+        hi = 180.0
     if m == 0.0 or (m <= 360.0 and h >= 360.0):
-        fmin = 0.0
-    return fmin, fmax
+        lo = 0.0
+    return lo, hi
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")

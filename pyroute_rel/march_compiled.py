@@ -27,7 +27,7 @@ from .cost_compiled import evidence_point, judge_tables, model_rules
 from .failure import FailureModel
 from .march import MIN_STEP_H, SPEED_CHANGE, SPEED_FLOOR_KN, Marched, step_hours
 from .polar import MIN_SPEED_KN, Polar
-from .polar_compiled import fold_twa, speed_kn, tables
+from .polar_compiled import fmax, fold_twa, speed_kn, tables
 from .units import KN_PER_MS
 from .weather.gridded import GriddedWeather, PreparedPoints, axis_cell, lerp, speed_bearing
 
@@ -286,7 +286,7 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                     flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, tm, cu, cv, kn, perturbed, de, dn
                 )
                 vm, rm = _sog(tws_m, twd_m, crs, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
-                scale = max(_fmax(vm, v0), floor)  # (max drops a NaN scale: then the comparison is False)
+                scale = max(fmax(vm, v0), floor)  # (max drops a NaN scale: then the comparison is False)
                 rough = abs(vm - v0) > speed_change * scale and h > min_step and not stuck
                 if rough:  # tried again with half the time, from the same start
                     cap = 0.5 * h
@@ -384,16 +384,6 @@ def _fields(flat, corners, weights, at, st, wt, inside, kinds, col_a, col_b, val
             s_ = _column(flat, corners, weights, at, st, wt, col_a[q])
             c_ = _column(flat, corners, weights, at, st, wt, col_b[q])
             vals[q] = speed_bearing(s_, c_, 1.0)[1]
-
-
-@numba.njit(nogil=True, cache=True, inline="always")
-def _fmax(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """numpy's fmax: the larger, NaN ignored."""
-    if a != a:
-        return b
-    if b != b:
-        return a
-    return a if a >= b else b
 
 
 @numba.njit(nogil=True, cache=True, inline="always")

@@ -211,3 +211,23 @@ def sub_time(seg, v, w, twd, min_speed):  # type: ignore[no-untyped-def]  # prag
     if v >= min_speed:
         return seg / v, 0
     return np.inf, 1
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def fmin(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """numpy's fmin of two numbers: the smaller, NaN ignored (shared by the compiled march and pieces' judge)."""
+    if a != a:
+        return b
+    if b != b:
+        return a
+    return a if a <= b else b
+
+
+@numba.njit(nogil=True, cache=True, inline="always")
+def fmax(a, b):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """numpy's fmax of two numbers: the larger, NaN ignored (shared by the compiled march and pieces' judge)."""
+    if a != a:
+        return b
+    if b != b:
+        return a
+    return a if a >= b else b
