@@ -63,6 +63,7 @@ __all__ = [
     "geometry_costs",
     "deferred_costs",
     "PendingPieces",
+    "SpeedNoise",
     "arc_quantities",
     "REASONS",
 ]
@@ -78,6 +79,43 @@ REASONS: dict[str, int] = {
 }
 
 FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class SpeedNoise:
+    """A noise on the craft's speed over ground, one draw per arc, applied wherever the craft's speed is taken.
+
+    The speed ``v`` [kn] becomes ``v' = max(gain v + spread sqrt(v), FLOOR v)`` where ``v > 0`` (no progress and
+    missing weather stay as they are): with ``gain = a`` and ``spread = sqrt(kappa a) eta`` it is Monte Carlo's
+    ``V' = a V + sqrt(kappa a V) eta`` (:mod:`pyroute_rel.monte_carlo`). Applied to the speed at every step of the
+    march, the slower craft meets the wind of the times it is there, not the wind of the deterministic craft's times.
+
+    Attributes
+    ----------
+    gain : Each arc's factor on the speed [-], in the block's shape (or one value for all).
+    spread : Each arc's term in ``sqrt(v)`` [kn**0.5], in the block's shape (or one value for all).
+    """
+
+    gain: FloatArray
+    spread: FloatArray
+
+    #: The floor of the noisy speed, as a fraction of the speed [-].
+    FLOOR = 0.1
+
+    def flat(self, size: int) -> tuple[FloatArray, FloatArray]:
+        """``gain`` and ``spread`` of every arc of a block of ``size`` arcs, flat (C order)."""
+        return tuple(  # type: ignore[return-value]
+            np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=float).ravel(), (size,)))
+            for a in (self.gain, self.spread)
+        )
+
+    def apply(self, sog_kn: FloatArray, gain: FloatArray, spread: FloatArray) -> FloatArray:
+        """The noisy speed [kn] of speeds ``sog_kn`` whose arcs draw ``gain`` and ``spread`` (broadcast against it)."""
+        v = np.asarray(sog_kn, dtype=float)
+        with np.errstate(invalid="ignore"):
+            moves = v > 0.0
+            noisy = np.maximum(gain * v + spread * np.sqrt(np.where(moves, v, 0.0)), self.FLOOR * v)
+        return np.where(moves, noisy, v)
 
 
 @dataclass(frozen=True)
@@ -393,6 +431,7 @@ def geometry_costs(
     wave_loss: WaveLoss | None = None,
     workers: int | None = None,
     exact_p_f: bool = True,
+    speed_noise: SpeedNoise | None = None,
 ) -> ArcCosts:
     """:func:`arc_costs` on precomputed :class:`ArcGeometry` (the solver caches geometry per grid).
 
@@ -404,8 +443,11 @@ def geometry_costs(
     :func:`~pyroute_rel.parallel.default_workers`): the compiled sampling kernels and numpy's ufuncs release the
     GIL, so the parts run in parallel. Each arc's cost depends on that arc alone, so the result is the same as in
     one piece.
+
+    ``speed_noise``: a noise on the speed of each arc (:class:`SpeedNoise`), applied to the speed at every step the
+    craft sails (Monte Carlo's noisy boat); such a block is not split between threads.
     """
-    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f)
+    options = _CostOptions(departure, weather, polar, failure, apf, beyond, wave_loss, exact_p_f, speed_noise)
     return _geometry_costs(geom, t0_h, options, workers, defer=False)[0]
 
 
@@ -528,7 +570,8 @@ def _geometry_costs(
     steady = bool(weather.steady)
     n = 1 if workers is None else int(workers)
     # steady weather is sampled once and cheaply: there the threads cost more than they save (measured)
-    if shape and not steady and math.prod(shape) >= PARALLEL_MIN_MARCHED and not _rows_aligned(weather):
+    aligned = _rows_aligned(weather) or options.noise is not None  # (each row its own run)
+    if shape and not steady and math.prod(shape) >= PARALLEL_MIN_MARCHED and not aligned:
         n = default_workers() if workers is None else n  # (looked up only where threads may be used)
         if n > 1:
             return _threaded_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options, n, defer)
@@ -573,6 +616,7 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
     names = [f.name for f in dataclass_fields(Conditions)]
     kept = {name: np.full((n, samples), 0.0 if name.startswith("current") else np.nan) for name in names}
 
+    noisy = None if o.noise is None else o.noise.flat(n)
     wind_only = _wind_only(o)
     if wind_only:  # TWA and polar speed in compiled code, as the compiled march has them (pyroute_rel.cost_compiled)
         from .cost_compiled import sail_wind
@@ -584,6 +628,8 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
         sog, p, reason, fired = _sample_speeds(
             cond, c, o.polar, o.failure if judge else None, o.apf, o.beyond, o.wave_loss, wind=wind
         )
+        if noisy is not None:
+            sog = o.noise.apply(sog, *((a if idx is None else a[idx]) for a in noisy))  # type: ignore[union-attr]
         if judge:
             at = slice(None) if idx is None else idx
             for name in names:
@@ -682,6 +728,7 @@ def _compiled_march(
         apf=o.apf,
         flags=(REASONS["polar"], REASONS["weather"], REASONS["failure"]),
         wind_error_kn=errors,
+        speed_noise=None if o.noise is None else o.noise.flat(n),
     )
     values = {name: kept[r].reshape(shape + (samples,)) for r, name in enumerate(KEPT_FIELDS)}
     zeros = np.zeros(shape + (samples,))
@@ -864,6 +911,7 @@ class _CostOptions:
     beyond: str
     wave_loss: WaveLoss | None
     exact_p_f: bool = True
+    noise: SpeedNoise | None = None
 
 
 def _threaded_costs(
@@ -914,7 +962,14 @@ def _steady_costs(
     sampled once (any time will do)."""
     o = options
     cond = o.weather.sample(geom.lon_deg, geom.lat_deg, o.departure)
-    return (*_sample_costs(cond, geom.course_deg, geom.seg_nm, o.polar, o.failure, o.apf, o.beyond, o.wave_loss), cond)
+    noise = None
+    if o.noise is not None:
+        gain, spread = o.noise.flat(math.prod(geom.shape))
+        noise = (o.noise, gain.reshape(geom.shape + (1,)), spread.reshape(geom.shape + (1,)))
+    costs = _sample_costs(
+        cond, geom.course_deg, geom.seg_nm, o.polar, o.failure, o.apf, o.beyond, o.wave_loss, noise=noise
+    )
+    return (*costs, cond)
 
 
 def _wind_only(options: _CostOptions) -> bool:
@@ -965,13 +1020,17 @@ def _sample_costs(
     wave_loss: WaveLoss | None = None,
     *,
     wind: tuple[FloatArray, FloatArray] | None = None,
+    noise: tuple[SpeedNoise, FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.uint8], npt.NDArray[np.uint32] | None]:
     """Per-sample time [h], p_f, reason flags and (with a failure model) the criteria fired where p_f > apf.
 
     ``wind``: TWA [deg] and polar speed [kn] already computed for the course (no current), e.g. by
-    :func:`pyroute_rel.cost_compiled.sail_wind`.
+    :func:`pyroute_rel.cost_compiled.sail_wind`. ``noise``: a :class:`SpeedNoise` and its gain and spread,
+    broadcast against the samples.
     """
     sog, p, reason, fired = _sample_speeds(cond, course_deg, polar, failure, apf, beyond, wave_loss, wind=wind)
+    if noise is not None:
+        sog = noise[0].apply(sog, noise[1], noise[2])
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         dt = seg_nm / sog
     dt = np.where(reason != 0, np.inf, dt)

@@ -23,6 +23,7 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
+from .cost import SpeedNoise
 from .cost_compiled import evidence_point, judge_tables, model_rules
 from .failure import FailureModel
 from .march import MIN_STEP_H, SPEED_CHANGE, SPEED_FLOOR_KN, Marched, step_hours
@@ -78,6 +79,7 @@ def march_gridded(
     apf: float,
     flags: tuple[int, int, int],
     wind_error_kn: tuple[FloatArray, FloatArray] | None = None,
+    speed_noise: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[Marched, FloatArray]:
     """:func:`pyroute_rel.march.march` of ``n`` arcs in a gridded weather, in one compiled loop.
 
@@ -92,6 +94,8 @@ def march_gridded(
     flags : The reason bits of no speed, missing weather and a failure above apf.
     wind_error_kn : An error east and north added to the wind at each arc [kn], shape (n,) each, as
         :class:`~pyroute_rel.monte_carlo.PerturbedWind` adds it (the same arithmetic), or None.
+    speed_noise : The gain and spread of a :class:`~pyroute_rel.cost.SpeedNoise` at each arc, shape (n,) each,
+        applied to every speed taken (the same arithmetic), or None.
 
     Returns
     -------
@@ -146,6 +150,8 @@ def march_gridded(
         np.int64(samples),
         steps_h,
         *((np.zeros(0), np.zeros(0)) if wind_error_kn is None else wind_error_kn),
+        *((np.zeros(0), np.zeros(0)) if speed_noise is None else speed_noise),
+        SpeedNoise.FLOOR,
     )
     any_fired = _march_kernel(field, cols, pol, model, rule, arcs, out, kept)
     time_h, marks, p_f, reason, fired = out
@@ -189,7 +195,7 @@ def _column(flat, corners, weights, at, st, wt, c):  # type: ignore[no-untyped-d
 
 
 @numba.njit(nogil=True, cache=True)
-def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: ignore[no-untyped-def]  # noqa: C901  # pragma: no cover
     """:func:`march_gridded` into ``out`` (time, marks, p_f, reason, fired) and ``kept``, arc after arc, sub-segment
     after sub-segment, step after step (:func:`pyroute_rel.march.march`'s steps); returns whether any sample was
     judged above apf (fired criteria). One flat loop: split into helpers taking these tuples, numba compiled it 4x
@@ -204,7 +210,7 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
     twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed = pol
     source, relative, edges, n_edges, contrib, right, fill, p_flat, over, bits = model
     polar_flag, weather_flag, failure_flag, speed_change, floor, min_step, kn = rule
-    course, seg, t0, samples, steps_h, err_e, err_n = arcs
+    course, seg, t0, samples, steps_h, err_e, err_n, gain, spread, noise_floor = arcs
     time_out, marks_out, p_out, reason_out, fired_out = out
     n_steps = steps_h.size
     nt = t_axis.size
@@ -216,9 +222,12 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
     judged_vals = np.empty(source.size)
     any_fired = False
     perturbed = err_e.size > 0
+    noisy = gain.size > 0
     for i in range(t0.size):
         de = err_e[i] if perturbed else 0.0
         dn = err_n[i] if perturbed else 0.0
+        g = gain[i] if noisy else 1.0
+        c_noise = spread[i] if noisy else 0.0
         start = t0[i] if np.isfinite(t0[i]) else 0.0
         e = 0.0
         marks_out[i, 0] = start
@@ -275,6 +284,8 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                     )
                     tws0, twd0 = wind0[0], wind0[1]
                     v0, r0 = _sog(tws0, twd0, crs, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
+                    if noisy and v0 > 0.0:  # SpeedNoise.apply
+                        v0 = max(g * v0 + c_noise * np.sqrt(v0), noise_floor * v0)
                     t_pred = tk
                 hp = r / v0 if v0 > 0.0 else np.inf
                 h = min(min(hp, (nxt if v0 < floor else np.inf) - tk), cap)
@@ -286,6 +297,8 @@ def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: igno
                     flat, corners, weights, here, t_axis, t_first, t_inv, shift, nf, tm, cu, cv, kn, perturbed, de, dn
                 )
                 vm, rm = _sog(tws_m, twd_m, crs, twa_tab, tws_tab, speed_tab, twa_inv, tws_inv, forbid, min_speed)
+                if noisy and vm > 0.0:  # SpeedNoise.apply
+                    vm = max(g * vm + c_noise * np.sqrt(vm), noise_floor * vm)
                 scale = max(fmax(vm, v0), floor)  # (max drops a NaN scale: then the comparison is False)
                 rough = abs(vm - v0) > speed_change * scale and h > min_step and not stuck
                 if rough:  # tried again with half the time, from the same start

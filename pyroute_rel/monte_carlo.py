@@ -14,9 +14,12 @@ Wind error (per run, per wind component, the same along a leg)
     (:func:`spread_from_members`), ``s_k`` is instead each leg's ensemble standard deviation of the u and v
     components at its midpoint and mid-time.
 Boat-speed noise (per run, per leg, AR(1) in time)
-    The speed made good ``V`` becomes ``V' = V + sqrt(kappa V) eta_k`` (variance ``kappa V`` [kn**2]), floored at
-    10 % of ``V``: ``kappa = 0.2`` kn as in the MCTS-UCT router of Barde (ISAE 2023), which draws the boat speed
-    with variance ``kappa V`` with ``kappa = 20 %``. The leg's time is ``t V / V'``. ``eta_k`` is a unit AR(1)
+    The speed over ground ``V`` becomes ``V' = V + sqrt(kappa V) eta_k`` (variance ``kappa V`` [kn**2]), floored
+    at 10 % of ``V``: ``kappa = 0.2`` kn as in the MCTS-UCT router of Barde (ISAE 2023), which draws the boat speed
+    with variance ``kappa V`` with ``kappa = 20 %``. It applies to the speed at every step of the march
+    (:class:`~pyroute_rel.cost.SpeedNoise`), ``V`` the speed where and when the run's craft is: a slower craft
+    sails on into the wind of its own, later times (in steady weather with a speed constant along a leg, the
+    leg's time is ``t V / V'``). ``eta_k`` is a unit AR(1)
     process along the legs, ``eta_k = psi_k eta_(k-1) + sqrt(1 - psi_k**2) xi_k``, ``psi_k = exp(-dt_k /
     tau_speed)`` (``dt_k`` as for the wind): a boat slower than its polar stays slower for a while (a fouled hull,
     a sea state the polar does not know, a sail plan), so the spread of the voyage time does not shrink as the
@@ -28,8 +31,11 @@ Boat-speed noise (per run, per leg, AR(1) in time)
     than ``kappa / V`` of it (6 % at 4 kn), an effect of a symmetric noise on the speed, not of the sampling
     (:func:`expected_speed_factor` gives it exactly; the tests check the runs' mean against it).
 Polar scaling (per run, optional)
-    The polar's speeds scaled by ``1 + polar_sd * zeta``, ``zeta ~ N(0, 1)`` (Dickson et al. 2019 studied a 2.5 %
-    polar uncertainty): ``V`` above is multiplied by it.
+    The polar's speeds scaled by ``a = 1 + polar_sd * zeta``, ``zeta ~ N(0, 1)`` (Dickson et al. 2019 studied a
+    2.5 % polar uncertainty): ``V`` above is multiplied by it, ``V' = a V + sqrt(kappa a V) eta_k``.
+
+Each run's draws are kept in the result (:attr:`MonteCarloResult.polar_scale`, :attr:`MonteCarloResult.speed_eta`),
+so that any run can be sailed again by hand.
 
 With every noise zero each run is the deterministic evaluation, exactly. The probability that the track meets
 ``p_f > apf`` is the fraction of runs in which some leg does, with a Wilson score interval (95 %).
@@ -51,7 +57,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from .cost import ArcGeometry, arc_geometry, geometry_costs
+from .cost import ArcGeometry, SpeedNoise, arc_geometry, geometry_costs
 from .errors import ScenarioError, brief, check_instance, check_numbers
 from .evaluate import Track, as_track, evaluation_problem, sail_tracks
 from .planners.settings import FINITE, check_fields
@@ -260,6 +266,9 @@ class MonteCarloResult:
     apf : The bound.
     seed : The random seed.
     settings : The uncertainties.
+    polar_scale : Each run's factor ``a`` on the polar's speeds [-] (None: not kept).
+    speed_eta : Each run's unit boat-speed noise ``eta_k`` on each leg [-], shape (runs, legs) (None: not kept).
+    wind_error_ms : Each run's wind error east and north on each leg [m/s], shape (2, runs, legs) (None: not kept).
     """
 
     voyage_time_h: FloatArray
@@ -269,6 +278,9 @@ class MonteCarloResult:
     apf: float
     seed: int | None
     settings: MonteCarloSettings = field(default_factory=MonteCarloSettings)
+    polar_scale: FloatArray | None = None
+    speed_eta: FloatArray | None = None
+    wind_error_ms: FloatArray | None = None
 
     @property
     def n_runs(self) -> int:
@@ -391,6 +403,9 @@ def monte_carlo(
         apf=float(prob.apf),
         seed=seed,
         settings=s,
+        polar_scale=scale,
+        speed_eta=eta,
+        wind_error_ms=np.stack([east, north]),
     )
 
 
@@ -424,6 +439,8 @@ def _sail_runs(
         geom = ArcGeometry(
             *(np.broadcast_to(a, (idx.size, *a.shape)) for a in (one.lon_deg, one.lat_deg, one.course_deg, one.seg_nm))
         )
+        gain = scale[idx]
+        noise = SpeedNoise(gain=gain, spread=np.sqrt(kappa * np.maximum(gain, 0.0)) * eta[idx, k])
         c = geometry_costs(
             geom,
             elapsed[idx],
@@ -435,14 +452,9 @@ def _sail_runs(
             beyond=problem.beyond,
             wave_loss=problem.wave_loss,
             workers=1,  # the rows are the runs: never split
+            speed_noise=noise,  # the run's boat, at every step: a slower boat meets the wind of its own times
         )
         t = c.time_h
-        dist = float(geom.seg_nm.ravel()[0]) * problem.samples
-        with np.errstate(divide="ignore", invalid="ignore"):
-            v = dist / t
-            ratio = scale[idx] + np.sqrt(kappa * scale[idx] / v) * eta[idx, k]
-        ratio = np.where(np.isfinite(ratio), np.maximum(ratio, 0.1), 1.0)
-        t = t / ratio
         p_f[idx, k] = c.p_f
         if not problem.sides:
             elapsed[idx] = problem.arrive(elapsed[idx] + t)

@@ -558,7 +558,7 @@ def forward_dp(
     # the labels a rank's arcs leave from: no side (-1) without manoeuvres and at the start, else port, starboard
     prev_sides: tuple[int, ...] = (-1,) if problem.initial_side is None else (problem.initial_side,)
     wait_into = np.zeros((n_ranks + 1, n_nodes, n_lab)) if problem.n_wait else None
-    line = _FinishLine(grid) if grid.finish_line is not None else None
+    line = _FinishLine(grid, problem) if grid.finish_line is not None else None
     pricing = _Pricing.of(problem, cost_hook, finish_line=line is not None)
     tally = _Tally()
     bar = progress_bar(n_ranks + 1, enabled=progress)
@@ -969,8 +969,9 @@ class _FinishLine:
     """Where a route first crosses the finish line: the earliest crossing seen so far, on which arc and after
     which wait."""
 
-    def __init__(self, grid: Grid) -> None:
+    def __init__(self, grid: Grid, problem: RoutingProblem) -> None:
         self.grid = grid
+        self.problem = problem
         self.best_h = np.inf
         # rank, node, source node, fraction, wait [h], side of the arc, side label of its source
         self.at: tuple[int, int, int, float, float, int, int] | None = None
@@ -990,10 +991,13 @@ class _FinishLine:
         ``blocked(node, arc)``: whether an arc meets an obstacle, when the obstacles are tested lazily (the costs
         then leave untested the arcs that are not a node's best, and one of them may cross the line first)."""
         frac = _crossing(self.grid, arcs.k)
-        along = t0 + frac * priced.time_h
+        crosses = np.isfinite(frac) & np.isfinite(priced.total_h)
+        if not crosses.any():
+            return
+        along = np.broadcast_to(t0, frac.shape) + self._to_line(arcs, t0, frac, crosses)
         if priced.penalty_h is not None:
             along = along + priced.penalty_h
-        cand = np.where(np.isfinite(frac) & np.isfinite(priced.total_h), along, np.inf)
+        cand = np.where(crosses, along, np.inf)
         while cand.size and np.min(cand) < self.best_h:
             jj, cc = np.unravel_index(np.argmin(cand), cand.shape)
             if blocked is not None and blocked(int(jj), int(cc)):
@@ -1003,6 +1007,18 @@ class _FinishLine:
             side = 0 if priced.side is None else int(priced.side[jj, cc])
             self.at = (arcs.k, int(jj), int(arcs.src[jj, cc]), float(frac[jj, cc]), wait_h, side, max(from_side, 0))
             break
+
+    def _to_line(self, arcs: _RankArcs, t0: FloatArray, frac: FloatArray, crosses: BoolArray) -> FloatArray:
+        """The time from each crossing arc's departure to the line [h]: the arc from its start to the crossing point
+        costed as a leg of the route (:func:`leg_manoeuvres` costs the route's last leg so), at the time it leaves
+        (in time-varying weather the craft's speed along an arc is not uniform: a fraction of the arc's time is
+        not the time to the line)."""
+        out = np.full(frac.shape, np.inf)
+        lon0, lat0, lon1, lat1, _, _ = self.grid.arcs(arcs.k)
+        a0, b0, a1, b1, t = (np.broadcast_to(a, frac.shape)[crosses] for a in (lon0, lat0, lon1, lat1, t0))
+        e_lon, e_lat = geodesy.intermediate_point(a0, b0, a1, b1, frac[crosses])
+        out[crosses] = self.problem.costs(a0, b0, e_lon, e_lat, t).time_h
+        return out
 
     def end(
         self, finish_h: float, finish_back: int, wait_into: FloatArray | None

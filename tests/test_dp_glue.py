@@ -368,6 +368,53 @@ def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
     assert both.any() and not np.array_equal(plain.time_h[both], again.time_h[both])
 
 
+@settings(max_examples=10, derandomize=True, deadline=None, database=None)
+@given(st.integers(0, 2**31), st.integers(1, 3), st.sampled_from([None, "dickson2018"]))
+def test_compiled_march_applies_each_runs_speed_noise_as_the_numpy_march(
+    seed: int, samples: int, model: str | None
+) -> None:
+    """Monte Carlo's noisy boat (:class:`~pyroute_rel.cost.SpeedNoise`, one gain and spread per row) at every step:
+    the compiled march gives the numpy march's costs and marks bit for bit; the noise changes the times; and in
+    weather that does not change along an arc or in time, the noisy time is the noiseless one over the noise's
+    factor on the speed (``v / v'``, with the floor), by hand."""
+    from pyroute_rel.cost import SpeedNoise
+
+    rng = np.random.default_rng(seed)
+    geom, t0 = arcs(seed, shape=(6, 5), samples=samples)
+    gain, eta = rng.uniform(0.3, 1.4, (6, 1)), rng.normal(0.0, 2.0, (6, 1))
+    noise = SpeedNoise(gain=np.broadcast_to(gain, (6, 5)), spread=np.broadcast_to(np.sqrt(0.2 * gain) * eta, (6, 5)))
+    kw = dict(
+        departure=DEP, weather=weather(seed), polar=POLAR, failure=None if model is None else load_failure_model(model)
+    )
+    got = geometry_costs(geom, t0, apf=0.5, speed_noise=noise, **kw)
+    want = numpy_path(geom, t0, apf=0.5, speed_noise=noise, **kw)
+    assert_same_costs(got, want)
+    np.testing.assert_array_equal(got.marks_h, want.marks_h)
+    plain = geometry_costs(geom, t0, apf=1.0, **kw)
+    again = geometry_costs(geom, t0, apf=1.0, speed_noise=noise, **kw)
+    both = np.isfinite(plain.time_h) & np.isfinite(again.time_h)
+    assert both.any() and not np.allclose(plain.time_h[both], again.time_h[both])
+    # uniform steady wind: one speed v along every arc, so the time is the noiseless one times v / v'
+    from pyroute_rel.weather import UniformWeather
+
+    still = UniformWeather(tws_kn=12.0, twd_deg=30.0)
+    one = arcs(seed, shape=(6, 5), samples=samples)[0]
+    one = type(one)(
+        one.lon_deg[..., :1].repeat(samples, -1),
+        one.lat_deg[..., :1].repeat(samples, -1),
+        one.course_deg[..., :1].repeat(samples, -1),
+        one.seg_nm,
+    )
+    base = geometry_costs(one, t0, departure=DEP, weather=still, polar=POLAR)
+    noisy = geometry_costs(one, t0, departure=DEP, weather=still, polar=POLAR, speed_noise=noise)
+    sails = np.isfinite(base.time_h)  # (an arc in irons stays forbidden)
+    assert sails.any()
+    np.testing.assert_array_equal(np.isfinite(noisy.time_h), sails)
+    v = one.seg_nm[..., 0] * samples / base.time_h
+    v_noisy = np.maximum(gain * v + np.sqrt(0.2 * gain) * eta * np.sqrt(v), 0.1 * v)
+    np.testing.assert_allclose(noisy.time_h[sails], (base.time_h * v / v_noisy)[sails], rtol=1e-12)
+
+
 @settings(max_examples=8, derandomize=True, deadline=None, database=None)
 @given(st.integers(0, 2**31), st.integers(1, 3), st.sampled_from([None, "dickson2018"]))
 def test_compiled_march_sails_rows_in_stacked_members_as_the_numpy_march(
