@@ -47,7 +47,7 @@ from .crab import steer
 from .crossings import arc_extremes, needs_pieces
 from .errors import ScenarioError
 from .failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
-from .march import Marched, Step, march, step_hours
+from .march import Marched, SpeedNoise, Step, march, step_hours
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .settings import get_settings
@@ -63,7 +63,6 @@ __all__ = [
     "geometry_costs",
     "deferred_costs",
     "PendingPieces",
-    "SpeedNoise",
     "arc_quantities",
     "REASONS",
 ]
@@ -79,43 +78,6 @@ REASONS: dict[str, int] = {
 }
 
 FloatArray = npt.NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class SpeedNoise:
-    """A noise on the craft's speed over ground, one draw per arc, applied wherever the craft's speed is taken.
-
-    The speed ``v`` [kn] becomes ``v' = max(gain v + spread sqrt(v), FLOOR v)`` where ``v > 0`` (no progress and
-    missing weather stay as they are): with ``gain = a`` and ``spread = sqrt(kappa a) eta`` it is Monte Carlo's
-    ``V' = a V + sqrt(kappa a V) eta`` (:mod:`pyroute_rel.monte_carlo`). Applied to the speed at every step of the
-    march, the slower craft meets the wind of the times it is there, not the wind of the deterministic craft's times.
-
-    Attributes
-    ----------
-    gain : Each arc's factor on the speed [-], in the block's shape (or one value for all).
-    spread : Each arc's term in ``sqrt(v)`` [kn**0.5], in the block's shape (or one value for all).
-    """
-
-    gain: FloatArray
-    spread: FloatArray
-
-    #: The floor of the noisy speed, as a fraction of the speed [-].
-    FLOOR = 0.1
-
-    def flat(self, size: int) -> tuple[FloatArray, FloatArray]:
-        """``gain`` and ``spread`` of every arc of a block of ``size`` arcs, flat (C order)."""
-        return tuple(  # type: ignore[return-value]
-            np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=float).ravel(), (size,)))
-            for a in (self.gain, self.spread)
-        )
-
-    def apply(self, sog_kn: FloatArray, gain: FloatArray, spread: FloatArray) -> FloatArray:
-        """The noisy speed [kn] of speeds ``sog_kn`` whose arcs draw ``gain`` and ``spread`` (broadcast against it)."""
-        v = np.asarray(sog_kn, dtype=float)
-        with np.errstate(invalid="ignore"):
-            moves = v > 0.0
-            noisy = np.maximum(gain * v + spread * np.sqrt(np.where(moves, v, 0.0)), self.FLOOR * v)
-        return np.where(moves, noisy, v)
 
 
 @dataclass(frozen=True)

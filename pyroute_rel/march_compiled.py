@@ -23,10 +23,9 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from .cost import SpeedNoise
 from .cost_compiled import evidence_point, judge_tables, model_rules
 from .failure import FailureModel
-from .march import MIN_STEP_H, SPEED_CHANGE, SPEED_FLOOR_KN, Marched, step_hours
+from .march import MIN_STEP_H, SPEED_CHANGE, SPEED_FLOOR_KN, Marched, SpeedNoise, step_hours
 from .polar import MIN_SPEED_KN, Polar
 from .polar_compiled import fmax, fold_twa, speed_kn, tables
 from .units import KN_PER_MS
@@ -94,7 +93,7 @@ def march_gridded(
     flags : The reason bits of no speed, missing weather and a failure above apf.
     wind_error_kn : An error east and north added to the wind at each arc [kn], shape (n,) each, as
         :class:`~pyroute_rel.monte_carlo.PerturbedWind` adds it (the same arithmetic), or None.
-    speed_noise : The gain and spread of a :class:`~pyroute_rel.cost.SpeedNoise` at each arc, shape (n,) each,
+    speed_noise : The gain and spread of a :class:`~pyroute_rel.march.SpeedNoise` at each arc, shape (n,) each,
         applied to every speed taken (the same arithmetic), or None.
 
     Returns

@@ -17,7 +17,7 @@ Boat-speed noise (per run, per leg, AR(1) in time)
     The speed over ground ``V`` becomes ``V' = V + sqrt(kappa V) eta_k`` (variance ``kappa V`` [kn**2]), floored
     at 10 % of ``V``: ``kappa = 0.2`` kn as in the MCTS-UCT router of Barde (ISAE 2023), which draws the boat speed
     with variance ``kappa V`` with ``kappa = 20 %``. It applies to the speed at every step of the march
-    (:class:`~pyroute_rel.cost.SpeedNoise`), ``V`` the speed where and when the run's craft is: a slower craft
+    (:class:`~pyroute_rel.march.SpeedNoise`), ``V`` the speed where and when the run's craft is: a slower craft
     sails on into the wind of its own, later times (in steady weather with a speed constant along a leg, the
     leg's time is ``t V / V'``). ``eta_k`` is a unit AR(1)
     process along the legs, ``eta_k = psi_k eta_(k-1) + sqrt(1 - psi_k**2) xi_k``, ``psi_k = exp(-dt_k /
@@ -57,9 +57,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from .cost import ArcGeometry, SpeedNoise, arc_geometry, geometry_costs
+from .cost import ArcGeometry, arc_geometry, geometry_costs
 from .errors import ScenarioError, brief, check_instance, check_numbers
 from .evaluate import Track, as_track, evaluation_problem, sail_tracks
+from .march import SpeedNoise
 from .planners.settings import FINITE, check_fields
 from .units import KN_PER_MS
 from .weather.base import Conditions
