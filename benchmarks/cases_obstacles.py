@@ -30,14 +30,14 @@ _CODE = """
 import os, shutil, tempfile
 os.environ["PYROUTE_REL_CACHE_DIR"] = disk = tempfile.mkdtemp(prefix="bench-cache-")
 from dataclasses import replace
-from pyroute_rel.obstacles import areas, land as ob
+from pyroute_rel.obstacles import land as ob
+from pyroute_rel.store import clear_kept
 from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
 sc = load_scenario({path!r}).with_options({options})
 avoid = {avoid}
 
 def clear(disk_too=True):
-    ob._gshhs_meta.cache_clear(); ob._land_geometry.cache_clear(); ob._land_within.cache_clear()
-    areas._INDEXES.clear(); areas._TREES.clear()
+    clear_kept()  # land, indexes and trees kept in memory (pyroute_rel.store)
     if disk_too:
         shutil.rmtree(disk, ignore_errors=True)
 

@@ -75,6 +75,10 @@ _EXPORTS: dict[str, str] = {
     "PlannedTrack": "planners.base",
     "PlannerSettings": "planners.settings",
     "track_similarity": "similarity",
+    # what is kept between calls, and the engines
+    "kept": "store",
+    "clear_kept": "store",
+    "settings_context": "settings",
     # grid convergence
     "grid_convergence": "gci.numbers",
     "least_squares_convergence": "gci.numbers",
@@ -163,8 +167,10 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
     from .refine import refine
     from .route import ForbiddenArcs, Legs, Route, route_on_grid
     from .scenario import Scenario, load_scenario, scenario_from_mapping
+    from .settings import settings_context
     from .similarity import track_similarity
     from .solve import RoutingProblem, forward_dp
+    from .store import clear_kept, kept
     from .sweep import load_sweep, run_sweep
     from .weather.base import Conditions, WeatherSource
     from .weather.gridded import GriddedWeather

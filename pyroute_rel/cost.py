@@ -33,7 +33,6 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 from __future__ import annotations
 
 import math
-import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from dataclasses import fields as dataclass_fields
@@ -51,6 +50,7 @@ from .march import Marched, SpeedNoise, Step, march, step_hours
 from .parallel import default_workers, row_blocks, thread_map
 from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .settings import get_settings
+from .store import kept_by
 from .weather.base import Conditions, WeatherSource
 
 __all__ = [
@@ -805,13 +805,7 @@ def _pieces_todo(
 
 def _p_max(model: FailureModel) -> float:
     """The largest p_f of a model's table (kept while the model lives: :func:`_pieces_todo` asks at every rank)."""
-    p_max = _P_MAX.get(model)
-    if p_max is None:
-        p_max = _P_MAX[model] = float(np.max(model.p_flat))
-    return p_max
-
-
-_P_MAX: weakref.WeakKeyDictionary[FailureModel, float] = weakref.WeakKeyDictionary()
+    return kept_by(model, "_p_max", lambda: float(np.max(model.p_flat)))  # type: ignore[no-any-return]
 
 
 def _judge_pieces(

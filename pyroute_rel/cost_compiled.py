@@ -14,7 +14,6 @@ which the default routes do not pay.
 from __future__ import annotations
 
 import math
-import weakref
 from typing import Any
 
 import numba
@@ -25,6 +24,7 @@ from . import polar_compiled
 from .failure import QUANTITY_FIELDS, FailureModel
 from .polar import MIN_SPEED_KN, Polar, check_beyond
 from .polar_compiled import SHORT_AXIS, blend, fold_twa, sub_time, table_edges
+from .store import kept_by
 from .weather.base import Conditions
 
 __all__ = ["evidence_index", "evidence_point", "judge_tables", "sail_wind"]
@@ -103,39 +103,32 @@ def evidence_index(
     return index.reshape(shape), unknown.reshape(shape) if lost else None
 
 
-#: Failure models' classifiers as the evidence kernel takes them, by model (models compare by identity).
-_RULES: weakref.WeakKeyDictionary[FailureModel, tuple[Any, ...]] = weakref.WeakKeyDictionary()
-
-
 def model_rules(model: FailureModel) -> tuple[Any, ...]:
     """:meth:`~pyroute_rel.failure.FailureModel.evidence_rules` of a model, followed by each criterion's
     :class:`~pyroute_rel.weather.Conditions` field and whether it is taken relative to the course
-    (:data:`~pyroute_rel.failure.QUANTITY_FIELDS`), made once."""
-    rules = _RULES.get(model)
-    if rules is None:
+    (:data:`~pyroute_rel.failure.QUANTITY_FIELDS`), made once and kept by the model
+    (:func:`~pyroute_rel.store.kept_by`)."""
+
+    def make() -> tuple[Any, ...]:
         sources = [QUANTITY_FIELDS[c.quantity] for c in model.criteria]
         relative = np.array([rel for _, rel in sources], dtype=np.bool_)
-        rules = _RULES[model] = (*model.evidence_rules(), tuple(attr for attr, _ in sources), relative)
-    return rules
+        return (*model.evidence_rules(), tuple(attr for attr, _ in sources), relative)
+
+    return kept_by(model, "_kernel_rules", make)  # type: ignore[no-any-return]
 
 
 def judge_tables(model: FailureModel, apf: float) -> tuple[FloatArray, npt.NDArray[np.bool_], npt.NDArray[np.uint32]]:
     """A model's table (:attr:`~pyroute_rel.failure.FailureModel.p_flat`), its entries above ``apf`` and its fired
     criteria (:attr:`~pyroute_rel.failure.FailureModel.fired_bits_flat`), as :func:`judge_samples` takes them
-    (contiguous, writable copies), made once per model and apf (the DP costs every rank with the same)."""
-    per_apf = _JUDGE.get(model)
-    if per_apf is None:
-        per_apf = _JUDGE[model] = {}
+    (contiguous, writable copies), made once per model and apf (the DP costs every rank with the same) and kept by
+    the model (:func:`~pyroute_rel.store.kept_by`)."""
+    per_apf: dict[float, Any] = kept_by(model, "_kernel_judge", dict)
     tables = per_apf.get(apf)
     if tables is None:
         p_flat = np.array(model.p_flat, dtype=np.float64)
         bits = np.array(model.fired_bits_flat, dtype=np.uint32)
         tables = per_apf[apf] = (p_flat, np.array(p_flat > apf, dtype=np.bool_), bits)
     return tables
-
-
-#: :func:`judge_tables` of the models, by model (models compare by identity), then by apf.
-_JUDGE: weakref.WeakKeyDictionary[FailureModel, dict[float, tuple[Any, ...]]] = weakref.WeakKeyDictionary()
 
 
 @numba.njit(nogil=True, cache=True)

@@ -30,7 +30,6 @@ when a new one is written, among the entries this cache wrote only.
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import hmac
 import os
@@ -44,6 +43,7 @@ from pathlib import Path
 from typing import BinaryIO, TypeVar
 
 from .errors import CacheWarning
+from .store import kept_call
 
 __all__ = ["cache_dir", "entries_dir", "key", "stamp", "read", "load", "write", "CacheWarning", "ENV", "ENTRIES"]
 
@@ -96,7 +96,7 @@ def stamp(path: Path) -> bytes:
     return _content_digest(str(path), st.st_size, st.st_mtime_ns)
 
 
-@functools.lru_cache(maxsize=64)
+@kept_call("diskcache.digests", limit=64)
 def _content_digest(path: str, size: int, mtime_ns: int) -> bytes:
     h = hashlib.sha256()
     with open(path, "rb") as fh:
@@ -236,7 +236,7 @@ def _untrusted(path: Path, *, shared_ok: bool) -> str | None:
     return None
 
 
-@functools.cache
+@kept_call("diskcache.warned", limit=64)
 def _warn_once(folder: str, why: str) -> None:
     warnings.warn(
         f"pyroute_rel: not using the disk cache {folder}: {why} (set {ENV} to a private folder); "

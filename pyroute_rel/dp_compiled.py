@@ -53,6 +53,7 @@ from .crossings_compiled import BoxFields, arc_p_f, needs_judging, sample_eviden
 from .manoeuvre import ManoeuvrePenalties
 from .polar import MIN_SPEED_KN, Polar
 from .polar_compiled import cell, fold_twa, speed_kn, sub_time
+from .store import kept_by
 
 __all__ = ["BoxWind", "FailureJudge", "RankStep", "rank_step"]
 
@@ -122,28 +123,23 @@ def _c(a: npt.ArrayLike, dtype: type = np.float64) -> npt.NDArray:
 
 
 _NO_PENALTIES = ManoeuvrePenalties()
-_SIDES: dict[tuple[int, ...], npt.NDArray[np.int64]] = {}
 
 
 def _penalty_tables(penalties: ManoeuvrePenalties) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """The tack and gybe tables (wind speeds [kn], penalties [s]) as the kernels take them, kept by the penalties
-    (a :class:`~pyroute_rel.manoeuvre.ManoeuvrePenalties` does not change; :func:`~pyroute_rel.polar_compiled.
-    kept_by`)."""
+    (a :class:`~pyroute_rel.manoeuvre.ManoeuvrePenalties` does not change; :func:`~pyroute_rel.store.kept_by`)."""
 
     def make() -> tuple[FloatArray, ...]:
         p = penalties
         return tuple(_c(np.asarray(a, dtype=float)) for a in (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn,
                                                                p.gybe_penalty_s))  # fmt: skip
 
-    return polar_compiled.kept_by(penalties, "_kernel_tables", make)  # type: ignore[no-any-return]
+    return kept_by(penalties, "_kernel_tables", make)  # type: ignore[no-any-return]
 
 
 def _sides_array(from_sides: tuple[int, ...]) -> npt.NDArray[np.int64]:
-    """The source labels' sides as the kernels take them (the DP has three tuples: none, one side, both)."""
-    out = _SIDES.get(from_sides)
-    if out is None:
-        out = _SIDES[from_sides] = np.asarray(from_sides, dtype=np.int64)
-    return out
+    """The source labels' sides as the kernels take them (a rank asks once: made each time)."""
+    return np.asarray(from_sides, dtype=np.int64)
 
 
 def rank_step(

@@ -64,6 +64,7 @@ from .members import member_count, member_scenario
 from .progress import progress_bar
 from .scenario import Scenario
 from .settings import Settings, get_settings, set_settings
+from .store import Shelf, current_store
 
 __all__ = [
     "Risk",
@@ -205,11 +206,19 @@ class MemberRoute:
 
 # ------------------------------------------------------------------------------------------------ workers
 
+
 # What a process keeps during one route_ensemble call: each member's scenario (and its weather) from its routing
 # to its sailing (a member is sailed in the process that routed it), with the stamps of the files it was read from,
 # and the course's grids, with the scenario file's stamp.
-_CACHE: dict[tuple[str, Any, tuple[str, ...] | None, str], tuple[Scenario, tuple[Any, ...], tuple[str, ...]]] = {}
-_GRIDS: dict[str, tuple[Any, tuple[Any, ...]]] = {}
+def _scenarios() -> Shelf:
+    """Each member's scenario (with the stamps of the files it was read from, and the weather files it names), by
+    (scenario file, member, member files, options), in the current store (:mod:`pyroute_rel.store`)."""
+    return current_store().shelf("ensemble.scenarios", limit=1 << 16)
+
+
+def _grids() -> Shelf:
+    """The course's grids (with the scenario file's stamp), by scenario file and options, in the current store."""
+    return current_store().shelf("ensemble.grids", limit=8)
 
 
 def _inputs(path: str, files: tuple[str, ...] | None, weather: tuple[str, ...]) -> tuple[Any, ...]:
@@ -239,13 +248,13 @@ def _scenario(path: str, member: int | str, files: tuple[str, ...] | None, optio
     """The member's scenario with the options, kept for the process while the files it was read from are
     unchanged (a scenario or weather file edited between calls is read again)."""
     key = (path, member, files, repr(sorted(options.items())))
-    kept = _CACHE.get(key)
+    kept = _scenarios().get(key)
     if kept is not None and _inputs(path, files, kept[2]) == kept[1]:
         return kept[0]
     weather = _weather_files(path)
     stamps = _inputs(path, files, weather)  # before reading: an edit while it is read is seen next time
     sc = member_scenario(path, member, member_files=files).with_options(**options)
-    _CACHE[key] = (sc, stamps, weather)
+    _scenarios().put(key, (sc, stamps, weather))
     return sc
 
 
@@ -267,12 +276,12 @@ def route_member(
     stamp = _inputs(str(path), None, ())
     sc = _scenario(str(path), member, files, opts)
     key = f"{path}:{sorted(opts.items())}"
-    kept = _GRIDS.get(key)
+    kept = _grids().get(key)
     if kept is not None and kept[1] == stamp:
         grids = kept[0]
     else:  # arc geometry and obstacle masks computed once per process (while the scenario file is unchanged)
         grids = sc.leg_grids()
-        _GRIDS[key] = (grids, stamp)
+        _grids().put(key, (grids, stamp))
     try:
         lon, lat, hours = _track(sc, grids)
     except (NoFeasibleRouteError, WeatherCoverageError) as exc:
@@ -352,8 +361,8 @@ def _begin() -> None:
     (:func:`~pyroute_rel.weather.readers.keep_files_open`)."""
     from .weather.readers import keep_files_open
 
-    _CACHE.clear()
-    _GRIDS.clear()
+    _scenarios().clear()
+    _grids().clear()
     keep_files_open(True)
 
 
@@ -361,8 +370,8 @@ def _worker_done() -> None:
     """Drop what a process kept for a route_ensemble call, and close the files it kept open."""
     from .weather.readers import keep_files_open
 
-    _CACHE.clear()
-    _GRIDS.clear()
+    _scenarios().clear()
+    _grids().clear()
     keep_files_open(False)
 
 
@@ -378,7 +387,7 @@ _PRELOAD = (
 
 def _forget(path: str, member: int | str, files: tuple[str, ...] | None, options: dict[str, Any]) -> None:
     """Drop a member's scenario from the process (the mean field's, once routed: it is not sailed in)."""
-    _CACHE.pop((path, member, files, repr(sorted(options.items()))), None)
+    _scenarios().discard((path, member, files, repr(sorted(options.items()))))
 
 
 class _Workers:

@@ -33,7 +33,6 @@ Proc. International Robotic Sailing Conference 2018, section 2.1, Figure 1, Tabl
 from __future__ import annotations
 
 import dataclasses
-import functools
 import hashlib
 import importlib.metadata
 import io
@@ -60,6 +59,7 @@ from . import diskcache
 from .errors import FailureModelError, brief, check_flag, check_instance, check_numbers
 from .files import brief_path, read_regular_bytes
 from .memory import check_budget, table_estimate
+from .store import Shelf, current_store, file_stamps
 
 __all__ = [
     "QUANTITIES",
@@ -143,8 +143,17 @@ _CRITERION_KEYS = (
 _PROB_ATOL = 1e-6
 _CACHE_FORMAT = "1"
 _SHIPPED_TABLES = "compiled_tables.json"  # compiled tables of the shipped models, in failure_models/
-_MEMORY: dict[str, _Compiled] = {}  # compiled tables by hash of the model files
-_NETWORKS: dict[str, Any] = {}  # checked pgmpy networks by hash of the network file
+
+
+def _compiled_tables() -> Shelf:
+    """Compiled tables by hash of the model files, in the current store (:mod:`pyroute_rel.store`)."""
+    return current_store().shelf("failure.compiled", limit=64)
+
+
+def _networks() -> Shelf:
+    """Checked pgmpy networks by hash of the network file, in the current store."""
+    return current_store().shelf("failure.networks", limit=16)
+
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -608,7 +617,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     net_label = str(net_file)
     net_bytes = _read(net_file, f"{label}: network file {spec['network']!r} ({net_label})")
     key = _cache_key(toml_bytes, net_bytes)
-    compiled = _MEMORY.get(key) if cache else None
+    compiled = _compiled_tables().get(key) if cache else None
     if compiled is None and cache:
         compiled = _shipped_tables().get(_content_key(toml_bytes, net_bytes))
         if compiled is None:
@@ -620,7 +629,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
         if cache:
             _disk_put(key, compiled)
     if cache:
-        _MEMORY[key] = compiled
+        _compiled_tables().put(key, compiled)
     criteria = _check_structure(spec, compiled.states, label, net_label)
     shape = tuple(len(c.states) for c in criteria)
     full = compiled.table
@@ -965,9 +974,8 @@ def _read_network(net_bytes: bytes, net_label: str) -> Any:
     """Parse and check a network with pgmpy (memoised by content); problems become one FailureModelError line."""
     suffix = _network_format(net_label)
     key = hashlib.sha256(suffix.encode() + b"\0" + net_bytes).hexdigest()
-    if key not in _NETWORKS:  # pgmpy's BIF grammar alone takes ~1 s to build: parse each network once
-        _NETWORKS[key] = _parse_network(net_bytes, net_label, suffix)
-    return _NETWORKS[key]
+    # pgmpy's BIF grammar alone takes ~1 s to build: parse each network once
+    return _networks().get_or_make(key, lambda: _parse_network(net_bytes, net_label, suffix))
 
 
 def _parse_network(net_bytes: bytes, net_label: str, suffix: str) -> Any:
@@ -1102,16 +1110,22 @@ def _content_key(toml_bytes: bytes, net_bytes: bytes) -> str:
     return h.hexdigest()[:32]
 
 
-@functools.lru_cache(maxsize=1)
 def _shipped_tables() -> dict[str, _Compiled]:
-    """The compiled tables shipped in ``failure_models/compiled_tables.json``, by :func:`_content_key`.
+    """The compiled tables shipped in ``failure_models/compiled_tables.json``, by :func:`_content_key`; kept in the
+    current store by the file's path, size and modification time (an edited file is read again).
 
     Variable elimination is exact, so a table depends only on the model's files, not on the pgmpy version;
     ``tests/test_failure.py`` compiles every shipped model with pgmpy and compares. A missing or unreadable file
     only means compiling (and the disk cache) as for any other model.
     """
+    path = Path(str(_shipped().joinpath(_SHIPPED_TABLES)))
+    shelf = current_store().shelf("failure.shipped", limit=1)
+    return shelf.get_or_make(file_stamps([path])[0], lambda: _read_shipped_tables(path))  # type: ignore[no-any-return]
+
+
+def _read_shipped_tables(path: Path) -> dict[str, _Compiled]:
     try:
-        doc = json.loads(_shipped().joinpath(_SHIPPED_TABLES).read_text(encoding="utf-8"))
+        doc = json.loads(path.read_text(encoding="utf-8"))
         out = {}
         for entry in doc["models"].values():
             table = np.array(entry["table"], dtype=float).reshape(entry["shape"])
@@ -1156,7 +1170,7 @@ def write_shipped_tables() -> Path:
     text = '{\n"about": ' + json.dumps(doc["about"]) + ',\n"models": {\n' + ",\n".join(lines) + "\n}}\n"
     tmp.write_text(text, encoding="utf-8")
     tmp.replace(path)
-    _shipped_tables.cache_clear()
+    current_store().shelf("failure.shipped", limit=1).clear()
     return path
 
 

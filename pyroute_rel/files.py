@@ -7,7 +7,6 @@ all or none; :func:`check_out_dir` refuses an unusable folder before any work is
 from __future__ import annotations
 
 import contextlib
-import functools
 import os
 import signal
 import stat
@@ -17,6 +16,7 @@ from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from .errors import OutputError, brief, show
+from .store import kept_call
 
 __all__ = [
     "atomic_write",
@@ -38,7 +38,7 @@ STAGING_PREFIX = ".pyroute-rel-"
 STAGING_MARKER = ".pyroute-rel-staging"
 
 
-@functools.lru_cache(maxsize=1)
+@kept_call("files.mode", limit=1)
 def file_mode() -> int:
     """The mode a new file gets from ``open`` under this process's umask (0o644 for the usual 022).
 

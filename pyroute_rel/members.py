@@ -26,6 +26,7 @@ import numpy as np
 from .errors import PyrouteError, ScenarioError, brief
 from .files import brief_path, read_regular_bytes
 from .scenario import SCENARIO_MAX_BYTES, Scenario, scenario_from_mapping
+from .store import Shelf, current_store
 
 __all__ = ["scenario_table", "member_count", "member_scenario", "mean_scenario", "mean_of_files"]
 
@@ -110,8 +111,9 @@ def member_scenario(
     member_files : One weather file per member (see the module notes); None: the member dimension of the files.
     """
     key = _kept_key(scenario, member, member_files)
-    if key is not None and key in _KEPT:
-        return _kept_member(key, member)
+    entry = None if key is None else _kept().get(key)
+    if entry is not None:
+        return _kept_member(entry, member)
     tables, base, name = _source(scenario)
     weather = _weather_table(tables, name)
     if member_files is not None and member == "mean":
@@ -130,14 +132,15 @@ def member_scenario(
     if key is not None:
         from .config import weather_course
 
-        _KEPT[key] = (tables, other, base, weather_course(tables))
+        _kept().put(key, (tables, other, base, weather_course(tables)))
     return other
 
 
-#: A scenario file's settings kept by this process while it keeps weather files open
-#: (:func:`~pyroute_rel.weather.readers.keep_files_open`), by :func:`_kept_key`: (the file's tables, a member's
-#: scenario read with them, its folder, the box and departure its weather is read for).
-_KEPT: dict[tuple[int, str, int, int], tuple[dict[str, Any], Scenario, Path, Any]] = {}
+def _kept() -> Shelf:
+    """A scenario file's settings kept (in the current store, :mod:`pyroute_rel.store`) while weather files are kept
+    open (:func:`~pyroute_rel.weather.readers.keep_files_open`), by :func:`_kept_key`: (the file's tables, a member's
+    scenario read with them, its folder, the box and departure its weather is read for). One file at a time."""
+    return current_store().shelf("members.settings", limit=1)
 
 
 def _kept_key(
@@ -152,23 +155,23 @@ def _kept_key(
 
     calls = files_kept_open()
     if calls is None or isinstance(scenario, Scenario) or member_files is not None:
-        _KEPT.clear()
+        _kept().clear()
         return None
     if isinstance(member, bool) or not isinstance(member, int):
         return None
     path, size, mtime = file_stamps([scenario])[0]
     key = (calls, path, size, mtime)
-    if key not in _KEPT:
-        _KEPT.clear()
+    if key not in _kept():
+        _kept().clear()
     return key if size >= 0 else None
 
 
-def _kept_member(key: tuple[int, str, int, int], member: int | str) -> Scenario:
-    """Member ``member`` of the scenario file kept under ``key``: only its weather read, as
+def _kept_member(entry: tuple[dict[str, Any], Scenario, Path, Any], member: int | str) -> Scenario:
+    """Member ``member`` of the scenario file kept as ``entry`` (see :func:`_kept`): only its weather read, as
     :func:`~pyroute_rel.scenario.scenario_from_mapping` reads it (the other settings do not depend on the weather)."""
     from .config import parse_weather
 
-    tables, first, base, (bbox, departure) = _KEPT[key]
+    tables, first, base, (bbox, departure) = entry
     weather = _weather_table(tables, first.source)
     weather["member"] = member
     try:

@@ -9,19 +9,45 @@ from __future__ import annotations
 
 import contextvars
 import os
+import threading
 from collections.abc import Callable, Iterable
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 from .errors import ScenarioError
+from .store import current_store
 
 __all__ = ["default_workers", "thread_map", "row_blocks"]
 
 T = TypeVar("T")
 R = TypeVar("R")
 
-_POOL: ThreadPoolExecutor | None = None
-_POOL_SIZE = 0
+
+class _Threads:
+    """The store's pool of threads (:mod:`pyroute_rel.store`): made at the first call that needs it, replaced by a
+    larger one when a call asks for more threads (the old one shut down), shut down when the store is emptied."""
+
+    def __init__(self, store: object) -> None:
+        self.pool: ThreadPoolExecutor | None = None
+        self.size = 0
+        self.lock = threading.Lock()
+
+    def get(self, workers: int) -> ThreadPoolExecutor:
+        with self.lock:
+            if self.pool is None or self.size < workers:
+                if self.pool is not None:
+                    self.pool.shutdown(wait=False)  # (tasks already given to it still run)
+                self.pool, self.size = (
+                    ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pyroute_rel"),
+                    workers,
+                )
+            return self.pool
+
+    def clear(self) -> None:
+        with self.lock:
+            if self.pool is not None:
+                self.pool.shutdown(wait=False)
+            self.pool, self.size = None, 0
 
 
 def default_workers() -> int:
@@ -43,16 +69,15 @@ def default_workers() -> int:
 
 
 def thread_map(fn: Callable[[T], R], items: Iterable[T], workers: int) -> list[R]:
-    """``[fn(x) for x in items]``, in a shared pool of ``workers`` threads when ``workers`` > 1; order kept. Each
-    call runs in a copy of the caller's context (its :mod:`pyroute_rel.settings` among others)."""
-    global _POOL, _POOL_SIZE
+    """``[fn(x) for x in items]``, in a shared pool of ``workers`` threads when ``workers`` > 1 (the current store's,
+    :mod:`pyroute_rel.store`); order kept. Each call runs in a copy of the caller's context (its
+    :mod:`pyroute_rel.settings` among others)."""
     items = list(items)
     if workers <= 1 or len(items) <= 1:
         return [fn(x) for x in items]
-    if _POOL is None or _POOL_SIZE < workers:
-        _POOL, _POOL_SIZE = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pyroute_rel"), workers
+    pool = current_store().part("threads", _Threads).get(workers)
     contexts = [contextvars.copy_context() for _ in items]  # (a context is entered by one thread at a time)
-    return list(_POOL.map(lambda c, x: c.run(fn, x), contexts, items))
+    return list(pool.map(lambda c, x: c.run(fn, x), contexts, items))
 
 
 def row_blocks(n_rows: int, parts: int) -> list[slice]:

@@ -18,7 +18,6 @@ after editing this module, delete the ``__pycache__`` caches (or touch ``cost_co
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import numba
@@ -26,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .polar import Polar
+from .store import kept_by
 
 __all__ = ["SHORT_AXIS", "blend", "cell", "cell_finder", "fold_twa", "sub_time", "speed_kn", "tables", "table_edges"]
 
@@ -38,7 +38,8 @@ SHORT_AXIS = 16
 
 
 def tables(polar: Polar) -> tuple[FloatArray, FloatArray, FloatArray, float, float]:
-    """The polar as the compiled functions take it, made once per polar and kept by it (:func:`kept_by`).
+    """The polar as the compiled functions take it, made once per polar and kept by it
+    (:func:`~pyroute_rel.store.kept_by`).
 
     Parameters
     ----------
@@ -62,23 +63,14 @@ def tables(polar: Polar) -> tuple[FloatArray, FloatArray, FloatArray, float, flo
 
 def finder_tables(polar: Polar) -> tuple[Any, ...]:
     """The polar's table and axes as :func:`tables` gives them, each axis followed by its :func:`cell_finder`
-    (``twa, tws, speed, twa_finder, tws_finder``), made once per polar and kept by it (:func:`kept_by`)."""
+    (``twa, tws, speed, twa_finder, tws_finder``), made once per polar and kept by it
+    (:func:`~pyroute_rel.store.kept_by`)."""
 
     def make() -> tuple[Any, ...]:
         twa, tws, speed, _, _ = tables(polar)
         return twa, tws, speed, cell_finder(twa), cell_finder(tws)
 
     return kept_by(polar, "_kernel_finders", make)  # type: ignore[no-any-return]
-
-
-def kept_by(owner: Any, name: str, make: Callable[[], Any]) -> Any:
-    """What ``make()`` derives from the immutable object ``owner``, made once and kept in the object's own
-    ``__dict__`` under ``name`` (as :func:`functools.cached_property` keeps it): it lives and dies with the object,
-    and no table outside it is keyed by the object's identity."""
-    kept = owner.__dict__.get(name)
-    if kept is None:
-        kept = owner.__dict__[name] = make()
-    return kept
 
 
 def _inverse_step(axis: FloatArray) -> float:

@@ -28,6 +28,9 @@ Environment variables (read when the job that needs them runs):
     this process may use; ``1`` turns threads off). Worker processes set it to ``1``.
 ``PYROUTE_REL_MAX_MEMORY``
     The memory budget of one route (:mod:`pyroute_rel.memory`; the CLI's ``--max-memory`` sets it for a run).
+``PYROUTE_REL_KEEP``
+    ``0`` (or ``false``, ``no``, ``off``): the process keeps nothing between calls (:mod:`pyroute_rel.store`: files,
+    parsed models, grids and tables are read and built afresh each time); default: kept, by content.
 ``PYROUTE_REL_CACHE_DIR``
     Where sweeps keep their on-disk cache (:mod:`pyroute_rel.diskcache`; default: ``$XDG_CACHE_HOME/pyroute_rel`` or
     ``~/.cache/pyroute_rel``).

@@ -45,7 +45,6 @@ import socket
 import time
 import uuid
 import warnings
-from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -75,6 +74,7 @@ from .errors import (
 )
 from .files import atomic_write, atomic_write_text, brief_path
 from .settings import Settings, get_settings, set_settings
+from .store import current_store, kept_call
 from .times import iso_utc
 
 if TYPE_CHECKING:
@@ -403,30 +403,30 @@ def load_sweep(path: str | Path) -> SweepSpec:
 
 # --- keys ----------------------------------------------------------------------------------------------------------
 
-_DIGESTS: dict[tuple[str, int, int], str] = {}
-
 
 def _file_digest(path: Path) -> str:
-    """A hash of a file's content (see :data:`HASH_WHOLE_BYTES`), remembered by path, size and time."""
+    """A hash of a file's content (see :data:`HASH_WHOLE_BYTES`), remembered by path, size and time (in the current
+    store, :mod:`pyroute_rel.store`)."""
     try:
         st = path.stat()
     except OSError:
         return "missing"
-    memo = (str(path.resolve()), st.st_size, st.st_mtime_ns)
-    if memo in _DIGESTS:
-        return _DIGESTS[memo]
+    return _digest_of(str(path.resolve()), st.st_size, st.st_mtime_ns)
+
+
+@kept_call("sweep.digests", limit=4096)
+def _digest_of(path: str, size: int, mtime_ns: int) -> str:
     h = hashlib.blake2b(digest_size=16)
     with open(path, "rb") as fh:
-        if st.st_size <= HASH_WHOLE_BYTES:
+        if size <= HASH_WHOLE_BYTES:
             for block in iter(lambda: fh.read(1 << 20), b""):
                 h.update(block)
         else:
-            h.update(f"{st.st_size}:{st.st_mtime_ns}".encode())
+            h.update(f"{size}:{mtime_ns}".encode())
             h.update(fh.read(1 << 20))
             fh.seek(-(1 << 20), os.SEEK_END)
             h.update(fh.read(1 << 20))
-    _DIGESTS[memo] = h.hexdigest()
-    return _DIGESTS[memo]
+    return h.hexdigest()
 
 
 def _referenced_files(table: Mapping[str, Any], base: Path, run: Run) -> list[str]:
@@ -465,8 +465,6 @@ def run_key(run: Run) -> str:
 
 
 # --- running one -------------------------------------------------------------------------------------------------
-
-_GRIDS: OrderedDict[str, list[Grid]] = OrderedDict()
 
 
 def _edited_table(run: Run) -> dict[str, Any]:
@@ -510,14 +508,7 @@ def _grids(sc: Scenario) -> list[Grid]:
     names = ("start", "finish", "waypoints", "start_line", "finish_line", "layout", "n_ranks", "n_nodes")
     names += ("spacing_km", "aspect", "half_width_km", "max_deviation_deg")
     key = json.dumps([getattr(sc, n) for n in names], default=str)
-    if key in _GRIDS:
-        _GRIDS.move_to_end(key)
-        return _GRIDS[key]
-    grids = sc.leg_grids()
-    _GRIDS[key] = grids
-    while len(_GRIDS) > GRID_CACHE_SIZE:
-        _GRIDS.popitem(last=False)
-    return grids
+    return current_store().shelf("sweep.grids", limit=GRID_CACHE_SIZE).get_or_make(key, sc.leg_grids)  # type: ignore[no-any-return]
 
 
 def _route_columns(route: Route) -> dict[str, Any]:
@@ -676,24 +667,26 @@ def _inline(todo: Sequence[tuple[str, Run]], retries: int) -> Iterator[dict[str,
         yield _counted(run, key, retries)
 
 
-_PINNED: list[Any] = []
-
-
 def _pin_threads(engines: Settings | None = None) -> None:
     """One thread in this worker process: :data:`WORKER_ENV` for what reads it later, and the BLAS/OpenMP pools
     already loaded limited to 1 (``threadpoolctl``) for a ``dask worker`` started without that environment; and the
     caller's ``engines`` (:mod:`pyroute_rel.settings`; None: the defaults)."""
     if engines is not None:
         set_settings(engines)
-    if _PINNED:
+    _limit_pools()
+
+
+def _limit_pools() -> None:
+    """:data:`WORKER_ENV` in this process's environment and its BLAS/OpenMP pools limited to one thread (once: a
+    process already so is left alone; the pools read the environment when they load)."""
+    if all(os.environ.get(k) == v for k, v in WORKER_ENV.items()):
         return
     os.environ.update(WORKER_ENV)
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # pragma: no cover - installed with scikit-learn/numpy stacks; the env still applies
-        _PINNED.append(None)
         return
-    _PINNED.append(threadpool_limits(limits=1))  # kept: the limit holds while the process lives
+    threadpool_limits(limits=1)  # the limit holds while the process lives
 
 
 def run_batch(batch: Sequence[tuple[str, Run]], retries: int = 0) -> list[dict[str, Any]]:

@@ -48,7 +48,9 @@ def test_a_process_opens_the_file_once_and_reads_each_member_once(small: Path, m
     variables = {"u10", "v10", "swh", "mwd"}
     assert set(reads) == {(m, v) for m in [*range(5), "mean"] for v in variables}
     assert set(reads.values()) == {1}
-    assert res.members == tuple(range(5)) and readers._KEPT == {}  # nothing left open
+    assert (
+        res.members == tuple(range(5)) and readers._files().kept == {} and readers._files().raw == []
+    )  # nothing left open
 
 
 def test_a_member_read_from_the_kept_file_is_the_member_read_alone(small: Path):
@@ -99,8 +101,8 @@ def test_a_kept_file_changed_since_is_opened_again(small: Path, tmp_path: Path):
         os.replace(tmp_path / "other.nc", path)  # the same bytes, a new file (new modification time)
         os.utime(path, ns=(1, 1))
         again = readers.open_weather(path, member=1)
-        assert readers.files_opened(reset=True) == {str(path.resolve()): 2} and len(readers._KEPT) == 1
+        assert readers.files_opened(reset=True) == {str(path.resolve()): 2} and len(readers._files().kept) == 1
         assert np.array_equal(first._blocks[0].flat, again._blocks[0].flat, equal_nan=True)
     finally:
         readers.keep_files_open(False)
-    assert readers._KEPT == {}
+    assert readers._files().kept == {}

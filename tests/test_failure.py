@@ -311,7 +311,6 @@ def _copy_model(folder: Path, name: str = "dickson2018", network_text: str | Non
 @pytest.mark.slow
 def test_shipped_tables_equal_a_fresh_pgmpy_compile():
     """The tables shipped in failure_models/compiled_tables.json are what pgmpy compiles from today's files."""
-    failure._shipped_tables.cache_clear()
     shipped = failure._shipped_tables()
     for name in list_failure_models():
         toml_bytes = (SHIPPED / f"{name}.toml").read_bytes()
@@ -343,22 +342,23 @@ def test_first_run_of_a_shipped_model_needs_neither_pgmpy_nor_the_disk_cache(tmp
 @pytest.mark.slow
 def test_without_the_shipped_tables_models_are_compiled(monkeypatch, tmp_path):
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path))
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     monkeypatch.setattr(failure, "_SHIPPED_TABLES", "no_such_file.json")
-    failure._shipped_tables.cache_clear()
+    assert failure._shipped_tables() == {}
     try:
         assert load_failure_model("dickson2018").table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
         assert len(list((tmp_path / diskcache.ENTRIES).glob("failure-*.npz"))) == 1  # compiled, then kept on disk
     finally:
         monkeypatch.undo()
-        failure._shipped_tables.cache_clear()
+    failure._compiled_tables().clear()
+    assert failure._shipped_tables() != {}  # the shipped file again (kept by its path, size and time)
 
 
 @pytest.mark.slow
 def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
     cache = tmp_path / "cache"
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(cache))
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     toml = _copy_model(tmp_path / "m", "wind_wave_multistate")
     first = load_failure_model(toml)
     assert len(list((cache / diskcache.ENTRIES).glob("failure-*.npz"))) == 1
@@ -378,14 +378,14 @@ def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
 
 def test_disk_cache_is_used_instead_of_compiling(tmp_path, monkeypatch):
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     toml = _copy_model(tmp_path / "m")
     first = load_failure_model(toml)
 
     def boom(*args, **kwargs):
         raise AssertionError("compiled again")
 
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     monkeypatch.setattr(failure, "_compile", boom)
     again = load_failure_model(toml)
     assert np.array_equal(again.table, first.table)
@@ -396,7 +396,7 @@ def test_disk_cache_is_used_instead_of_compiling(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_editing_the_network_recompiles(tmp_path, monkeypatch):
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     toml = _copy_model(tmp_path / "m")
     assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
     bif = tmp_path / "m" / "dickson2018.bif"
@@ -409,7 +409,7 @@ def test_editing_the_network_recompiles(tmp_path, monkeypatch):
 def test_editing_a_shipped_model_in_place_is_not_served_the_shipped_table(tmp_path, monkeypatch):
     """The shipped tables are keyed by the files' bytes: an edited copy (here: another CPT) is compiled."""
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     folder = tmp_path / "m"
     folder.mkdir()
     (folder / "dickson2018.toml").write_text((SHIPPED / "dickson2018.toml").read_text())  # same bytes as shipped
@@ -421,12 +421,12 @@ def test_editing_a_shipped_model_in_place_is_not_served_the_shipped_table(tmp_pa
 
 def test_corrupt_cache_file_is_ignored(tmp_path, monkeypatch):
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     toml = _copy_model(tmp_path / "m")
     load_failure_model(toml)
     (entry,) = (tmp_path / "cache" / diskcache.ENTRIES).glob("failure-*.npz")
     entry.write_bytes(b"not a zip file")
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
     with np.load(io.BytesIO(diskcache.read(entry.name))) as data:  # rewritten atomically with a good entry
         assert data["table"].shape == (3, 3)
@@ -437,7 +437,7 @@ def test_corrupt_cache_file_is_ignored(tmp_path, monkeypatch):
         np.savez(buf, table=table, meta=meta)
         head = len(signed) - len(diskcache.read(entry.name))
         entry.write_bytes(signed[:head] + buf.getvalue())  # well formed, with the genuine entry's header
-        monkeypatch.setattr(failure, "_MEMORY", {})
+        failure._compiled_tables().clear()
         assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
 
 
@@ -446,7 +446,7 @@ def test_unwritable_cache_folder_falls_back_silently(tmp_path, monkeypatch):
     blocker = tmp_path / "a_file"
     blocker.write_text("")
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(blocker / "cache"))  # cannot mkdir under a file
-    monkeypatch.setattr(failure, "_MEMORY", {})
+    failure._compiled_tables().clear()
     assert load_failure_model(toml).table.tolist() == [[0.0, 0.9], [0.9, 1.0]]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file", "m"]
 

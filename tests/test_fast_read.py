@@ -140,7 +140,7 @@ def test_a_kept_member_is_the_files_decoding_bit_for_bit(ens_file: Path, kept: N
         _block_bytes_equal(w, _columns(fields))
         assert np.isnan(w._blocks[0].data[3, 3, :, 0]).all() == (member == 1)  # member 1's fill values
     assert readers.files_opened(reset=True) == {str(ens_file.resolve()): 1}
-    (raw,) = (r for _, r in readers._RAW.values())
+    (raw,) = (r for _, r in readers._files().raw)
     assert len(raw.plans) == 4  # one per variable, whatever the member
     packed = raw.variable("u10", None).table is not None  # type: ignore[union-attr]
     assert packed == ("packed" in ens_file.name)
@@ -181,7 +181,7 @@ def test_the_mean_is_the_float64_sum_in_member_order_over_the_members_with_a_val
     assert np.isnan(means["u10"][2, 1, 5]) and not np.isnan(means["u10"][2, 2, 5])  # (latitude ascending)
     w = readers.open_weather(ens_file, member="mean")
     _block_bytes_equal(w, _columns(means))
-    assert readers._RAW == {}  # the mean's file closed with its stored values
+    assert readers._files().raw == []  # the mean's file closed with its stored values
 
 
 def test_a_member_read_alone_through_xarray_is_the_same(ens_file: Path):

@@ -180,12 +180,12 @@ def test_a_kept_member_is_a_fresh_read_bit_for_bit(tmp_path: Path, monkeypatch):
     try:
         for m in (2, 0, 1, 2):
             _same_scenario(members.member_scenario(toml, m), fresh[m])
-        assert len(members._KEPT) == 1
+        assert len(members._kept()) == 1
         assert len(quick) == 4 * 4 and all(f is not None for f in quick)
     finally:
         readers.keep_files_open(False)
     members.member_scenario(toml, 0)
-    assert not members._KEPT  # not kept once the files are not
+    assert not len(members._kept())  # not kept once the files are not
 
 
 def _apf(toml: Path) -> float:

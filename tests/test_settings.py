@@ -76,7 +76,7 @@ def test_worker_processes_start_with_the_callers_settings(init, monkeypatch: pyt
     """The initializers the sweep's and the ensemble's process pools run (with the caller's settings as their
     argument) set them in the worker; run here in a copied context (and environment) so that nothing leaks."""
     monkeypatch.setattr(ensemble, "_begin", lambda: None)
-    monkeypatch.setattr(sweep, "_PINNED", [None])  # (the thread pools are not limited here)
+    monkeypatch.setattr(sweep, "_limit_pools", lambda: None)  # (the thread pools are not limited here)
     monkeypatch.setenv("PYROUTE_REL_THREADS", "2")
 
     def start() -> Settings:

@@ -230,7 +230,7 @@ def test_a_run_that_keeps_failing_is_retried_a_bounded_number_of_times(ensemble,
         return {"key": key, "status": "error", "message": "user error"}
 
     monkeypatch.setattr(sweep_module, "run_one", flaky)
-    monkeypatch.setattr(sweep_module, "_PINNED", [None])  # this test process keeps its threads
+    monkeypatch.setattr(sweep_module, "_limit_pools", lambda: None)  # this test process keeps its threads
     runs = [("a", Run(str(ensemble), member=0)), ("b", Run(str(ensemble), member=1))]
     rows = sweep_module.run_batch(runs, retries=2)
     assert calls == ["a", "a", "a", "b"]

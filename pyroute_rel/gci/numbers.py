@@ -33,8 +33,9 @@ doi:10.1016/j.jcp.2013.12.029.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -439,8 +440,8 @@ def grid_convergence(
 
 
 #: The estimates of a triplet whose apparent order is undefined.
-_UNDEFINED: dict[str, Any] = dict(
-    p=None, phi_ext=None, e_ext=None, gci_fine=None, gci_coarse=None, asymptotic_ratio=None
+_UNDEFINED: Mapping[str, Any] = MappingProxyType(
+    dict(p=None, phi_ext=None, e_ext=None, gci_fine=None, gci_coarse=None, asymptotic_ratio=None)
 )
 
 

@@ -29,6 +29,7 @@ Butler, H. et al. (2016). The GeoJSON Format. RFC 7946, doi:10.17487/RFC7946.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,6 +39,7 @@ import shapely
 
 from ..errors import GridError, ScenarioError
 from ..geodesy import from_xyz, gc_densify, to_xyz
+from ..store import current_store
 from ..units import EARTH_RADIUS_KM
 
 __all__ = [
@@ -208,31 +210,43 @@ def _prefix_sum(mask: BoolArray) -> npt.NDArray[np.int32]:
     return out
 
 
-_INDEXES: list[tuple[shapely.Geometry, _Index]] = []  # most recent last; keyed by identity, see _cached
-_TREES: list[tuple[shapely.Geometry, shapely.STRtree]] = []
+class _ByGeometry:
+    """What is built from a geometry (its :class:`_Index`, its tiles' STRtree), the 32 most recent, held with the
+    geometry itself and found by that reference: a part of the current store (:mod:`pyroute_rel.store`).
 
+    Found by identity, not by ``hash(geometry)``: shapely hashes a geometry by its WKB, which for a coastline of a
+    few hundred thousand vertices costs milliseconds on every lookup. Geometries are immutable, and each entry holds
+    a reference to its geometry, so an identity never points at another geometry."""
 
-def _cached(cache: list[tuple[shapely.Geometry, Any]], geometry: shapely.Geometry, build: Any) -> Any:
-    """``build(geometry)``, cached on the geometry's identity (the 32 most recent).
+    LIMIT = 32
 
-    Keyed by identity, not by ``hash(geometry)``: shapely hashes a geometry by its WKB, which for a coastline
-    of a few hundred thousand vertices costs milliseconds on every lookup. Geometries are immutable, and the
-    cache holds a reference to each, so an identity never points at another geometry.
-    """
-    for i, (g, value) in enumerate(cache):
-        if g is geometry:
-            if i != len(cache) - 1:
-                cache.append(cache.pop(i))
-            return value
-    value = build(geometry)
-    cache.append((geometry, value))
-    del cache[:-32]
-    return value
+    def __init__(self, store: Any) -> None:
+        self.keep = bool(store.keep)
+        self.entries: list[tuple[shapely.Geometry, Any]] = []  # most recent last
+        self.lock = threading.Lock()
+
+    def get(self, geometry: shapely.Geometry, build: Any) -> Any:
+        with self.lock:
+            for i, (g, value) in enumerate(self.entries):
+                if g is geometry:
+                    if i != len(self.entries) - 1:
+                        self.entries.append(self.entries.pop(i))
+                    return value
+        value = build(geometry)
+        if self.keep:
+            with self.lock:
+                self.entries.append((geometry, value))
+                del self.entries[: -self.LIMIT]
+        return value
+
+    def clear(self) -> None:
+        with self.lock:
+            self.entries.clear()
 
 
 def area_index(geometry: shapely.Geometry) -> _Index:
     """The cached :class:`_Index` of a geometry."""
-    return _cached(_INDEXES, geometry, _build_index)
+    return current_store().part("obstacles.indexes", _ByGeometry).get(geometry, _build_index)
 
 
 def tiles_tree(geometry: shapely.Geometry) -> shapely.STRtree:
@@ -242,7 +256,7 @@ def tiles_tree(geometry: shapely.Geometry) -> shapely.STRtree:
     great-circle chords between their vertices by under a metre (s^2 tan|lat| / (8 R)); the cut lines between
     tiles are not split (they are shared by neighbouring tiles and lie inside the geometry).
     """
-    return _cached(_TREES, geometry, _build_tree)
+    return current_store().part("obstacles.trees", _ByGeometry).get(geometry, _build_tree)
 
 
 def _build_tree(geometry: shapely.Geometry) -> shapely.STRtree:

@@ -40,7 +40,6 @@ Butler, H. et al. (2016). The GeoJSON Format. RFC 7946, doi:10.17487/RFC7946.
 
 from __future__ import annotations
 
-import functools
 import importlib.util
 import io
 import math
@@ -57,6 +56,7 @@ from .. import diskcache
 from ..errors import ScenarioError
 from ..geodesy import to_xyz
 from ..parallel import default_workers, thread_map
+from ..store import kept_call
 from ..units import EARTH_RADIUS_KM
 from .areas import arc_caps, area_index, as_arcs, blocked_flat, checked_samples, polygon_parts
 
@@ -104,7 +104,7 @@ def _gshhs_paths(letter: str, resolution: str) -> tuple[Path, Path]:
     )
 
 
-@functools.lru_cache(maxsize=5)
+@kept_call("land.gshhs_meta", limit=5)
 def _gshhs_meta(letter: str, resolution: str) -> tuple[Path, npt.NDArray[np.float64]]:
     dat, meta = _gshhs_paths(letter, resolution)
     name = "gshhs-" + diskcache.key([b"meta-1", diskcache.stamp(meta)]) + ".npy"
@@ -260,7 +260,7 @@ def land_geometry(
     return _land_geometry(box, margin, resolution)
 
 
-@functools.lru_cache(maxsize=16)
+@kept_call("land.geometry", limit=16)
 def _land_geometry(bbox: tuple[float, float, float, float], margin_km: float, resolution: str) -> Any:
     if margin_km == 0.0:
         parts = _gshhs_polygons(resolution, bbox)
@@ -314,7 +314,7 @@ _LAND_CACHE_FORMAT = b"land-within-1"  # bump when the buffering changes: old di
 _LAND_CACHE_KEEP = 64  # newest coastlines kept on disk (each well under 1 MB)
 
 
-@functools.lru_cache(maxsize=16)
+@kept_call("land.within", limit=16)
 def _land_within(wkb: bytes, margin_km: float, resolution: str) -> Any:
     """Land within a region, from memory, else from the disk cache (margins only: buffering is the cost)."""
     name = None

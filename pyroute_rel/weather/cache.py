@@ -8,18 +8,18 @@ options (variables, member, box), and hands the same prepared sampler to every l
 whole time range of the files is read (not only the route's window), so that runs departing at different times
 share one entry. Entries beyond :data:`MAX_BYTES` in total are dropped, least recently used first.
 
-Off (the default), nothing is kept: a single route reads only its box and time window, as before.
+Off (the default), nothing is kept: a single route reads only its box and time window, as before. The entries
+belong to the current store (:mod:`pyroute_rel.store`): ``with pyroute_rel.kept():`` drops them at its end.
 """
 
 from __future__ import annotations
 
-import os
 import threading
-from collections import OrderedDict
-from collections.abc import Callable, Hashable, Iterator, Sequence
+from collections.abc import Callable, Hashable, Iterator
 from contextlib import contextmanager
-from pathlib import Path
-from typing import Any, TypeVar
+from typing import TypeVar
+
+from ..store import Shelf, Store, current_store, file_stamps
 
 __all__ = ["caching", "enabled", "file_stamps", "cached", "clear", "stats", "MAX_BYTES"]
 
@@ -28,45 +28,41 @@ T = TypeVar("T")
 #: Largest total size of the cached weather [bytes] (2 GB): beyond it the least recently used entries are dropped.
 MAX_BYTES = 2_000_000_000
 
-_LOCK = threading.Lock()
-_ENTRIES: OrderedDict[Hashable, Any] = OrderedDict()
-_STATS = {"hits": 0, "misses": 0}
-_DEPTH = 0
+
+class _WeatherKept:
+    """The store's part that keeps opened weather (:mod:`pyroute_rel.store`): the entries, and how many
+    :func:`caching` blocks are open."""
+
+    def __init__(self, store: Store) -> None:
+        self.entries = Shelf(keep=store.keep, limit=1 << 30, max_bytes=MAX_BYTES, nbytes=lambda v: v[1])
+        self.depth = 0
+        self.lock = threading.Lock()
+
+    def clear(self) -> None:
+        self.entries.clear()
+
+
+def _kept() -> _WeatherKept:
+    return current_store().part("weather.cache", _WeatherKept)
 
 
 @contextmanager
 def caching() -> Iterator[None]:
     """Keep opened weather for the duration of the ``with`` block (nested blocks are fine); entries are kept after
-    it, for the next block in this process (:func:`clear` drops them)."""
-    global _DEPTH
-    with _LOCK:
-        _DEPTH += 1
+    it, in the current store (:mod:`pyroute_rel.store`), for the next block (:func:`clear` drops them)."""
+    part = _kept()
+    with part.lock:
+        part.depth += 1
     try:
         yield
     finally:
-        with _LOCK:
-            _DEPTH -= 1
+        with part.lock:
+            part.depth -= 1
 
 
 def enabled() -> bool:
-    """Whether weather is being cached in this process (inside :func:`caching`)."""
-    return _DEPTH > 0
-
-
-def file_stamps(paths: Sequence[str | os.PathLike[str]]) -> tuple[tuple[str, int, int], ...]:
-    """``(resolved path, size [bytes], modification time [ns])`` of each file: a changed file gets a new key.
-
-    A file that cannot be examined gets ``(-1, -1)``: reading it reports the problem.
-    """
-    out = []
-    for p in paths:
-        path = Path(p)
-        try:
-            st = path.stat()
-            out.append((str(path.resolve()), int(st.st_size), int(st.st_mtime_ns)))
-        except OSError:
-            out.append((str(path), -1, -1))
-    return tuple(out)
+    """Whether weather is being cached in this context (inside :func:`caching`)."""
+    return _kept().depth > 0
 
 
 def cached(key: Hashable, build: Callable[[], T], *, nbytes: Callable[[T], int] | None = None) -> T:
@@ -75,28 +71,19 @@ def cached(key: Hashable, build: Callable[[], T], *, nbytes: Callable[[T], int] 
     ``nbytes(value)`` gives its size for the :data:`MAX_BYTES` budget (default: counted as 0).
     An exception from ``build`` is not stored: the next call tries again.
     """
-    with _LOCK:
-        if key in _ENTRIES:
-            _ENTRIES.move_to_end(key)
-            _STATS["hits"] += 1
-            return _ENTRIES[key][0]  # type: ignore[no-any-return]
-        _STATS["misses"] += 1
-    value = build()  # outside the lock: reading may take seconds
-    size = 0 if nbytes is None else int(nbytes(value))
-    with _LOCK:
-        _ENTRIES[key] = (value, size)
-        total = sum(s for _, s in _ENTRIES.values())
-        while total > MAX_BYTES and len(_ENTRIES) > 1:
-            _, (_, dropped) = _ENTRIES.popitem(last=False)
-            total -= dropped
+    shelf = _kept().entries
+    missing = object()
+    kept = shelf.get(key, missing)
+    if kept is not missing:
+        return kept[0]  # type: ignore[no-any-return]
+    value = build()  # outside any lock: reading may take seconds
+    shelf.put(key, (value, 0 if nbytes is None else int(nbytes(value))))
     return value
 
 
 def clear() -> None:
     """Drop every entry and reset :func:`stats`."""
-    with _LOCK:
-        _ENTRIES.clear()
-        _STATS.update(hits=0, misses=0)
+    _kept().clear()
 
 
 def stats() -> dict[str, int]:
@@ -109,5 +96,5 @@ def stats() -> dict[str, int]:
     {'hits': 1, 'misses': 1, 'entries': 1}
     >>> clear()
     """
-    with _LOCK:
-        return {**_STATS, "entries": len(_ENTRIES)}
+    shelf = _kept().entries
+    return {"hits": shelf.hits, "misses": shelf.misses, "entries": len(shelf)}

@@ -284,9 +284,8 @@ def _pair_rows(names: list[str]) -> tuple[int, int, int, int]:
 _DIRECT_FIELDS = (*_TURNED_FIELDS, "hs_m", "wave_period_s", "current_u_ms", "current_v_ms")
 
 
-@functools.cache
 def _wanted_columns(fields: Collection[str]) -> frozenset[str]:
-    """The stored columns :class:`Conditions` fields ``fields`` are made of (kept per collection of fields)."""
+    """The stored columns :class:`Conditions` fields ``fields`` are made of."""
     unknown = sorted(set(fields) - set(_NEEDS))
     if unknown:
         raise WeatherError(f"'fields' must be Conditions fields {sorted(_NEEDS)} (got {unknown})")

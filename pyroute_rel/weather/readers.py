@@ -28,6 +28,7 @@ https://doi.org/10.1002/qj.3803
 from __future__ import annotations
 
 import os
+import threading
 import warnings
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -49,6 +50,7 @@ from ..errors import (
     check_instance,
     check_numbers,
 )
+from ..store import current_store
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
 from . import cache
@@ -145,11 +147,16 @@ _KIND = {
     "hs_m": "height", "wave_dir_deg": "direction", "wave_period_s": "period",
     "current_u_ms": "speed", "current_v_ms": "speed",
 }  # fmt: skip
-_SPEED = {"ms-1": 1.0, "m/s": 1.0, "m/sec": 1.0, "mps": 1.0, "cm/s": 0.01, "cms-1": 0.01}
-for _m in ("meter", "meters", "metre", "metres"):
-    _SPEED.update({f"{_m}/second": 1.0, f"{_m}persecond": 1.0, f"{_m}second-1": 1.0, f"{_m}s-1": 1.0})
-_SPEED.update(dict.fromkeys(("knots", "knot", "kt", "kts", "kn"), 1.0 / KN_PER_MS))
-_SPEED.update(dict.fromkeys(("km/h", "kmh-1", "kph"), 1.0 / 3.6))
+_SPEED = {
+    "ms-1": 1.0, "m/s": 1.0, "m/sec": 1.0, "mps": 1.0, "cm/s": 0.01, "cms-1": 0.01,
+    **{
+        f"{m}{per}": 1.0
+        for m in ("meter", "meters", "metre", "metres")
+        for per in ("/second", "persecond", "second-1", "s-1")
+    },
+    **dict.fromkeys(("knots", "knot", "kt", "kts", "kn"), 1.0 / KN_PER_MS),
+    **dict.fromkeys(("km/h", "kmh-1", "kph"), 1.0 / 3.6),
+}  # fmt: skip
 #: Accepted ``units`` per kind (normalised: lower case, without spaces, ``*``, ``^``, ``_``, ``.``) -> factor.
 _UNITS: dict[str, dict[str, float]] = {
     "speed": _SPEED,
@@ -232,7 +239,7 @@ def open_weather(
     if not paths:
         raise WeatherError("no weather file given (expected at least one path)")
     opened: list[tuple[str, list[xr.Dataset]]] = []
-    keep = _KEEP and isinstance(member, int | np.integer) and not isinstance(member, bool)
+    keep = _files().keep and isinstance(member, int | np.integer) and not isinstance(member, bool)
     try:
         for p in paths:
             lazy = member == "mean"  # read member group by member group, without dask (_load_mean)
@@ -254,54 +261,95 @@ def open_weather(
                 _close(ds)
 
 
-# Files kept open by this process (keep_files_open), by (resolved path, size, modification time); and how many times
-# each file was opened here (files_opened).
-_KEEP = False
-_KEEP_CALLS = 0
-_KEPT: dict[tuple[str, int, int], list[xr.Dataset]] = {}
-_OPENED: dict[str, int] = {}
+class _OpenFiles:
+    """The store's part (:mod:`pyroute_rel.store`) that owns the weather files opened here: those kept open for the
+    next members (:func:`keep_files_open`), by (resolved path, size, modification time); the stored values of each
+    file opened lazily with netCDF4 (:class:`_RawFile`), with the dataset it belongs to (found by that reference,
+    not by an id); and how many times each file was opened (:func:`files_opened`). Emptied with the store: its files
+    are closed."""
+
+    def __init__(self, store: Any) -> None:
+        self.allowed = bool(store.keep)  # (a store that keeps nothing keeps no file open)
+        self.keep = False
+        self.generation = 0
+        self.kept: dict[tuple[str, int, int], list[xr.Dataset]] = {}
+        self.raw: list[tuple[xr.Dataset, _RawFile]] = []
+        self.opened: dict[str, int] = {}
+        self.lock = threading.RLock()
+
+    def close_kept(self) -> None:
+        with self.lock:
+            kept, self.kept = list(self.kept.values()), {}
+            self.generation += 1
+        for datasets in kept:
+            for ds in datasets:
+                self.close(ds)
+
+    def close(self, ds: xr.Dataset) -> None:
+        """Close a dataset :func:`_open_file` opened, and its :class:`_RawFile` if any."""
+        with self.lock:
+            raw = [r for d, r in self.raw if d is ds]
+            self.raw = [(d, r) for d, r in self.raw if d is not ds]
+        for r in raw:
+            r.close()
+        ds.close()
+
+    def clear(self) -> None:
+        self.close_kept()
+        with self.lock:
+            self.opened.clear()
+
+    def raw_of(self, ds: xr.Dataset) -> _RawFile | None:
+        with self.lock:
+            return next((r for d, r in self.raw if d is ds), None)
+
+
+def _files() -> _OpenFiles:
+    return current_store().part("weather.files", _OpenFiles)
 
 
 def keep_files_open(keep: bool) -> None:
-    """Whether :func:`open_weather` keeps in this process the files it reads one ensemble member from (``member =
-    k``), for the next members: a process routing many members of one file (:mod:`pyroute_rel.ensemble`) opens it
-    once and reads each member's box from it, without dask (the same values: the file's decoding, element by
-    element). Either way, the files kept so far are closed (a file changed since is opened again: it is kept by
-    its path, size and modification time). The ensemble mean (``member = "mean"``) opens its own file, read without
-    dask as well."""
-    global _KEEP, _KEEP_CALLS
-    for datasets in _KEPT.values():
-        for ds in datasets:
-            _close(ds)
-    _KEPT.clear()
-    _KEEP = bool(keep)
-    _KEEP_CALLS += 1
+    """Whether :func:`open_weather` keeps (in the current store, :mod:`pyroute_rel.store`) the files it reads one
+    ensemble member from (``member = k``), for the next members: a process routing many members of one file
+    (:mod:`pyroute_rel.ensemble`) opens it once and reads each member's box from it, without dask (the same values:
+    the file's decoding, element by element). Either way, the files kept so far are closed (a file changed since is
+    opened again: it is kept by its path, size and modification time). The ensemble mean (``member = "mean"``)
+    opens its own file, read without dask as well."""
+    files = _files()
+    files.close_kept()
+    files.keep = bool(keep) and files.allowed
 
 
 def files_kept_open() -> int | None:
-    """None when this process does not keep files open (:func:`keep_files_open`); else a number that changes at each
-    call of :func:`keep_files_open`: what a caller keeps along with the files (:mod:`pyroute_rel.members` keeps a
-    scenario file's settings) is dropped with them."""
-    return _KEEP_CALLS if _KEEP else None
+    """None when files are not kept open (:func:`keep_files_open`); else a number that changes whenever the kept
+    files are closed (at each call of :func:`keep_files_open`, and when the store is emptied): what a caller keeps
+    along with the files (:mod:`pyroute_rel.members` keeps a scenario file's settings) is dropped with them."""
+    files = _files()
+    return files.generation if files.keep else None
 
 
 def files_opened(reset: bool = False) -> dict[str, int]:
-    """How many times this process opened each weather file (resolved path) to read it (``reset``: count from
-    zero again)."""
-    out = dict(_OPENED)
-    if reset:
-        _OPENED.clear()
+    """How many times each weather file (resolved path) was opened to read it, in the current store (``reset``:
+    count from zero again)."""
+    files = _files()
+    with files.lock:
+        out = dict(files.opened)
+        if reset:
+            files.opened.clear()
     return out
 
 
 def _kept_file(path: Path) -> list[xr.Dataset]:
+    files = _files()
     key = cache.file_stamps([path])[0]
-    if key not in _KEPT or key[1] < 0:
-        for old in [k for k in _KEPT if k[0] == key[0]]:  # the file as it was: closed
-            for ds in _KEPT.pop(old):
-                _close(ds)
-        _KEPT[key] = _open_file(path, lazy=True)
-    return _KEPT[key]
+    with files.lock:
+        datasets = files.kept.get(key)
+        if datasets is None or key[1] < 0:
+            for old in [k for k in files.kept if k[0] == key[0]]:  # the file as it was: closed
+                for ds in files.kept.pop(old):
+                    files.close(ds)
+            datasets = files.kept[key] = _open_file(path, lazy=True)
+    return datasets
 
 
 def weather_from_dataset(
@@ -463,15 +511,17 @@ def _open_file(path: Path, *, lazy: bool = False) -> list[xr.Dataset]:
         return _open_grib(path)
     if not (head.startswith(b"CDF") or head.startswith(b"\x89HDF\r\n\x1a\n")):
         raise WeatherError(f"weather file '{path}' is not a NetCDF or GRIB file (starts with {head[:4]!r})")
+    files = _files()
     try:
         engine = "netcdf4" if find_spec("netCDF4") else ("scipy" if head.startswith(b"CDF") else "h5netcdf")
         opts: dict[str, Any] = {"chunks": None, "cache": False} if lazy else {"chunks": {}}
         if lazy and engine == "netcdf4":
             ds = _open_with_small_chunk_cache(path, opts)
-            _RAW[id(ds)] = (ds, _RawFile(path))  # its stored values, read and decoded here
+            with files.lock:
+                files.raw.append((ds, _RawFile(path)))  # its stored values, read and decoded here
         else:
             ds = xr.open_dataset(path, engine=engine, decode_timedelta=False, **opts)
-        _OPENED[str(path.resolve())] = _OPENED.get(str(path.resolve()), 0) + 1
+        _count_opened(files, path)
         return [ds]
     except Exception as exc:  # netCDF4/HDF5 raise many types for damaged files
         raise WeatherError(f"cannot read weather file '{path}': {type(exc).__name__}: {exc}") from exc
@@ -515,22 +565,19 @@ def _open_grib(path: Path) -> list[xr.Dataset]:
             out.append(ds)
         else:
             ds.close()
-    _OPENED[str(path.resolve())] = _OPENED.get(str(path.resolve()), 0) + 1
+    _count_opened(_files(), path)
     return out
 
 
-# Files opened lazily with netCDF4 (a kept member file, the ensemble mean's), by the id of their xarray dataset: the
-# dataset (kept alive with its entry, so that its id is not reused) and its stored values (_RawFile). Dropped when
-# the dataset is closed (_close).
-_RAW: dict[int, tuple[xr.Dataset, _RawFile]] = {}
+def _count_opened(files: _OpenFiles, path: Path) -> None:
+    name = str(path.resolve())
+    with files.lock:
+        files.opened[name] = files.opened.get(name, 0) + 1
 
 
 def _close(ds: xr.Dataset) -> None:
     """Close a dataset :func:`_open_file` opened, and its :class:`_RawFile` if any."""
-    entry = _RAW.pop(id(ds), None)
-    if entry is not None:
-        entry[1].close()
-    ds.close()
+    _files().close(ds)
 
 
 class _RawFile:
@@ -714,10 +761,9 @@ def read_fields(
     for source, datasets in files:
         found = _detected(source, datasets, variables)
         for name, (ds, var) in found.items():
-            raw = _RAW.get(id(ds))
             field, had_members = _extract(
                 lambda ds=ds, var=var: ds[var], name, source, var, box, window, member, margin_deg, out_of_range,
-                raw=None if raw is None or raw[0] is not ds else raw[1],
+                raw=_files().raw_of(ds),
             )  # fmt: skip
             used_member |= had_members
             if field is None:
@@ -816,13 +862,13 @@ def _detected(
     source: str, datasets: list[xr.Dataset], variables: Mapping[str, str]
 ) -> dict[str, tuple[xr.Dataset, str]]:
     """:func:`_detect`, kept with a file's stored values (:class:`_RawFile`) for the next member."""
-    raw = _RAW.get(id(datasets[0])) if len(datasets) == 1 else None
-    if raw is None or raw[0] is not datasets[0]:
+    raw = _files().raw_of(datasets[0]) if len(datasets) == 1 else None
+    if raw is None:
         return _detect(source, datasets, variables)
     key = (source, tuple(sorted(variables.items())))
-    found = raw[1].detected.get(key)
+    found = raw.detected.get(key)
     if found is None:
-        found = raw[1].detected[key] = _detect(source, datasets, variables)
+        found = raw.detected[key] = _detect(source, datasets, variables)
     return dict(found)
 
 
