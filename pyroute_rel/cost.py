@@ -565,9 +565,9 @@ def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -
 
         inner, errors = _wind_errors(weather, shape)
         points_from = None
-        view = getattr(type(inner), "compiled_source", None)  # rows from stacked members (pyroute_rel.evaluate)
+        view = inner.compiled_source  # rows from stacked members (pyroute_rel.evaluate)
         if view is not None and errors is None:
-            joined = view(inner)
+            joined = view()
             inner, points_from = (inner, None) if joined is None else (joined, inner)
         block = usable(inner, o.failure, _wind_only(o))
         if block is not None:
@@ -630,18 +630,14 @@ _ONE_NM = np.ones(1)
 def _rows_aligned(weather: WeatherSource) -> bool:
     """Whether the source answers each row of a query (first axis) from its own run or member (Monte Carlo's
     perturbed wind, members sailed side by side): a block split between threads would misalign its rows."""
-    kind = type(weather)
-    return hasattr(kind, "wind_errors") or hasattr(kind, "take_rows")
+    return bool(weather.rows_aligned)
 
 
 def _wind_errors(weather: WeatherSource, shape: tuple[int, ...]) -> tuple[Any, tuple[FloatArray, FloatArray] | None]:
     """The source the compiled march samples and the wind error east and north [kn] it adds at each arc (flat), for
     a source that offsets its wind per row of the query (:meth:`pyroute_rel.monte_carlo.PerturbedWind.wind_errors`;
     None: no error)."""
-    errors = getattr(type(weather), "wind_errors", None)
-    if errors is None:
-        return weather, None
-    inner, east, north = errors(weather)
+    inner, east, north = weather.wind_errors()
     if east is None or north is None:  # no error: the wrapped source's conditions, unchanged
         return inner, None
     n = math.prod(shape)
@@ -748,12 +744,12 @@ def _located(geom: ArcGeometry, weather: WeatherSource) -> object:
     """``weather.prepare`` of the geometry's sample points, kept with the geometry where the source can reuse points
     located on its grid by another source (a process routing many members of one ensemble file, or many departures,
     locates them once; :attr:`~pyroute_rel.settings.Settings.locate_cache` False: located every time)."""
-    reuse = getattr(type(weather), "reuse", None)  # on the type: a wrapper that forwards attributes does not count
+    reuse = weather.reuse
     if reuse is None or not get_settings().locate_cache:
         return weather.prepare(geom.lon_deg, geom.lat_deg)
     kept = geom._located
     for i, points in enumerate(kept):
-        mine = reuse(weather, points)
+        mine = reuse(points)
         if mine is not None:
             if i:
                 kept.insert(0, kept.pop(i))

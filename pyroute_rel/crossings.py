@@ -313,11 +313,8 @@ def _sample_fields(
     """``weather.sample(lon, lat, time)``, with only the fields the failure model judges (and the current) where
     the source can sample some fields alone (``sample_at``: the same numbers, fewer fields interpolated); every
     field where there is a current (the crab heading needs the wind)."""
-    sample_at = getattr(weather, "sample_at", None)
-    if sample_at is None:
-        return weather.sample(lon, lat, time)
     fields = {QUANTITY_FIELDS[name][0] for name in failure.quantities} | {"current_u_ms", "current_v_ms"}
-    cond: Conditions = sample_at(weather.prepare(lon, lat), time, fields=fields)  # type: ignore[attr-defined]
+    cond = weather.sample_at(weather.prepare(lon, lat), time, fields=fields)
     return weather.sample(lon, lat, time) if cond.has_current else cond
 
 
@@ -432,7 +429,7 @@ def needs_pieces(
     weather, failure, departure : As for :func:`arc_extremes`.
     cond : The weather at the samples, if known (else sampled again).
     """
-    bounds = getattr(weather, "boundaries", None)
+    bounds = weather.boundaries
     if bounds is None:
         return None
     half_deg = np.degrees(seg_nm[..., 0] * 0.5 * KM_PER_NM / geodesy.EARTH_RADIUS_KM) * 1.001 + 1e-9
@@ -448,8 +445,8 @@ def needs_pieces(
     for k in range(1, course_deg.shape[-1]):
         margin = np.maximum(margin, np.abs((course_deg[..., k] - c0 + 180.0) % 360.0 - 180.0) + 2.0 * turn)
     if bounds.continuous:
-        variation = getattr(weather, "variation", None)
-        if variation is None or _unbounded(weather, failure, variation):
+        variation = weather.variation
+        if _unbounded(weather, failure, variation):
             return None
         dt = np.zeros(()) if weather.steady else np.where(np.isfinite(time_h), time_h, 0.0)  # forbidden: no time
         span = (half_deg / math.cos(math.radians(big)), half_deg, dt)
@@ -480,7 +477,7 @@ def _unbounded(weather: WeatherSource, failure: FailureModel, variation: Any) ->
     """True when a criterion's field has no variation bound (:func:`needs_pieces` would find that after sampling
     the weather; known before it when the weather has no current, which returns None first), the heading-dependent
     ones asked first (a direction's bound is the one that tends to be missing, and says so fast)."""
-    if "current_u_ms" in getattr(weather, "fields", ("current_u_ms",)):
+    if "current_u_ms" in weather.fields:
         return False
     names = sorted({QUANTITY_FIELDS[c.quantity] for c in failure.criteria}, key=lambda f: (not f[1], f[0]))
     return any(variation(name) is None for name, _ in names)
@@ -673,7 +670,7 @@ def arc_extremes(
     judge = _Judge(departure, weather, polar, failure, float(apf), beyond, speed_factor)
     timing = None if weather.steady else _Timing(np.asarray(t0_h, float), np.asarray(time_h, float), marks_h)
     if pieces is None:
-        pieces = arc_pieces(a_xyz, b_xyz, getattr(weather, "boundaries", None))
+        pieces = arc_pieces(a_xyz, b_xyz, weather.boundaries)
         if timing is not None and marks_h is not None:
             pieces = cut_in_time(pieces, marks_h, weather.time_steps, departure)
     arc, s0, s1 = pieces.arc, pieces.s0, pieces.s1
@@ -717,7 +714,7 @@ def _at_vertices(
         fv = (s0 + (s1 - s0) * rv)[new][:, None]
         tv = None if timing is None else timing.at(at, fv)
         lon_v, lat_v, course_v = _points(pieces.a_xyz, pieces.u_xyz, pieces.omega, at, fv)
-        take_rows = getattr(judge.weather, "take_rows", None)  # a weather answering each piece from its own source
+        take_rows = judge.weather.take_rows  # a weather answering each piece from its own source
         if take_rows is not None:
             judge = replace(judge, weather=take_rows(np.broadcast_to(np.arange(rv.shape[0])[:, None], rv.shape)[new]))
         qv = _quantities(judge, lon_v, lat_v, course_v, tv)

@@ -46,7 +46,7 @@ from .manoeuvre import TrackManoeuvres, charge_manoeuvres
 from .route import Legs, track_legs
 from .solve import first_sample_wind
 from .times import iso_utc
-from .weather.base import Conditions
+from .weather.base import Conditions, WeatherBase
 
 if TYPE_CHECKING:
     from .scenario import Scenario
@@ -809,7 +809,7 @@ STACK_MAX_BYTES = 600_000_000
 def _member_groups(problems: Sequence[RoutingProblem]) -> list[Sequence[RoutingProblem]]:
     """The problems in consecutive groups whose gridded data stacked take at most :data:`STACK_MAX_BYTES` (at
     least two a group)."""
-    each = max((int(getattr(p.weather, "nbytes", 0)) for p in problems), default=0)
+    each = max((int(p.weather.nbytes) for p in problems), default=0)
     if len(problems) < 3 or problems[0].weather.steady or each * len(problems) <= STACK_MAX_BYTES:
         return [problems]
     size = max(2, STACK_MAX_BYTES // each)
@@ -871,7 +871,7 @@ def _judge_legs(
     if len(problems) == 1 or stack is not None:  # one call, each leg judged cut once
         r, k, i = (np.concatenate([x[n] for x in picked]) for n in (1, 2, 3))
         which, at = np.unique(i, return_inverse=True)
-        cut = arc_pieces(g.a_xyz[which], g.b_xyz[which], getattr(first.weather, "boundaries", None)).take(at)
+        cut = arc_pieces(g.a_xyz[which], g.b_xyz[which], first.weather.boundaries).take(at)
         if marks is not None:  # and where each row's craft crosses a time step of the weather
             cut = cut_in_time(cut, marks[r, k], first.weather.time_steps, first.departure)
         calls = [(r, k, i, cut, _rows_weather(problems, (r // n_c)[cut.arc], stack))]
@@ -906,7 +906,9 @@ def _rows_weather(problems: Sequence[RoutingProblem], member: npt.NDArray[np.int
     return _MemberRows([p.weather for p in problems], cuts, None if stack is None else (stack, member))
 
 
-class _MemberRows:
+class _MemberRows(WeatherBase):
+    rows_aligned = True  # (each row from its member)
+
     """A weather source whose queries' rows (first axis) come from different sources: rows ``cuts[j]:cuts[j + 1]``
     are answered by ``sources[j]`` (the sources share their kind: all steady or all time-varying); with ``stack``
     (a :class:`~pyroute_rel.weather.gridded.MemberStack` of the sources and each row's source), prepared points are

@@ -63,7 +63,7 @@ from .evaluate import Track, as_track, evaluation_problem, sail_tracks
 from .march import SpeedNoise
 from .planners.settings import FINITE, check_fields
 from .units import KN_PER_MS
-from .weather.base import Conditions
+from .weather.base import Conditions, WeatherBase
 
 if TYPE_CHECKING:
     from .scenario import Scenario
@@ -180,7 +180,9 @@ def wind_errors(
     return e
 
 
-class PerturbedWind:
+class PerturbedWind(WeatherBase):
+    rows_aligned = True  # (each row its run's error)
+
     """A weather source whose wind is offset by a per-run error: queries whose first axis is the run.
 
     Wraps a :class:`~pyroute_rel.weather.WeatherSource`; ``east_ms``/``north_ms`` (one value per run [m/s]) are added
@@ -542,9 +544,10 @@ def spread_from_members(
 
 def _wind_extent(weather: Any) -> str:
     """The extent of a gridded source's wind field (its ``describe()``), else its type's name."""
-    info = getattr(weather, "field_info", None)
-    if isinstance(info, dict) and "wind_u_ms" in info:
-        return str(info["wind_u_ms"].describe())
+    from .weather.gridded import GriddedWeather
+
+    if isinstance(weather, GriddedWeather) and "wind_u_ms" in weather.field_info:
+        return str(weather.field_info["wind_u_ms"].describe())
     return type(weather).__name__
 
 

@@ -65,6 +65,7 @@ from .settings import get_settings
 from .times import hours_after
 from .units import KN_PER_MS
 from .weather import Conditions, UniformWeather, WeatherSource
+from .weather.base import WEATHER_MEMBERS
 
 __all__ = [
     "DPResult",
@@ -257,7 +258,12 @@ class RoutingProblem:
             ),
         ):
             if not ok:
-                raise ScenarioError(f"RoutingProblem.{name} must be {what} (got {type(value).__name__})")
+                got = type(value).__name__
+                if name == "weather":
+                    lacks = [m for m in WEATHER_MEMBERS if not hasattr(value, m)]
+                    if lacks and len(lacks) < len(WEATHER_MEMBERS):
+                        got += f", which lacks {', '.join(lacks)}: subclass pyroute_rel.weather.WeatherBase"
+                raise ScenarioError(f"RoutingProblem.{name} must be {what} (got {got})")
 
     @property
     def sides(self) -> bool:

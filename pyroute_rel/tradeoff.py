@@ -767,7 +767,7 @@ def _steady_hazards(
         return hz
     p_max = np.broadcast_to(costs.p_f, shape).ravel()[arc]
     some = p_max > 0.0  # the others: no hazard
-    bounds = getattr(problem.weather, "boundaries", None)
+    bounds = problem.weather.boundaries
     near = None
     if bounds is not None and not bounds.continuous:  # patches: no missing weather, conditions constant per piece
         time_all = np.broadcast_to(costs.time_h, shape)

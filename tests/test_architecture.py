@@ -212,3 +212,22 @@ def test_functions_are_short():
             if n > MAX_FUNCTION_LINES and key not in LONG_FUNCTIONS:
                 long.append(f"{key}: {n} lines")
     assert not long, "\n".join(long)
+
+
+def test_weather_capabilities_are_declared_not_probed():
+    """The weather protocol's members (:data:`~pyroute_rel.weather.base.WEATHER_MEMBERS`: the capabilities too, with
+    their defaults in :class:`~pyroute_rel.weather.WeatherBase`) are used as declared: no ``getattr``/``hasattr`` of
+    one of them anywhere in the package (issue 33)."""
+    from pyroute_rel.weather.base import WEATHER_MEMBERS
+
+    names = set(WEATHER_MEMBERS) | {"patches", "field_info"}
+    found = []
+    for name, path in MODULES.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)):
+                continue
+            if node.func.id in {"getattr", "hasattr"} and len(node.args) >= 2:
+                key = node.args[1]
+                if isinstance(key, ast.Constant) and key.value in names:
+                    found.append(f"{name}:{node.lineno} {node.func.id}(..., {key.value!r})")
+    assert not found, found

@@ -26,7 +26,7 @@ from pyroute_rel.crossings import NUDGE, split_fractions
 from pyroute_rel.failure import load_failure_model
 from pyroute_rel.geodesy import to_xyz
 from pyroute_rel.polar import get_polar
-from pyroute_rel.weather import Patch, UniformWeather
+from pyroute_rel.weather import Patch, UniformWeather, WeatherBase
 
 R_KM = 6371.0088
 DEPARTURE = np.datetime64("2018-06-01T00:00")
@@ -37,7 +37,7 @@ WEATHER = UniformWeather(**BASE, patches=(Patch(lon=BOX[:2], lat=BOX[2:], values
 
 
 @dataclass(frozen=True)
-class Boundless:
+class Boundless(WeatherBase):
     """The same weather as a source that varies in time and says nothing of where it changes (the arc is judged as
     one piece, its ends nudged inside)."""
 

@@ -13,14 +13,14 @@ from pyproj import Geod
 
 from pyroute_rel import geodesy
 from pyroute_rel.cost import arc_costs
-from pyroute_rel.errors import NoFeasibleRouteError
+from pyroute_rel.errors import NoFeasibleRouteError, ScenarioError
 from pyroute_rel.failure import load_failure_model
 from pyroute_rel.grid import FINISH, START, make_grid
 from pyroute_rel.polar import Polar, boat_speed_kn, get_polar
 from pyroute_rel.route import route_on_grid
 from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
 from pyroute_rel.times import hours_after
-from pyroute_rel.weather import FIELDS, Conditions, Patch, UniformWeather
+from pyroute_rel.weather import FIELDS, Conditions, Patch, UniformWeather, WeatherBase
 
 DEP = np.datetime64("2018-06-01T00:00:00")
 START_PT, FINISH_PT = (-12.0, 45.0), (-60.0, 17.5)
@@ -109,7 +109,7 @@ def test_dp_equals_brute_force_on_tiny_grids(seed: int) -> None:
     assert forward_dp(grid, problem).finish_h == pytest.approx(best, rel=1e-12)
 
 
-class SamplesOnly:
+class SamplesOnly(WeatherBase):
     """The rest of the WeatherSource protocol for a test source that only knows how to ``sample``: not steady,
     every field defined, no current; ``prepare``/``sample_at`` sample the same points at the asked times."""
 
@@ -431,9 +431,9 @@ def test_control_weather_constructors_validate(make, match) -> None:
     assert UniformWeather(tws_kn=15.0, twd_deg=360.0).twd_deg == 0.0  # the documented [0, 360)
 
 
-class Breeze:
-    """A third party's weather source written against the protocol alone: a steady breeze from the north-east,
-    reported as time-varying so that the router takes its prepared-sampling path."""
+class BreezeCore:
+    """A third party's weather source: a steady breeze from the north-east, reported as time-varying so that the
+    router takes its prepared-sampling path; the six members every source writes, nothing else."""
 
     steady = False
     time_steps = None
@@ -457,12 +457,10 @@ class Breeze:
     def check_coverage(self, lon_range: Any, lat_range: Any, time_range: Any) -> None:
         return None
 
-    def prepare(self, lon_deg: Any, lat_deg: Any) -> tuple[Any, Any]:
-        return (np.asarray(lon_deg, float), np.asarray(lat_deg, float))
 
-    def sample_at(self, prepared: Any, departure: Any, *, offset_h: Any = None, fields: Any = None) -> Conditions:
-        time = departure if offset_h is None else hours_after(departure, offset_h)
-        return self.sample(prepared[0], prepared[1], time)
+class Breeze(WeatherBase, BreezeCore):
+    """The breeze with the protocol's capabilities at their defaults (:class:`~pyroute_rel.weather.WeatherBase`:
+    prepared sampling by ``sample``, no boundaries, ...)."""
 
 
 def test_a_source_implementing_only_the_protocol_routes_like_the_built_in_one() -> None:
@@ -470,7 +468,13 @@ def test_a_source_implementing_only_the_protocol_routes_like_the_built_in_one() 
     from pyroute_rel.solve import ArcMask
     from pyroute_rel.weather import WeatherSource
 
-    assert isinstance(Breeze(), WeatherSource)
+    assert isinstance(Breeze(), WeatherSource) and not isinstance(BreezeCore(), WeatherSource)
+    with pytest.raises(
+        ScenarioError,
+        match=r"\(got BreezeCore, which lacks prepare, sample_at, boundaries, .*: subclass "
+        r"pyroute_rel.weather.WeatherBase\)$",
+    ):
+        RoutingProblem(departure=DEP, weather=BreezeCore(), polar=get_polar("maribot_vane"))
     grid = make_grid(START_PT, FINISH_PT, n_ranks=5, n_nodes=5, spacing_km=150.0)
     polar = get_polar("maribot_vane")
     mine = route_on_grid(grid, RoutingProblem(departure=DEP, weather=Breeze(), polar=polar, samples=3))

@@ -38,7 +38,7 @@ from pyroute_rel.tradeoff import (
     sensitivity,
     voyage_front,
 )
-from pyroute_rel.weather import Conditions
+from pyroute_rel.weather import Conditions, WeatherBase
 
 ROOT = Path(__file__).resolve().parents[1]
 CONTROL = ROOT / "examples" / "microtransat_control.toml"
@@ -73,7 +73,7 @@ def small(seed: int, **grid: Any) -> Scenario:
 
 
 @dataclass(frozen=True)
-class Unsteady:
+class Unsteady(WeatherBase):
     """A weather source that says it varies in time (so nothing is screened or shared across departures), with
     ``hs_m`` raised to ``storm_hs_m`` inside ``box`` from ``storm_h`` hours after ``t0`` on (None: never)."""
 

@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..geodesy import gc_densify
+from ..weather.uniform import UniformWeather
 
 if TYPE_CHECKING:
     from ..planners.compare import Comparison
@@ -57,7 +58,7 @@ def _panel(ax: Any, comp: Comparison) -> None:
         _fill(ax, land, color="0.8", lw=0, label="_land")
     for zone in sc.avoid.zones:
         _fill(ax, zone.geometry, facecolor="none", edgecolor="tab:purple", hatch="//", lw=0.8)
-    for patch in getattr(sc.weather, "patches", ()):
+    for patch in sc.weather.patches if isinstance(sc.weather, UniformWeather) else ():
         (x0, x1), (y0, y1) = patch.lon, patch.lat
         ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="tab:orange", lw=0.8, ls="--")
     for r in runs:

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..risk import continuous_lon_deg
+from ..weather.uniform import UniformWeather
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -88,7 +89,7 @@ def _map_axes(fig: Figure, routes: Sequence[Any], example: Route) -> tuple[Axes,
     def view(lon: Any) -> Any:
         return continuous_lon_deg(lon, ref)
 
-    for patch in getattr(weather, "patches", ()):
+    for patch in weather.patches if isinstance(weather, UniformWeather) else ():
         (w, e), (s, n) = patch.lon, patch.lat
         ax.fill(view(np.array([w, e, e, w])), [s, s, n, n], facecolor="0.5", alpha=0.15, edgecolor="0.3", zorder=0)
         what = ", ".join(f"{k} {v:g}" for k, v in patch.values.items())

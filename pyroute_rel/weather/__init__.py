@@ -17,7 +17,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .base import FIELDS, RANGES, Conditions, Range, WeatherSource
+from .base import FIELDS, RANGES, Conditions, Range, WeatherBase, WeatherSource
 from .uniform import Patch, UniformWeather
 
 __all__ = [
@@ -26,6 +26,7 @@ __all__ = [
     "Range",
     "Conditions",
     "WeatherSource",
+    "WeatherBase",
     "Patch",
     "UniformWeather",
     "GriddedWeather",

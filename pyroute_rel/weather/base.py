@@ -30,7 +30,18 @@ import numpy.typing as npt
 from ..errors import WeatherError, check_numbers
 from ..times import to_datetime64
 
-__all__ = ["Boundaries", "Variation", "Conditions", "WeatherSource", "FIELDS", "RANGES", "Range", "sample_points"]
+__all__ = [
+    "Boundaries",
+    "Variation",
+    "Conditions",
+    "WeatherSource",
+    "WeatherBase",
+    "WEATHER_MEMBERS",
+    "FIELDS",
+    "RANGES",
+    "Range",
+    "sample_points",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -135,6 +146,10 @@ class Conditions:
         return bool(np.any(self.current_u_ms) or np.any(self.current_v_ms))
 
 
+#: The :class:`Conditions` fields, in order.
+_FIELD_NAMES = ("tws_kn", "twd_deg", "hs_m", "wave_dir_deg", "wave_period_s", "current_u_ms", "current_v_ms")
+
+
 @dataclass(frozen=True)
 class Variation:
     """A bound on how much a field changes between two points: ``|f(p) - f(q)| <= fixed + per_lon * |dlon| +
@@ -171,10 +186,14 @@ class Boundaries:
 class WeatherSource(Protocol):
     """What the router asks of weather: every member the cost function, the solver and the route builder use.
 
-    A new source (another file format, a model coupled at run time, a test double) implements these members and
-    nothing else; :class:`~pyroute_rel.weather.uniform.UniformWeather` and
+    A new source (another file format, a model coupled at run time, a test double) implements ``steady``,
+    ``fields``, ``max_current_ms``, ``time_steps``, ``sample`` and ``check_coverage``, and subclasses
+    :class:`WeatherBase` for the rest: prepared sampling and the capabilities (what a source may offer beyond
+    sampling: boundaries, variation bounds, ...), each declared here with its default there, so that the router
+    asks for them by name and never probes. :class:`~pyroute_rel.weather.uniform.UniformWeather` and
     :class:`~pyroute_rel.weather.gridded.GriddedWeather` are the two shipped implementations. The protocol is
-    ``runtime_checkable``: ``isinstance(x, WeatherSource)`` checks that the members exist (not their types).
+    ``runtime_checkable``: ``isinstance(x, WeatherSource)`` checks that the members exist (not their types); a
+    :class:`~pyroute_rel.solve.RoutingProblem` refuses a source that lacks some, naming them.
 
     Conventions of the methods: positions are longitude/latitude [deg] (any longitude convention), times
     ``numpy.datetime64`` (UTC), and every array argument is broadcast with the others.
@@ -285,6 +304,117 @@ class WeatherSource(Protocol):
             Arrays of the prepared points' shape.
         """
         ...
+
+    # --- capabilities: what a source may offer beyond sampling (WeatherBase gives each its default) ---------------
+
+    @property
+    def boundaries(self) -> Boundaries | None:
+        """Where conditions change abruptly or bend (grid lines, patch edges): arcs are judged on every piece
+        between them (:mod:`pyroute_rel.crossings`). None: nowhere known; arcs are judged on their samples."""
+        ...
+
+    def variation(self, field: str) -> Variation | None:
+        """A bound on how much a :class:`Conditions` field changes between two points (None: no bound known): lets
+        the judge on pieces skip arcs that cannot reach a criterion's edge
+        (:func:`pyroute_rel.crossings.needs_pieces`)."""
+        ...
+
+    @property
+    def rows_aligned(self) -> bool:
+        """True when the source answers each row (first axis) of a query from its own run or member (Monte Carlo's
+        perturbed wind, ensemble members sailed side by side): a block of arcs is then never split between threads."""
+        ...
+
+    @property
+    def nbytes(self) -> int:
+        """Memory the source's data take [bytes] (0: little or unknown): ensembles stack members within a budget."""
+        ...
+
+    #: ``take_rows(rows)``: the same weather for queries made of rows ``rows`` (sorted) of the rows it answers (a
+    #: :attr:`rows_aligned` source), or None: the source answers every row alike.
+    take_rows: Any
+
+    #: ``reuse(prepared)``: points another source's :meth:`prepare` located, made ready for this source's
+    #: :meth:`sample_at` without locating them again (None returned: they do not fit), or None: the source cannot.
+    reuse: Any
+
+    #: ``compiled_source()``: the gridded source the compiled march samples for this one (its prepared points index
+    #: that source's data), or None: the compiled march samples the source itself when it can.
+    compiled_source: Any
+
+    def wind_errors(self) -> tuple[Any, FloatArray | None, FloatArray | None]:
+        """The source this one offsets the wind of, and the offsets east and north per row [kn] (None: no offset):
+        how the compiled march samples a perturbed source (:class:`pyroute_rel.monte_carlo.PerturbedWind`). A
+        source that offsets nothing returns itself and None, None."""
+        ...
+
+
+#: Every member of :class:`WeatherSource`, in the order documented there.
+WEATHER_MEMBERS = (
+    "steady", "fields", "max_current_ms", "time_steps", "sample", "check_coverage", "prepare", "sample_at",
+    "boundaries", "variation", "rows_aligned", "nbytes", "take_rows", "reuse", "compiled_source", "wind_errors",
+)  # fmt: skip
+
+
+class WeatherBase:
+    """The defaults of the :class:`WeatherSource` capabilities, for a source to inherit: no boundaries, no variation
+    bound, rows answered alike, nothing reused, no compiled twin, no wind offset; :meth:`prepare` and
+    :meth:`sample_at` by :meth:`sample` (the same numbers). A source implements ``steady``, ``fields``,
+    ``max_current_ms``, ``time_steps``, ``sample`` and ``check_coverage`` and overrides what it can do better."""
+
+    take_rows: Any = None
+    reuse: Any = None
+    compiled_source: Any = None
+
+    @property
+    def boundaries(self) -> Boundaries | None:
+        """None: no boundaries known."""
+        return None
+
+    def variation(self, field: str) -> Variation | None:
+        """None: no bound known."""
+        return None
+
+    @property
+    def rows_aligned(self) -> bool:
+        """False: every row is answered alike."""
+        return False
+
+    @property
+    def nbytes(self) -> int:
+        """0: little or unknown."""
+        return 0
+
+    def wind_errors(self) -> tuple[Any, FloatArray | None, FloatArray | None]:
+        """This source, without offsets."""
+        return self, None, None
+
+    def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike) -> object:
+        """The points, broadcast together (:meth:`sample_at` samples them with :meth:`sample`)."""
+        lon, lat = np.broadcast_arrays(np.asarray(lon_deg, dtype=float), np.asarray(lat_deg, dtype=float))
+        return lon, lat
+
+    def sample_at(
+        self,
+        prepared: Any,
+        departure: npt.ArrayLike,
+        *,
+        offset_h: npt.ArrayLike | None = None,
+        fields: Collection[str] | None = None,
+    ) -> Conditions:
+        """``sample`` at the prepared points, at ``departure`` (plus ``offset_h`` hours); every field."""
+        lon, lat = prepared
+        time = np.asarray(departure, dtype="datetime64[ns]")
+        if offset_h is not None:
+            ns = np.round(np.asarray(offset_h, dtype=float) * 3.6e12)
+            time = time + np.where(np.isfinite(ns), ns, 0).astype("timedelta64[ns]")
+            cond = self.sample(lon, lat, time)  # type: ignore[attr-defined]
+            lost = ~np.isfinite(np.broadcast_to(np.asarray(offset_h, dtype=float), np.shape(cond.tws_kn)))
+            if lost.any():  # NaN hours: NaN conditions
+                nan = np.where(lost, np.nan, 0.0)
+                cond = Conditions(**{k: np.asarray(getattr(cond, k), dtype=float) + nan for k in _FIELD_NAMES})
+            return cond
+        return self.sample(lon, lat, time)  # type: ignore[attr-defined, no-any-return]
 
 
 def sample_points(

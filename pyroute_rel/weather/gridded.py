@@ -35,7 +35,7 @@ from ..errors import WeatherCoverageError, WeatherError, WeatherWarning, brief, 
 from ..settings import get_settings
 from ..times import iso_minute, to_datetime64
 from ..units import KN_PER_MS
-from .base import RANGES, Boundaries, Conditions, Variation, sample_points
+from .base import RANGES, Boundaries, Conditions, Variation, WeatherBase, sample_points
 
 if TYPE_CHECKING:
     pass
@@ -563,7 +563,7 @@ def speed_bearing(e, n, scale):  # type: ignore[no-untyped-def]  # pragma: no co
     return math.sqrt(e * e + n * n) * scale, d + 0.0  # hypot's overflow care costs 15x here; + 0.0: no -0.0
 
 
-class GriddedWeather:
+class GriddedWeather(WeatherBase):
     """Gridded, time-varying weather: a :class:`~pyroute_rel.weather.WeatherSource` over numpy arrays.
 
     Build it with :func:`~pyroute_rel.weather.readers.open_weather` (files) or

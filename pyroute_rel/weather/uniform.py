@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ScenarioError, WeatherError, brief
-from .base import FIELDS, Boundaries, Conditions, sample_points
+from .base import FIELDS, Boundaries, Conditions, WeatherBase, sample_points
 
 __all__ = ["Patch", "PreparedUniform", "UniformWeather"]
 
@@ -73,7 +73,7 @@ class PreparedUniform:
 
 
 @dataclass(frozen=True)
-class UniformWeather:
+class UniformWeather(WeatherBase):
     """The paper's control scenario: uniform, steady wind and waves, overridden inside patches.
 
     Parameters
