@@ -10,8 +10,9 @@ from __future__ import annotations
 import contextvars
 import os
 import threading
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import TypeVar
 
 from .errors import ScenarioError
@@ -24,30 +25,47 @@ R = TypeVar("R")
 
 
 class _Threads:
-    """The store's pool of threads (:mod:`pyroute_rel.store`): made at the first call that needs it, replaced by a
-    larger one when a call asks for more threads (the old one shut down), shut down when the store is emptied."""
+    """The store's pool of threads (:mod:`pyroute_rel.store`): made at the first call that needs it and replaced by
+    a larger one when a call asks for more threads. A pool replaced, or dropped when the store is emptied, is shut
+    down once no call is using it (a call given a pool keeps it to its end)."""
 
     def __init__(self, store: object) -> None:
         self.pool: ThreadPoolExecutor | None = None
         self.size = 0
+        self.users: dict[ThreadPoolExecutor, int] = {}  # calls using each pool, by the pool itself
         self.lock = threading.Lock()
 
-    def get(self, workers: int) -> ThreadPoolExecutor:
+    @contextmanager
+    def use(self, workers: int) -> Iterator[ThreadPoolExecutor]:
         with self.lock:
             if self.pool is None or self.size < workers:
-                if self.pool is not None:
-                    self.pool.shutdown(wait=False)  # (tasks already given to it still run)
+                self._retire()
                 self.pool, self.size = (
                     ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pyroute_rel"),
                     workers,
                 )
-            return self.pool
+            pool = self.pool
+            self.users[pool] = self.users.get(pool, 0) + 1
+        try:
+            yield pool
+        finally:
+            with self.lock:
+                self.users[pool] -= 1
+                idle = self.users[pool] == 0
+                if idle:
+                    del self.users[pool]
+            if idle and pool is not self.pool:  # replaced or dropped meanwhile: its last user shuts it down
+                pool.shutdown(wait=False)
+
+    def _retire(self) -> None:
+        """Drop the current pool (under the lock), shut down at once if no call is using it."""
+        if self.pool is not None and self.pool not in self.users:
+            self.pool.shutdown(wait=False)
+        self.pool, self.size = None, 0
 
     def clear(self) -> None:
         with self.lock:
-            if self.pool is not None:
-                self.pool.shutdown(wait=False)
-            self.pool, self.size = None, 0
+            self._retire()
 
 
 def default_workers() -> int:
@@ -75,9 +93,9 @@ def thread_map(fn: Callable[[T], R], items: Iterable[T], workers: int) -> list[R
     items = list(items)
     if workers <= 1 or len(items) <= 1:
         return [fn(x) for x in items]
-    pool = current_store().part("threads", _Threads).get(workers)
-    contexts = [contextvars.copy_context() for _ in items]  # (a context is entered by one thread at a time)
-    return list(pool.map(lambda c, x: c.run(fn, x), contexts, items))
+    with current_store().part("threads", _Threads).use(workers) as pool:
+        contexts = [contextvars.copy_context() for _ in items]  # (a context is entered by one thread at a time)
+        return list(pool.map(lambda c, x: c.run(fn, x), contexts, items))
 
 
 def row_blocks(n_rows: int, parts: int) -> list[slice]:

@@ -1003,7 +1003,8 @@ class _FinishLine:
         along = np.broadcast_to(t0, frac.shape) + self._to_line(arcs, t0, frac, crosses)
         if priced.penalty_h is not None:
             along = along + priced.penalty_h
-        cand = np.where(crosses, along, np.inf)
+        # on a time lattice the crossing is rounded up as every arrival is (the route's last leg reports it so)
+        cand = np.where(crosses, self.problem.arrive(along), np.inf)
         while cand.size and np.min(cand) < self.best_h:
             jj, cc = np.unravel_index(np.argmin(cand), cand.shape)
             if blocked is not None and blocked(int(jj), int(cc)):

@@ -16,7 +16,12 @@ Lifetime, and the one switch:
   files closed, when the block ends. ``with pyroute_rel.kept(False):`` keeps nothing: every call reads and builds
   afresh (what to use when files change under a long-lived process faster than their modification times show).
 - ``PYROUTE_REL_KEEP=0`` in the environment makes the process's store keep nothing (read when the store is first
-  used); :func:`clear_kept` empties the current store.
+  used); :func:`clear_kept` empties the current store. Keeping nothing is slower where a route reuses what it built
+  (land and zone indexes are built again for each route, a sweep reads its weather files for every run).
+
+What a store holds belongs to it: a :func:`~pyroute_rel.weather.cache.caching` block, files kept open for the next
+ensemble members (:func:`~pyroute_rel.weather.readers.keep_files_open`) and the pool of threads are the current
+store's, so a ``with kept():`` block starts without them and drops them at its end.
 
 >>> from pyroute_rel.store import current_store, kept
 >>> with kept() as store:
@@ -104,13 +109,18 @@ class Shelf:
             self.hits += 1
             return entry[0]
 
-    def put(self, key: Hashable, value: T) -> T:
-        """Keep ``value`` under ``key`` (replacing what was there) and return it."""
+    def put(self, key: Hashable, value: T, *, replace: bool = True) -> T:
+        """Keep ``value`` under ``key`` and return it; what was there is dropped (``replace`` False: what was there
+        is kept and returned instead, and ``value`` dropped)."""
         if not self.keep:
             return value
         size = int(self._nbytes(value)) if self._nbytes is not None else 0
         with self._lock:
             old = self._entries.pop(key, None)
+            if old is not None and not replace:  # (made meanwhile by another thread: the first one stays)
+                self._entries[key] = old
+                self._drop((value, 0))
+                return old[0]  # type: ignore[no-any-return]
             if old is not None:
                 self._drop(old)
             self._entries[key] = (value, size)
@@ -128,7 +138,7 @@ class Shelf:
         value = self.get(key, missing)
         if value is not missing:
             return value  # type: ignore[no-any-return]
-        return self.put(key, make())
+        return self.put(key, make(), replace=False)
 
     def pop(self, key: Hashable, default: Any = None) -> Any:
         """Remove the entry under ``key`` and return it, without ``on_drop`` (the caller takes it over)."""
@@ -267,10 +277,10 @@ def kept_by(owner: Any, name: str, make: Callable[[], T]) -> T:
     """What ``make()`` derives from the immutable object ``owner``, made once and kept in the object's own
     ``__dict__`` under ``name`` (as :func:`functools.cached_property` keeps it): it lives and dies with the object,
     and no table outside it is keyed by the object's identity."""
-    kept_value = owner.__dict__.get(name)
-    if kept_value is None:
-        kept_value = owner.__dict__[name] = make()
-    return kept_value  # type: ignore[no-any-return]
+    kept = owner.__dict__
+    if name not in kept:
+        kept[name] = make()
+    return kept[name]  # type: ignore[no-any-return]
 
 
 def kept_call(name: str, *, limit: int = DEFAULT_LIMIT) -> Callable[[Callable[..., T]], Callable[..., T]]:

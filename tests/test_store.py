@@ -54,6 +54,7 @@ def test_a_shelf_drops_the_least_recently_used_beyond_its_bounds_and_closes_what
         shelf.get_or_make("x", lambda: 1 / 0)
     assert "x" not in shelf  # a failed make keeps nothing
     shelf.put("y", "y")
+    assert shelf.put("y", "made meanwhile", replace=False) == "y" and dropped[-1] == "made meanwhile"
     shelf.clear()
     assert len(shelf) == 0 and dropped[-1] == "y"
 
@@ -111,8 +112,8 @@ def test_the_environment_switch_makes_the_process_keep_nothing() -> None:
 
 
 def test_nothing_is_kept_outside_the_store() -> None:
-    """No module-level mutable container, lru_cache, WeakKeyDictionary or ``global`` statement in the package
-    outside pyroute_rel/store.py, and no ``id(...)`` used as a key (the habits of issue 33)."""
+    """No module-level or class-level mutable container, lru_cache/cache, weak dictionary or ``global`` statement in
+    the package outside pyroute_rel/store.py, and no ``id(...)`` used as a key (the habits of issue 33)."""
     mutable = (ast.Dict, ast.List, ast.Set, ast.DictComp, ast.ListComp, ast.SetComp)
     makers = {"dict", "list", "set", "OrderedDict", "defaultdict", "WeakKeyDictionary", "WeakValueDictionary"}
     found = []
@@ -131,10 +132,24 @@ def test_nothing_is_kept_outside_the_store() -> None:
             call = value.func.id if isinstance(value, ast.Call) and isinstance(value.func, ast.Name) else call
             if isinstance(value, mutable) or call in makers:
                 found.append(f"{where}:{node.lineno} {names}")
+        for cls in (n for n in ast.walk(tree) if isinstance(n, ast.ClassDef)):  # class-level containers: shared
+            for node in cls.body:
+                value = node.value if isinstance(node, ast.Assign | ast.AnnAssign) else None
+                call = value.func if isinstance(value, ast.Call) else None
+                maker = (
+                    call.id if isinstance(call, ast.Name) else call.attr if isinstance(call, ast.Attribute) else None
+                )
+                if isinstance(value, mutable) or maker in makers:
+                    found.append(f"{where}:{node.lineno} {cls.name} class attribute")
+        caches = {"lru_cache", "cache", "WeakKeyDictionary", "WeakValueDictionary"}
         for node in ast.walk(tree):
             if isinstance(node, ast.Global):
                 found.append(f"{where}:{node.lineno} global {node.names}")
-            if isinstance(node, ast.Attribute) and node.attr in {"lru_cache", "WeakKeyDictionary", "cache"}:
+            if isinstance(node, ast.ImportFrom) and node.module in {"functools", "weakref"}:
+                found += [
+                    f"{where}:{node.lineno} from {node.module} import {a.name}" for a in node.names if a.name in caches
+                ]
+            if isinstance(node, ast.Attribute) and node.attr in caches:
                 if isinstance(node.value, ast.Name) and node.value.id in {"functools", "weakref"}:
                     if not (path.name == "gridded.py" and node.attr == "cache"):  # (_load_kernels: loads code once)
                         found.append(f"{where}:{node.lineno} {node.value.id}.{node.attr}")
@@ -151,7 +166,8 @@ def test_nothing_is_kept_outside_the_store() -> None:
 def test_upper_case_tables_are_never_written_to() -> None:
     """Module-level UPPER_CASE names are constants: no subscript assignment, ``.update``, ``.append``, ``.clear``,
     ``.pop`` or ``.setdefault`` on them anywhere in the package."""
-    writes = {"update", "append", "clear", "pop", "setdefault", "extend", "add", "popitem"}
+    writes = {"update", "append", "clear", "pop", "setdefault", "extend", "add", "popitem", "insert", "remove"}
+    writes |= {"discard", "__setitem__", "__delitem__", "move_to_end"}
     found = []
     for path in sorted((ROOT / "pyroute_rel").rglob("*.py")):
         tree = ast.parse(path.read_text(encoding="utf-8"))
@@ -164,10 +180,12 @@ def test_upper_case_tables_are_never_written_to() -> None:
         }
         for node in ast.walk(tree):
             target = None
-            if isinstance(node, ast.Assign | ast.AugAssign):
+            if isinstance(node, ast.Assign | ast.AugAssign | ast.Delete):
                 for t in getattr(node, "targets", [getattr(node, "target", None)]):
                     if isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name):
                         target = t.value.id
+                    elif isinstance(node, ast.AugAssign) and isinstance(t, ast.Name):
+                        target = t.id  # (X |= ..., X += ...)
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in writes:
                 if isinstance(node.func.value, ast.Name):
                     target = node.func.value.id if node.func.attr in writes else None
@@ -244,7 +262,9 @@ def test_sweep_keys_follow_an_edited_referenced_file(tmp_path: Path) -> None:
 
 def test_an_ensemble_in_worker_processes_reads_edited_files_again(tmp_path: Path) -> None:
     """Two ensemble runs in worker processes, the scenario's finish moved between them: the second routes to the
-    new finish (each call's workers start with nothing kept), as the inline engine does."""
+    new finish, as the inline engine does. It guards the workers' side (each call's workers start with nothing kept,
+    :func:`pyroute_rel.ensemble._begin`); within one process, the stamps that make a kept scenario fresh are checked
+    by test_ensemble's ``test_route_member_reads_an_edited_scenario_or_weather_file_again``."""
     path = write_ensemble_scenario(tmp_path, n_members=2)
     first = pr.route_ensemble(path, engine="processes", workers=2)
     assert all(r.lon_deg[-1] == pytest.approx(-22.0) for r in first.routes)
@@ -267,3 +287,33 @@ def test_files_opened_in_a_kept_block_are_closed_at_its_end(tmp_path: Path) -> N
         assert files.kept.keys() == {file_stamps([nc])[0]}
     assert files.kept == {} and files.raw == []
     assert path.is_file()
+
+
+def test_a_pool_in_use_is_never_shut_down_under_a_call() -> None:
+    """Calls asking for more threads replace the store's pool, and another thread empties the store, while calls
+    run in the pool: every call finishes (a replaced pool is shut down by its last user)."""
+    errors: list[str] = []
+    done = threading.Event()
+
+    def user(workers: int) -> None:
+        for _ in range(200):
+            try:
+                assert thread_map(lambda x: x * x, range(16), workers) == [x * x for x in range(16)]
+            except Exception as exc:  # noqa: BLE001 - reported below
+                errors.append(f"{workers}: {type(exc).__name__}: {exc}")
+                return
+
+    def clearer() -> None:
+        while not done.is_set():
+            pr.clear_kept()
+
+    with kept():
+        threads = [threading.Thread(target=user, args=(w,)) for w in (2, 3, 4)]
+        emptier = threading.Thread(target=clearer)
+        for t in [*threads, emptier]:
+            t.start()
+        for t in threads:
+            t.join()
+        done.set()
+        emptier.join()
+    assert not errors, errors[:3]
