@@ -19,6 +19,7 @@ from pathlib import Path
 import netCDF4
 import numpy as np
 import pytest
+import xarray as xr
 
 from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather import readers
@@ -252,3 +253,19 @@ def test_a_coded_wave_direction_is_stored_as_its_values_and_a_stale_code_is_igno
         for name, expected in (("_wave_sin", np.sin(rad)), ("_wave_cos", np.cos(rad))):
             got = block.data[..., block.names.index(name)]
             assert got.tobytes() == np.moveaxis(expected, 0, -1).astype(np.float32).tobytes(), name
+
+
+def test_the_lock_around_netcdf4_calls_is_the_one_xarrays_backend_takes(tmp_path: Path) -> None:
+    """Files read here with netCDF4 and files xarray reads in other threads never call HDF5 at once: the lock taken
+    here (xarray's ``NETCDF4_PYTHON_LOCK``, not a public name: pinned versions) is held by xarray's netCDF4 store."""
+    from xarray.backends.netCDF4_ import NetCDF4DataStore
+
+    path = tmp_path / "a.nc"
+    xr.Dataset({"a": ("x", np.arange(3.0))}).to_netcdf(path, engine="netcdf4")
+    store = NetCDF4DataStore.open(path)
+    try:
+        held = getattr(store.lock, "locks", (store.lock,))
+        ours = getattr(readers._NETCDF4_LOCK, "locks", (readers._NETCDF4_LOCK,))
+        assert ours and all(any(lock is h for h in held) for lock in ours)
+    finally:
+        store.close()

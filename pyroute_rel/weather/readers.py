@@ -630,15 +630,13 @@ class _RawFile:
 
 
 def _netcdf4_lock() -> Any:
-    """The lock xarray takes around netCDF4 and HDF5 calls (the libraries are not thread-safe), or one of ours."""
-    try:
-        from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
+    """The lock xarray's netCDF4 backend takes around netCDF4 and HDF5 calls (the libraries are not thread-safe):
+    ours must be the same, so that a file read here and one xarray reads in another thread never call HDF5 at once.
+    xarray has no public name for it; the tested versions are pinned in pyproject.toml and
+    ``tests/test_fast_read.py`` checks that the backend still holds this lock."""
+    from xarray.backends.netCDF4_ import NETCDF4_PYTHON_LOCK
 
-        return NETCDF4_PYTHON_LOCK
-    except ImportError:  # pragma: no cover - another xarray
-        import threading
-
-        return threading.Lock()
+    return NETCDF4_PYTHON_LOCK
 
 
 _NETCDF4_LOCK = _netcdf4_lock()
@@ -720,6 +718,8 @@ def _raw_variable(nc: Any, var: str, da: xr.DataArray) -> _RawVariable | None:
 def _decode_stored(values: npt.NDArray[Any], attrs: Mapping[str, Any], name: str) -> npt.NDArray[Any]:
     """Stored values decoded by xarray's CF decoding (fill values, ``scale_factor``, ``add_offset``, ``_Unsigned``)
     with the options :func:`_open_file` opens files with: element by element, the numbers xarray reads."""
+    # fastpath: the values taken as they are (a parameter of the constructor's signature; without it xarray's check
+    # for chunked arrays imports dask, a second, which the members read here never need)
     variable = xr.Variable(tuple(f"_{k}" for k in range(values.ndim)), values, dict(attrs), fastpath=True)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # (xarray warned when it opened the file)
