@@ -40,9 +40,11 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
+
+from .errors import ScenarioError
 
 __all__ = ["Settings", "get_settings", "set_settings", "settings_context"]
 
@@ -77,9 +79,9 @@ class Settings:
         names = {f.name for f in dataclasses.fields(self)}
         for name, value in changes.items():
             if name not in names:
-                raise TypeError(f"settings: unknown setting {name!r} (expected one of {', '.join(sorted(names))})")
+                raise ScenarioError(f"settings: unknown setting {name!r} (expected one of {', '.join(sorted(names))})")
             if not isinstance(value, bool):
-                raise TypeError(f"settings: {name} must be True or False (got {value!r})")
+                raise ScenarioError(f"settings: {name} must be True or False (got {value!r})")
         return dataclasses.replace(self, **changes)
 
 
@@ -99,16 +101,21 @@ def set_settings(settings_: Settings | None = None, /, **changes: bool) -> Setti
     return new
 
 
-@contextmanager
-def settings_context(**changes: bool) -> Iterator[Settings]:
-    """The current settings with ``changes`` within a ``with`` block (restored on leaving it, whatever happens).
+def settings_context(**changes: bool) -> AbstractContextManager[Settings]:
+    """The current settings with ``changes`` within a ``with`` block (restored on leaving it, whatever happens); a
+    bad name or value is a :class:`~pyroute_rel.errors.ScenarioError` at the call.
 
     >>> with settings_context(compiled_march=False) as s:
     ...     s.compiled_march, s.lazy_pieces
     (False, True)
     """
-    token = _CURRENT.set(get_settings().replace(**changes))
+    return _in_force(get_settings().replace(**changes))
+
+
+@contextmanager
+def _in_force(settings_: Settings) -> Iterator[Settings]:
+    token = _CURRENT.set(settings_)
     try:
-        yield _CURRENT.get()
+        yield settings_
     finally:
         _CURRENT.reset(token)

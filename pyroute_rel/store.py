@@ -46,7 +46,7 @@ import os
 import threading
 from collections import OrderedDict
 from collections.abc import Callable, Hashable, Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, TypeVar
@@ -252,12 +252,17 @@ def current_store() -> Store:
     return _PROCESS.get() if store is None else store
 
 
-@contextmanager
-def kept(keep: bool = True) -> Iterator[Store]:
+def kept(keep: bool = True) -> AbstractContextManager[Store]:
     """A store of its own for the ``with`` block (``keep`` False: one that keeps nothing), emptied when it ends."""
     if not isinstance(keep, bool):
-        raise TypeError(f"kept: keep must be True or False (got {keep!r})")
-    store = Store(keep=keep)
+        from .errors import ScenarioError
+
+        raise ScenarioError(f"kept: keep must be True or False (got {keep!r})")
+    return _current_for(Store(keep=keep))
+
+
+@contextmanager
+def _current_for(store: Store) -> Iterator[Store]:
     token = _CURRENT.set(store)
     try:
         yield store

@@ -90,6 +90,7 @@ def _graph() -> nx.DiGraph:
     return g
 
 
+@pytest.mark.slow
 def test_import_graph_has_no_cycle():
     """No two modules import each other, directly or round a loop, even inside functions.
 
@@ -106,6 +107,7 @@ def test_import_graph_has_no_cycle():
     assert not cycles, f"import cycles: {cycles[:5]}"
 
 
+@pytest.mark.slow
 def test_no_private_names_imported_across_modules():
     offences = []
     for name in MODULES:
@@ -118,6 +120,7 @@ def test_no_private_names_imported_across_modules():
     assert not offences, "\n".join(offences)
 
 
+@pytest.mark.slow
 def test_lower_layers_never_import_higher_ones():
     """cost and solve never draw or write files; weather, obstacles, geodesy and polar know nothing of routing."""
     forbidden = {
@@ -214,6 +217,7 @@ def test_functions_are_short():
     assert not long, "\n".join(long)
 
 
+@pytest.mark.slow
 def test_weather_capabilities_are_declared_not_probed():
     """The weather protocol's members (:data:`~pyroute_rel.weather.base.WEATHER_MEMBERS`: the capabilities too, with
     their defaults in :class:`~pyroute_rel.weather.WeatherBase`) are used as declared: no ``getattr``/``hasattr`` of

@@ -236,6 +236,7 @@ def free_route():
     return _control(None).route()
 
 
+@pytest.mark.slow
 def test_zone_across_the_course_is_avoided(free_route) -> None:
     zone = shapely.geometry.shape(json.loads(ZONE_FILE.read_text())["features"][0]["geometry"])
     hits = _zone_hits(free_route, zone)
@@ -248,6 +249,7 @@ def test_zone_across_the_course_is_avoided(free_route) -> None:
     assert route.dp.forbidden_by_reason["obstacle"] > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("valid_from", "valid_to", "avoided"),
     [
@@ -335,6 +337,7 @@ def test_real_course_example_end_to_end(tmp_path: Path, capsys: pytest.CaptureFi
     assert json.loads((out / "summary.json").read_text())["voyage_time_h"] == pytest.approx(d["voyage_time_h"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "window",
     [("2018-06-03T00:00:00Z", "2018-06-30T00:00:00Z"), ("2018-06-01T00:00:00Z", "2018-06-03T00:00:00Z")],
@@ -378,6 +381,7 @@ def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window, monkey
         np.testing.assert_array_equal(bits[known], s_bits[known])
 
 
+@pytest.mark.slow
 def test_zones_are_kept_on_a_grid_by_their_content(tmp_path: Path) -> None:
     """One grid routed with two zone files in turn (as a sweep or ``Scenario.route(grids=...)`` reuses grids): each
     route avoids its own zone and is the route a fresh grid gives, whatever tuple of zones an earlier call held. The

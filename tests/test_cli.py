@@ -44,6 +44,7 @@ def test_route_json_contract(capsys: pytest.CaptureFixture[str]) -> None:
     assert track[-1]["time"] == d["arrival"]
 
 
+@pytest.mark.slow
 def test_route_prune_gives_the_same_route_with_fewer_arcs(capsys: pytest.CaptureFixture[str], monkeypatch) -> None:
     monkeypatch.setattr("pyroute_rel.solve.PRUNE_MIN_WIDTH", 0)  # the 21-node test grid is pruned too
     args = ["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land"]
@@ -181,6 +182,7 @@ def test_usage_error_is_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
     assert exc.value.code == 2
 
 
+@pytest.mark.slow
 def test_console_script_runs_as_a_subprocess(tmp_path: Path) -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "pyroute_rel.cli", "route", str(tmp_path / "nope.toml")], capture_output=True, text=True
@@ -257,6 +259,7 @@ def test_out_that_cannot_be_a_folder_is_refused_before_routing(tmp_path, capsys)
     assert "--departures" in capsys.readouterr().err and not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_output_files_get_the_usual_file_mode(tmp_path) -> None:
     import os
     import stat
@@ -297,6 +300,7 @@ def test_n_nodes_note_only_for_the_command_line_option(capsys) -> None:
     assert "--n-nodes 31 applies to layout = 'square'" in err and "nodes per rank" in err
 
 
+@pytest.mark.slow
 def test_write_outputs_without_a_plot_leaves_no_stale_map(tmp_path) -> None:
     from pyroute_rel.errors import OutputError, ScenarioError
     from pyroute_rel.files import write_together

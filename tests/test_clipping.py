@@ -84,6 +84,7 @@ MODEL = load_failure_model("dickson2018")
 # --- where arcs cross lines ---------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_split_fractions_find_every_change_of_side_of_a_box_edge():
     rng = np.random.default_rng(16)
     box = (-43.0, -37.0, 30.0, 36.0)
@@ -126,6 +127,7 @@ def _control_weather():
     return table, w
 
 
+@pytest.mark.slow
 def test_arc_p_f_is_the_largest_p_f_on_the_arc_densified_every_10_m():
     """Random arcs of up to ~100 km about the control course's patches (waves from 240 in Area 1: head seas on
     south-westerly headings): with one sample per arc, the cost function forbids exactly the arcs that meet
@@ -237,6 +239,7 @@ def _sharp_weather():
     return weather_from_dataset(ds, source="sharp"), (lon, lat, hs)
 
 
+@pytest.mark.slow
 def test_gridded_arc_p_f_is_the_largest_on_the_arc_densified():
     """Arcs across a single cell of 5 m waves (bilinear: Hs >= 4 m on a small diamond about it): the arc's p_f is
     the largest on the arc densified every 10 m, with Hs interpolated here (and the arcs forbidden are those that

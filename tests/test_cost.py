@@ -122,6 +122,7 @@ def test_wave_speed_loss_from_a_scenario() -> None:
         scenario_from_mapping({**base, "boat": {"wave_speed_loss": [[0.0, 1.0], [4.0, 1.5]]}})
 
 
+@pytest.mark.slow
 def test_forbidden_arcs_record_which_criteria_fired() -> None:
     from pyroute_rel.scenario import load_scenario
 

@@ -110,6 +110,7 @@ def test_bad_courses(route: dict, match: str) -> None:
         scenario(route)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("options", [{}, {"layout": "square", "n_nodes": 30, "n_ranks": 30}], ids=["angular", "square"])
 def test_finish_line_crossings_prefilter_is_exact(options) -> None:
     # the solver tests only arcs with ends on both sides of the finish line's great circle; the full test of

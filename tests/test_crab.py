@@ -27,6 +27,7 @@ def _flat(v_kn: float) -> Polar:
     return Polar("flat", twa_deg=[0.0, 180.0], tws_kn=[0.0, 40.0], speed_kn=[[v_kn, v_kn], [v_kn, v_kn]])
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(
     course=st.floats(0.0, 359.9),

@@ -43,6 +43,7 @@ def assert_same(a: solve.DPResult, b: solve.DPResult, *, counts: bool = True) ->
         assert a.arcs_forbidden == b.arcs_forbidden and a.forbidden_by_reason == b.forbidden_by_reason
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None)
 @given(
     seed=st.integers(0, 10_000),
@@ -127,6 +128,7 @@ def _wind_patches(rng: np.random.Generator, n: int) -> tuple[Patch, ...]:
     return tuple(out)
 
 
+@pytest.mark.slow
 @settings(max_examples=20, deadline=None)
 @given(
     seed=st.integers(0, 10_000),
@@ -189,6 +191,7 @@ def _random_penalties(rng: np.random.Generator) -> ManoeuvrePenalties:
     return p if p.active else ManoeuvrePenalties(tack_s=[[0.0, 60.0]], gybe_s=table())
 
 
+@pytest.mark.slow
 @settings(max_examples=25, deadline=None)
 @given(
     seed=st.integers(0, 10_000),
@@ -234,6 +237,7 @@ def test_side_labels_with_uniform_wind_in_the_kernel_equal_numpy_and_the_sampled
     assert_same(compiled, sampled)
 
 
+@pytest.mark.slow
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 10_000), n_patches=st.integers(0, 4), twd=st.sampled_from([0.0, 90.0, 250.0, 359.5, -30.0]))
 def test_box_sides_are_wind_side(seed: int, n_patches: int, twd: float) -> None:
@@ -263,6 +267,7 @@ def test_box_sides_are_wind_side(seed: int, n_patches: int, twd: float) -> None:
         np.testing.assert_array_equal([dp_compiled._wind_rel(v) for v in x], np.mod(x, 360.0))
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None)
 @given(
     seed=st.integers(0, 10_000),

@@ -89,6 +89,7 @@ REGIONS = [((-35.0, -5.0), (20.0, 40.0)), ((-30.0, -20.0), (-6.0, 6.0)), ((172.0
            ((-179.0, -172.0), (-10.0, 10.0)), ((-20.0, 20.0), (80.0, 86.0))]  # fmt: skip
 
 
+@pytest.mark.slow
 @props(40)
 @given(seed=st.integers(0, 2**32 - 1), region=st.sampled_from(REGIONS), model=st.sampled_from(sorted(MODELS)),
        apf=st.sampled_from([0.0, 0.02, 0.2, 0.5, 0.95]))  # fmt: skip
@@ -111,6 +112,7 @@ def test_arc_p_f_equals_arc_extremes(seed: int, region, model: str, apf: float) 
     assert ext.pieces > n and np.unique(ext.p_f).size > 1  # the draws cut arcs and meet different seas
 
 
+@pytest.mark.slow
 @props(30)
 @given(seed=st.integers(0, 2**32 - 1), model=st.sampled_from(sorted(MODELS)), samples=st.integers(1, 4),
        region=st.sampled_from(REGIONS))  # fmt: skip
@@ -219,6 +221,7 @@ def assert_same_dp(a: solve.DPResult, b: solve.DPResult) -> None:
     assert (a.arcs_evaluated, a.arcs_pruned) == (b.arcs_evaluated, b.arcs_pruned)
 
 
+@pytest.mark.slow
 @props(20)
 @given(seed=st.integers(0, 2**32 - 1), model=st.sampled_from(sorted(MODELS)),
        apf=st.sampled_from([0.02, 0.2, 0.5, 0.95, 1.0]), samples=st.integers(1, 3), n_nodes=st.integers(33, 48),
@@ -251,6 +254,7 @@ def test_compiled_failure_dp_equals_numpy(seed: int, model: str, apf: float, sam
         np.testing.assert_array_equal(r1.lon_deg, r0.lon_deg)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("apf", [0.5, 0.2])
 def test_compiled_failure_dp_on_the_example(apf: float) -> None:
     """The paper's square grid of the control example (81 x 81, no land) at apf 0.5 and 0.2: the compiled DP

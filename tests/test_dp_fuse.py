@@ -197,6 +197,7 @@ def test_dp_is_the_same_with_the_fused_sampling_on_and_off(apf: float) -> None:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list_failure_models())
 def test_compiled_evidence_index_is_the_models(name: str) -> None:
     """For every shipped failure model: the compiled evidence (quantities folded to the course, binned) is

@@ -269,6 +269,7 @@ def nan_weather(draw: st.DrawFn) -> GriddedWeather:
     )
 
 
+@pytest.mark.slow
 @settings(max_examples=25, derandomize=True, deadline=None, database=None)
 @given(
     nan_weather(),
@@ -298,6 +299,7 @@ def test_compiled_bookkeeping_equals_the_numpy_path(
         assert_same_fired(got, want)
 
 
+@pytest.mark.slow
 def test_compiled_bookkeeping_covers_every_flag() -> None:
     """The property test's cases reach every reason, NaN p_f and criteria fired (else it could pass vacuously)."""
     rng = np.random.default_rng(7)
@@ -336,6 +338,7 @@ def test_a_pickled_geometry_leaves_its_located_points_behind() -> None:
     assert_same_costs(costs(back, t0, w), want)
 
 
+@pytest.mark.slow
 @settings(max_examples=10, derandomize=True, deadline=None, database=None)
 @given(
     st.integers(0, 2**31),
@@ -368,6 +371,7 @@ def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
     assert both.any() and not np.array_equal(plain.time_h[both], again.time_h[both])
 
 
+@pytest.mark.slow
 @settings(max_examples=10, derandomize=True, deadline=None, database=None)
 @given(st.integers(0, 2**31), st.integers(1, 3), st.sampled_from([None, "dickson2018"]))
 def test_compiled_march_applies_each_runs_speed_noise_as_the_numpy_march(
@@ -415,6 +419,7 @@ def test_compiled_march_applies_each_runs_speed_noise_as_the_numpy_march(
     np.testing.assert_allclose(noisy.time_h[sails], (base.time_h * v / v_noisy)[sails], rtol=1e-12)
 
 
+@pytest.mark.slow
 @settings(max_examples=8, derandomize=True, deadline=None, database=None)
 @given(st.integers(0, 2**31), st.integers(1, 3), st.sampled_from([None, "dickson2018"]))
 def test_compiled_march_sails_rows_in_stacked_members_as_the_numpy_march(

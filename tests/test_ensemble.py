@@ -203,6 +203,7 @@ def test_monte_carlo_without_noise_is_the_deterministic_evaluation(ensemble):
     assert (mc.p_fail == (ev.max_failure_probability > 0.5)).all()
 
 
+@pytest.mark.slow
 def test_monte_carlo_mean_converges_at_the_root_n_rate():
     """The mean voyage time over N runs (seed 11) is within 3.5 standard errors of the mean of 20 000 runs (another
     seed) for N = 100, 400, 1600: each check fails with probability about 5e-4 for an honest 1/sqrt(N) estimator,
@@ -293,6 +294,7 @@ def test_sailed_flags_equal_the_leg_reasons(ensemble):
     assert all(seen.values()), seen  # every case met
 
 
+@pytest.mark.slow
 def test_ensemble_spread_of_a_track_leaving_the_members_data_is_a_clear_error(tmp_path: Path):
     """A track whose legs leave the members' data: one line naming the first such leg, where it is and the wind's
     extent (it said "Monte-Carlo spread_ms must be ... finite (got nan at index k)")."""
@@ -311,6 +313,7 @@ def test_ensemble_spread_of_a_track_leaving_the_members_data_is_a_clear_error(tm
         spread_from_members(path, out)
 
 
+@pytest.mark.slow
 def test_route_member_reads_an_edited_scenario_or_weather_file_again(tmp_path: Path):
     """``route_member`` keeps a member's scenario and grids in the process: only while the scenario file, and the
     weather file it names, are unchanged. The finish moved in the file, then the ensemble file replaced by another:

@@ -67,6 +67,7 @@ TRACK_FILES = {
 }  # fmt: skip
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(TRACK_FILES))
 def test_hand_written_track_files_evaluate_as_their_points(tmp_path: Path, name: str, capsys) -> None:
     """`pyroute-rel evaluate` of each file (GPX route, GPX track in two segments, GPX with times, a bare GeoJSON

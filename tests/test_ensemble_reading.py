@@ -53,6 +53,7 @@ def test_a_process_opens_the_file_once_and_reads_each_member_once(small: Path, m
     )  # nothing left open
 
 
+@pytest.mark.slow
 def test_a_member_read_from_the_kept_file_is_the_member_read_alone(small: Path):
     """The kept file is read without dask: the same numbers as opening the file for that member (with dask)."""
     alone = [member_scenario(small, k).weather for k in range(5)]

@@ -68,6 +68,7 @@ def test_stack_refuses_other_grids_and_kinds():
         stack.prepare(np.zeros((3, 2)), np.zeros((3, 2)), [0, 1, 2])
 
 
+@pytest.mark.slow
 def test_sailing_in_members_is_the_same_stacked_unstacked_and_in_groups(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ):

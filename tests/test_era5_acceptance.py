@@ -134,6 +134,7 @@ def test_bad_weather_file_exit_2_one_line_no_output(
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_departure_sweep_reports_an_uncovered_departure_as_a_row(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

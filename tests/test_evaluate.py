@@ -101,6 +101,7 @@ def test_retiming_in_time_varying_member_weather(tmp_path: Path):
     assert abs(other.voyage_time_h - route.voyage_time_h) > 1e-3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["route.gpx", "route.geojson", "route.csv"])
 def test_route_files_read_back_as_the_track(tmp_path: Path, name: str):
     route = scenario_from_mapping(TABLE).route()
@@ -209,6 +210,7 @@ def test_member_of_a_scenario_built_in_code_is_refused():
         evaluate_track(scenario_from_mapping(TABLE), [[-12, 45], [-20, 40]], member=0)
 
 
+@pytest.mark.slow
 def test_cli_evaluate_json_out_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
     scenario = tmp_path / "s.toml"
     scenario.write_text(

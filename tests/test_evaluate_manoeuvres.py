@@ -63,6 +63,7 @@ def test_retiming_a_steady_route_charges_its_tacks(beat) -> None:
     assert man["penalty_h"] == pytest.approx(ev.manoeuvres.tacks * tack_s / 3600.0, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_retiming_in_time_varying_weather_charges_each_manoeuvre(members: Path) -> None:
     for k in range(3):
         sc = member_scenario(members, k)
@@ -74,6 +75,7 @@ def test_retiming_in_time_varying_weather_charges_each_manoeuvre(members: Path) 
     assert route.manoeuvres.tacks + route.manoeuvres.gybes > 0  # the case charges something
 
 
+@pytest.mark.slow
 def test_the_side_of_each_leg_is_the_wind_at_its_departure(members: Path) -> None:
     """Independent of the evaluator's bookkeeping: the side of each leg from the wind sampled at the leg's first
     point at the time the evaluator says the craft leaves it; a manoeuvre wherever it changes."""
@@ -95,6 +97,7 @@ def test_the_side_of_each_leg_is_the_wind_at_its_departure(members: Path) -> Non
     np.testing.assert_array_equal(ev.manoeuvres.kind[changes], np.where(twa[changes] < 90.0, TACK, GYBE))
 
 
+@pytest.mark.slow
 def test_monte_carlo_without_noise_charges_the_same(members: Path, beat) -> None:
     quiet = MonteCarloSettings(sigma0_ms=0.0, growth_ms_per_h=0.0, sigma_max_ms=0.0, kappa=0.0)
     for sc in (member_scenario(members, 2), beat[0]):
@@ -104,6 +107,7 @@ def test_monte_carlo_without_noise_charges_the_same(members: Path, beat) -> None
         np.testing.assert_array_equal(mc.voyage_time_h, np.full(4, evaluate_track(sc, track).voyage_time_h))
 
 
+@pytest.mark.slow
 def test_sailing_in_every_member_equals_sailing_in_each(members: Path) -> None:
     scs = [member_scenario(members, k) for k in range(3)]
     tracks = [np.column_stack([r.lon_deg, r.lat_deg]) for r in (sc.route() for sc in scs)]

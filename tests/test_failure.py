@@ -157,6 +157,7 @@ _hs = st.one_of(st.floats(0.0, 30.0, allow_nan=False), st.sampled_from([4.0, 0.0
 _awd = st.one_of(st.floats(0.0, 180.0, allow_nan=False), st.sampled_from([4.0, 60.0, 0.0, 180.0]))
 
 
+@pytest.mark.slow
 @given(st.lists(st.tuples(_hs, _awd), min_size=1, max_size=20))
 @settings(max_examples=100, deadline=None)
 def test_dickson_gather_equals_brute_force(pairs):

@@ -230,6 +230,7 @@ def test_reading_kept_members_and_the_mean_never_imports_dask_array(tmp_path: Pa
     assert out.stdout.strip() == "False", out.stderr
 
 
+@pytest.mark.slow
 def test_a_coded_wave_direction_is_stored_as_its_values_and_a_stale_code_is_ignored():
     """A wave direction given with its codes (:class:`CodedValues`) is stored as the sine and cosine of its values,
     as one without; a copy with other values (``dataclasses.replace``) keeps the old codes but is stored from its own

@@ -8,6 +8,7 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from pyroute_rel.scenario import scenario_from_mapping
 from pyroute_rel.solve import forward_dp
@@ -56,6 +57,7 @@ def _crossing_arc(grid, res) -> tuple[int, int, int]:
     return res.end_rank, res.end_node, int(c)
 
 
+@pytest.mark.slow
 def test_the_finish_line_is_never_crossed_on_an_arc_known_only_lazily() -> None:
     table = tomllib.loads(COURSE.read_text())
     table["grid"] = {"n_ranks": 30, "half_width_km": 600.0}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -32,6 +33,7 @@ def brute_force(node: list[int], t: list[float], h: list[float]) -> list[int]:
 values = st.sampled_from([0.0, 0.5, 1.0, 1.5, 2.0, 3.0, np.inf])
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(
     st.lists(st.tuples(st.integers(0, 4), st.sampled_from([0.0, 1.0, 2.0, 2.5, 4.0]), values), max_size=40),
@@ -58,6 +60,7 @@ def test_nondominated_keeps_a_front_per_node() -> None:
         assert sel.tolist() == expected
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None)
 @given(
     st.lists(st.lists(st.tuples(st.sampled_from([0.0, 1.0, 2.0, 3.0]), values), max_size=6), min_size=1, max_size=4),

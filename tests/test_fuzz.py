@@ -352,6 +352,7 @@ def _set(d: Any, path: tuple[Any, ...], value: Any) -> None:
     d[path[-1]] = value
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", LEAVES, ids=lambda p: ".".join(map(str, p)))
 def test_every_value_replaced_or_dropped(path: tuple[Any, ...]) -> None:
     outcomes = set()
@@ -550,6 +551,7 @@ def test_polar_pol_cell_corruption(workdir: Path, text: str) -> None:
     _check_polar_file(_write(workdir, "cells.pol", text), read_pol)
 
 
+@pytest.mark.slow
 @fuzz_settings(100)
 @given(text=corrupted_polar(","))
 def test_polar_csv_cell_corruption(workdir: Path, text: str) -> None:

@@ -220,6 +220,7 @@ def _brute_force_power_fit(h: np.ndarray, phi: np.ndarray, w: np.ndarray) -> tup
     return best[1], best[2]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("weighting", ["unweighted", "weighted"])
 def test_least_squares_small_noise_matches_brute_force(weighting: str) -> None:
     rng = np.random.default_rng(20240607)

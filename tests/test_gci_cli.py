@@ -26,6 +26,7 @@ def csv(values) -> str:
     return ",".join(f"{v:.12g}" for v in values)
 
 
+@pytest.mark.slow
 def test_given_values_recover_a_manufactured_order(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     h = np.array([1.0, 2.0, 4.0, 8.0])
     phi = 700.0 + 0.3 * h**2  # phi0 = 700, p = 2
@@ -188,6 +189,7 @@ def test_study_refuses_counts_below_one(
     assert out == ""
 
 
+@pytest.mark.slow
 def test_study_routes_from_the_start_line_to_the_finish_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -471,6 +473,7 @@ def test_max_gci_takes_a_fraction_or_a_percent(capsys: pytest.CaptureFixture[str
     assert code == 1 and f"exceeds --max-gci {gci * 0.5:.3g} ({gci * 50:.3g} %)" in err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("study", [False, True])
 def test_gci_json_in_out_holds_the_gate_as_printed(
     study: bool, tmp_path: Path, capsys: pytest.CaptureFixture[str]

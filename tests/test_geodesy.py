@@ -43,6 +43,7 @@ def test_destination_matches_pyproj_fwd() -> None:
     assert np.max(geodesy.angle_diff_deg(got_lon, lon2)) < 1e-8
 
 
+@pytest.mark.slow
 @given(lons, lats, lons, lats, st.floats(0.0, 1.0))
 @settings(max_examples=200, deadline=None)
 def test_intermediate_point_lies_on_great_circle_at_fraction(lo1, la1, lo2, la2, f) -> None:
@@ -123,6 +124,7 @@ def test_latitudes_off_the_globe_are_refused() -> None:
 densify_lons = st.floats(-180.0, 179.999)
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(lon0=densify_lons, lat0=lats, lon1=densify_lons, lat1=lats, step=st.floats(0.5, 400.0))
 def test_gc_densify_matches_proj_great_circle(lon0, lat0, lon1, lat1, step):

@@ -234,6 +234,7 @@ def test_a_killed_run_leaves_staging_that_the_next_run_removes(tmp_path: Path) -
     assert (foreign / "keep.txt").read_text() == "user data"
 
 
+@pytest.mark.slow
 def test_sigterm_while_writing_leaves_nothing(tmp_path: Path) -> None:
     import signal
 
@@ -818,6 +819,7 @@ def test_a_malformed_valid_range_is_a_weather_error(attrs: dict, needle: str, tm
 # --------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("lat", "lon"),
     [

@@ -78,6 +78,7 @@ def assert_same(a: solve.DPResult, b: solve.DPResult) -> None:
     assert a.forbidden_by_criterion == b.forbidden_by_criterion
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n_wait", [0, 2])  # 0: one departure (the DP's short cut); 2: the waiting loop
 def test_routes_equal_the_numpy_paths_whatever_was_routed_before(n_wait: int) -> None:
     """Members, models and apf one after another in one process (each keeps its own plan, fields and tables)

@@ -30,6 +30,7 @@ def polar(seed: int) -> Polar:
     return Polar(name=f"p{seed}", twa_deg=twa, tws_kn=tws, speed_kn=speed)
 
 
+@pytest.mark.slow
 def test_each_polar_is_sailed_with_its_own_tables() -> None:
     """Twenty polars made and dropped one after another (ids are reused): the compiled speeds are each polar's own
     (the numpy path's), and its kernel tables are kept by the polar itself."""
@@ -48,6 +49,7 @@ def test_each_polar_is_sailed_with_its_own_tables() -> None:
         gc.collect()
 
 
+@pytest.mark.slow
 def test_each_manoeuvre_table_is_its_own() -> None:
     from pyroute_rel.dp_compiled import _penalty_tables
 
@@ -74,6 +76,7 @@ def weather(shift: float) -> GriddedWeather:
     )
 
 
+@pytest.mark.slow
 def test_points_located_by_a_dropped_source_are_not_taken_by_a_new_one() -> None:
     """A new source (which may have the dropped one's id) refuses points the dropped one located, on another grid;
     a source on the same grid takes them over (:meth:`GriddedWeather.reuse`) and samples them as its own."""

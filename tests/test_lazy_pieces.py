@@ -177,6 +177,7 @@ def problem_of(draw: st.DrawFn, weather, **kw) -> RoutingProblem:  # type: ignor
     )
 
 
+@pytest.mark.slow
 @props(15)
 @given(data=st.data())
 def test_lazy_equals_eager_with_patches(data: st.DataObject) -> None:
@@ -198,6 +199,7 @@ def test_lazy_equals_eager_on_gridded_weather(data: st.DataObject) -> None:
     assert_same_route(grid, problem, eager, lazy)
 
 
+@pytest.mark.slow
 @props(15)
 @given(data=st.data())
 def test_lazy_equals_eager_with_waits(data: st.DataObject) -> None:
@@ -233,6 +235,7 @@ def test_lazy_equals_eager_with_side_labels(data: st.DataObject) -> None:
     assert_same_route(grid, problem, eager, lazy)
 
 
+@pytest.mark.slow
 @props(12)
 @given(data=st.data())
 def test_lazy_equals_eager_when_the_dp_prunes(data: st.DataObject) -> None:
@@ -245,6 +248,7 @@ def test_lazy_equals_eager_when_the_dp_prunes(data: st.DataObject) -> None:
     assert_same_route(grid, problem, eager, lazy)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("apf", [0.2, 0.02])
 def test_lazy_equals_eager_with_land_tested_lazily(apf: float) -> None:
     """The control course with land (the obstacle mask is tested lazily too): each node's best arc must be free of

@@ -645,6 +645,17 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
         ("sigma0_ms must be a finite number",),
     ),
     "MonteCarloSettings kappa None": (lambda: pr.MonteCarloSettings(kappa=None), ScenarioError, ("kappa",)),
+    "kept keep 'no'": (lambda: pr.kept("no"), ScenarioError, ("kept: keep must be True or False (got 'no')",)),
+    "settings_context unknown": (
+        lambda: pr.settings_context(fast=True),
+        ScenarioError,
+        ("settings: unknown setting 'fast' (expected one of ",),
+    ),
+    "settings_context 1": (
+        lambda: pr.settings_context(lazy_pieces=1),
+        ScenarioError,
+        ("settings: lazy_pieces must be True or False (got 1)",),
+    ),
     "monte_carlo runs 0": (
         lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=0),
         ScenarioError,
@@ -1015,7 +1026,7 @@ def test_a_bad_argument_is_a_domain_error_in_one_line(case: str, tmp_path: Path,
 
 
 #: Public names that are values or take no argument
-NO_ARGUMENTS = {"__version__", "list_failure_models"}
+NO_ARGUMENTS = {"__version__", "list_failure_models", "clear_kept"}
 #: Results the library builds and hands out (their constructors are not an entry point); a Protocol
 RESULTS = {"Route", "Legs", "ForbiddenArcs", "Conditions", "Grid", "FailureModel", "Scenario", "WeatherSource"}
 RESULTS |= {"EnsembleResult", "Evaluation"}
@@ -1049,8 +1060,13 @@ def test_none_for_every_required_argument_is_a_domain_error(name: str, tmp_path:
         for p in params
         if p.default is inspect.Parameter.empty and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)
     }
-    if not required:  # Avoid(): every argument has a default
-        assert isinstance(obj(), obj)
+    if not required:  # Avoid(), kept(), settings_context(): every argument has a default
+        made = obj()
+        if isinstance(obj, type):
+            assert isinstance(made, obj)
+        else:  # a context: entered and left
+            with made:
+                pass
         return
     with pytest.raises(PyrouteError) as info:
         obj(**required)
@@ -1058,6 +1074,7 @@ def test_none_for_every_required_argument_is_a_domain_error(name: str, tmp_path:
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["refine", "monte_carlo"])
 def test_pr_refine_is_the_function_even_after_importing_its_module(name: str) -> None:
     # found by this file: 'import pyroute_rel.refine' (as test_refine.py does, or a scenario with refine > 0 routed

@@ -73,6 +73,7 @@ def arc_sides(problem: RoutingProblem, lon0, lat0, lon1, lat1) -> tuple[np.ndarr
     return side, twa, cond.tws_kn
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(5))
 def test_dp_equals_brute_force_with_penalties(seed: int) -> None:
     """Every path of a small grid timed leg after leg with the penalties of its own changes of side: the DP's voyage
@@ -179,6 +180,7 @@ def test_counts_recompute_from_the_tracks_wind_angles(seed: int) -> None:
     assert route.summary()["manoeuvres"]["penalty_h"] == pytest.approx(route.manoeuvres.penalty_h.sum())
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(3))
 def test_time_expanded_dp_with_waiting_equals_brute_force(seed: int) -> None:
     """On the time lattice (arrivals rounded up), waiting allowed: in steady weather a wait never helps, so the DP

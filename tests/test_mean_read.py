@@ -137,6 +137,7 @@ def test_reading_a_few_members_and_times_at_a_time_is_the_sum_in_member_order(
             assert np.array_equal(at_once[name], (total / 6).astype(np.float32)), name
 
 
+@pytest.mark.slow
 def test_the_mean_of_member_files_is_the_mean_of_the_member_dimension(tmp_path: Path):
     """The same members as one file with a member dimension or as files, one per member: the same mean field, bit
     for bit (sums inexact: the order of the files is the order of the members), missing values included; and the
@@ -165,6 +166,7 @@ def test_the_mean_of_member_files_is_the_mean_of_the_member_dimension(tmp_path: 
         assert np.array_equal(getattr(sa, name), getattr(sb, name), equal_nan=True), name
 
 
+@pytest.mark.slow
 def test_the_mean_field_route_of_the_ensemble_is_route_with_member_mean(tmp_path: Path):
     scenario = write_ensemble_scenario(tmp_path, n_members=3)
     res = route_ensemble(scenario, members=[0], engine="inline")

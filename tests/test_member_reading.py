@@ -28,6 +28,7 @@ from pyroute_rel.weather.gridded import CodedValues, GriddedWeather, WeatherFiel
 N_MEMBERS, NT, NY, NX = 3, 6, 5, 7
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),

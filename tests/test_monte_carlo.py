@@ -26,6 +26,7 @@ def _speed_only(**kw: float) -> MonteCarloSettings:
     return MonteCarloSettings(sigma0_ms=0.0, growth_ms_per_h=0.0, sigma_max_ms=0.0, polar_sd=0.0, **kw)
 
 
+@pytest.mark.slow
 def test_expected_speed_factor_matches_direct_integration():
     """E[1 / max(1 + s eta, 0.1)] against scipy's adaptive quadrature of the normal density."""
     for kappa, v in ((0.2, 4.0), (0.2, 1.0), (0.5, 0.7), (0.05, 6.0)):

@@ -185,6 +185,7 @@ def test_vectorised_land_test_equals_slow_reference():
         assert 0.1 < fast.mean() < 0.9  # both outcomes are exercised
 
 
+@pytest.mark.slow
 def test_arcs_across_the_antimeridian_near_fiji_equal_slow_reference():
     rng = np.random.default_rng(2)
     lon0, lat0, lon1, lat1 = random_arcs(rng, 300, (177.0, -20.0, 180.0, -15.0), (5.0, 400.0))

@@ -128,6 +128,7 @@ def reference() -> list[tuple[float, bool]]:
     return [interior(*arc) for arc in zip(*ARCS, strict=True)]
 
 
+@pytest.mark.slow
 def test_an_arc_with_an_end_on_a_patch_edge_has_its_interiors_p_f():
     """Every arc from or to a point on an edge: the cost function's p_f (samples and crossings) is the largest met on
     its interior densified every 20 m; an arc that only touches the box at its end point meets nothing of it."""

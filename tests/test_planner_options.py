@@ -172,6 +172,7 @@ def course(**planner: object) -> object:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("table", "setting", "mode", "modes"), MODE_SETTINGS)
 def test_a_setting_noted_as_unused_does_not_change_the_track(table, setting, mode, modes):
     """What the note says is true: in a mode that does not use it, the setting changed gives the same track."""

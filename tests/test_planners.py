@@ -253,6 +253,7 @@ def test_track_similarity_closed_forms():
     assert d.arrival_difference_h == 1.5
 
 
+@pytest.mark.slow
 def test_planner_and_compare_commands(tmp_path, capsys):
     from pyroute_rel.cli import main
 
@@ -321,6 +322,7 @@ def test_planner_outputs_are_the_evaluators_track(kind, tmp_path, capsys):
     assert len(geo["features"]) >= 1
 
 
+@pytest.mark.slow
 def test_planner_out_into_a_dp_routes_folder_leaves_no_dp_file(tmp_path, capsys):
     """A planner's files written over a DP route's: the DP's forbidden.geojson (arcs the DP found forbidden, which
     says nothing of the planner's track) is removed, not left beside the planner's route."""

@@ -308,6 +308,7 @@ def test_perturbed_weather_from_the_command_line(tmp_path, capsys):
     assert "[planner.mcts].weather must be one of" in err and "Traceback" not in err
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "polar",
     [

@@ -56,6 +56,7 @@ def test_a_coastline_of_thousands_of_parts_is_one_artist() -> None:
     assert len(ax.collections[0].get_paths()) == len(shapely.get_parts(land))
 
 
+@pytest.mark.slow
 def test_a_refined_route_map_draws_the_grid_track_too() -> None:
     from dataclasses import replace
     from pathlib import Path
@@ -74,6 +75,7 @@ def test_a_refined_route_map_draws_the_grid_track_too() -> None:
     np.testing.assert_array_equal(lines[before[0]].get_xdata(), route.grid_track.lon_deg)
 
 
+@pytest.mark.slow
 def test_a_course_across_the_antimeridian_maps_continuously_and_splits_its_geojson(tmp_path) -> None:
     import json
 

@@ -177,6 +177,7 @@ def test_bilinear_against_hand_arithmetic(twa, tws, expected):
     assert_allclose(VANE.speed(twa, tws), expected, rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 @given(
     polars(),
     st.lists(st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0)), min_size=1, max_size=20),
@@ -201,6 +202,7 @@ def test_inside_table_modes_agree_and_stay_within_cell(p, unit_points):
     assert_allclose(clamp, reference(np.column_stack([twa, tws])), rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.slow
 @given(st.floats(0.0, 180.0), st.floats(0.0, 30.0))
 @settings(max_examples=100, deadline=None)
 def test_port_starboard_symmetry(twa, tws):
@@ -297,6 +299,7 @@ def test_bad_mode_and_negative_tws():
 # Files
 
 
+@pytest.mark.slow
 @given(polars(max_n=9))
 @settings(max_examples=40, deadline=None)
 def test_pol_round_trip(p):
@@ -309,6 +312,7 @@ def test_pol_round_trip(p):
         assert header.startswith("TWA\\TWS\t")
 
 
+@pytest.mark.slow
 @given(polars(max_n=9))
 @settings(max_examples=40, deadline=None)
 def test_csv_round_trip(p):

@@ -34,6 +34,7 @@ def _axis(rng: np.random.Generator, n: int, uniform: bool) -> np.ndarray:
     return np.concatenate([[start], start + np.cumsum(steps)])
 
 
+@pytest.mark.slow
 @settings(max_examples=60, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 3 * SHORT_AXIS), uniform=st.booleans())
 def test_cell_is_numpys_searchsorted(seed: int, n: int, uniform: bool) -> None:

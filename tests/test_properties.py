@@ -323,6 +323,7 @@ def nan_setups(draw: st.DrawFn) -> tuple[Grid, UniformWeather, Polar, int, float
     return grid, base, draw(polars(positive=True)), samples, centre, draw(NAN_FIELDS)
 
 
+@pytest.mark.slow
 @prop_settings(30)
 @given(setup=nan_setups())
 def test_nan_band_across_the_grid_blocks_every_route(setup: Any) -> None:

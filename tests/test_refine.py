@@ -69,6 +69,7 @@ def test_dp_on_a_corridor_equals_networkx(seed: int) -> None:
     assert res.finish_h == pytest.approx(ref, rel=1e-12)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(6))
 def test_refinement_never_lengthens_and_its_legs_add_up(seed: int) -> None:
     rng = np.random.default_rng(seed)
@@ -156,6 +157,7 @@ def test_track_offsets_follow_the_path() -> None:
 # ------------------------------------------------------------------------------------------ through scenarios
 
 
+@pytest.mark.slow
 def test_refined_route_round_guadeloupe_keeps_its_margin_and_is_faster() -> None:
     sc = scenario_from_mapping(
         {
@@ -218,6 +220,7 @@ def test_scenario_refine_key_is_validated(tmp_path) -> None:
     assert load_scenario(ok).refine == 2
 
 
+@pytest.mark.slow
 def test_refine_weather_patch_detour_is_found(tmp_path) -> None:
     """A forbidding patch on the course: refinement keeps the detour (no refined leg crosses the patch)."""
     patch = Patch(lon=(-40.0, -30.0), lat=(28.0, 38.0), values={"hs_m": 6.0})
@@ -239,6 +242,7 @@ def test_refine_weather_patch_detour_is_found(tmp_path) -> None:
     assert c_res.finish_h <= res.finish_h
 
 
+@pytest.mark.slow
 def test_refining_a_course_with_a_waypoint_refines_each_leg() -> None:
     sc = scenario_from_mapping(
         {

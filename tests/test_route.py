@@ -176,6 +176,7 @@ def test_no_forbidden_arcs_without_a_failure_model() -> None:
     assert len(arcs) == 0 and arcs.reason.shape == (0,) and arcs.departure.dtype == np.dtype("datetime64[s]")
 
 
+@pytest.mark.slow
 def test_a_refined_route_reports_the_forbidden_arcs_of_the_grid_routed_on(routed: Route) -> None:
     refined = scenario_from_mapping({**CONTROL, "grid": {**CONTROL["grid"], "refine": 2}}).route()
     assert refined.grid_track is not None and refined.voyage_time_h <= refined.grid_track.voyage_time_h

@@ -73,6 +73,7 @@ def _scenario(tmp_path: Path, apf: float):
     return load_scenario(tmp_path / "s.toml")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("apf", [0.02, 1.0])
 def test_tracks_sailed_in_members_together_are_each_track_evaluated_alone(tmp_path: Path, apf: float):
     sc = _scenario(tmp_path, apf)

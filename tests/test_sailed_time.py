@@ -131,6 +131,7 @@ def analytic_sailor(wind) -> Sailor:
     return Sailor(weather=Analytic(wind), departure=DEP, polar=VANE)
 
 
+@pytest.mark.slow
 def test_march_in_steady_wind_is_distance_over_polar_speed():
     """A leg west along the equator and one north along a meridian (courses 270 and 000 all along), side by side,
     15 kn from 045 (TWA 135 and 45): time = great-circle length / polar speed, exactly but for rounding."""
@@ -140,6 +141,7 @@ def test_march_in_steady_wind_is_distance_over_polar_speed():
     np.testing.assert_allclose(arrival, nm / boat_speed_kn(VANE, [135.0, 45.0], 15.0), rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_march_in_wind_rising_linearly_in_time():
     """Beam wind rising from 4 to 8 kn over 40 h: the polar is linear in TWS there, so the speed is linear in time,
     ``v(t) = v0 + b t``, and the leg's time solves ``v0 T + b T^2 / 2 = D`` (the midpoint rule is exact for it)."""
@@ -151,6 +153,7 @@ def test_march_in_wind_rising_linearly_in_time():
     assert march_legs(s, 0.0, 0.0, -1.0, 0.0, 0.0)[0] == pytest.approx(expect, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_march_holds_in_a_calm_and_never_borrows_the_later_wind():
     """Calm until 10 h, then 15 kn on the beam: 10 h + distance / speed, to half a time step (a held craft looks
     ``STEP_H / 2`` ahead, the midpoint of its step). Dead upwind (TWA 0: no speed) the craft holds too; where the
@@ -185,6 +188,7 @@ def test_march_records_its_steps():
     assert (path.time_h >= 0).all() and np.count_nonzero(path.time_h < 1.0) >= 19  # held 1 h in 0.05 h steps
 
 
+@pytest.mark.slow
 def test_march_agrees_with_an_adaptive_ode_solver():
     """The march against scipy's adaptive Runge-Kutta (RK45, rtol 1e-10) solving the same ``ds/dt = V(s, t)`` on two
     legs of the property test's random fields (one ends crawling into a dying wind dead ahead): the march's own
@@ -210,6 +214,7 @@ def test_march_agrees_with_an_adaptive_ode_solver():
         assert 5.0 < expect < 50.0 and got == pytest.approx(expect, rel=2e-4)
 
 
+@pytest.mark.slow
 def test_legs_marched_side_by_side_are_the_legs_marched_one_after_another():
     """The side-by-side march of a track's legs (from a poor guess of the times: all zero) is the sequential chain,
     to the chain's tolerance accumulated over the legs; so are its waits (legs held until a given time)."""
@@ -240,6 +245,7 @@ def veering_weather():
     return gridded([0.0, 24.0, 30.0, 720.0], lon, lat, 15.0, twd)
 
 
+@pytest.mark.slow
 def test_veering_leg_is_timed_at_the_wind_the_craft_meets():
     """The leg (0, 0) -> (-1, 0): 24 h almost in irons (0.03 kn), the veer, then ~13.4 h on the beam: 39.15 h
     marched. ``evaluate`` of the leg and a route from start to finish on a 4-rank grid (along its own track, which
@@ -274,6 +280,7 @@ def fronts_weather():
     return gridded(t.ravel(), lon, lat, tws, twd)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("waits", [False, True], ids=["continuous", "waits"])
 def test_route_through_fronts_reports_its_track_sailed_continuously(waits):
     """A ~220 nm course routed on 30 ranks: the reported voyage and every point's time within 0.2 % of the route's
@@ -294,6 +301,7 @@ def test_route_through_fronts_reports_its_track_sailed_continuously(waits):
     assert_times(ev.elapsed_h, ev_times, rel=REL_ROUTE, lattice_h=step, what="evaluate")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("waits", [False, True], ids=["continuous", "waits"])
 def test_route_to_a_finish_line_through_fronts_times_the_crossing_as_sailed(waits):
     """A finish line across the fronts' course: the DP times each crossing as the route's last leg is costed (the arc
@@ -458,6 +466,7 @@ def sailed_legs(seed: int) -> dict[str, np.ndarray]:
 
 
 # a seed is drawn, not data: shrinking it means nothing, so it is not tried
+@pytest.mark.slow
 @settings(max_examples=12, derandomize=True, deadline=None, database=None, phases=[Phase.generate])
 @given(st.integers(0, 2**32 - 1))
 def test_evaluate_leg_times_converge_to_the_march_in_random_fields(seed):
@@ -502,6 +511,7 @@ def longest_run(flags: np.ndarray) -> int:
     return best
 
 
+@pytest.mark.slow
 def test_route_keeps_out_of_a_drifting_storm_at_the_times_it_sails():
     """Routed at apf 0.5 with dickson2018 (Hs >= 4 m: p_f 0.9), 20 ranks (the storm crosses the straight course, so
     the route has to dodge it): the route is timed as the march times its track (0.2 %), and the track marched at

@@ -14,6 +14,7 @@ import pytest
 import pyroute_rel
 import pyroute_rel.dp_compiled as dp_compiled
 from pyroute_rel import ensemble, sweep
+from pyroute_rel.errors import ScenarioError
 from pyroute_rel.parallel import thread_map
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.settings import Settings, get_settings, set_settings, settings_context
@@ -59,7 +60,7 @@ def test_set_settings_holds_for_the_rest_of_its_context() -> None:
     ],
 )
 def test_bad_settings_are_named(changes: dict, message: str) -> None:
-    with pytest.raises(TypeError, match=message), settings_context(**changes):
+    with pytest.raises(ScenarioError, match=message), settings_context(**changes):
         pass  # pragma: no cover
     assert get_settings() == Settings()
 

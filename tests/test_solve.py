@@ -70,6 +70,7 @@ def weights_by_rank(grid, problem) -> list[np.ndarray]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(6))
 @pytest.mark.parametrize("shape,dev", [((5, 5), None), ((7, 6), None), ((9, 9), 60.0), ((12, 11), 40.0)])
 def test_dp_equals_networkx_dijkstra(seed: int, shape: tuple[int, int], dev: float | None) -> None:
@@ -97,6 +98,7 @@ def test_dp_equals_networkx_dijkstra(seed: int, shape: tuple[int, int], dev: flo
         assert route.voyage_time_h == pytest.approx(ref, rel=1e-9)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(4))
 def test_dp_equals_brute_force_on_tiny_grids(seed: int) -> None:
     rng = np.random.default_rng(100 + seed)
@@ -326,6 +328,7 @@ def _same_dp(grid, problem) -> tuple[int, int]:
     return pruned.arcs_evaluated, full.arcs_evaluated
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(8))
 def test_pruning_finds_the_same_route_in_steady_weather(seed: int, monkeypatch) -> None:
     """Random polars (top speeds 0.5-8 kn), patched wind, with and without currents, square and banded grids."""

@@ -21,6 +21,7 @@ from test_evaluate import write_ensemble_scenario
 
 import pyroute_rel as pr
 from pyroute_rel import failure, sweep
+from pyroute_rel.errors import ScenarioError
 from pyroute_rel.parallel import thread_map
 from pyroute_rel.store import Shelf, current_store, file_stamps, kept, kept_call
 from pyroute_rel.weather import readers
@@ -69,7 +70,7 @@ def test_a_kept_block_has_its_own_store_emptied_at_its_end() -> None:
             assert nothing.shelf("files").put("k", 2) == 2 and len(nothing.shelf("files")) == 0
         assert current_store() is store and store.shelf("files").get("k") == 1
     assert closed == [1] and current_store() is outer and "files" not in outer.sizes()
-    with pytest.raises(TypeError, match="keep must be True or False"):
+    with pytest.raises(ScenarioError, match="keep must be True or False"):
         with kept("no"):  # type: ignore[arg-type]
             pass
 
@@ -111,6 +112,7 @@ def test_the_environment_switch_makes_the_process_keep_nothing() -> None:
     assert out.stdout.split() == ["False", "0"]
 
 
+@pytest.mark.slow
 def test_nothing_is_kept_outside_the_store() -> None:
     """No module-level or class-level mutable container, lru_cache/cache, weak dictionary or ``global`` statement in
     the package outside pyroute_rel/store.py, and no ``id(...)`` used as a key (the habits of issue 33)."""
@@ -163,6 +165,7 @@ def test_nothing_is_kept_outside_the_store() -> None:
     assert not found, found
 
 
+@pytest.mark.slow
 def test_upper_case_tables_are_never_written_to() -> None:
     """Module-level UPPER_CASE names are constants: no subscript assignment, ``.update``, ``.append``, ``.clear``,
     ``.pop`` or ``.setdefault`` on them anywhere in the package."""
@@ -213,6 +216,7 @@ def test_an_edited_shipped_tables_file_is_read_again(tmp_path: Path, monkeypatch
         assert set(failure._shipped_tables()) == keys and len(keys) >= 2
 
 
+@pytest.mark.slow
 def test_an_edited_failure_model_gives_its_own_table(tmp_path: Path) -> None:
     """A model file edited between two loads (one store): the second load judges with the edited file's table."""
     src = ROOT / "failure_models"
@@ -260,6 +264,7 @@ def test_sweep_keys_follow_an_edited_referenced_file(tmp_path: Path) -> None:
     assert sweep._file_digest(f) != one
 
 
+@pytest.mark.slow
 def test_an_ensemble_in_worker_processes_reads_edited_files_again(tmp_path: Path) -> None:
     """Two ensemble runs in worker processes, the scenario's finish moved between them: the second routes to the
     new finish, as the inline engine does. It guards the workers' side (each call's workers start with nothing kept,
@@ -289,6 +294,7 @@ def test_files_opened_in_a_kept_block_are_closed_at_its_end(tmp_path: Path) -> N
     assert path.is_file()
 
 
+@pytest.mark.slow
 def test_a_pool_in_use_is_never_shut_down_under_a_call() -> None:
     """Calls asking for more threads replace the store's pool, and another thread empties the store, while calls
     run in the pool: every call finishes (a replaced pool is shut down by its last user)."""

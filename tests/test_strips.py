@@ -71,6 +71,7 @@ def rank_pair(lon, lat, course, n_src, n_dst, spacing_src, spacing_dst, gap_km, 
     return Group(np.asarray(a[0]), np.asarray(a[1]), np.asarray(b[0]), np.asarray(b[1]), band)
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None)
 @given(
     seed=st.integers(0, 2**32 - 1),
@@ -137,6 +138,7 @@ def assert_equal_but_for_tangents(got: np.ndarray, ref: np.ndarray, group: Group
         assert miss_km < 1e-3, f"arc {i} -> {j}: strips {got[row, col]}, arc by arc {ref[row, col]}, {miss_km:.4g} km"
 
 
+@pytest.mark.slow
 def test_real_coast_rank_pairs_equal_the_arc_by_arc_test() -> None:
     # GSHHG land with a 10 km margin around the Lesser Antilles, a grid whose ranks cross the island arc
     land = ob.land_geometry((-66.0, 10.0, -55.0, 20.0), margin_km=10.0)
@@ -168,6 +170,7 @@ def test_groups_the_shadows_cannot_take_are_left_to_the_caller() -> None:
         fans_blocked([Group(np.zeros(0), np.zeros(0), np.ones(3), lat)], [area])
 
 
+@pytest.mark.slow
 def test_the_grid_sweep_equals_the_arc_by_arc_test_on_every_arc() -> None:
     # the real course's shape: start line (one fan per start point), banded ranks, a finish point; land with a
     # margin and a zone with a time window (kept as a bit per arc)

@@ -216,6 +216,7 @@ def test_voyage_front_equals_every_path_enumerated_on_steady_weather(seed: int) 
     assert 1 <= front.labels_mean <= front.labels_max  # type: ignore[operator]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", SEEDS)
 def test_bottleneck_front_equals_every_path_and_dominates_every_single_apf_route(seed: int) -> None:
     sc = small(seed)
@@ -476,6 +477,7 @@ def test_cli_refuses_a_bad_cap_with_exit_2(tmp_path: Path, capfd: pytest.Capture
     assert "--max-labels" in run.stderr and len(run.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_cli_refuses_a_negative_cap_even_for_the_bottleneck_front(tmp_path: Path) -> None:
     out = tmp_path / "out"
     run = cli("tradeoff", str(small_toml(tmp_path)), "--max-labels", "-1", "--out", str(out), "--quiet")

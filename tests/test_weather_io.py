@@ -134,6 +134,7 @@ def _irregular():
 IRREGULAR = _irregular()
 
 
+@pytest.mark.slow
 @settings(max_examples=40, deadline=None)
 @given(
     st.lists(
@@ -662,6 +663,7 @@ def test_weather_from_mapping_resolves_paths_and_checks_keys(tmp_path):
 # ------------------------------------------------------------------------------------------- example
 
 
+@pytest.mark.slow
 def test_example_script_writes_an_era5_layout_file(tmp_path):
     spec = importlib.util.spec_from_file_location("make_era5_example", EXAMPLES / "make_era5_example.py")
     module = importlib.util.module_from_spec(spec)
