@@ -39,6 +39,7 @@ doi:10.1145/2660193.2660195 (splitmix64).
 from __future__ import annotations
 
 import math
+from typing import TypedDict
 
 import numba
 import numpy as np
@@ -80,7 +81,16 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
 _MIX2 = np.uint64(0x94D049BB133111EB)
 _S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
-_JIT = {"nogil": True, "cache": True}
+
+
+class _JitOptions(TypedDict):
+    """The options every kernel here is compiled with (typed, so numba's stubs check them as keywords)."""
+
+    nogil: bool
+    cache: bool
+
+
+_JIT: _JitOptions = {"nogil": True, "cache": True}
 
 
 @numba.njit(inline="always", **_JIT)
