@@ -409,9 +409,10 @@ def evaluation_problem(
     if departure is not None:
         from .scenario import parse_departure
 
-        changes["departure"] = (
-            np.datetime64(departure, "s") if isinstance(departure, np.datetime64) else parse_departure(departure)
-        )
+        if isinstance(departure, np.datetime64):
+            changes["departure"] = np.datetime64(departure, "s")  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
+        else:
+            changes["departure"] = parse_departure(departure)
     if apf is not None:
         changes["apf"] = apf
     if samples is not None:
@@ -1184,7 +1185,7 @@ def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | 
         cols["p_f"][k] = sailed.costs.p_f[k]
     reasons = sailed.leg_reasons()
     blocked = next((i for i, r in enumerate(reasons) if r), None)
-    start = np.datetime64(problem.departure, "s")
+    start = np.datetime64(problem.departure, "s")  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
     seconds = np.round(np.where(finite, e, 0.0) * 3600.0).astype("timedelta64[s]")
     times = np.where(finite, start + seconds, np.datetime64("NaT", "s"))
     return Evaluation(

@@ -201,7 +201,8 @@ def step_hours(steps: npt.NDArray[np.datetime64] | None, departure: np.datetime6
     """
     if steps is None:
         return None
-    return np.asarray((steps - np.datetime64(departure, "ns")) / np.timedelta64(3600, "s"), dtype=float)
+    t0: np.datetime64 = np.datetime64(departure, "ns")  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
+    return np.asarray((steps - t0) / np.timedelta64(3600, "s"), dtype=float)
 
 
 def next_steps(steps_h: FloatArray | None, t_h: FloatArray) -> FloatArray:

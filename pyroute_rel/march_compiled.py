@@ -130,7 +130,7 @@ def march_gridded(
         edges, n_edges, contrib, right, fill, attrs, relative = model_rules(failure)
         source = np.array([KEPT_FIELDS.index(a) for a in attrs], dtype=np.intp)
         p_flat, over, bits = judge_tables(failure, apf)
-    shift = (np.datetime64(departure, "ns") - b.t0) / np.timedelta64(1, "s")
+    shift = (np.datetime64(departure, "ns") - b.t0) / np.timedelta64(1, "s")  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
     steps_h = step_hours(weather.time_steps, departure)
     if steps_h is None:
         steps_h = np.zeros(0)

@@ -673,7 +673,7 @@ def forbidden_on_grid(
         **{key: cols[key].astype(np.intp) for key in keys[:3]},
         **{key: cols[key] for key in keys[3:7]},
         departure_h=offset_h + cols["departure_h"],
-        departure=np.datetime64(problem.departure, "s")
+        departure=np.datetime64(problem.departure, "s")  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
         + np.round(cols["departure_h"] * 3600.0).astype("timedelta64[s]"),
         p_f=cols["p_f"],
         reason=np.array(["+".join(n for n, bit in REASONS.items() if r & bit) for r in reasons], dtype=str),

@@ -89,7 +89,7 @@ def _arrival(value: Any, name: str) -> np.datetime64 | None:
             f"{name} must be a UTC time (numpy datetime64 or ISO 8601 string) or None (got {brief(value)})"
         )
     try:
-        t = np.datetime64(value, "s")
+        t = np.datetime64(value, "s")  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
     except (TypeError, ValueError, OverflowError):
         t = np.datetime64("NaT")
     if np.isnat(t):

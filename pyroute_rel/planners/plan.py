@@ -107,7 +107,7 @@ def track_route(problem: PlanningProblem, planned: PlannedTrack, evaluation: Eva
         lon_deg=np.asarray(evaluation.track[:, 0], dtype=float),
         lat_deg=np.asarray(evaluation.track[:, 1], dtype=float),
         elapsed_h=np.asarray(evaluation.elapsed_h, dtype=float),
-        departure=np.datetime64(evaluation.departure, "s"),
+        departure=np.datetime64(evaluation.departure, "s"),  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
         legs=evaluation.legs,
         nodes=np.asarray(nodes, dtype=np.intp),
         grid=grid,
