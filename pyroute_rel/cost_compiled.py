@@ -65,14 +65,15 @@ def sail_wind(
     # contiguous, writable float64 everywhere (one compiled signature: a read-only array would be another); an
     # input of the full shape is passed as it is when it already is that (no copy), and the sub-segment lengths
     # of shape (..., 1) (one per arc, the geometry's) are passed once per arc, each used for ``every`` points
-    flat = [_flat(a, shape) for a in (tws_kn, twd_deg, course_deg)]
+    tws, twd, course = (_flat(a, shape) for a in (tws_kn, twd_deg, course_deg))
     every = 1
     if shape and seg_nm.shape == shape[:-1] + (1,) and shape[-1] > 1:
         seg, every = _vector(seg_nm, np.float64), shape[-1]
     else:
         seg = _flat(seg_nm, shape)
-    twa, v, dt = (np.empty(flat[0].size) for _ in range(3))
-    _wind_kernel(*flat, seg, every, *polar_compiled.finder_tables(polar), beyond == "forbid", MIN_SPEED_KN, twa, v, dt)
+    twa, v, dt = (np.empty(tws.size) for _ in range(3))
+    tables = polar_compiled.finder_tables(polar)
+    _wind_kernel(tws, twd, course, seg, every, *tables, beyond == "forbid", MIN_SPEED_KN, twa, v, dt)
     return twa.reshape(shape), v.reshape(shape), dt.reshape(shape)
 
 

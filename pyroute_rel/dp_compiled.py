@@ -129,10 +129,11 @@ def _penalty_tables(penalties: ManoeuvrePenalties) -> tuple[FloatArray, FloatArr
     """The tack and gybe tables (wind speeds [kn], penalties [s]) as the kernels take them, kept by the penalties
     (a :class:`~pyroute_rel.manoeuvre.ManoeuvrePenalties` does not change; :func:`~pyroute_rel.store.kept_by`)."""
 
-    def make() -> tuple[FloatArray, ...]:
+    def make() -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         p = penalties
-        return tuple(_c(np.asarray(a, dtype=float)) for a in (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn,
-                                                               p.gybe_penalty_s))  # fmt: skip
+        given = (p.tack_tws_kn, p.tack_penalty_s, p.gybe_tws_kn, p.gybe_penalty_s)
+        tack_tws, tack_s, gybe_tws, gybe_s = (_c(np.asarray(a, dtype=float)) for a in given)
+        return tack_tws, tack_s, gybe_tws, gybe_s
 
     return kept_by(penalties, "_kernel_tables", make)  # type: ignore[no-any-return]
 
@@ -215,7 +216,7 @@ def rank_step(
             _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, p_max, t_best, j_best, counts,
             by_criterion,
         )  # fmt: skip
-        return RankStep(t_best, j_best, c_best, *(int(n) for n in counts), by_criterion)
+        return RankStep(t_best, j_best, c_best, *_tallies(counts), by_criterion)
     if n_out == 1 and tp.shape[1] == 1 and bound_kn is not None and boxed:
         assert isinstance(wind, BoxWind)
         _boxed_rank(  # type: ignore[call-arg]
@@ -243,7 +244,13 @@ def rank_step(
             -1.0 if bound_kn is None else float(bound_kn), _sides_array(from_sides),
             *_penalty_tables(penalties or _NO_PENALTIES), t_best, j_best, c_best, counts,
         )  # fmt: skip
-    return RankStep(t_best, j_best, c_best, *(int(n) for n in counts[:5]))
+    return RankStep(t_best, j_best, c_best, *_tallies(counts)[:5])
+
+
+def _tallies(counts: npt.NDArray[np.int64]) -> tuple[int, int, int, int, int, int]:
+    """A rank kernel's six counters as whole numbers, in :class:`RankStep`'s order (``live`` to ``failed``)."""
+    live, costed, forbidden, no_speed, no_wind, failed = (int(n) for n in counts)
+    return live, costed, forbidden, no_speed, no_wind, failed
 
 
 def _box_sampled(wind: BoxWind, shape: tuple[int, ...]) -> tuple[FloatArray, FloatArray]:
@@ -787,7 +794,9 @@ def _pruned_step(  # type: ignore[no-untyped-def]
     return True
 
 
-def _cost_arcs(wind: WindSampler, pick, width, course, seg, tables, forbid):  # type: ignore[no-untyped-def]
+def _cost_arcs(  # type: ignore[no-untyped-def]
+    wind: WindSampler, pick, width, course, seg, tables, forbid
+) -> tuple[FloatArray, npt.NDArray[np.uint8]] | None:
     """Time [h] and reason flags of the arcs ``pick`` (flat indices node * width + arc), the wind sampled at them
     (None: a current)."""
     times = np.empty(pick.size)

@@ -1131,12 +1131,12 @@ def _finish_looked_up(
     same numbers."""
     if codes.ndim != 3 or codes.size == 0 or table.dtype != np.float32 or normalised.dtype != np.float32:
         return None
-    order = [
+    it, iy, ix = (
         np.arange(n) if k is None else np.asarray(k, dtype=np.intp) for n, k in zip(codes.shape, inverse, strict=True)
-    ]
+    )
     direction = _KIND[name] == "direction"
     lookup = normalised if direction else table
-    values, kept, lo, hi, finite = _look_up(codes, *order, table, lookup, direction)
+    values, kept, lo, hi, finite = _look_up(codes, it, iy, ix, table, lookup, direction)
     rng = RANGES[name]
     if lo < rng.lo or hi > rng.hi or not finite:  # (NaN only when all NaN; check_plausible's test)
         return None
