@@ -20,7 +20,7 @@ Conventions
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -330,17 +330,23 @@ class WeatherSource(Protocol):
         """Memory the source's data take [bytes] (0: little or unknown): ensembles stack members within a budget."""
         ...
 
-    #: ``take_rows(rows)``: the same weather for queries made of rows ``rows`` (sorted) of the rows it answers (a
-    #: :attr:`rows_aligned` source), or None: the source answers every row alike.
-    take_rows: Any
+    @property
+    def take_rows(self) -> Callable[..., Any] | None:
+        """``take_rows(rows)``: the same weather for queries made of rows ``rows`` (sorted) of the rows it answers (a
+        :attr:`rows_aligned` source), or None: the source answers every row alike."""
+        ...
 
-    #: ``reuse(prepared)``: points another source's :meth:`prepare` located, made ready for this source's
-    #: :meth:`sample_at` without locating them again (None returned: they do not fit), or None: the source cannot.
-    reuse: Any
+    @property
+    def reuse(self) -> Callable[..., Any] | None:
+        """``reuse(prepared)``: points another source's :meth:`prepare` located, made ready for this source's
+        :meth:`sample_at` without locating them again (None returned: they do not fit), or None: the source cannot."""
+        ...
 
-    #: ``compiled_source()``: the gridded source the compiled march samples for this one (its prepared points index
-    #: that source's data), or None: the compiled march samples the source itself when it can.
-    compiled_source: Any
+    @property
+    def compiled_source(self) -> Callable[..., Any] | None:
+        """``compiled_source()``: the gridded source the compiled march samples for this one (its prepared points
+        index that source's data), or None: the compiled march samples the source itself when it can."""
+        ...
 
     def wind_errors(self) -> tuple[Any, FloatArray | None, FloatArray | None]:
         """The source this one offsets the wind of, and the offsets east and north per row [kn] (None: no offset):

@@ -147,7 +147,8 @@ class _Block:
         self.data = np.empty((ny, nx, nt, nf), dtype=np.float32)
         rows = max(1, (1 << 22) // max(1, nt * nx))
         for j, (f, op) in enumerate(cols):
-            values, table = f.values, None
+            values: npt.NDArray[Any] | None = f.values  # the field's values, or its codes looked up in ``table``
+            table = None
             if f.coded is not None and f.coded.values is values and op is not None:  # each code's sine (cosine)
                 values, table, op = f.coded.codes, op(np.deg2rad(f.coded.table.astype(np.float32))), None  # looked up
             if op is None and _fill_column(self.data, j, values, table):
@@ -814,13 +815,14 @@ class GriddedWeather(WeatherBase):
             origin = np.datetime64(t.astype("datetime64[ns]").item(), "ns")
             # hours, turned into seconds in the kernel (offset_h * 3600, then the block's origin added); a contiguous
             # float64 array of the points' shape (the cost kernel's) is passed as it is
-            offset = offset_h
-            if not (
-                isinstance(offset, np.ndarray)
-                and offset.dtype == np.float64
-                and offset.shape == prepared.shape
-                and offset.flags.c_contiguous
+            if (
+                isinstance(offset_h, np.ndarray)
+                and offset_h.dtype == np.float64
+                and offset_h.shape == prepared.shape
+                and offset_h.flags.c_contiguous
             ):
+                offset = offset_h
+            else:
                 offset = np.ascontiguousarray(np.broadcast_to(np.asarray(offset_h, dtype=np.float64), prepared.shape))
             offset = offset.reshape(-1)
             scale = 3600.0
@@ -952,7 +954,7 @@ class MemberStack:
             b.flat = np.empty(size * len(sources), dtype=block.data.dtype)
             for m, src in enumerate(sources):
                 b.flat[m * size : (m + 1) * size].reshape(shape)[...] = src._blocks[k].data[y, x]
-            b.data = None  # sampling reads ``flat`` only
+            del b.data  # sampling reads ``flat`` only
             joined._blocks.append(b)
             self._sizes.append(size)
         self._joined = joined
@@ -1126,9 +1128,7 @@ def _points(
     lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, time: npt.ArrayLike
 ) -> tuple[tuple[int, ...], FloatArray, FloatArray, npt.NDArray[np.datetime64]]:
     lon, lat, t = sample_points(lon_deg, lat_deg, time)
-    shape = lon.shape
-    flat = [a.ravel() for a in (lon, lat, t)]
-    return shape, flat[0], flat[1], flat[2]
+    return lon.shape, lon.ravel(), lat.ravel(), t.ravel()
 
 
 def _offsets(time: npt.NDArray[np.datetime64]) -> tuple[np.datetime64, FloatArray]:

@@ -34,7 +34,7 @@ from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from importlib.util import find_spec
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TypeVar
 
 import numba
 import numpy as np
@@ -80,6 +80,7 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
+_ScalarT = TypeVar("_ScalarT", bound=np.generic)
 
 
 #: Margin added on every side of a ``bbox`` when cutting files [deg] (the grid points bracketing the
@@ -447,10 +448,16 @@ def weather_from_mapping(
     base = Path(base_dir)
     paths = [p if p.is_absolute() else base / p for p in (Path(s).expanduser() for s in raw)]
     if cache.enabled():  # a sweep's process: read every time once, keep it for the next runs (weather.cache)
-        key = ("file", cache.file_stamps(paths), tuple(sorted((variables or {}).items())), member, out_of_range)
-        key += (None if bbox is None else tuple(float(b) for b in bbox),)
+        stamp = (
+            "file",
+            cache.file_stamps(paths),
+            tuple(sorted((variables or {}).items())),
+            member,
+            out_of_range,
+            None if bbox is None else tuple(float(b) for b in bbox),
+        )
         return cache.cached(
-            key,
+            stamp,
             lambda: open_weather(paths, variables=variables, bbox=bbox, member=member, out_of_range=out_of_range),
             nbytes=lambda w: w.nbytes,
         )
@@ -762,7 +769,7 @@ def read_fields(
         found = _detected(source, datasets, variables)
         for name, (ds, var) in found.items():
             field, had_members = _extract(
-                lambda ds=ds, var=var: ds[var], name, source, var, box, window, member, margin_deg, out_of_range,
+                _variable(ds, var), name, source, var, box, window, member, margin_deg, out_of_range,
                 raw=_files().raw_of(ds),
             )  # fmt: skip
             used_member |= had_members
@@ -858,6 +865,11 @@ def _steady_if_single_time(fields: list[WeatherField]) -> list[WeatherField]:
     return [replace(f, time=None) for f in fields]
 
 
+def _variable(ds: xr.Dataset, var: str) -> Callable[[], xr.DataArray]:
+    """``ds[var]``, asked for when called."""
+    return lambda: ds[var]
+
+
 def _detected(
     source: str, datasets: list[xr.Dataset], variables: Mapping[str, str]
 ) -> dict[str, tuple[xr.Dataset, str]]:
@@ -951,17 +963,18 @@ def _extract(
         _member_index(plan.member_dim[0], plan.member_dim[1], member, plan.where)
     if plan.index is None:
         return None, plan.had_members
-    fixed = None if stored is None or plan.fixed is None else _fixed_with_member(plan, member)
+    raw_read = None if stored is None or plan.fixed is None else _Stored(stored, _fixed_with_member(plan, member))
     if plan.member_dims:  # each member's values outside the valid range are missing before the mean
-        raw_read = None if fixed is None else _Stored(stored, fixed)  # type: ignore[arg-type]
         values = _load_mean(
             array() if da is None else da, plan.member_dims, plan.dims, plan.index, plan.where, plan.valid, raw_read
         )
-    elif fixed is not None and plan.tables is not None:
-        return _finish_coded(plan, stored, fixed, name, source, var, out_of_range), plan.had_members  # type: ignore[arg-type]
-    elif fixed is not None:
+    elif raw_read is not None and plan.tables is not None:
+        coded = _finish_coded(plan, raw_read.variable, raw_read.fixed, name, source, var, out_of_range)
+        return coded, plan.had_members
+    elif raw_read is not None:
+        stored, fixed = raw_read
         selectors, inverse = plan.selection
-        values = _reorder(stored.decode(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where)), inverse)  # type: ignore[union-attr]
+        values = _reorder(stored.decode(_read_stored(stored, {**fixed, **selectors}, plan.dims, plan.where)), inverse)
         values = values.astype(np.float32, copy=False)
     else:
         values = _load(array() if da is None else da, plan.dims, plan.index, plan.where)
@@ -1369,7 +1382,7 @@ def _read(
     return values
 
 
-def _reorder(values: npt.NDArray[np.float32], inverse: Sequence[IntArray | None]) -> npt.NDArray[np.float32]:
+def _reorder(values: npt.NDArray[_ScalarT], inverse: Sequence[IntArray | None]) -> npt.NDArray[_ScalarT]:
     for axis, order in enumerate(inverse):
         if order is not None:
             values = np.take(values, order, axis=axis)
@@ -1431,10 +1444,12 @@ def _accumulate_stored(
     """:func:`_accumulate_block` of the members of a selection of 8- or 16-bit stored values: each member's decoded
     values looked up (:attr:`_RawVariable.table`) into one buffer, then added."""
     stored = raw.variable
+    table = stored.table
+    assert table is not None  # (called for 8- and 16-bit stored values, which have one)
     codes = stored.codes(_read_stored(stored, {**raw.fixed, **selectors}, dims, where)).reshape(-1, *total.shape)
-    values = np.empty(total.shape, stored.table.dtype)  # type: ignore[union-attr]
+    values = np.empty(total.shape, table.dtype)
     for member in codes:
-        np.take(stored.table, member, out=values, mode="clip")  # (a code is always inside the table: nothing clips)
+        np.take(table, member, out=values, mode="clip")  # (a code is always inside the table: nothing clips)
         _accumulate_block(total, count, values[np.newaxis], valid)
 
 
@@ -1541,7 +1556,7 @@ def _sorted_plan(
 
 
 def _convert_units(
-    values: npt.NDArray[np.float32], attrs: Mapping[str, Any], name: str, where: str
+    values: npt.NDArray[np.float32], attrs: Mapping[Hashable, Any], name: str, where: str
 ) -> npt.NDArray[np.float32]:
     kind = _KIND[name]
     raw = attrs.get("units")
@@ -1565,7 +1580,7 @@ def _convert_units(
 
 
 def _normalise_direction(
-    values: npt.NDArray[np.float32], attrs: Mapping[str, Any], name: str
+    values: npt.NDArray[np.float32], attrs: Mapping[Hashable, Any], name: str
 ) -> npt.NDArray[np.float32]:
     """Directions [deg] into [0, 360), *from* (a ``*_to_direction`` variable turned round); other fields as given."""
     if _KIND[name] != "direction":
