@@ -36,7 +36,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from dataclasses import fields as dataclass_fields
-from typing import Any
+from typing import TYPE_CHECKING, Any, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -52,6 +52,9 @@ from .polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from .settings import get_settings
 from .store import kept_by
 from .weather.base import Conditions, WeatherSource
+
+if TYPE_CHECKING:
+    from .weather.gridded import GriddedWeather, PreparedPoints
 
 __all__ = [
     "ArcCosts",
@@ -478,6 +481,7 @@ class PendingPieces:
 
     def waiting(self, size: int) -> npt.NDArray[np.bool_]:
         """Flat mask over the caller's block of ``size`` arcs: the arcs not judged yet."""
+        assert self.done is not None  # (set by __post_init__)
         out = np.zeros(size, dtype=bool)
         out[self.index[~self.done]] = True
         return out
@@ -642,9 +646,10 @@ def _wind_errors(weather: WeatherSource, shape: tuple[int, ...]) -> tuple[Any, t
         return inner, None
     n = math.prod(shape)
     rows = (slice(None),) + (None,) * (len(shape) - 1)
-    return inner, tuple(
+    east_kn, north_kn = (
         np.ascontiguousarray(np.broadcast_to(np.asarray(e, dtype=float)[rows], shape).reshape(n)) for e in (east, north)
     )
+    return inner, (east_kn, north_kn)
 
 
 def _compiled_march(
@@ -740,6 +745,10 @@ def _column_sampler(geom: ArcGeometry, weather: WeatherSource, departure: np.dat
 LOCATED_PER_GEOMETRY = 2
 
 
+@overload
+def _located(geom: ArcGeometry, weather: GriddedWeather) -> PreparedPoints: ...
+@overload
+def _located(geom: ArcGeometry, weather: WeatherSource) -> object: ...
 def _located(geom: ArcGeometry, weather: WeatherSource) -> object:
     """``weather.prepare`` of the geometry's sample points, kept with the geometry where the source can reuse points
     located on its grid by another source (a process routing many members of one ensemble file, or many departures,

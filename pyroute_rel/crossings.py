@@ -51,7 +51,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -361,7 +361,7 @@ def _box_max(
     reach = []
     for c in model.criteria:
         lo, hi = ranges[c.quantity]
-        side = "right" if c.closed == "left" else "left"
+        side: Literal["left", "right"] = "right" if c.closed == "left" else "left"
         edges = np.asarray(c.edges, dtype=float)
         b_lo, b_hi = np.searchsorted(edges, lo, side=side), np.searchsorted(edges, hi, side=side)
         known = ~np.isnan(lo)
@@ -751,6 +751,7 @@ def time_fractions(
     if steps is None or not len(steps) or not n:
         return np.zeros(0, dtype=np.intp), np.zeros(0)
     steps_h = step_hours(steps, departure)
+    assert steps_h is not None  # (steps are given)
     marks = np.where(np.isfinite(marks_h), marks_h, -np.inf)
     j = np.searchsorted(steps_h, marks, side="right")  # the first step after each mark
     counts = np.maximum(j[:, 1:] - j[:, :-1], 0)  # steps in (mark k, mark k + 1], per sub-segment

@@ -813,7 +813,7 @@ class _Pricing:
                 if steady:
                     self.memo.clear()
                     self.memo[k] = (costed, (side, change_h))
-        pen = None if side is None or from_side < 0 else np.where(side != from_side, change_h, 0.0)
+        pen = None if side is None or change_h is None or from_side < 0 else np.where(side != from_side, change_h, 0.0)
         time_h = costed.costs.time_h
         hit = None
         if problem.blocked is not None and not self.lazy:
@@ -834,6 +834,7 @@ class _Pricing:
             if judged:  # (nothing judged on pieces: the times are those of the costs)
                 time_h = np.where(np.isfinite(costed.costs.time_h), time_h, np.inf)  # forbidden on pieces now
             if self.lazy:
+                assert hit is not None  # (a lazy obstacle mask always answers)
                 total = np.where(hit, np.inf, total)
                 time_h = np.where(hit, np.inf, time_h)
         reason = np.where(live, costed.costs.reason, np.uint8(0)).astype(np.uint8, copy=False)
@@ -1401,15 +1402,18 @@ def _costs_of(
     shape = pick.shape
     where = np.flatnonzero(pick)
 
-    def picked(a: FloatArray | None) -> FloatArray | None:  # rows of the picked arcs (a take: faster than a mask)
-        if a is None:
-            return None
+    def picked(a: FloatArray) -> FloatArray:  # rows of the picked arcs (a take: faster than a mask)
         if a.shape[:-1] == shape and a.flags.c_contiguous:
             return np.take(a.reshape(-1, a.shape[-1]), where, axis=0)
         return np.broadcast_to(a, shape + (a.shape[-1],))[pick]
 
     sub = ArcGeometry(
-        *(picked(a) for a in (geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, geom.a_xyz, geom.b_xyz))
+        picked(geom.lon_deg),
+        picked(geom.lat_deg),
+        picked(geom.course_deg),
+        picked(geom.seg_nm),
+        None if geom.a_xyz is None else picked(geom.a_xyz),
+        None if geom.b_xyz is None else picked(geom.b_xyz),
     )
     part = _Costed.of(problem, sub, np.broadcast_to(t0, shape)[pick], lazy_pieces)
     c = part.costs
@@ -1666,9 +1670,11 @@ def _timed_legs(
         guess[0] = 0.0  # the first leg leaves at the departure whatever the guess
     done, passes = 0, 0
     while done < n_legs:
-        many = guess is not None and passes < GUESS_PASSES
+        guessed = guess if passes < GUESS_PASSES else None  # this pass's departures, when guessed
+        many = guessed is not None
         idx = np.arange(done, n_legs if many else done + 1)
-        t0 = (guess[idx] if many else np.full(1, elapsed[done])) + wait[idx]  # guess[done] == elapsed[done]
+        # guess[done] == elapsed[done]
+        t0 = (guessed[idx] if guessed is not None else np.full(1, elapsed[done])) + wait[idx]
         passes += many
         c = problem.costs(lon[idx], lat[idx], lon[idx + 1], lat[idx + 1], t0)
         times[idx], p_f[idx], reason[idx] = c.time_h, c.p_f, c.reason
@@ -1685,8 +1691,8 @@ def _timed_legs(
             elapsed[i + 1] = (
                 problem.arrive(t + times[i]) if penalties is None else problem.arrive((t + times[i]) + pen[i])
             )
-            if stop == n_legs and i + 1 < n_legs and (not many or elapsed[i + 1] != guess[i + 1]):
-                stop = i + 1
+            if stop == n_legs and i + 1 < n_legs and (guessed is None or elapsed[i + 1] != guessed[i + 1]):
+                stop = int(i) + 1
         done = stop
         if many:
             guess = elapsed[:-1].copy()  # the next pass's departures: exact up to ``done``
