@@ -263,8 +263,8 @@ class _SubArcs:
         col = np.arange(leg.size) - self.first[leg]
         rows = np.full((n_arcs, width), np.nan)
         rows[leg, col] = fraction
-        ends = (x[:, None] for x in (self.a0, self.b0, self.a1, self.b1))
-        lon, lat = geodesy.intermediate_point(*ends, rows)
+        a0, b0, a1, b1 = (x[:, None] for x in (self.a0, self.b0, self.a1, self.b1))
+        lon, lat = geodesy.intermediate_point(a0, b0, a1, b1, rows)
         return lon[leg, col], lat[leg, col]
 
     def conditions(

@@ -68,7 +68,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -372,6 +372,19 @@ class _Candidates:
     parent: IntArray
 
 
+class _Ends(NamedTuple):
+    """The end points of a rank's arcs [deg], one value per arc (flat)."""
+
+    lon0: FloatArray
+    lat0: FloatArray
+    lon1: FloatArray
+    lat1: FloatArray
+
+    def take(self, index: IntArray) -> _Ends:
+        """The end points of the arcs ``index``."""
+        return _Ends(*(e[index] for e in self))
+
+
 def voyage_front(grid: Grid, problem: RoutingProblem, *, max_labels: int = MAX_LABELS, progress: bool = False) -> Front:
     """The front of (voyage time, voyage failure probability) on the grid by label setting (module notes).
 
@@ -673,14 +686,14 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
     if problem.blocked is not None:
         live &= ~problem.blocked(k, None)  # zones with time windows are refused before
     geom = grid_geometry(grid, k, problem.samples)
-    ends = [np.broadcast_to(a, src.shape).ravel() for a in grid.arcs(k)[:4]]
+    ends = _Ends(*(np.broadcast_to(a, src.shape).ravel() for a in grid.arcs(k)[:4]))
     steady = bool(problem.weather.steady)
     if steady:  # cost each live arc once (p_f judged on every piece: the hazard screen's), keep the sailable ones
         costs = problem.geometry_costs(geom, np.zeros(src.shape)) if problem.failure is None else _exact(problem, geom)
         time_all = np.where(live, costs.time_h, np.inf).ravel()
         arc = np.flatnonzero(np.isfinite(time_all))
         time_arc = time_all[arc]
-        hz = _steady_hazards(problem, geom, src.shape, arc, [e[arc] for e in ends], time_arc, costs)
+        hz = _steady_hazards(problem, geom, src.shape, arc, ends.take(arc), time_arc, costs)
         from .front_compiled import extend_steady  # numba: imported by the voyage front only
 
         node, t, h, parent = extend_steady(
@@ -709,7 +722,7 @@ def _extend(grid: Grid, problem: RoutingProblem, k: int, labels: _Labels) -> _Ca
     ok = np.isfinite(time_h)
     p_pair = np.broadcast_to(costs.p_f, c_arc.shape)[ok]
     marks = None if costs.marks_h is None else costs.marks_h[ok]  # the times the arcs were sailed at
-    hz = arc_exposure(problem, *(e[c_arc[ok]] for e in ends), t0[ok], time_h[ok], p_pair, marks_h=marks).hazard
+    hz = arc_exposure(problem, *ends.take(c_arc[ok]), t0[ok], time_h[ok], p_pair, marks_h=marks).hazard
     return _Candidates(
         node=c_arc[ok] // width,
         t=t0[ok] + time_h[ok],
@@ -746,7 +759,7 @@ def _steady_hazards(
     geom: ArcGeometry,
     shape: tuple[int, ...],
     arc: IntArray,
-    ends: list[FloatArray],
+    ends: _Ends,
     time_h: FloatArray,
     costs: Any,
 ) -> FloatArray:
@@ -792,7 +805,7 @@ def _steady_hazards(
                 np.broadcast_to(a, shape + (a.shape[-1],)).reshape(-1, a.shape[-1])[arc[rest]] for a in _columns(geom)
             ]
             p_f = np.asarray(_exact(problem, ArcGeometry(*cols), exact_p_f=False).p_f, dtype=float)
-        hz[rest] = arc_exposure(problem, *(e[rest] for e in ends), np.zeros(rest.size), time_h[rest], p_f).hazard
+        hz[rest] = arc_exposure(problem, *ends.take(rest), np.zeros(rest.size), time_h[rest], p_f).hazard
     return hz
 
 

@@ -246,7 +246,8 @@ class PlanningProblem:
         if land is not None and ok.any():
             flat = ok.ravel().copy()
             pick = np.flatnonzero(flat)
-            flat[pick[arcs_blocked(*(v.ravel()[pick] for v in a[:4]), land)]] = False
+            lon0, lat0, lon1, lat1 = (v.ravel()[pick] for v in a[:4])
+            flat[pick[arcs_blocked(lon0, lat0, lon1, lat1, land)]] = False
             ok = flat.reshape(ok.shape)
         if avoid.zones and ok.any():
             t_start = hours_after(problem.departure, a[4])
