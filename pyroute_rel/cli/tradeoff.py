@@ -82,15 +82,18 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     text = json.dumps(finite_or_null(doc), allow_nan=False)  # a hazard is inf where a leg meets p_f = 1: null
     if args.out is not None:
         figures = _figures(result, args.front)
-        writers: dict[str, Callable[[Path], object]] = {
-            name: (lambda p, f=fig: f.savefig(p, format="png")) for name, fig in figures.items()
-        }
+        writers = {name: _png_writer(fig) for name, fig in figures.items()}
         writers["tradeoff.json"] = lambda p: p.write_text(
             json.dumps(json.loads(text), indent=1) + "\n", encoding="utf-8"
         )
         write_together(args.out, writers, option="--out")
     print(text if args.json else _text(doc, args.out))
     return 0
+
+
+def _png_writer(fig: Any) -> Callable[[Path], object]:
+    """Writes the figure ``fig`` as PNG to the path it is given."""
+    return lambda p: fig.savefig(p, format="png")
 
 
 def _compute(scenario: Any, args: argparse.Namespace) -> dict[str, Any]:

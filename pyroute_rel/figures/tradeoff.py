@@ -55,7 +55,7 @@ def front_figure(
     axes = [fig.add_subplot(2, 1, 1) if voyage else fig.add_subplot()]
     if voyage:
         axes.append(fig.add_subplot(2, 1, 2, sharex=axes[0]))
-    panels = [(y, label, (-0.03, 1.03))]
+    panels: list[tuple[np.ndarray, str, tuple[float, float] | None]] = [(y, label, (-0.03, 1.03))]
     if voyage:
         panels.append(
             (np.array([p.hazard for p in front.points]), "hazard -ln(1 - p) [-] (log; inf and 0 off scale)", None)
@@ -143,8 +143,8 @@ def sensitivity_figure(route: Route, rows: Sequence[Sensitivity], which: Any, *,
     lon, lat = view(route.lon_deg), route.lat_deg
     for i, row in enumerate(rows):
         colour = _CRITERION_COLOURS[i % len(_CRITERION_COLOURS)]
-        for leg in np.flatnonzero(row.exposed_legs):
-            ax.plot(lon[leg : leg + 2], lat[leg : leg + 2], color=colour, lw=7, alpha=0.3, solid_capstyle="butt")
+        for k in np.flatnonzero(row.exposed_legs):
+            ax.plot(lon[k : k + 2], lat[k : k + 2], color=colour, lw=7, alpha=0.3, solid_capstyle="butt")
         ax.plot([], [], color=colour, lw=7, alpha=0.3, label=f"exposed to {row.node}: {row.exposure_h:.1f} h")
     for leg in range(route.legs.n_legs):
         i = int(which[leg])
