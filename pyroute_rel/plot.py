@@ -231,10 +231,10 @@ def _draw_risk(ax: Axes, field: RiskField, *, hatched: bool) -> list[Artist]:
         light, dark = (np.array(to_rgb(c)) for c in _RISK_FILL[cls])
         colour = tuple(light + (dark - light) * (k / (n - 1) if n > 1 else 1.0))
         if hatched:  # over the wave heights' colours: strong hatch colours, denser for higher p_f
-            colour = _RISK_HATCH_COLOUR[cls]
+            strong = _RISK_HATCH_COLOUR[cls]
             hatch = _RISK_HATCH[cls] * (2 + k)
-            style: dict[str, Any] = {"colors": ["none"], "hatches": [hatch], "hatchcolor": colour}
-            handle = Patch(facecolor="none", edgecolor=colour, hatch=hatch, label=label)
+            style: dict[str, Any] = {"colors": ["none"], "hatches": [hatch], "hatchcolor": strong}
+            handle = Patch(facecolor="none", edgecolor=strong, hatch=hatch, label=label)
         else:
             style = {"colors": [colour], "alpha": 0.55}
             handle = Patch(facecolor=colour, alpha=0.55, label=label)
@@ -481,11 +481,13 @@ def plot_routes(
     _frame(ax, limits)
     ax.grid(True, lw=0.3)
     lines, names = ax.get_legend_handles_labels()
+    keys: list[Artist | tuple[Artist, ...]] = [*lines]
     finish = [ln for ln in ax.get_lines() if ln.get_gid() == "finish line"]
     if finish:  # the legend's finish line chequered like the map's: black under white dashes
         dashes = Line2D([], [], color="w", lw=1.6, ls=(0, (2, 2)))
-        lines = [(h, dashes) if n == "finish line" else h for h, n in zip(lines, names, strict=True)]
-    ax.legend([*lines, *handles], [*names, *(h.get_label() for h in handles)], fontsize=6.5, loc="best")
+        keys = [(h, dashes) if n == "finish line" else h for h, n in zip(lines, names, strict=True)]
+    # (each handle made with a label: str, where matplotlib's stubs give get_label() as an object)
+    ax.legend([*keys, *handles], [*names, *(str(h.get_label()) for h in handles)], fontsize=6.5, loc="best")
     ax.set_title(title or f"{grids[0].n_ranks} ranks x {grids[0].n_nodes} nodes", fontsize=10)
     if shaded is not None:
         fig.text(0.01, 0.01, _caption(shaded, labels[shade or 0]), fontsize=6.5, color="0.3", va="bottom")
