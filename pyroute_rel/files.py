@@ -287,7 +287,7 @@ def clean_stale_staging(out: str | os.PathLike[str]) -> list[Path]:
     no longer running (or is this process, which has no write in progress here) are removed, with the plain files
     in them; anything else, a folder of a run still writing included, is left alone. Returns the folders removed.
     """
-    removed = []
+    removed: list[Path] = []
     try:
         candidates = [p for p in Path(out).iterdir() if p.name.startswith(STAGING_PREFIX)]
     except OSError:

@@ -208,7 +208,9 @@ def track_samples(route: Route, *, spacing_km: float = 10.0) -> tuple[FloatArray
     return s_lon, s_lat, course, elapsed
 
 
-def nearest_sample(lon_deg: FloatArray, lat_deg: FloatArray, s_lon: FloatArray, s_lat: FloatArray) -> FloatArray:
+def nearest_sample(
+    lon_deg: FloatArray, lat_deg: FloatArray, s_lon: FloatArray, s_lat: FloatArray
+) -> npt.NDArray[np.intp]:
     """Index of the sample nearest (great circle) each point, in the points' shape."""
     pts = geodesy.to_xyz(lon_deg, lat_deg).reshape(-1, 3)
     samples = geodesy.to_xyz(s_lon, s_lat)

@@ -296,7 +296,7 @@ class Scenario:
         progress = check_flag(progress, "progress", ScenarioError)
         check_points(self.marks(), self.avoid)
         failure = self.load_failure()
-        routes = []
+        routes: list[Route] = []
         departure = self.departure
         grids = self.leg_grids() if grids is None else self._checked_grids(grids)
         self._warn_zones_outside(grids)

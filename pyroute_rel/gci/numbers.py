@@ -33,7 +33,7 @@ doi:10.1016/j.jcp.2013.12.029.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from types import MappingProxyType
 from typing import Any
@@ -440,7 +440,7 @@ def grid_convergence(
 
 
 #: The estimates of a triplet whose apparent order is undefined.
-_UNDEFINED: Mapping[str, Any] = MappingProxyType(
+_UNDEFINED: MappingProxyType[str, Any] = MappingProxyType(
     dict(p=None, phi_ext=None, e_ext=None, gci_fine=None, gci_coarse=None, asymptotic_ratio=None)
 )
 

@@ -105,7 +105,8 @@ class QNetwork:
 
         def write(tmp: Path) -> None:
             with open(tmp, "wb") as fh:
-                np.savez(fh, settings=np.array(_settings_key(settings)), **arrays)
+                # (allow_pickle: numpy's default, named so that no array's name can take its place)
+                np.savez(fh, settings=np.array(_settings_key(settings)), allow_pickle=True, **arrays)
 
         write_together(path.parent, {path.name: write}, option="[planner.dqn].model")
 
