@@ -428,6 +428,7 @@ def _dp_elapsed(result: DPResult) -> FloatArray:
     ranks = np.arange(len(nodes))
     if result.labels is not None:
         sides = result.path_sides()
+        assert sides is not None  # (a DP with side labels gives the path's sides)
         arrival = result.labels.arrival_h[ranks, nodes, sides[:-1]]
     else:
         arrival = result.arrival_h[ranks, nodes]
@@ -670,8 +671,13 @@ def forbidden_on_grid(
     fired = cols["fired"].astype(np.int64)
     return ForbiddenArcs(
         leg=np.full(reasons.size, leg, dtype=np.intp),
-        **{key: cols[key].astype(np.intp) for key in keys[:3]},
-        **{key: cols[key] for key in keys[3:7]},
+        rank=cols["rank"].astype(np.intp),
+        src=cols["src"].astype(np.intp),
+        dst=cols["dst"].astype(np.intp),
+        from_lon_deg=cols["from_lon_deg"],
+        from_lat_deg=cols["from_lat_deg"],
+        to_lon_deg=cols["to_lon_deg"],
+        to_lat_deg=cols["to_lat_deg"],
         departure_h=offset_h + cols["departure_h"],
         departure=np.datetime64(problem.departure, "s")  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
         + np.round(cols["departure_h"] * 3600.0).astype("timedelta64[s]"),
