@@ -267,8 +267,9 @@ def _grid_settings(v: Any, where: str) -> tuple[tuple[str, Any], ...]:
     for k, value in v.items():
         if k not in keys:
             raise SweepError(f"{where}: unknown [grid] key {show(k)} (expected one of {', '.join(keys)})")
-        if keys[k].check is not None:
-            keys[k].check(value, f"{where}.{k}")
+        check = keys[k].check
+        if check is not None:
+            check(value, f"{where}.{k}")
     return tuple(sorted(v.items()))
 
 
@@ -347,12 +348,12 @@ def _sweep_from_mapping(table: Mapping[str, Any], base: Path) -> SweepSpec:
     deps = _departures(raw.get("departures"), "[sweep].departures")
     members = _members(raw.get("members"), "[sweep].members", scenario)
     apfs = _nonempty_list(raw["apf"], "[sweep].apf", probability) if "apf" in raw else [None]
-    models = (
+    models: list[str | None] = (
         [_file_or_name(m, base) for m in _nonempty_list(raw["failure_models"], "[sweep].failure_models", _name)]
         if "failure_models" in raw
         else [None]
     )
-    polars = (
+    polars: list[str | None] = (
         [_file_or_name(p, base) for p in _nonempty_list(raw["polars"], "[sweep].polars", _name)]
         if "polars" in raw
         else [None]
@@ -429,15 +430,19 @@ def _digest_of(path: str, size: int, mtime_ns: int) -> str:
     return h.hexdigest()
 
 
+def _subtable(table: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+    """``table[key]`` when it is a table, else an empty one."""
+    value = table.get(key)
+    return value if isinstance(value, Mapping) else {}
+
+
 def _referenced_files(table: Mapping[str, Any], base: Path, run: Run) -> list[str]:
     """Names of the files a run reads besides its scenario (weather, polar, failure model, zones), as written."""
     names: list[Any] = []
     weather = table.get("weather")
     if isinstance(weather, Mapping) and weather.get("kind") == "file" and isinstance(weather.get("paths"), list):
         names += weather["paths"]
-    boat, failure, avoid = (
-        table.get(k) if isinstance(table.get(k), Mapping) else {} for k in ("boat", "failure", "avoid")
-    )
+    boat, failure, avoid = (_subtable(table, k) for k in ("boat", "failure", "avoid"))
     names += [run.polar or boat.get("polar"), run.failure_model or failure.get("model")]
     if isinstance(avoid.get("zones"), list):
         names += avoid["zones"]
@@ -505,8 +510,8 @@ def _scenario(run: Run) -> Scenario:
 def _grids(sc: Scenario) -> list[Grid]:
     """The scenario's grids, shared by every run of this process with the same course and grid settings (what is
     cached on them, arc geometry and obstacle masks, is then computed once)."""
-    names = ("start", "finish", "waypoints", "start_line", "finish_line", "layout", "n_ranks", "n_nodes")
-    names += ("spacing_km", "aspect", "half_width_km", "max_deviation_deg")
+    names = ("start", "finish", "waypoints", "start_line", "finish_line", "layout", "n_ranks", "n_nodes",
+             "spacing_km", "aspect", "half_width_km", "max_deviation_deg")  # fmt: skip
     key = json.dumps([getattr(sc, n) for n in names], default=str)
     return current_store().shelf("sweep.grids", limit=GRID_CACHE_SIZE).get_or_make(key, sc.leg_grids)  # type: ignore[no-any-return]
 
