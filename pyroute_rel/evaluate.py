@@ -32,7 +32,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from dataclasses import fields as dataclass_fields
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -49,6 +49,7 @@ from .times import iso_utc
 from .weather.base import Conditions, WeatherBase
 
 if TYPE_CHECKING:
+    from .crossings import ArcPieces
     from .scenario import Scenario
     from .solve import RoutingProblem
     from .weather import WeatherSource
@@ -227,7 +228,7 @@ def _geojson_track(text: str) -> Track:
             f"GeoJSON must hold one LineString (or a Feature or FeatureCollection with one) (found {len(lines)})"
         )
     geometry, props = lines[0]
-    coords = geometry.get("coordinates")
+    coords: Any = geometry.get("coordinates")  # (any JSON: checked as it is read)
     if geometry.get("type") == "MultiLineString":
         coords = _join_parts(coords)
     try:
@@ -552,15 +553,23 @@ class _Sailing:
         time = np.where(stop <= n, np.inf, self.elapsed[rows, n])
         sailed = (point[:, :-1] < stop[:, None]) & (point[:, :-1] < n[:, None])
         apf = np.repeat([float(p.apf) for p in self.problems], n_c)
+        # (casts: any() along axis 1 of a 2-D array is an array, where numpy's stubs allow a scalar)
         with np.errstate(invalid="ignore"):
-            over = (sailed & (self.p_f > apf[:, None])).any(axis=1)
+            over = cast("npt.NDArray[np.bool_]", (sailed & (self.p_f > apf[:, None])).any(axis=1))
         known = sailed & np.isfinite(self.p_f)
         top = np.where(known.any(axis=1), np.max(np.where(known, self.p_f, -np.inf), axis=1, initial=-np.inf), 0.0)
-        land = (sailed & self.land).any(axis=1)
+        land = cast("npt.NDArray[np.bool_]", (sailed & self.land).any(axis=1))
         stops = np.uint8(_STOPS["no_speed"] | _STOPS["current"] | _STOPS["weather"])
         blocked = ~np.isfinite(time) | (sailed & ((self.reason & stops) != 0)).any(axis=1)
         blocked |= land | (sailed & self.zone).any(axis=1)
-        return MemberFigures(*(x.reshape(n_m, n_c).T for x in (time, top, over, blocked, land)))
+        shape = (n_m, n_c)  # each figure per (weather, track), then transposed
+        return MemberFigures(
+            time.reshape(shape).T,
+            top.reshape(shape).T,
+            over.reshape(shape).T,
+            blocked.reshape(shape).T,
+            land.reshape(shape).T,
+        )
 
 
 def _sail_rows(
@@ -743,7 +752,7 @@ class _Legs:
             lat_hi + pad,
         )
 
-    def at(self, rows: npt.NDArray[np.intp], k: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], ArcGeometry]:
+    def at(self, rows: npt.NDArray[np.intp], k: int | npt.NDArray[np.intp]) -> tuple[npt.NDArray[np.intp], ArcGeometry]:
         """Which legs rows ``rows`` sail as their ``k``-th (row ``r`` is track ``r % tracks``), and their samples'
         geometry (without the ends' unit vectors)."""
         i = self.index[rows % self.index.shape[0], k]
@@ -869,6 +878,7 @@ def _judge_legs(
         return
     g = legs.geometry
     assert g.a_xyz is not None and g.b_xyz is not None
+    calls: list[tuple[npt.NDArray[np.intp], npt.NDArray[np.intp], npt.NDArray[np.intp], ArcPieces | None, Any]]
     if len(problems) == 1 or stack is not None:  # one call, each leg judged cut once
         r, k, i = (np.concatenate([x[n] for x in picked]) for n in (1, 2, 3))
         which, at = np.unique(i, return_inverse=True)

@@ -8,6 +8,7 @@ import io
 import json
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -150,7 +151,7 @@ def _monte_carlo(args: argparse.Namespace, scenario: Any, track: Any) -> Any:
     settings = MonteCarloSettings(**{k: v for k, v in given.items() if v is not None})
     if args.member is not None and args.wind_sd is None and args.wind_growth is None:
         spread = spread_from_members(args.scenario, track, departure=args.departure)
-        settings = MonteCarloSettings(**{**settings.describe_values(), "spread_ms": spread})
+        settings = replace(settings, spread_ms=spread)
     seed = 0 if args.seed is None else args.seed
     return monte_carlo(scenario, track, runs=args.monte_carlo, seed=seed, settings=settings,
                        departure=args.departure)  # fmt: skip
