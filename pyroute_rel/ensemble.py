@@ -669,11 +669,11 @@ def _check_ensemble_args(
     """The arguments of :func:`route_ensemble` checked before any file is read: ScenarioError naming the argument."""
     check_path(path, "scenario", ScenarioError)
     if members is not None:
-        check_instance(members, list | tuple | range | np.ndarray, "members", ScenarioError, expected="a list of ints")
+        check_instance(members, (list, tuple, range, np.ndarray), "members", ScenarioError, expected="a list of ints")
         if any(isinstance(m, bool) or not isinstance(m, int | np.integer) for m in members):
             raise ScenarioError(f"members must be whole numbers (member indices) (got {brief(members)})")
     if member_files is not None:
-        check_instance(member_files, list | tuple, "member_files", ScenarioError, expected="a list of file names")
+        check_instance(member_files, (list, tuple), "member_files", ScenarioError, expected="a list of file names")
         for f in member_files:
             check_path(f, "member_files item", ScenarioError)
     check_flag(mean_field, "mean_field", ScenarioError)
