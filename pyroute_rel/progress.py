@@ -22,10 +22,10 @@ class _NullBar:
         pass
 
 
-def progress_bar(total: int, *, enabled: bool, desc: str = "routing", unit: str = "rank") -> Any:
-    """A tqdm bar of ``total`` steps on stderr when ``enabled`` and stderr is a terminal, else one that shows
-    nothing; both have ``update(n)`` and ``close()``. ``enabled`` other than True or False (a caller's ``progress``
-    argument) is a :class:`~pyroute_rel.errors.ScenarioError`."""
+def progress_bar(total: int | None, *, enabled: bool, desc: str = "routing", unit: str = "rank") -> Any:
+    """A tqdm bar of ``total`` steps (None: not known) on stderr when ``enabled`` and stderr is a terminal, else one
+    that shows nothing; both have ``update(n)`` and ``close()``. ``enabled`` other than True or False (a caller's
+    ``progress`` argument) is a :class:`~pyroute_rel.errors.ScenarioError`."""
     if not isinstance(enabled, bool | np.bool_):
         raise ScenarioError(f"progress must be True or False (got {brief(enabled)})")
     if not enabled or not sys.stderr.isatty():

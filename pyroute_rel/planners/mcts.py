@@ -100,7 +100,7 @@ class _HeadingSim:
 
     def __init__(self, problem: PlanningProblem, s: MCTSSettings) -> None:
         self.p, self.s = problem, s
-        self.headings = np.arange(s.headings) * (360.0 / s.headings)
+        self.headings = np.arange(s.headings, dtype=np.float64) * (360.0 / s.headings)
         self.finish_action = s.headings
 
     def moves(self, state: State, weather: Any) -> Moves:
@@ -348,7 +348,7 @@ class MCTSPlanner:
         runtime = _time.perf_counter() - t0
         lon = np.array([st.lon for st in track])
         lat = np.array([st.lat for st in track])
-        stats = {
+        stats: dict[str, Any] = {
             "iterations": s.iterations,
             "decisions": decisions,
             "iterations_total": s.iterations * decisions,
