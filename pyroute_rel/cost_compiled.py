@@ -9,6 +9,9 @@ classify a failure model's quantities as :meth:`~pyroute_rel.failure.FailureMode
 
 Imported only by routes over gridded weather, which load numba anyway: its import costs half a second,
 which the default routes do not pay.
+
+Numpy twin: :func:`pyroute_rel.cost._sample_speeds` and :meth:`~pyroute_rel.failure.FailureModel.evidence_index`;
+pinned by ``tests/test_cost.py::test_compiled_wind_kernel_is_bit_identical_to_numpy`` (and the march's tests).
 """
 
 from __future__ import annotations

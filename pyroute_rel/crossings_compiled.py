@@ -15,6 +15,10 @@ which is then exact).
 The weather's fields are given per criterion (:class:`BoxFields`): the value outside the patches and, per patch,
 the value it sets (NaN: it leaves that field as it is), later patches winning where they overlap, a patch closed, as
 :meth:`~pyroute_rel.weather.UniformWeather.sample` gives them. numba is imported only by problems this path serves.
+
+Numpy twin: :func:`pyroute_rel.crossings.arc_extremes` and :func:`~pyroute_rel.crossings.needs_pieces`; pinned by
+``tests/test_dp_compiled_failure.py::test_arc_p_f_equals_arc_extremes`` and
+``::test_arcs_passed_over_are_judged_by_their_samples``.
 """
 
 from __future__ import annotations

@@ -37,6 +37,10 @@ Five ways through a rank share the per-arc arithmetic:
 
 Kernels take contiguous, writable arrays (one compiled signature each). numba is imported only by problems this
 path serves.
+
+Numpy twin: the numpy rank of :func:`pyroute_rel.solve.forward_dp`
+(:attr:`~pyroute_rel.settings.Settings.compiled_rank_step` False); pinned by
+``tests/test_dp_compiled.py::test_compiled_rank_step_equals_numpy`` and ``tests/test_dp_compiled_failure.py``.
 """
 
 from __future__ import annotations

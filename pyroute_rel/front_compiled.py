@@ -16,6 +16,10 @@ the candidates whose hazard is not below it (hazards do not increase along a run
 merged. The result is the same as :func:`nondominated` on every candidate laid out arc by arc (tested).
 
 numba is imported only by the voyage front.
+
+Numpy twin: pairwise dominance (the definition); pinned by
+``tests/test_front_compiled.py::test_nondominated_equals_pairwise_dominance`` and
+``::test_extend_steady_equals_candidates_laid_out``.
 """
 
 from __future__ import annotations

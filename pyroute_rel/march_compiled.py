@@ -12,6 +12,9 @@ does), the polar of :mod:`pyroute_rel.polar_compiled` and the failure model's ev
 
 It covers sources whose fields the march needs (wind, and the fields the failure model judges) share one grid (one
 block); :func:`pyroute_rel.cost.geometry_costs` uses the numpy march for everything else.
+
+Numpy twin: :func:`pyroute_rel.march.march` (:attr:`~pyroute_rel.settings.Settings.compiled_march` False); pinned
+by ``tests/test_dp_glue.py::test_compiled_bookkeeping_equals_the_numpy_path`` and the Monte Carlo tests there.
 """
 
 from __future__ import annotations

@@ -14,6 +14,9 @@ up or down while the guess is off (so any strictly increasing axis gives the sam
 numba caches a kernel with the functions it calls compiled in, and checks only the kernel's own file for changes:
 after editing this module, delete the ``__pycache__`` caches (or touch ``cost_compiled.py`` and
 ``dp_compiled.py``) so that the kernels are compiled again.
+
+Numpy twin: :func:`pyroute_rel.polar.boat_speed_kn`; pinned by ``tests/test_polar_compiled.py`` (cells equal numpy's
+``searchsorted``, speeds equal the numpy lookup's).
 """
 
 from __future__ import annotations
