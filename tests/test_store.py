@@ -302,7 +302,7 @@ def test_a_pool_in_use_is_never_shut_down_under_a_call() -> None:
     done = threading.Event()
 
     def user(workers: int) -> None:
-        for _ in range(200):
+        for _ in range(25):
             try:
                 assert thread_map(lambda x: x * x, range(16), workers) == [x * x for x in range(16)]
             except Exception as exc:  # noqa: BLE001 - reported below
