@@ -186,6 +186,7 @@ twd_deg = 0.0
     return path
 
 
+@pytest.mark.slow  # (the GLOBE raster: 0.9 GB read once)
 @pytest.mark.parametrize(
     ("route", "avoid", "expected"),
     [
@@ -284,6 +285,7 @@ def test_zone_time_window(tmp_path: Path, free_route, valid_from: str, valid_to:
 # --------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # (the GLOBE raster: 0.9 GB read once)
 def test_real_course_example_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str], globe) -> None:
     out = tmp_path / "out"
     code = main(

@@ -377,6 +377,7 @@ def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
     assert got["edges"] == [list(e) for e in first.edges]
 
 
+@pytest.mark.slow
 def test_disk_cache_is_used_instead_of_compiling(tmp_path, monkeypatch):
     monkeypatch.setenv("PYROUTE_REL_CACHE_DIR", str(tmp_path / "cache"))
     failure._compiled_tables().clear()

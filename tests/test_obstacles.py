@@ -89,6 +89,7 @@ def random_arcs(rng, n, box, length_km):
 # --------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_great_circle_through_guadeloupe_is_blocked(globe):
     # the brief's case: a great circle at 16.25 N from 57 W to 64 W crosses Guadeloupe (Grande-Terre)
     assert ob.arcs_on_land(-57.0, 16.25, -64.0, 16.25).item()
@@ -100,6 +101,7 @@ def test_great_circle_through_guadeloupe_is_blocked(globe):
     assert not globe.is_land(pts[:, 1], pts[:, 0]).any()
 
 
+@pytest.mark.slow  # (the GLOBE raster: 0.9 GB read once)
 @pytest.mark.parametrize(
     ("name", "lon", "lat", "land"),
     [
@@ -117,6 +119,7 @@ def test_known_points_match_independent_raster(globe, name, lon, lat, land):
     assert bool(globe.is_land(lat, lon)) is land, f"{name}: the GLOBE raster disagrees with geography"
 
 
+@pytest.mark.slow  # (the GLOBE raster: 0.9 GB read once)
 @pytest.mark.parametrize("bbox", [(-63.0, 11.0, -59.0, 19.0), (-6.0, 43.0, -1.0, 49.0)])
 def test_points_agree_with_independent_raster_away_from_the_coast(globe, bbox):
     # Lesser Antilles and Brittany/Biscay. The sources may only disagree within 2 km of the shoreline:
@@ -136,6 +139,7 @@ def test_points_agree_with_independent_raster_away_from_the_coast(globe, bbox):
         assert d.max() < 2.0
 
 
+@pytest.mark.slow  # (the GLOBE raster: 0.9 GB read once)
 def test_point_five_km_off_barbados_and_margins(globe):
     lon, lat = -59.4075, 13.2  # east of Barbados
     d = distance_to_land_km([lon], [lat], (-61.0, 12.0, -58.0, 14.0))[0]
