@@ -100,7 +100,7 @@ def _reference(course, twd, tws, u, v, polar, factor=1.0):
     return best
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=50, deadline=None)
 @given(
     course=st.floats(0.0, 359.9),
     twd=st.floats(0.0, 359.9),

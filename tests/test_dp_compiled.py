@@ -44,7 +44,7 @@ def assert_same(a: solve.DPResult, b: solve.DPResult, *, counts: bool = True) ->
 
 
 @pytest.mark.slow
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=12, deadline=None)
 @given(
     seed=st.integers(0, 10_000),
     n_ranks=st.integers(1, 12),
@@ -192,7 +192,7 @@ def _random_penalties(rng: np.random.Generator) -> ManoeuvrePenalties:
 
 
 @pytest.mark.slow
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=12, deadline=None)
 @given(
     seed=st.integers(0, 10_000),
     samples=st.integers(1, 3),

@@ -270,7 +270,7 @@ def nan_weather(draw: st.DrawFn) -> GriddedWeather:
 
 
 @pytest.mark.slow
-@settings(max_examples=25, derandomize=True, deadline=None, database=None)
+@settings(max_examples=15, derandomize=True, deadline=None, database=None)
 @given(
     nan_weather(),
     st.integers(0, 2**31),

@@ -314,8 +314,7 @@ EXAMPLES = ["microtransat_control", "microtransat_beat", "microtransat_run", "mi
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("apf", [0.2, 0.02])
-@pytest.mark.parametrize("name", EXAMPLES)
+@pytest.mark.parametrize(("name", "apf"), [*((n, 0.2) for n in EXAMPLES), ("microtransat_control", 0.02)])
 def test_examples_route_the_same(name: str, apf: float) -> None:
     sc = load_scenario(ROOT / "examples" / f"{name}.toml").with_options(apf=apf)
     grid = sc.make_grid()
