@@ -51,7 +51,18 @@ from contextvars import ContextVar
 from pathlib import Path
 from typing import Any, TypeVar
 
-__all__ = ["Shelf", "Store", "clear_kept", "current_store", "file_stamps", "kept", "kept_by", "kept_call", "ENV_KEEP"]
+__all__ = [
+    "Held",
+    "Shelf",
+    "Store",
+    "clear_kept",
+    "current_store",
+    "file_stamps",
+    "kept",
+    "kept_by",
+    "kept_call",
+    "ENV_KEEP",
+]
 
 T = TypeVar("T")
 
@@ -60,6 +71,22 @@ ENV_KEEP = "PYROUTE_REL_KEEP"
 
 #: Entries a shelf keeps unless its owner says otherwise (least recently used dropped first).
 DEFAULT_LIMIT = 32
+
+
+class Held:
+    """A shelf key for an object that hashes slowly (a coastline's geometry hashes its WKB) or not at all: equal only
+    to a key holding that same object. The key keeps the object alive, so its identity is never another object's."""
+
+    __slots__ = ("obj",)
+
+    def __init__(self, obj: Any) -> None:
+        self.obj = obj
+
+    def __hash__(self) -> int:
+        return id(self.obj)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Held) and other.obj is self.obj
 
 
 class Shelf:
@@ -109,12 +136,13 @@ class Shelf:
             self.hits += 1
             return entry[0]
 
-    def put(self, key: Hashable, value: T, *, replace: bool = True) -> T:
+    def put(self, key: Hashable, value: T, *, replace: bool = True, nbytes: int | None = None) -> T:
         """Keep ``value`` under ``key`` and return it; what was there is dropped (``replace`` False: what was there
-        is kept and returned instead, and ``value`` dropped)."""
+        is kept and returned instead, and ``value`` dropped). ``nbytes``: its size for ``max_bytes`` (default: the
+        shelf's ``nbytes(value)``, else 0)."""
         if not self.keep:
             return value
-        size = int(self._nbytes(value)) if self._nbytes is not None else 0
+        size = int(nbytes) if nbytes is not None else int(self._nbytes(value)) if self._nbytes is not None else 0
         with self._lock:
             old = self._entries.pop(key, None)
             if old is not None and not replace:  # (made meanwhile by another thread: the first one stays)

@@ -60,6 +60,23 @@ def test_a_shelf_drops_the_least_recently_used_beyond_its_bounds_and_closes_what
     assert len(shelf) == 0 and dropped[-1] == "y"
 
 
+def test_a_held_key_finds_its_own_object_only() -> None:
+    """Kept by the object itself (area indexes by geometry): the same object finds its entry, an equal copy does not,
+    and the object is never hashed."""
+    import shapely
+
+    from pyroute_rel.obstacles import areas
+    from pyroute_rel.store import Held
+
+    ring = shapely.Point(0.0, 0.0).buffer(1.0)
+    with kept() as store:
+        first = areas.area_index(ring)
+        assert areas.area_index(ring) is first
+        assert areas.area_index(shapely.from_wkb(shapely.to_wkb(ring))) is not first  # equal, but another object
+        assert len(store.shelf("obstacles.indexes")) == 2
+    assert Held(ring) == Held(ring) and Held(ring) != Held(shapely.from_wkb(shapely.to_wkb(ring)))
+
+
 def test_a_kept_block_has_its_own_store_emptied_at_its_end() -> None:
     outer = current_store()
     closed: list[int] = []

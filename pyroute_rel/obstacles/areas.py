@@ -29,7 +29,6 @@ Butler, H. et al. (2016). The GeoJSON Format. RFC 7946, doi:10.17487/RFC7946.
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,7 +38,7 @@ import shapely
 
 from ..errors import GridError, ScenarioError
 from ..geodesy import from_xyz, gc_densify, to_xyz
-from ..store import current_store
+from ..store import Held, current_store
 from ..units import EARTH_RADIUS_KM
 
 __all__ = [
@@ -210,43 +209,16 @@ def _prefix_sum(mask: BoolArray) -> npt.NDArray[np.int32]:
     return out
 
 
-class _ByGeometry:
-    """What is built from a geometry (its :class:`_Index`, its tiles' STRtree), the 32 most recent, held with the
-    geometry itself and found by that reference: a part of the current store (:mod:`pyroute_rel.store`).
-
-    Found by identity, not by ``hash(geometry)``: shapely hashes a geometry by its WKB, which for a coastline of a
-    few hundred thousand vertices costs milliseconds on every lookup. Geometries are immutable, and each entry holds
-    a reference to its geometry, so an identity never points at another geometry."""
-
-    LIMIT = 32
-
-    def __init__(self, store: Any) -> None:
-        self.keep = bool(store.keep)
-        self.entries: list[tuple[shapely.Geometry, Any]] = []  # most recent last
-        self.lock = threading.Lock()
-
-    def get(self, geometry: shapely.Geometry, build: Any) -> Any:
-        with self.lock:
-            for i, (g, value) in enumerate(self.entries):
-                if g is geometry:
-                    if i != len(self.entries) - 1:
-                        self.entries.append(self.entries.pop(i))
-                    return value
-        value = build(geometry)
-        if self.keep:
-            with self.lock:
-                self.entries.append((geometry, value))
-                del self.entries[: -self.LIMIT]
-        return value
-
-    def clear(self) -> None:
-        with self.lock:
-            self.entries.clear()
+#: Indexes and tile trees kept per geometry (the most recent), in the current store's shelves, found by the
+#: geometry itself (:class:`~pyroute_rel.store.Held`: shapely hashes a geometry by its WKB, which for a coastline
+#: of a few hundred thousand vertices costs milliseconds on every lookup).
+KEPT_PER_SHELF = 32
 
 
 def area_index(geometry: shapely.Geometry) -> _Index:
     """The cached :class:`_Index` of a geometry."""
-    return current_store().part("obstacles.indexes", _ByGeometry).get(geometry, _build_index)
+    shelf = current_store().shelf("obstacles.indexes", limit=KEPT_PER_SHELF)
+    return shelf.get_or_make(Held(geometry), lambda: _build_index(geometry))  # type: ignore[no-any-return]
 
 
 def tiles_tree(geometry: shapely.Geometry) -> shapely.STRtree:
@@ -256,7 +228,8 @@ def tiles_tree(geometry: shapely.Geometry) -> shapely.STRtree:
     great-circle chords between their vertices by under a metre (s^2 tan|lat| / (8 R)); the cut lines between
     tiles are not split (they are shared by neighbouring tiles and lie inside the geometry).
     """
-    return current_store().part("obstacles.trees", _ByGeometry).get(geometry, _build_tree)
+    shelf = current_store().shelf("obstacles.trees", limit=KEPT_PER_SHELF)
+    return shelf.get_or_make(Held(geometry), lambda: _build_tree(geometry))  # type: ignore[no-any-return]
 
 
 def _build_tree(geometry: shapely.Geometry) -> shapely.STRtree:

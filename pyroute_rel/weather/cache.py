@@ -34,7 +34,7 @@ class _WeatherKept:
     :func:`caching` blocks are open."""
 
     def __init__(self, store: Store) -> None:
-        self.entries = Shelf(keep=store.keep, limit=1 << 30, max_bytes=MAX_BYTES, nbytes=lambda v: v[1])
+        self.entries = Shelf(keep=store.keep, limit=1 << 30, max_bytes=MAX_BYTES)
         self.depth = 0
         self.lock = threading.Lock()
 
@@ -75,9 +75,9 @@ def cached(key: Hashable, build: Callable[[], T], *, nbytes: Callable[[T], int] 
     missing = object()
     kept = shelf.get(key, missing)
     if kept is not missing:
-        return kept[0]  # type: ignore[no-any-return]
+        return kept  # type: ignore[no-any-return]
     value = build()  # outside any lock: reading may take seconds
-    shelf.put(key, (value, 0 if nbytes is None else int(nbytes(value))))
+    shelf.put(key, value, nbytes=0 if nbytes is None else int(nbytes(value)))
     return value
 
 
