@@ -1,7 +1,7 @@
 """Benchmarks of the DP's cost per arc (issue 18) and of the manoeuvre state (issue 21).
 
 - ``dp_per_arc_160``: the paper's square 160 x 160 grid, one weather sample per arc, no land, no failure model (the
-  compiled rank step, :mod:`pyroute_rel.dp_compiled`): warm DP time per candidate arc (every arc of the grid, pruned
+  compiled rank step, :mod:`pyroute_rel._kernels.dp`): warm DP time per candidate arc (every arc of the grid, pruned
   or not), against the issue's 25 ns; ``kernel_ns_per_arc`` is the compiled kernel alone doing the same per-arc work
   (TWA, polar, time, earliest arrival, every arc, the weather sampled beforehand, one thread), and ``ratio`` the
   DP's time over it (target: at most 3); ``numpy_ns_per_arc`` the numpy path of the same DP
@@ -21,9 +21,9 @@ BEAT = ROOT / "examples" / "microtransat_beat.toml"
 
 _PER_ARC = f"""
 from pyroute_rel.settings import settings_context
-from pyroute_rel.dp_compiled import _rank_kernel
-from pyroute_rel.polar_compiled import tables
-from pyroute_rel.solve import grid_geometry
+from pyroute_rel._kernels.dp import _rank_kernel
+from pyroute_rel._kernels.polar import tables
+from pyroute_rel.routing.solve import grid_geometry
 sc = load_scenario({str(EXAMPLE)!r}).with_options(layout="square", n_nodes=160, n_ranks=160, failure_model="none",
                                                   land=False, samples_per_arc=1)
 grid = sc.make_grid(); problem = sc.problem()

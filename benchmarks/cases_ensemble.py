@@ -68,7 +68,7 @@ path = folder / "ens.toml"
 )
 
 ENSEMBLE = """
-from pyroute_rel.ensemble import route_ensemble, route_member
+from pyroute_rel.analysis.ensemble import route_ensemble, route_member
 # the first run after an install compiles the numba kernels once and caches them on disk next to the package; one
 # member routed here, untimed, does that (its time is printed as warmup_s), so the figure is the routing's
 t0 = time.perf_counter()
@@ -78,7 +78,7 @@ t0 = time.perf_counter()
 res = route_ensemble(path, workers=2, risk="cvar:0.9")
 t = time.perf_counter() - t0
 s = res.summary()
-from pyroute_rel.members import member_scenario
+from pyroute_rel.analysis.members import member_scenario
 grid = member_scenario(path, 0).make_grid()
 own = [m["voyage_time_h"] for m in s["members"] if m["voyage_time_h"] is not None]
 no_route = [m for m in s["members"] if not m["feasible"]]
@@ -104,7 +104,7 @@ CASES = {
     "monte_carlo_1000_runs_160_legs": (
         SHORT
         + """
-from pyroute_rel.members import member_scenario
+from pyroute_rel.analysis.members import member_scenario
 from pyroute_rel.monte_carlo import monte_carlo
 sc = member_scenario(path, 0)
 track = np.column_stack([np.linspace(-14.0, -26.0, 161), np.linspace(31.0, 22.0, 161)])

@@ -11,9 +11,9 @@ computed once per grid whatever the weather and reported as "grid_geometry_s" ("
 BUILD = """
 import xarray as xr
 from dataclasses import replace
-from pyroute_rel.weather.readers import weather_from_dataset
-from pyroute_rel.weather.readers import GriddedWeather
-from pyroute_rel.grid import plan_grid
+from pyroute_rel.weather.io.readers import weather_from_dataset
+from pyroute_rel.weather.io.readers import GriddedWeather
+from pyroute_rel.routing.grid import plan_grid
 lon = np.arange(-70.0, 0.0001, 0.25); lat = np.arange(5.0, 55.0001, 0.25)
 time_ = np.datetime64("2018-06-01T00") + np.arange(40 * 24) * np.timedelta64(1, "h")
 t = np.arange(time_.size, dtype=np.float32)[:, None, None]
@@ -49,7 +49,7 @@ for _name, _layout, _prune in (
 sc = sc.with_options(layout="{_layout}", prune={_prune})
 grid = sc.make_grid()
 problem = sc.problem(grid=grid)
-from pyroute_rel.solve import grid_geometry
+from pyroute_rel.routing.solve import grid_geometry
 t0 = time.perf_counter()
 for k in range(grid.n_ranks + 1):  # the grid's arc geometry: computed once per grid, whatever the weather
     grid_geometry(grid, k, problem.samples)

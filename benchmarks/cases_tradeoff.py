@@ -21,8 +21,8 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "microtransat_contr
 
 _CODE = """
 from pyroute_rel.errors import LabelLimitError
-from pyroute_rel.route import route_on_grid
-from pyroute_rel.tradeoff import bottleneck_front, voyage_front
+from pyroute_rel.routing.route import route_on_grid
+from pyroute_rel.routing.tradeoff import bottleneck_front, voyage_front
 sc = load_scenario({path!r}).with_options(apf=1.0{extra})
 sc.route()  # warm: the failure table, the land geometry
 def one_route():

@@ -27,9 +27,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from run import calibrate  # noqa: E402
 
 from pyroute_rel import load_scenario  # noqa: E402
+from pyroute_rel._kernels.mcts import search  # noqa: E402
 from pyroute_rel.planners.base import PlanningProblem  # noqa: E402
 from pyroute_rel.planners.mcts import kernel_inputs, python_decision, time_limits  # noqa: E402
-from pyroute_rel.planners.mcts_kernel import search  # noqa: E402
 from pyroute_rel.planners.mcts_lattice import build_lattice  # noqa: E402
 from pyroute_rel.planners.settings import MCTSSettings  # noqa: E402
 

@@ -1,9 +1,9 @@
 """Memory estimate vs measured peak. Run: ``python benchmarks/memory.py [--quick] [--only NAME ...] [--parts]``.
 
 Each case routes a scenario in a fresh process: the child builds the grid and the routing problem, takes the
-estimate of :func:`pyroute_rel.solve.route_memory` (what :func:`~pyroute_rel.solve.forward_dp` checks against the
-budget), resets its high-water mark of resident memory (``/proc/self/clear_refs``: loading a gridded weather file
-peaks before routing, and that peak is not the route's), routes, and reports; the parent reads the child's peak
+estimate of :func:`pyroute_rel.routing.solve.route_memory` (what :func:`~pyroute_rel.routing.solve.forward_dp` checks
+against the budget), resets its high-water mark of resident memory (``/proc/self/clear_refs``: loading a gridded weather
+file peaks before routing, and that peak is not the route's), routes, and reports; the parent reads the child's peak
 resident memory from ``os.wait4``. The table shows estimate, measured peak and their ratio; the script exits 1 when a
 ratio leaves [0.5, 2] (the estimate must be within 2x of the peak). The last columns leave out what the process held
 when the estimate was made (interpreter, libraries, weather): the routing's own estimate and growth (memory freed
@@ -57,7 +57,7 @@ QUICK = ("square_80_s8", "angular_default", "era5_default")
 CHILD = """
 import json, sys
 from pyroute_rel.scenario import load_scenario
-from pyroute_rel.solve import route_memory
+from pyroute_rel.routing.solve import route_memory
 path, options = sys.argv[1], json.loads(sys.argv[2])
 sc = load_scenario(path).with_options(**options)
 grid = sc.make_grid()

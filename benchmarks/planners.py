@@ -172,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         load = os.getloadavg()
         Path(args.json).write_text(json.dumps({"machine": machine, "load": load, "rows": rows}, indent=1))
     if args.figure:
-        from pyroute_rel.figures.planners import planners_map
+        from pyroute_rel.viz.planners import planners_map
 
         planners_map(comparisons).savefig(args.figure, dpi=110)
     return 0

@@ -41,7 +41,7 @@ PRELUDE = """
 import json, resource, time, sys
 import numpy as np
 from pyroute_rel.scenario import load_scenario
-from pyroute_rel.solve import forward_dp
+from pyroute_rel.routing.solve import forward_dp
 def rss_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 def repeats(n):
@@ -152,13 +152,13 @@ print(json.dumps({{"seconds": dt, "grids": len(st.rows), "convergence": st.study
 """)
 
 case("bbn_table_vs_pgmpy", None, "compiled failure table vs one pgmpy VariableElimination query per arc")("""
-from pyroute_rel.failure import load_failure_model
+from pyroute_rel.reliability.failure import load_failure_model
 m = load_failure_model("dickson2018")
 rng = np.random.default_rng(0)
 q = {"hs_m": rng.uniform(0, 6, 1_000_000), "awd_deg": rng.uniform(0, 180, 1_000_000)}
 t_gather, _ = best_of(lambda: m.p_fail(q))
 from pgmpy.inference import VariableElimination
-from pyroute_rel.failure import build_network
+from pyroute_rel.reliability.failure import build_network
 net = build_network(m)
 ve = VariableElimination(net)
 nodes = [c.node for c in m.criteria]

@@ -47,8 +47,8 @@ from test_sailed_time import (  # noqa: E402
 )
 
 from pyroute_rel import geodesy  # noqa: E402
-from pyroute_rel.evaluate import evaluate_track  # noqa: E402
-from pyroute_rel.failure import load_failure_model  # noqa: E402
+from pyroute_rel.analysis.evaluate import evaluate_track  # noqa: E402
+from pyroute_rel.reliability.failure import load_failure_model  # noqa: E402
 
 ROUTE_LIMIT_PCT, VEERING_LIMIT_PCT = 0.2, 1.0
 

@@ -48,7 +48,7 @@ def _module(name: str):
 
 
 def _spec_runs(scenario: Path, quick: bool, members: int | None):
-    from pyroute_rel.sweep import sweep_from_mapping
+    from pyroute_rel.batch.sweep import sweep_from_mapping
 
     table = {
         "sweep": {
@@ -108,7 +108,7 @@ class _TreeCpu:
 
 
 def _default(runs) -> dict:
-    from pyroute_rel.sweep import auto_engine, run_sweep
+    from pyroute_rel.batch.sweep import auto_engine, run_sweep
 
     with _TreeCpu() as tree:
         t0 = time.perf_counter()
@@ -133,7 +133,7 @@ def _default(runs) -> dict:
 def _reads(table) -> dict:
     """The weather files each worker process read (the table's metadata, counted in the workers), sorted, and how
     many members more than one worker read."""
-    from pyroute_rel.sweep import READS_METADATA
+    from pyroute_rel.batch.sweep import READS_METADATA
 
     reads = json.loads((table.schema.metadata or {}).get(READS_METADATA.encode(), b"[]"))
     per_worker, readers = {}, {}
@@ -146,8 +146,8 @@ def _reads(table) -> dict:
 
 
 def _inline(runs) -> dict:
-    import pyroute_rel.route as route_module
-    from pyroute_rel.sweep import run_sweep
+    import pyroute_rel.routing.route as route_module
+    from pyroute_rel.batch.sweep import run_sweep
 
     dp_s = [0.0]
     real = route_module.forward_dp
@@ -185,9 +185,9 @@ def _comparable(rows) -> list:
 def _warm() -> str:
     """Run on each dask worker before the clock starts: the imports. Returns a string (a module cannot be sent
     back: cloudpickle refuses the package's module object)."""
-    import pyroute_rel.sweep
+    import pyroute_rel.batch.sweep
 
-    return pyroute_rel.sweep.__name__
+    return pyroute_rel.batch.sweep.__name__
 
 
 def _worker_cpu_s() -> float:
@@ -206,7 +206,7 @@ def _weather_reads() -> int:
 def _dask(runs, workers: int) -> dict:
     from distributed import Client, LocalCluster
 
-    from pyroute_rel.sweep import WORKER_ENV, run_sweep
+    from pyroute_rel.batch.sweep import WORKER_ENV, run_sweep
 
     with LocalCluster(
         n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None, env=dict(WORKER_ENV)

@@ -43,7 +43,7 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "description"
 autodoc_typehints_format = "short"
 # names of array aliases shown as they are written (numpy.str_ would read as a reST link target)
-autodoc_type_aliases = {"StrArray": "pyroute_rel.route.StrArray"}
+autodoc_type_aliases = {"StrArray": "pyroute_rel.routing.route.StrArray"}
 autosummary_generate = False
 # Leniency for docstrings written for the terminal: |x| is an absolute value there, not a reST substitution.
 # PYROUTE_REL_DOCS_STRICT=1 turns it off, to list the docstrings that need it.

@@ -24,9 +24,9 @@ from pathlib import Path
 from output_options import add_output_options, output_folder
 
 from pyroute_rel.gci.numbers import convergence_study
-from pyroute_rel.grid import make_grid, plan_grid
+from pyroute_rel.routing.grid import make_grid, plan_grid
+from pyroute_rel.routing.solve import forward_dp
 from pyroute_rel.scenario import load_scenario
-from pyroute_rel.solve import forward_dp
 
 HERE = Path(__file__).resolve().parent
 LEVELS = (1.0, 0.95, 0.5)

@@ -17,8 +17,8 @@ from pathlib import Path
 
 from output_options import add_output_options, output_folder
 
-from pyroute_rel.ensemble import route_ensemble
-from pyroute_rel.figures.ensemble import arrival_cdf, regret_heatmap, spaghetti_map
+from pyroute_rel.analysis.ensemble import route_ensemble
+from pyroute_rel.viz.ensemble import arrival_cdf, regret_heatmap, spaghetti_map
 
 HERE = Path(__file__).resolve().parent
 

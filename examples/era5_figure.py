@@ -34,7 +34,7 @@ def main() -> None:
     for apf, r in routes.items():
         print(f"apf {apf:g}: {r.voyage_time_h:.1f} h, max leg p_f {r.max_failure_probability:.2f}")
 
-    from pyroute_rel.plot import new_figure  # matplotlib's object API on an Agg canvas (no pyplot)
+    from pyroute_rel.viz.maps import new_figure  # matplotlib's object API on an Agg canvas (no pyplot)
 
     r1 = routes[1.0]
     t_mid = r1.departure + np.timedelta64(int(r1.voyage_time_h * 1800), "s")

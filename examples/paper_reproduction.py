@@ -17,8 +17,8 @@ from pathlib import Path
 
 from output_options import add_output_options, output_folder
 
-from pyroute_rel.plot import plot_routes
 from pyroute_rel.scenario import load_scenario
+from pyroute_rel.viz.maps import plot_routes
 
 HERE = Path(__file__).resolve().parent
 PAPER = {1.0: 703.25, 0.95: 703.25 + 25.0, 0.5: 703.25 + 50.0}  # 29 d 7 h, +25 h, +25 h (section 3.2)

@@ -14,9 +14,9 @@ from pathlib import Path
 from output_options import add_output_options, output_folder
 
 from pyroute_rel import load_scenario
-from pyroute_rel.figures.planners import planners_map
 from pyroute_rel.planners.compare import compare_planners
 from pyroute_rel.planners.settings import parse_planner
+from pyroute_rel.viz.planners import planners_map
 
 HERE = Path(__file__).resolve().parent
 

@@ -21,8 +21,8 @@ from pathlib import Path
 
 from output_options import add_output_options, output_folder
 
-from pyroute_rel.plot import plot_routes
 from pyroute_rel.scenario import load_scenario
+from pyroute_rel.viz.maps import plot_routes
 
 HERE = Path(__file__).resolve().parent
 

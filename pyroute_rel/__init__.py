@@ -19,8 +19,6 @@ Names are loaded on first use, so ``import pyroute_rel`` stays cheap (the comman
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
@@ -31,50 +29,50 @@ _EXPORTS: dict[str, str] = {
     "load_scenario": "scenario",
     "scenario_from_mapping": "scenario",
     "Scenario": "scenario",
-    "Route": "route",
-    "Legs": "route",
-    "ForbiddenArcs": "route",
+    "Route": "routing.route",
+    "Legs": "routing.route",
+    "ForbiddenArcs": "routing.route",
     "register_weather_kind": "config",
     # building blocks a user assembles or inspects
-    "Polar": "polar",
-    "get_polar": "polar",
-    "read_polar": "polar",
-    "boat_speed_kn": "polar",
-    "FailureModel": "failure",
-    "load_failure_model": "failure",
-    "list_failure_models": "failure",
+    "Polar": "boat.polar",
+    "get_polar": "boat.polar",
+    "read_polar": "boat.polar",
+    "boat_speed_kn": "boat.polar",
+    "FailureModel": "reliability.failure",
+    "load_failure_model": "reliability.failure",
+    "list_failure_models": "reliability.failure",
     "WeatherSource": "weather.base",
     "Conditions": "weather.base",
     "UniformWeather": "weather.uniform",
     "Patch": "weather.uniform",
     "GriddedWeather": "weather.gridded",
-    "open_weather": "weather.readers",
-    "weather_from_dataset": "weather.readers",
+    "open_weather": "weather.io.readers",
+    "weather_from_dataset": "weather.io.readers",
     "Avoid": "obstacles.mask",
     "load_zones": "obstacles.zones",
-    "Grid": "grid",
-    "make_grid": "grid",
-    "plan_grid": "grid",
-    "RoutingProblem": "solve",
-    "forward_dp": "solve",
-    "route_on_grid": "route",
-    "refine": "refine",
+    "Grid": "routing.grid",
+    "make_grid": "routing.grid",
+    "plan_grid": "routing.grid",
+    "RoutingProblem": "routing.solve",
+    "forward_dp": "routing.solve",
+    "route_on_grid": "routing.route",
+    "refine": "routing.refine",
     "write_outputs": "outputs",
-    "load_sweep": "sweep",
-    "run_sweep": "sweep",
-    "read_track": "evaluate",
-    "evaluate_track": "evaluate",
-    "Track": "evaluate",
-    "Evaluation": "evaluate",
-    "route_ensemble": "ensemble",
-    "EnsembleResult": "ensemble",
-    "monte_carlo": "monte_carlo",
-    "MonteCarloSettings": "monte_carlo",
-    "ManoeuvrePenalties": "manoeuvre",
+    "load_sweep": "batch.sweep",
+    "run_sweep": "batch.sweep",
+    "read_track": "analysis.evaluate",
+    "evaluate_track": "analysis.evaluate",
+    "Track": "analysis.evaluate",
+    "Evaluation": "analysis.evaluate",
+    "route_ensemble": "analysis.ensemble",
+    "EnsembleResult": "analysis.ensemble",
+    "monte_carlo": "analysis.monte_carlo",
+    "MonteCarloSettings": "analysis.monte_carlo",
+    "ManoeuvrePenalties": "boat.manoeuvre",
     "plan": "planners.plan",
     "PlannedTrack": "planners.base",
     "PlannerSettings": "planners.settings",
-    "track_similarity": "similarity",
+    "track_similarity": "analysis.similarity",
     # what is kept between calls, and the engines
     "kept": "store",
     "clear_kept": "store",
@@ -112,30 +110,20 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-class _Package(types.ModuleType):
-    """The package's module type: importing a submodule does not bind it over a public function of the same name.
-
-    ``import pyroute_rel.refine`` (the module) would otherwise make ``pyroute_rel.refine`` (the function) the module,
-    and ``pr.refine(...)`` a TypeError; the same for ``monte_carlo``. The submodules stay in :data:`sys.modules`.
-    """
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if isinstance(value, types.ModuleType) and _EXPORTS.get(name) == name:
-            return  # the public function of that name is loaded on first use by __getattr__
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
-
-
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_EXPORTS))
 
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on first use
-    from .config import register_weather_kind
-    from .ensemble import EnsembleResult, route_ensemble
-    from .errors import (
+    from pyroute_rel.analysis.ensemble import EnsembleResult, route_ensemble
+    from pyroute_rel.analysis.evaluate import Evaluation, Track, evaluate_track, read_track
+    from pyroute_rel.analysis.monte_carlo import MonteCarloSettings, monte_carlo
+    from pyroute_rel.analysis.similarity import track_similarity
+    from pyroute_rel.batch.sweep import load_sweep, run_sweep
+    from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
+    from pyroute_rel.boat.polar import Polar, boat_speed_kn, get_polar, read_polar
+    from pyroute_rel.config import register_weather_kind
+    from pyroute_rel.errors import (
         ConvergenceError,
         CoordinateError,
         FailureModelError,
@@ -151,28 +139,22 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time the names load on f
         WeatherCoverageError,
         WeatherError,
     )
-    from .evaluate import Evaluation, Track, evaluate_track, read_track
-    from .failure import FailureModel, list_failure_models, load_failure_model
-    from .gci.numbers import convergence_study, grid_convergence, least_squares_convergence
-    from .grid import Grid, make_grid, plan_grid
-    from .manoeuvre import ManoeuvrePenalties
-    from .monte_carlo import MonteCarloSettings, monte_carlo
-    from .obstacles.mask import Avoid
-    from .obstacles.zones import load_zones
-    from .outputs import write_outputs
-    from .planners.base import PlannedTrack
-    from .planners.plan import plan
-    from .planners.settings import PlannerSettings
-    from .polar import Polar, boat_speed_kn, get_polar, read_polar
-    from .refine import refine
-    from .route import ForbiddenArcs, Legs, Route, route_on_grid
-    from .scenario import Scenario, load_scenario, scenario_from_mapping
-    from .settings import settings_context
-    from .similarity import track_similarity
-    from .solve import RoutingProblem, forward_dp
-    from .store import clear_kept, kept
-    from .sweep import load_sweep, run_sweep
-    from .weather.base import Conditions, WeatherSource
-    from .weather.gridded import GriddedWeather
-    from .weather.readers import open_weather, weather_from_dataset
-    from .weather.uniform import Patch, UniformWeather
+    from pyroute_rel.gci.numbers import convergence_study, grid_convergence, least_squares_convergence
+    from pyroute_rel.obstacles.mask import Avoid
+    from pyroute_rel.obstacles.zones import load_zones
+    from pyroute_rel.outputs import write_outputs
+    from pyroute_rel.planners.base import PlannedTrack
+    from pyroute_rel.planners.plan import plan
+    from pyroute_rel.planners.settings import PlannerSettings
+    from pyroute_rel.reliability.failure import FailureModel, list_failure_models, load_failure_model
+    from pyroute_rel.routing.grid import Grid, make_grid, plan_grid
+    from pyroute_rel.routing.refine import refine
+    from pyroute_rel.routing.route import ForbiddenArcs, Legs, Route, route_on_grid
+    from pyroute_rel.routing.solve import RoutingProblem, forward_dp
+    from pyroute_rel.scenario import Scenario, load_scenario, scenario_from_mapping
+    from pyroute_rel.settings import settings_context
+    from pyroute_rel.store import clear_kept, kept
+    from pyroute_rel.weather.base import Conditions, WeatherSource
+    from pyroute_rel.weather.gridded import GriddedWeather
+    from pyroute_rel.weather.io.readers import open_weather, weather_from_dataset
+    from pyroute_rel.weather.uniform import Patch, UniformWeather

@@ -9,7 +9,7 @@ A scenario has these tables (unknown tables or keys are refused with the file an
     [boat]     polar = "maribot_vane" | "path/to/file.pol"   beyond = "clamp" | "forbid"
                tack_penalty_s = [[tws_kn, s], ...]  gybe_penalty_s = [[tws_kn, s], ...]  (default: none)
     [weather]  kind = "uniform" (tws_kn, twd_deg, hs_m, wave_dir_deg, ... and [[weather.patch]] boxes)
-               kind = "file"    (paths = [...], see pyroute_rel.weather.readers)
+               kind = "file"    (paths = [...], see pyroute_rel.weather.io.readers)
                (more kinds: :func:`register_weather_kind`)
     [failure]  model = "dickson2018" | "path/to/model.toml" | "none"   apf = 1.0
     [avoid]    land = true  margin_km = 0  resolution = "intermediate"  zones = ["zones.geojson"]
@@ -34,15 +34,15 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from .cost import WaveLoss
-from .errors import ScenarioError, brief, check_flag, show
-from .geodesy import along_track_km, crossing_fraction, distance_km, intermediate_point
-from .grid import DEFAULT_N_RANKS, LAYOUTS
-from .manoeuvre import ManoeuvrePenalties
-from .obstacles.mask import Avoid
-from .planners.settings import parse_planner
-from .polar import BEYOND_MODES, get_polar
-from .weather import UniformWeather, WeatherSource
+from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
+from pyroute_rel.boat.polar import BEYOND_MODES, get_polar
+from pyroute_rel.errors import ScenarioError, brief, check_flag, show
+from pyroute_rel.geodesy import along_track_km, crossing_fraction, distance_km, intermediate_point
+from pyroute_rel.obstacles.mask import Avoid
+from pyroute_rel.planners.settings import parse_planner
+from pyroute_rel.routing.cost import WaveLoss
+from pyroute_rel.routing.grid import DEFAULT_N_RANKS, LAYOUTS
+from pyroute_rel.weather import UniformWeather, WeatherSource
 
 __all__ = [
     "SCHEMA",
@@ -195,7 +195,7 @@ def _model_name(v: Any, where: str) -> str | None:
 
 
 def _resolution(v: Any, where: str) -> str:
-    from .obstacles.land import RESOLUTIONS
+    from pyroute_rel.obstacles.land import RESOLUTIONS
 
     return one_of(RESOLUTIONS)(v, where)  # type: ignore[no-any-return]
 
@@ -513,7 +513,7 @@ def parse_failure(raw: Mapping[str, Any]) -> dict[str, Any]:
 
 def parse_avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:
     """``[avoid]``: land, its margin and shoreline resolution, exclusion zones."""
-    from .obstacles.zones import load_zones
+    from pyroute_rel.obstacles.zones import load_zones
 
     values = _read("avoid", raw)
     zones = load_zones(values["zones"], base_dir=base_dir) if values["zones"] else ()
@@ -547,7 +547,7 @@ def _uniform_weather(table: Mapping[str, Any], *, base_dir: Path, bbox: Any, dep
 
 
 def _file_weather(table: Mapping[str, Any], *, base_dir: Path, bbox: Any, departure: Any) -> WeatherSource:
-    from .weather.readers import weather_from_mapping
+    from pyroute_rel.weather.io.readers import weather_from_mapping
 
     window = (departure - np.timedelta64(1, "h"), departure + np.timedelta64(120, "D"))  # from departure, 120 days
     return weather_from_mapping(table, base_dir=base_dir, bbox=bbox, time_window=window)

@@ -1,6 +1,6 @@
 """The on-disk cache: results that are costly to make and never change for the same inputs.
 
-Compiled failure tables (:mod:`pyroute_rel.failure`) and coastlines grown by a margin
+Compiled failure tables (:mod:`pyroute_rel.reliability.failure`) and coastlines grown by a margin
 (:mod:`pyroute_rel.obstacles.land`) are kept here between runs, each under a name that hashes everything it
 depends on (the sources' content and this package's version), so an entry is never stale: a changed input is
 another name.
@@ -42,8 +42,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import BinaryIO, TypeVar
 
-from .errors import CacheWarning
-from .store import kept_call
+from pyroute_rel.errors import CacheWarning
+from pyroute_rel.store import kept_call
 
 __all__ = ["cache_dir", "entries_dir", "key", "stamp", "read", "load", "write", "CacheWarning", "ENV", "ENTRIES"]
 
@@ -80,7 +80,7 @@ def key(parts: Iterable[bytes]) -> str:
     >>> key([b"ab", b"c"]) != key([b"a", b"bc"])
     True
     """
-    from . import __version__
+    from pyroute_rel import __version__
 
     h = hashlib.sha256()
     for part in (b"pyroute_rel " + __version__.encode(), *parts):

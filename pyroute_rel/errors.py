@@ -119,12 +119,13 @@ class CoordinateError(PyrouteError, ValueError):
 
 
 class MemoryBudgetError(PyrouteError, MemoryError):
-    """A route would need more memory than the budget allows (:mod:`pyroute_rel.memory`); refused before allocating."""
+    """A route would need more memory than the budget allows (:mod:`pyroute_rel.routing.memory`); refused before
+    allocating."""
 
 
 class LabelLimitError(PyrouteError, RuntimeError):
     """A multi-objective search kept more non-dominated labels at a node than its cap allows
-    (:func:`pyroute_rel.tradeoff.voyage_front`, ``--max-labels``); refused rather than run on unbounded."""
+    (:func:`pyroute_rel.routing.tradeoff.voyage_front`, ``--max-labels``); refused rather than run on unbounded."""
 
 
 class TrackError(PyrouteError, ValueError):

@@ -15,8 +15,8 @@ import threading
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
-from .errors import OutputError, brief, show
-from .store import kept_call
+from pyroute_rel.errors import OutputError, brief, show
+from pyroute_rel.store import kept_call
 
 __all__ = [
     "atomic_write",

@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from .errors import CoordinateError, GridError
-from .units import EARTH_RADIUS_KM, KM_PER_NM
+from pyroute_rel.errors import CoordinateError, GridError
+from pyroute_rel.units import EARTH_RADIUS_KM, KM_PER_NM
 
 __all__ = [
     "EARTH_RADIUS_KM",

@@ -1,7 +1,7 @@
 """A route's files: GeoJSON, GPX, CSV, the JSON summary, the forbidden arcs and the map, written together (all or
 none).
 
-Formats are functions of a :class:`~pyroute_rel.route.Route`; :func:`write_outputs` renders them into a folder
+Formats are functions of a :class:`~pyroute_rel.routing.route.Route`; :func:`write_outputs` renders them into a folder
 through :func:`pyroute_rel.files.write_together`.
 """
 
@@ -23,13 +23,13 @@ import gpxpy.gpx
 import numpy as np
 import numpy.typing as npt
 
-from . import geodesy
-from .errors import OutputError, brief, check_flag, check_instance
-from .files import check_out_dir, write_together
-from .manoeuvre import KIND_NAMES, SIDE_NAMES, TrackManoeuvres
-from .route import LEG_FIELDS, Route
-from .times import iso_utc
-from .units import KN_PER_MS
+from pyroute_rel import geodesy
+from pyroute_rel.boat.manoeuvre import KIND_NAMES, SIDE_NAMES, TrackManoeuvres
+from pyroute_rel.errors import OutputError, brief, check_flag, check_instance
+from pyroute_rel.files import check_out_dir, write_together
+from pyroute_rel.routing.route import LEG_FIELDS, Route
+from pyroute_rel.times import iso_utc
+from pyroute_rel.units import KN_PER_MS
 
 __all__ = [
     "OUTPUT_FILES",
@@ -96,7 +96,7 @@ def to_geojson(route: Route) -> dict[str, Any]:
 
 
 def forbidden_geojson(route: Route) -> dict[str, Any]:
-    """The arcs the route's DP found forbidden (:meth:`~pyroute_rel.route.Route.forbidden_arcs`) as a GeoJSON
+    """The arcs the route's DP found forbidden (:meth:`~pyroute_rel.routing.route.Route.forbidden_arcs`) as a GeoJSON
     FeatureCollection: one LineString per arc from its source to its destination (a MultiLineString split at the
     antimeridian, like the track), in the table's order.
 
@@ -278,7 +278,7 @@ def to_csv(route: Route) -> str:
     return buf.getvalue()
 
 
-#: The CSV's manoeuvre columns (:mod:`pyroute_rel.manoeuvre`): the leg's side of the wind (``port``,
+#: The CSV's manoeuvre columns (:mod:`pyroute_rel.boat.manoeuvre`): the leg's side of the wind (``port``,
 #: ``starboard``), the manoeuvre at its start (``tack``, ``gybe`` or empty) and the time it cost [h].
 MANOEUVRE_FIELDS = ("side", "manoeuvre", "manoeuvre_h")
 
@@ -364,7 +364,7 @@ def write_outputs(
         "forbidden.geojson": lambda p: p.write_text(_feature_lines(forbidden_geojson(route)), encoding="utf-8"),
     }
     if plot:
-        from .plot import plot_route
+        from pyroute_rel.viz.maps import plot_route
 
         writers["route.png"] = lambda p: plot_route(route, path=p)
     written = write_together(out_dir, writers)

@@ -15,8 +15,8 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from typing import TypeVar
 
-from .errors import ScenarioError
-from .store import current_store
+from pyroute_rel.errors import ScenarioError
+from pyroute_rel.store import current_store
 
 __all__ = ["default_workers", "thread_map", "row_blocks"]
 

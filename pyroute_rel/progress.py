@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ScenarioError, brief
+from pyroute_rel.errors import ScenarioError, brief
 
 __all__ = ["progress_bar"]
 

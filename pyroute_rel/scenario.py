@@ -15,8 +15,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .config import parse_departure, parse_options, parse_tables
-from .errors import (
+from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
+from pyroute_rel.config import parse_departure, parse_options, parse_tables
+from pyroute_rel.errors import (
     FailureModelError,
     PyrouteError,
     PyrouteWarning,
@@ -26,21 +27,20 @@ from .errors import (
     check_instance,
     check_path,
 )
-from .files import brief_path, read_regular_bytes
-from .geodesy import distance_km
-from .grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid
-from .manoeuvre import ManoeuvrePenalties
-from .obstacles.mask import Avoid, check_points, obstacle_mask
-from .obstacles.zones import zones_outside
-from .planners.settings import PlannerSettings
-from .route import GridTrack, Route, build_route, join_routes, route_on_grid
-from .solve import ArcMask, RoutingProblem
+from pyroute_rel.files import brief_path, read_regular_bytes
+from pyroute_rel.geodesy import distance_km
+from pyroute_rel.obstacles.mask import Avoid, check_points, obstacle_mask
+from pyroute_rel.obstacles.zones import zones_outside
+from pyroute_rel.planners.settings import PlannerSettings
+from pyroute_rel.routing.grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid
+from pyroute_rel.routing.route import GridTrack, Route, build_route, join_routes, route_on_grid
+from pyroute_rel.routing.solve import ArcMask, RoutingProblem
 
 if TYPE_CHECKING:
-    from .cost import WaveLoss
-    from .failure import FailureModel
-    from .polar import Polar
-    from .weather import WeatherSource
+    from pyroute_rel.boat.polar import Polar
+    from pyroute_rel.reliability.failure import FailureModel
+    from pyroute_rel.routing.cost import WaveLoss
+    from pyroute_rel.weather import WeatherSource
 
 #: Largest scenario file read [bytes]: 10 MB, a thousand times the largest example (a scenario holds settings
 #: and file names, not data), so that a wrong path (a log, an image) is refused at once instead of parsed.
@@ -72,10 +72,10 @@ class Scenario:
     start, finish : The course's first and last marks, ``(lon, lat)`` [deg].
     departure : Departure time (UTC).
     n_ranks, n_nodes, spacing_km, max_deviation_deg, layout, aspect, half_width_km : The grid's settings
-        (None: the grid's defaults; see :func:`~pyroute_rel.grid.plan_grid`); spacing in [km], angle in [deg].
+        (None: the grid's defaults; see :func:`~pyroute_rel.routing.grid.plan_grid`); spacing in [km], angle in [deg].
     samples_per_arc, sample_km : Weather samples per arc, or their largest spacing along arcs [km] (None: 25 km).
     polar, beyond, wave_loss : The boat: its polar, what to do outside its table, its speed loss in waves.
-    manoeuvres : The time its tacks and gybes cost (:class:`~pyroute_rel.manoeuvre.ManoeuvrePenalties`; None or
+    manoeuvres : The time its tacks and gybes cost (:class:`~pyroute_rel.boat.manoeuvre.ManoeuvrePenalties`; None or
         zero: free, the route of the plain DP).
     weather : The weather source.
     failure_model, apf : The failure model's name or file (None: none) and the acceptable probability of failure.
@@ -178,7 +178,7 @@ class Scenario:
         """The compiled failure model, or None. Refuses a model that needs fields the weather lacks."""
         if self.failure_model is None:
             return None
-        from .failure import load_failure_model
+        from pyroute_rel.reliability.failure import load_failure_model
 
         name = self.failure_model
         candidate = self.base_dir / name
@@ -204,10 +204,12 @@ class Scenario:
         """The routing problem (weather, polar, failure model, apf) for a grid (default: the scenario's).
 
         With ``samples_per_arc`` unset the number of weather samples per arc follows the grid
-        (:func:`~pyroute_rel.grid.auto_samples`).
+        (:func:`~pyroute_rel.routing.grid.auto_samples`).
         """
         if failure is not None:
-            from .failure import FailureModel  # at run time only when given (loading it is not cheap)
+            from pyroute_rel.reliability.failure import (
+                FailureModel,
+            )  # at run time only when given (loading it is not cheap)
 
             check_instance(failure, FailureModel, "failure", ScenarioError, expected="a FailureModel or None")
         if isinstance(blocked, str) and blocked != "auto":
@@ -252,7 +254,7 @@ class Scenario:
         """Route the scenario: the library's entry point.
 
         The minimum-time route that respects the failure model (no arc with ``p_f > apf``), land and zones, found
-        by the forward DP on the scenario's grid (:func:`~pyroute_rel.route.route_on_grid`), then refined in
+        by the forward DP on the scenario's grid (:func:`~pyroute_rel.routing.route.route_on_grid`), then refined in
         corridors when ``refine`` > 0 (:mod:`pyroute_rel.refine`). A course through waypoints is routed leg after
         leg, each departing when the previous one arrives at its mark; under FIFO weather this is optimal for the
         whole course, since the earliest arrival at a mark is best for what follows.
@@ -266,9 +268,9 @@ class Scenario:
         Returns
         -------
         Route
-            The track, its per-leg conditions (:class:`~pyroute_rel.route.Legs`), failure probabilities, the DP's
-            counts (``route.summary()`` is the JSON of ``pyroute-rel route --json``) and the forbidden arcs
-            (:meth:`~pyroute_rel.route.Route.forbidden_arcs`).
+            The track, its per-leg conditions (:class:`~pyroute_rel.routing.route.Legs`), failure probabilities, the
+            DP's counts (``route.summary()`` is the JSON of ``pyroute-rel route --json``) and the forbidden arcs
+            (:meth:`~pyroute_rel.routing.route.Route.forbidden_arcs`).
 
         Raises
         ------
@@ -353,7 +355,7 @@ class Scenario:
     def _refined(self, route: Route, problem: RoutingProblem) -> Route:
         """The route with its track refined in corridors (:mod:`pyroute_rel.refine`); the grid, its DP result and
         nodes stay those of the grid routed on, the levels are reported in ``meta["refine"]``."""
-        from .refine import refine
+        from pyroute_rel.routing.refine import refine
 
         grid = route.grid
 
@@ -401,7 +403,7 @@ def load_scenario(path: str | Path) -> Scenario:
 
 def read_scenario_table(path: str | Path) -> dict[str, Any]:
     """A scenario file's TOML tables, not yet validated (:func:`scenario_from_mapping` does that): for code that
-    changes a setting in the file's own terms before validating (:mod:`pyroute_rel.sweep`).
+    changes a setting in the file's own terms before validating (:mod:`pyroute_rel.batch.sweep`).
 
     Raises :class:`~pyroute_rel.errors.ScenarioError` naming the file when it cannot be read as TOML.
     """

@@ -27,7 +27,7 @@ Environment variables (read when the job that needs them runs):
     Threads for the hot spots that release the GIL (:func:`pyroute_rel.parallel.default_workers`; default: the CPUs
     this process may use; ``1`` turns threads off). Worker processes set it to ``1``.
 ``PYROUTE_REL_MAX_MEMORY``
-    The memory budget of one route (:mod:`pyroute_rel.memory`; the CLI's ``--max-memory`` sets it for a run).
+    The memory budget of one route (:mod:`pyroute_rel.routing.memory`; the CLI's ``--max-memory`` sets it for a run).
 ``PYROUTE_REL_KEEP``
     ``0`` (or ``false``, ``no``, ``off``): the process keeps nothing between calls (:mod:`pyroute_rel.store`: files,
     parsed models, grids and tables are read and built afresh each time); default: kept, by content.
@@ -44,7 +44,7 @@ from contextlib import AbstractContextManager, contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
 
-from .errors import ScenarioError
+from pyroute_rel.errors import ScenarioError
 
 __all__ = ["Settings", "get_settings", "set_settings", "settings_context"]
 
@@ -56,11 +56,12 @@ class Settings:
     Attributes
     ----------
     compiled_rank_step : The forward DP hands a rank to compiled code where it can (steady weather with wind only,
-        or a failure model on uniform weather with patches: :mod:`pyroute_rel.dp_compiled`); False: the numpy path.
+        or a failure model on uniform weather with patches: :mod:`pyroute_rel._kernels.dp`); False: the numpy path.
     compiled_march : Time-varying gridded weather with wind only is sailed by the compiled march
-        (:mod:`pyroute_rel.march_compiled`); False: the numpy march (:mod:`pyroute_rel.march`).
-    lazy_pieces : The DP judges on the pieces they cross (:mod:`pyroute_rel.crossings`) only the arcs it would pick
-        (:func:`pyroute_rel.solve._lazy_pieces`); False: every arc the cost function would judge, eagerly.
+        (:mod:`pyroute_rel._kernels.march`); False: the numpy march (:mod:`pyroute_rel.routing.march`).
+    lazy_pieces : The DP judges on the pieces they cross (:mod:`pyroute_rel.reliability.crossings`) only the arcs it
+        would pick (:func:`pyroute_rel.routing.solve._lazy_pieces`); False: every arc the cost function would judge,
+        eagerly.
     locate_cache : The cost kernel keeps each arc geometry's sample points located on the weather grids of
         time-varying sources and reuses them for every source on the same grid; False: located every time.
     fused_sampling : :meth:`~pyroute_rel.weather.GriddedWeather.sample_at` turns the wind's (u, v) and the wave

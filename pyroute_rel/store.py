@@ -20,7 +20,7 @@ Lifetime, and the one switch:
   (land and zone indexes are built again for each route, a sweep reads its weather files for every run).
 
 What a store holds belongs to it: a :func:`~pyroute_rel.weather.cache.caching` block, files kept open for the next
-ensemble members (:func:`~pyroute_rel.weather.readers.keep_files_open`) and the pool of threads are the current
+ensemble members (:func:`~pyroute_rel.weather.io.readers.keep_files_open`) and the pool of threads are the current
 store's, so a ``with kept():`` block starts without them and drops them at its end.
 
 >>> from pyroute_rel.store import current_store, kept
@@ -283,7 +283,7 @@ def current_store() -> Store:
 def kept(keep: bool = True) -> AbstractContextManager[Store]:
     """A store of its own for the ``with`` block (``keep`` False: one that keeps nothing), emptied when it ends."""
     if not isinstance(keep, bool):
-        from .errors import ScenarioError
+        from pyroute_rel.errors import ScenarioError
 
         raise ScenarioError(f"kept: keep must be True or False (got {keep!r})")
     return _current_for(Store(keep=keep))

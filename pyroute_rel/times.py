@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .errors import WeatherError, brief
+from pyroute_rel.errors import WeatherError, brief
 
 __all__ = ["hours_after", "iso_utc", "iso_minute", "to_datetime64"]
 

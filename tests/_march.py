@@ -6,11 +6,11 @@ circle has there. The march integrates that with the explicit midpoint rule (a p
 step in space and time, then the whole step at the speed there), in steps of at most :data:`STEP_KM` along the leg
 and at most :data:`STEP_H` in time. The time cap is what keeps a craft that crawls (near calm, in irons) from
 borrowing a later wind: a step never looks further ahead than ``STEP_H``. Where the polar gives less than
-:data:`~pyroute_rel.polar.MIN_SPEED_KN` the craft makes no progress: it holds its position while time goes on, until
-the wind lets it go.
+:data:`~pyroute_rel.boat.polar.MIN_SPEED_KN` the craft makes no progress: it holds its position while time goes on,
+until the wind lets it go.
 
 It uses only the weather source's ``sample(lon, lat, time)`` (the interpolant of the data), the polar look-up
-:func:`~pyroute_rel.polar.boat_speed_kn` and the unit constants; the great-circle geometry is written out here with
+:func:`~pyroute_rel.boat.polar.boat_speed_kn` and the unit constants; the great-circle geometry is written out here with
 numpy. Nothing of the product's arc costing (``cost``, ``crossings``, ``exposure``, ``evaluate``'s timing) is called.
 No currents and no speed loss in waves: the tests' weather has no current and their scenarios no wave loss.
 
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pyroute_rel.polar import MIN_SPEED_KN, boat_speed_kn
+from pyroute_rel.boat.polar import MIN_SPEED_KN, boat_speed_kn
 from pyroute_rel.units import EARTH_RADIUS_KM, KM_PER_NM
 
 #: Longest step along a leg [km] (100 m).

@@ -350,7 +350,7 @@ def test_lazy_obstacle_checks_equal_the_full_mask(tmp_path: Path, window, monkey
     # the lazy arc-by-arc test of only the arcs the solver would pick (land and zones, a zone's window applied at
     # departure), and the eager path of a run with a cost hook, which masks every arc of every rank first
     from pyroute_rel.obstacles.mask import ObstacleMask
-    from pyroute_rel.solve import forward_dp
+    from pyroute_rel.routing.solve import forward_dp
 
     doc = json.loads(ZONE_FILE.read_text())
     doc["features"][0]["properties"].update(valid_from=window[0], valid_to=window[1])
@@ -390,7 +390,7 @@ def test_zones_are_kept_on_a_grid_by_their_content(tmp_path: Path) -> None:
     masks are kept under the zones' content: the same file read twice shares them, another zone never does (a key
     made of a tuple's ``id`` served a dead tuple's mask to the next zones given the same address)."""
     from pyroute_rel.obstacles.mask import Avoid
-    from pyroute_rel.route import route_on_grid
+    from pyroute_rel.routing.route import route_on_grid
 
     doc = json.loads(ZONE_FILE.read_text())
     moved = json.loads(ZONE_FILE.read_text())

@@ -46,7 +46,7 @@ def test_route_json_contract(capsys: pytest.CaptureFixture[str]) -> None:
 
 @pytest.mark.slow
 def test_route_prune_gives_the_same_route_with_fewer_arcs(capsys: pytest.CaptureFixture[str], monkeypatch) -> None:
-    monkeypatch.setattr("pyroute_rel.solve.PRUNE_MIN_WIDTH", 0)  # the 21-node test grid is pruned too
+    monkeypatch.setattr("pyroute_rel.routing.solve.PRUNE_MIN_WIDTH", 0)  # the 21-node test grid is pruned too
     args = ["route", str(EXAMPLE), *SMALL, "--json", "--quiet", "--no-land"]
     code, out, err = run([*args, "--no-prune"], capsys)
     assert code == 0, err
@@ -321,7 +321,7 @@ def test_write_outputs_without_a_plot_leaves_no_stale_map(tmp_path) -> None:
 
 def test_sample_km_sets_the_spacing_and_is_never_capped(tmp_path, capsys) -> None:
     from pyroute_rel.errors import ScenarioError
-    from pyroute_rel.grid import auto_samples
+    from pyroute_rel.routing.grid import auto_samples
     from pyroute_rel.scenario import load_scenario
 
     sc = load_scenario(EXAMPLE).with_options(n_ranks=20, land=False, failure_model="none")

@@ -4,7 +4,7 @@ Every check here densifies arcs or tracks itself (spherical linear interpolation
 from the tangent of the great circle) and evaluates the weather and the failure criteria independently: patches by
 their own box test read from the scenario file, gridded fields by a bilinear interpolation written out here, the
 table by ``FailureModel.p_fail`` (the model's own lookup, not the cost function's gather). None of it uses the
-crossing logic under test (:mod:`pyroute_rel.crossings`).
+crossing logic under test (:mod:`pyroute_rel.reliability.crossings`).
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pyroute_rel.cost import arc_costs
-from pyroute_rel.crossings import split_fractions
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.polar import get_polar
+from pyroute_rel.boat.polar import get_polar
+from pyroute_rel.reliability.crossings import split_fractions
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing.cost import arc_costs
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.weather import Patch, UniformWeather
 from pyroute_rel.weather.base import Boundaries
@@ -222,7 +222,7 @@ def _bilinear(lon, lat, values, x, y):
 
 def _sharp_weather():
     xr = pytest.importorskip("xarray")
-    from pyroute_rel.weather.readers import weather_from_dataset
+    from pyroute_rel.weather.io.readers import weather_from_dataset
 
     lon, lat, hs = _sharp_grid()
     dims = ("latitude", "longitude")
@@ -330,8 +330,8 @@ def test_pieces_sample_only_the_judged_fields_with_the_same_numbers(current):
     only: those fields equal ``weather.sample``'s at the same points and times, bit for bit; with a current every
     field is sampled (the crab heading needs the wind)."""
     xr = pytest.importorskip("xarray")
-    from pyroute_rel.crossings import _sample_fields
-    from pyroute_rel.weather.readers import weather_from_dataset
+    from pyroute_rel.reliability.crossings import _sample_fields
+    from pyroute_rel.weather.io.readers import weather_from_dataset
 
     rng = np.random.default_rng(3)
     lon, lat = np.arange(-20.0, -9.99, 0.5), np.arange(38.0, 47.01, 0.5)
@@ -366,7 +366,7 @@ def test_piece_points_component_by_component_equal_the_vector_form():
     """The pieces' points and courses, computed component by component, are the vector form's ``p = a cos(t) +
     u sin(t)``, ``v = u cos(t) - a sin(t)`` (written out here) bit for bit, on arcs anywhere on the sphere."""
     from pyroute_rel import geodesy
-    from pyroute_rel.crossings import _frame, _points
+    from pyroute_rel.reliability.crossings import _frame, _points
 
     rng = np.random.default_rng(11)
     n = 5000

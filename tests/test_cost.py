@@ -9,12 +9,12 @@ from hypothesis import strategies as st
 from pyproj import Geod  # at import: pyproj loaded after cfgrib/ecCodes cannot find its database (a warning)
 
 from pyroute_rel import geodesy
-from pyroute_rel.cost import REASONS, WaveLoss, arc_costs, arc_geometry
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.polar import Polar, get_polar
+from pyroute_rel.boat.polar import Polar, get_polar
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing.cost import REASONS, WaveLoss, arc_costs, arc_geometry
 from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather import UniformWeather
-from pyroute_rel.weather.readers import weather_from_dataset
+from pyroute_rel.weather.io.readers import weather_from_dataset
 
 DEP = np.datetime64("2018-06-01T00:00")
 # a flat polar: 5 kn at every TWA from 30 deg and every TWS from 4 kn (so speed does not depend on heading)
@@ -100,7 +100,7 @@ def test_arc_p_f_is_the_worst_along_it_whatever_the_samples() -> None:
 
     model = load_failure_model("dickson2018")
     # 4 m waves on the eastern quarter of the arc only: one sample of four sees them, and the midpoint alone
-    # misses them, but the arc is judged on every piece it crosses (pyroute_rel.crossings)
+    # misses them, but the arc is judged on every piece it crosses (pyroute_rel.reliability.crossings)
     w = UniformWeather(
         tws_kn=12.0, twd_deg=0.0, hs_m=1.0, patches=(Patch(lon=(0.75, 2.0), lat=(-1.0, 1.0), values={"hs_m": 4.0}),)
     )
@@ -165,7 +165,7 @@ def _varying_field():
 
 
 def test_threads_split_a_block_without_changing_a_number() -> None:
-    from pyroute_rel.cost import PARALLEL_MIN_ARCS, arc_geometry, geometry_costs
+    from pyroute_rel.routing.cost import PARALLEL_MIN_ARCS, arc_geometry, geometry_costs
 
     rng = np.random.default_rng(3)
     n_dst, width = 120, 90
@@ -222,7 +222,7 @@ def test_arc_sample_points_and_courses_match_pyproj_on_the_sphere(samples) -> No
 
 
 def test_arc_geometry_in_threads_is_the_same() -> None:
-    from pyroute_rel.cost import PARALLEL_MIN_ARCS, geometry_from_xyz
+    from pyroute_rel.routing.cost import PARALLEL_MIN_ARCS, geometry_from_xyz
 
     rng = np.random.default_rng(5)
     a = geodesy.to_xyz(rng.uniform(-60, -10, (1, 150)), rng.uniform(10, 50, (1, 150)))
@@ -259,9 +259,9 @@ _OFFSET_POLAR = Polar(
 def test_compiled_wind_kernel_is_bit_identical_to_numpy(seed, polar_name, beyond) -> None:
     """The compiled TWA, polar speed and sub-segment times (gridded weather, wind only) are exactly the numpy
     kernel's: inside and outside the polar table, on its nodes, in calm and missing wind."""
-    from pyroute_rel.cost import _sample_costs
-    from pyroute_rel.cost_compiled import sail_wind
-    from pyroute_rel.polar import boat_speed_kn
+    from pyroute_rel._kernels.cost import sail_wind
+    from pyroute_rel.boat.polar import boat_speed_kn
+    from pyroute_rel.routing.cost import _sample_costs
     from pyroute_rel.weather import Conditions
 
     polar = _OFFSET_POLAR if polar_name == "offset" else get_polar(polar_name)
@@ -297,7 +297,7 @@ def test_compiled_wind_kernel_per_arc_lengths_equal_broadcast_ones(shape) -> Non
     """Sub-segment lengths given once per arc (shape (..., 1), passed to the kernel without a copy) give the
     numbers of the same lengths broadcast to every sample, and non-contiguous or read-only inputs those of
     contiguous copies."""
-    from pyroute_rel.cost_compiled import sail_wind
+    from pyroute_rel._kernels.cost import sail_wind
 
     polar = get_polar("maribot_vane")
     rng = np.random.default_rng(7)
@@ -312,7 +312,7 @@ def test_compiled_wind_kernel_per_arc_lengths_equal_broadcast_ones(shape) -> Non
         assert g.shape == shape
         np.testing.assert_array_equal(g, w)
     # and the numpy kernel's times with the broadcast lengths
-    from pyroute_rel.cost import _sample_costs
+    from pyroute_rel.routing.cost import _sample_costs
     from pyroute_rel.weather import Conditions
 
     nan, zero = np.full(shape, np.nan), np.zeros(shape)
@@ -326,10 +326,11 @@ def test_compiled_wind_kernel_per_arc_lengths_equal_broadcast_ones(shape) -> Non
 @pytest.mark.parametrize("wave_loss", [None, WaveLoss(hs_m=(0.0, 2.0, 6.0), factor=(1.0, 0.9, 0.3))])
 def test_gridded_uniform_field_costs_like_the_uniform_source(current, wave_loss) -> None:
     """A time-varying gridded file holding a uniform field gives the arc costs of UniformWeather (the march of
-    pyroute_rel.march over a field constant in time is the steady cost), with and without a current or wave loss."""
+    pyroute_rel.routing.march over a field constant in time is the steady cost), with and without a current or wave
+    loss."""
     import xarray as xr
 
-    from pyroute_rel.cost import geometry_costs
+    from pyroute_rel.routing.cost import geometry_costs
 
     tws_kn, twd, hs, wdir = 13.0, 70.0, 2.5, 250.0
     uniform = UniformWeather(
@@ -381,9 +382,9 @@ def test_gridded_uniform_field_costs_like_the_uniform_source(current, wave_loss)
 
 
 def test_arc_costs_refuses_samples_and_apf_it_cannot_use() -> None:
-    from pyroute_rel.cost import arc_costs, arc_geometry
+    from pyroute_rel.boat.polar import get_polar
     from pyroute_rel.errors import ScenarioError
-    from pyroute_rel.polar import get_polar
+    from pyroute_rel.routing.cost import arc_costs, arc_geometry
     from pyroute_rel.weather import UniformWeather
 
     kw = {

@@ -65,7 +65,7 @@ def test_waypoints_pass_the_marks_and_add_up() -> None:
     # legs solved on their own: the same grids, the second leg departing at the first one's arrival
     grids = whole.leg_grids()
     assert len(grids) == 2 and grids[0].finish == (-30.0, 40.0) and grids[1].start == (-30.0, 40.0)
-    from pyroute_rel.route import route_on_grid
+    from pyroute_rel.routing.route import route_on_grid
 
     leg1 = route_on_grid(grids[0], whole.problem(grid=grids[0]))
     leg2 = route_on_grid(grids[1], whole.with_options(departure=str(leg1.arrival)).problem(grid=grids[1]))
@@ -116,8 +116,8 @@ def test_finish_line_crossings_prefilter_is_exact(options) -> None:
     # the solver tests only arcs with ends on both sides of the finish line's great circle; the full test of
     # every arc (geodesy.crossing_fraction) must give the same fractions, NaN for the same arcs
     from pyroute_rel import geodesy
+    from pyroute_rel.routing.solve import _crossing
     from pyroute_rel.scenario import load_scenario
-    from pyroute_rel.solve import _crossing
 
     sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "microtransat_real_course.toml")
     grid = sc.with_options(**options).make_grid()
@@ -133,8 +133,8 @@ def test_finish_line_crossings_prefilter_is_exact(options) -> None:
 
 def test_avoid_and_course_lines_validate_their_arguments() -> None:
     from pyroute_rel.errors import GridError
-    from pyroute_rel.grid import make_grid
     from pyroute_rel.obstacles.mask import Avoid
+    from pyroute_rel.routing.grid import make_grid
 
     for kw, match in [
         ({"land": "no"}, "Avoid.land must be True or False"),

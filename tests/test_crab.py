@@ -1,4 +1,4 @@
-"""The exact crab angle (pyroute_rel.crab, issue 16 item 3) against independent references.
+"""The exact crab angle (pyroute_rel.boat.crab, issue 16 item 3) against independent references.
 
 - Closed form: with a polar of one speed V at every angle, ``sin(delta) = -c_cross / V`` and the speed made good
   is ``sqrt(V**2 - c_cross**2) + c_along``.
@@ -16,8 +16,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq, minimize_scalar
 
-from pyroute_rel.crab import hold_course
-from pyroute_rel.polar import BUILTIN_POLARS, MIN_SPEED_KN, Polar, boat_speed_kn
+from pyroute_rel.boat.crab import hold_course
+from pyroute_rel.boat.polar import BUILTIN_POLARS, MIN_SPEED_KN, Polar, boat_speed_kn
 from pyroute_rel.units import KN_PER_MS
 
 VANE = BUILTIN_POLARS["maribot_vane"]
@@ -166,7 +166,7 @@ def test_arc_cost_uses_the_exact_crab_angle(v_ms: float) -> None:
     is its length over the exact speed made good of the scanned reference (the old one-step crab angle was 1.75 %
     optimistic on such an arc, issue 16)."""
     from pyroute_rel import geodesy
-    from pyroute_rel.cost import arc_costs
+    from pyroute_rel.routing.cost import arc_costs
     from pyroute_rel.weather import UniformWeather
 
     dep = np.datetime64("2018-06-01T00:00")

@@ -1,4 +1,4 @@
-"""The compiled rank step (pyroute_rel.dp_compiled) is bit-identical to the numpy path of the DP (issue 18)."""
+"""The compiled rank step (pyroute_rel._kernels.dp) is bit-identical to the numpy path of the DP (issue 18)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import pyroute_rel.dp_compiled as dp_compiled
-import pyroute_rel.solve as solve
-from pyroute_rel.grid import make_grid
-from pyroute_rel.manoeuvre import ManoeuvrePenalties, wind_side
-from pyroute_rel.polar import Polar
+import pyroute_rel._kernels.dp as dp_compiled
+import pyroute_rel.routing.solve as solve
+from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties, wind_side
+from pyroute_rel.boat.polar import Polar
+from pyroute_rel.routing.grid import make_grid
 from pyroute_rel.settings import settings_context
 from pyroute_rel.weather import Patch, UniformWeather
 from tests.test_properties import NaNBox
@@ -98,7 +98,7 @@ def test_compiled_step_on_corridors_equals_numpy(seed: int, monkeypatch: pytest.
     """Refinement's corridor grids (wide enough to prune) have nodes with fewer live arcs than the four pruning
     costs first (a regression: the costs of the next nodes' arcs were then read from the wrong slots; seed 1 found
     it): each level's DP through the compiled step gives the numpy path's result, bit for bit."""
-    from pyroute_rel.refine import refine
+    from pyroute_rel.routing.refine import refine
 
     rng = np.random.default_rng(seed)
     grid = make_grid(START_PT, FINISH_PT, n_ranks=15, n_nodes=41, spacing_km=25.0, max_deviation_deg=45.0)

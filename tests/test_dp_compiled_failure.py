@@ -1,6 +1,6 @@
 """The compiled rank step with a failure model on uniform weather with patches (issue 32): the compiled judgement of
-one arc on the pieces it crosses equals :func:`pyroute_rel.crossings.arc_extremes` bit for bit, the compiled test of
-which arcs need it is sound, and the DP through it equals the numpy path (lazy and eager judgement) on random
+one arc on the pieces it crosses equals :func:`pyroute_rel.reliability.crossings.arc_extremes` bit for bit, the compiled
+test of which arcs need it is sound, and the DP through it equals the numpy path (lazy and eager judgement) on random
 problems and on the example."""
 
 from __future__ import annotations
@@ -12,17 +12,19 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import pyroute_rel.dp_compiled as dp_compiled
-from pyroute_rel import crossings, geodesy, solve
-from pyroute_rel.cost import geometry_costs
-from pyroute_rel.crossings_compiled import arc_p_f, box_fields, needs_judging
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.grid import make_grid
-from pyroute_rel.polar import get_polar
-from pyroute_rel.route import build_route
+import pyroute_rel._kernels.dp as dp_compiled
+from pyroute_rel import geodesy
+from pyroute_rel._kernels.crossings import arc_p_f, box_fields, needs_judging
+from pyroute_rel.boat.polar import get_polar
+from pyroute_rel.reliability import crossings
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing import solve
+from pyroute_rel.routing.cost import geometry_costs
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.route import build_route
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.settings import settings_context
-from pyroute_rel.solve import RoutingProblem, forward_dp
 from pyroute_rel.weather import Patch, UniformWeather
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,7 +130,7 @@ def test_arcs_passed_over_are_judged_by_their_samples(seed: int, model: str, sam
     lon0, lat0 = rng.uniform(lo0, lo1, n), rng.uniform(la0, la1, n)
     lon1 = (lon0 + rng.uniform(-3.0, 3.0, n) + 180.0) % 360.0 - 180.0
     lat1 = np.clip(lat0 + rng.uniform(-3.0, 3.0, n), -89.5, 89.5)
-    from pyroute_rel.cost import arc_geometry
+    from pyroute_rel.routing.cost import arc_geometry
 
     geom = arc_geometry(lon0, lat0, lon1, lat1, samples=samples)
     c = geometry_costs(geom, 0.0, departure=DEP, weather=weather, polar=POLAR, failure=m, apf=1.0, exact_p_f=False)
@@ -158,7 +160,7 @@ def test_a_patch_beyond_the_antimeridian_is_met() -> None:
     m = MODELS["dickson2018"]
     w = UniformWeather(tws_kn=10.0, twd_deg=0.0, hs_m=1.0, wave_dir_deg=270.0,
                        patches=(Patch(lon=(-180.0, -179.9), lat=(0.0, 1.0), values={"hs_m": 6.0}),))  # fmt: skip
-    from pyroute_rel.cost import arc_geometry
+    from pyroute_rel.routing.cost import arc_geometry
 
     g = arc_geometry(np.array([179.7]), np.array([0.5]), np.array([-179.95]), np.array([0.5]), samples=1)
     assert g.lon_deg[0, 0] > 0.0  # the sample is on the other side of the antimeridian

@@ -5,7 +5,7 @@
   ``_vector_kernel`` (the switch off). The interpolation kernel also keeps the last time's cell for the points that
   share it: the reference for that is :meth:`GriddedWeather.sample` at explicit times (other points in between).
 - ``cost_compiled._wind_kernel`` reads the polar table itself (no array passed to an inlined helper); the reference
-  is numpy's :func:`~pyroute_rel.polar.boat_speed_kn` and the numpy cost path, on short axes (counted) and long
+  is numpy's :func:`~pyroute_rel.boat.polar.boat_speed_kn` and the numpy cost path, on short axes (counted) and long
   irregular ones (found with ``polar_compiled.cell_finder``, including axes so uneven that its bins are capped).
 
 Every comparison is to the bit (``assert_array_equal``, NaN where NaN), on random inputs with NaN cells, calm wind,
@@ -19,11 +19,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pyroute_rel.cost_compiled import sail_wind
-from pyroute_rel.failure import list_failure_models, load_failure_model
-from pyroute_rel.grid import make_grid
-from pyroute_rel.polar import Polar, boat_speed_kn
-from pyroute_rel.polar_compiled import cell_finder
+from pyroute_rel._kernels.cost import sail_wind
+from pyroute_rel._kernels.polar import cell_finder
+from pyroute_rel.boat.polar import Polar, boat_speed_kn
+from pyroute_rel.reliability.failure import list_failure_models, load_failure_model
+from pyroute_rel.routing.grid import make_grid
 from pyroute_rel.settings import settings_context
 from pyroute_rel.weather import GriddedWeather, WeatherField
 from tests.test_dp_glue import DEP, dp
@@ -203,8 +203,8 @@ def test_compiled_evidence_index_is_the_models(name: str) -> None:
     """For every shipped failure model: the compiled evidence (quantities folded to the course, binned) is
     FailureModel.evidence_index of cost.arc_quantities: the same flat index everywhere (NaN points included: the fired
     criteria are read there) and the same unknown points, with values on the bin edges, beyond them and NaN."""
-    from pyroute_rel.cost import arc_quantities
-    from pyroute_rel.cost_compiled import evidence_index
+    from pyroute_rel._kernels.cost import evidence_index
+    from pyroute_rel.routing.cost import arc_quantities
     from pyroute_rel.weather import Conditions
 
     model = load_failure_model(name)

@@ -14,13 +14,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import pyroute_rel.cost as cost_module
-from pyroute_rel.cost import REASONS, arc_geometry, deferred_costs, geometry_costs
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.grid import make_grid
-from pyroute_rel.polar import get_polar
+import pyroute_rel.routing.cost as cost_module
+from pyroute_rel.boat.polar import get_polar
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing.cost import REASONS, arc_geometry, deferred_costs, geometry_costs
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp
 from pyroute_rel.settings import settings_context
-from pyroute_rel.solve import RoutingProblem, forward_dp
 from pyroute_rel.weather import GriddedWeather, WeatherField
 from pyroute_rel.weather.gridded import stack_members
 
@@ -349,10 +349,10 @@ def test_a_pickled_geometry_leaves_its_located_points_behind() -> None:
 def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
     seed: int, samples: int, model: str | None, sigma_ms: float
 ) -> None:
-    """Monte Carlo's per-run wind error (:class:`~pyroute_rel.monte_carlo.PerturbedWind`) sailed by the compiled march
-    gives the costs of the numpy march sampling the perturbed source (rows are runs)."""
-    from pyroute_rel.cost import ArcGeometry
-    from pyroute_rel.monte_carlo import PerturbedWind
+    """Monte Carlo's per-run wind error (:class:`~pyroute_rel.analysis.monte_carlo.PerturbedWind`) sailed by the
+    compiled march gives the costs of the numpy march sampling the perturbed source (rows are runs)."""
+    from pyroute_rel.analysis.monte_carlo import PerturbedWind
+    from pyroute_rel.routing.cost import ArcGeometry
 
     rng = np.random.default_rng(seed)
     g, t0 = arcs(seed, shape=(6, 5), samples=samples)
@@ -377,11 +377,11 @@ def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
 def test_compiled_march_applies_each_runs_speed_noise_as_the_numpy_march(
     seed: int, samples: int, model: str | None
 ) -> None:
-    """Monte Carlo's noisy boat (:class:`~pyroute_rel.march.SpeedNoise`, one gain and spread per row) at every step:
-    the compiled march gives the numpy march's costs and marks bit for bit; the noise changes the times; and in
-    weather that does not change along an arc or in time, the noisy time is the noiseless one over the noise's
-    factor on the speed (``v / v'``, with the floor), by hand."""
-    from pyroute_rel.march import SpeedNoise
+    """Monte Carlo's noisy boat (:class:`~pyroute_rel.routing.march.SpeedNoise`, one gain and spread per row) at every
+    step: the compiled march gives the numpy march's costs and marks bit for bit; the noise changes the times; and in
+    weather that does not change along an arc or in time, the noisy time is the noiseless one over the noise's factor on
+    the speed (``v / v'``, with the floor), by hand."""
+    from pyroute_rel.routing.march import SpeedNoise
 
     rng = np.random.default_rng(seed)
     geom, t0 = arcs(seed, shape=(6, 5), samples=samples)
@@ -428,8 +428,8 @@ def test_compiled_march_sails_rows_in_stacked_members_as_the_numpy_march(
     """Rows of a query answered by different members of an ensemble, stacked (how ``sail_in_members`` sails every
     track in every member): the compiled march reads each row in its member's data and gives the numpy march's
     costs, each row those of its member alone."""
-    from pyroute_rel.cost import ArcGeometry
-    from pyroute_rel.evaluate import _MemberRows
+    from pyroute_rel.analysis.evaluate import _MemberRows
+    from pyroute_rel.routing.cost import ArcGeometry
 
     members = [weather(seed + m) for m in range(3)]
     g, t0 = arcs(seed, shape=(6, 5), samples=samples)
@@ -439,7 +439,7 @@ def test_compiled_march_sails_rows_in_stacked_members_as_the_numpy_march(
     of = np.repeat(np.arange(3), 10)  # rows 0-9 in member 0, 10-19 in member 1, ...
     rows = _MemberRows(members, np.array([0, 10, 20, 30]), (stack_members(members), of))
     kw = dict(departure=DEP, polar=POLAR, failure=None if model is None else load_failure_model(model), apf=0.5)
-    import pyroute_rel.march_compiled as march_compiled
+    import pyroute_rel._kernels.march as march_compiled
 
     calls = []
     with pytest.MonkeyPatch.context() as mp:  # the compiled march does sail them
@@ -460,9 +460,9 @@ def test_compiled_march_sails_rows_in_stacked_members_as_the_numpy_march(
 def test_rows_of_a_perturbed_source_stay_whole_when_blocks_are_split_between_threads(monkeypatch) -> None:  # type: ignore[no-untyped-def]
     """A block whose rows are runs (Monte Carlo's wind errors) is never split between threads (each part would get
     every run's errors); with all errors 0 the compiled march reads the wrapped source directly."""
-    import pyroute_rel.march_compiled as march_compiled
-    from pyroute_rel.cost import ArcGeometry
-    from pyroute_rel.monte_carlo import PerturbedWind
+    import pyroute_rel._kernels.march as march_compiled
+    from pyroute_rel.analysis.monte_carlo import PerturbedWind
+    from pyroute_rel.routing.cost import ArcGeometry
 
     monkeypatch.setattr(cost_module, "PARALLEL_MIN_MARCHED", 1)
     g, t0 = arcs(3, shape=(6, 5), samples=2)

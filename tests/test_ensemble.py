@@ -16,11 +16,11 @@ from scipy.stats import binomtest
 from test_evaluate import TABLE, write_ensemble_scenario
 
 from pyroute_rel import load_scenario, scenario_from_mapping
+from pyroute_rel.analysis.ensemble import arrival_stats, cvar, empirical_quantile, parse_risk, route_ensemble
+from pyroute_rel.analysis.evaluate import evaluate_track
+from pyroute_rel.analysis.monte_carlo import MonteCarloSettings, monte_carlo, wilson_interval
 from pyroute_rel.cli import main
-from pyroute_rel.ensemble import arrival_stats, cvar, empirical_quantile, parse_risk, route_ensemble
 from pyroute_rel.errors import ScenarioError
-from pyroute_rel.evaluate import evaluate_track
-from pyroute_rel.monte_carlo import MonteCarloSettings, monte_carlo, wilson_interval
 
 
 @pytest.fixture(scope="module")
@@ -192,7 +192,7 @@ def test_wilson_interval_matches_scipy():
 @pytest.mark.slow
 def test_monte_carlo_without_noise_is_the_deterministic_evaluation(ensemble):
     path, res = ensemble
-    from pyroute_rel.members import member_scenario
+    from pyroute_rel.analysis.members import member_scenario
 
     sc = member_scenario(path, 1)
     track = res.tracks[2]
@@ -246,7 +246,7 @@ def test_cli_evaluate_monte_carlo(tmp_path: Path, capsys: pytest.CaptureFixture[
 
 @pytest.mark.slow
 def test_ensemble_spread_is_zero_for_identical_members_and_positive_otherwise(tmp_path: Path):
-    from pyroute_rel.monte_carlo import spread_from_members
+    from pyroute_rel.analysis.monte_carlo import spread_from_members
 
     track = np.column_stack([np.linspace(-14.0, -22.0, 9), np.linspace(31.0, 25.0, 9)])
     (tmp_path / "a").mkdir()
@@ -260,13 +260,13 @@ def test_ensemble_spread_is_zero_for_identical_members_and_positive_otherwise(tm
 
 @pytest.mark.slow
 def test_sailed_flags_equal_the_leg_reasons(ensemble):
-    """The ensemble's p_f and feasibility flags of a sailed track (:func:`~pyroute_rel.evaluate.member_figures`, as
-    the ensemble's sailing phase gets them) equal ``Sailed.leg_reasons`` / ``feasible``, on tracks that meet
-    p_f > apf, cross land and leave the weather."""
+    """The ensemble's p_f and feasibility flags of a sailed track
+    (:func:`~pyroute_rel.analysis.evaluate.member_figures`, as the ensemble's sailing phase gets them) equal
+    ``Sailed.leg_reasons`` / ``feasible``, on tracks that meet p_f > apf, cross land and leave the weather."""
     from dataclasses import replace
 
-    from pyroute_rel.evaluate import evaluation_problem, member_figures, sail_in_members
-    from pyroute_rel.members import member_scenario
+    from pyroute_rel.analysis.evaluate import evaluation_problem, member_figures, sail_in_members
+    from pyroute_rel.analysis.members import member_scenario
 
     path, res = ensemble
     scs = [member_scenario(path, m).with_options(apf=a) for m, a in ((0, 0.5), (1, 0.02), (2, 1e-6))]
@@ -298,8 +298,8 @@ def test_sailed_flags_equal_the_leg_reasons(ensemble):
 def test_ensemble_spread_of_a_track_leaving_the_members_data_is_a_clear_error(tmp_path: Path):
     """A track whose legs leave the members' data: one line naming the first such leg, where it is and the wind's
     extent (it said "Monte-Carlo spread_ms must be ... finite (got nan at index k)")."""
+    from pyroute_rel.analysis.monte_carlo import spread_from_members
     from pyroute_rel.errors import ScenarioError
-    from pyroute_rel.monte_carlo import spread_from_members
 
     path = write_ensemble_scenario(tmp_path, n_members=3, spread=1.0)
     inside = np.column_stack([np.linspace(-14.0, -22.0, 5), np.linspace(31.0, 25.0, 5)])
@@ -320,7 +320,7 @@ def test_route_member_reads_an_edited_scenario_or_weather_file_again(tmp_path: P
     each call gives the route a fresh read gives."""
     import os
 
-    from pyroute_rel.ensemble import route_member
+    from pyroute_rel.analysis.ensemble import route_member
 
     def touched(p: Path) -> None:  # a later modification time, whatever the file system's clock resolution
         st = p.stat()

@@ -14,8 +14,8 @@ import pytest
 from dask_processes import dask_processes, free_port
 from test_evaluate import write_ensemble_scenario
 
+from pyroute_rel.analysis.ensemble import route_ensemble
 from pyroute_rel.cli import main
-from pyroute_rel.ensemble import route_ensemble
 from pyroute_rel.errors import ScenarioError
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from test_evaluate import load_example, write_ensemble_scenario
 
 from pyroute_rel import load_scenario
+from pyroute_rel.analysis.ensemble import EnsembleResult, MemberRoute, parse_risk, route_ensemble
+from pyroute_rel.analysis.evaluate import evaluate_track
 from pyroute_rel.cli import main
-from pyroute_rel.ensemble import EnsembleResult, MemberRoute, parse_risk, route_ensemble
-from pyroute_rel.evaluate import evaluate_track
 
 ROOT = Path(__file__).resolve().parents[1]
 POINTS = [(-12.0, 45.0), (-14.5, 43.75), (-16.0, 42.5), (-18.25, 41.0), (-20.0, 40.0)]
@@ -200,7 +200,7 @@ def _result(risk: str = "cvar:0.5") -> EnsembleResult:
 def test_spaghetti_map_highlights_the_chosen_route() -> None:
     from matplotlib.colors import to_rgba
 
-    from pyroute_rel.figures.ensemble import spaghetti_map
+    from pyroute_rel.viz.ensemble import spaghetti_map
 
     res = _result()
     assert res.chosen == 3  # 0 and 3 feasible everywhere; CVaR 0.5 116.7 h against 109.3 h
@@ -217,7 +217,7 @@ def test_spaghetti_map_highlights_the_chosen_route() -> None:
 def test_arrival_cdf_draws_each_candidates_empirical_distribution() -> None:
     """Each candidate's curve holds its finite times, sorted, at heights k / n (a curve that cannot be completed in
     a member stops short of 1); infeasible arrivals are crosses at their place on the curve."""
-    from pyroute_rel.figures.ensemble import arrival_cdf
+    from pyroute_rel.viz.ensemble import arrival_cdf
 
     res = _result()
     ax = arrival_cdf(res).axes[0]
@@ -237,7 +237,7 @@ def test_arrival_cdf_draws_each_candidates_empirical_distribution() -> None:
 
 
 def test_regret_heatmap_draws_the_matrix_with_infeasible_cells_masked() -> None:
-    from pyroute_rel.figures.ensemble import regret_heatmap
+    from pyroute_rel.viz.ensemble import regret_heatmap
 
     res = _result()
     fig = regret_heatmap(res)
@@ -260,8 +260,8 @@ def test_regret_heatmap_draws_the_matrix_with_infeasible_cells_masked() -> None:
 
 
 def test_monte_carlo_histogram_counts_the_runs_that_arrive() -> None:
-    from pyroute_rel.figures.ensemble import monte_carlo_histogram
-    from pyroute_rel.monte_carlo import MonteCarloResult
+    from pyroute_rel.analysis.monte_carlo import MonteCarloResult
+    from pyroute_rel.viz.ensemble import monte_carlo_histogram
 
     rng = np.random.default_rng(0)
     t = rng.normal(200.0, 10.0, 300)
@@ -316,7 +316,7 @@ def test_evaluate_in_a_member_the_mean_and_monte_carlo_from_the_members_spread(t
     """`evaluate --member K` sails member K's weather, `--member mean` the ensemble mean (as the library does on
     the member's scenario); Monte Carlo with --member takes the wind error from the members' spread: identical
     members and no boat noise give every run the deterministic time; members that differ give a spread."""
-    from pyroute_rel.members import mean_scenario, member_scenario
+    from pyroute_rel.analysis.members import mean_scenario, member_scenario
 
     track = tmp_path / "t.csv"
     lon, lat = np.linspace(-14.0, -22.0, 9), np.linspace(31.0, 25.0, 9)
@@ -353,7 +353,7 @@ def test_polar_scaling_divides_each_runs_time_by_its_factor() -> None:
     deterministic time / s_i; the factors det / T_i must then be N(1, polar_sd): their mean within 4 standard errors
     of 1 and their standard deviation within 5 % (4.5 standard errors for 4000 runs) of polar_sd."""
     from pyroute_rel import scenario_from_mapping
-    from pyroute_rel.monte_carlo import MonteCarloSettings, monte_carlo
+    from pyroute_rel.analysis.monte_carlo import MonteCarloSettings, monte_carlo
 
     sc = scenario_from_mapping({
         "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0], "departure": "2018-06-01T00:00:00Z"},
@@ -377,7 +377,7 @@ def test_the_spread_of_the_monte_carlo_mean_shrinks_as_one_over_root_n() -> None
     Draws shared between runs (a mean that does not converge) give a ratio near 1; draws shared between seeds give
     variances near 0."""
     from pyroute_rel import scenario_from_mapping
-    from pyroute_rel.monte_carlo import MonteCarloSettings, monte_carlo
+    from pyroute_rel.analysis.monte_carlo import MonteCarloSettings, monte_carlo
 
     sc = scenario_from_mapping({
         "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0], "departure": "2018-06-01T00:00:00Z"},

@@ -11,9 +11,9 @@ import pytest
 from test_evaluate import load_example
 
 from pyroute_rel import load_scenario
-from pyroute_rel.ensemble import route_ensemble
+from pyroute_rel.analysis.ensemble import route_ensemble
+from pyroute_rel.analysis.members import mean_of_files, mean_scenario
 from pyroute_rel.errors import ScenarioError
-from pyroute_rel.members import mean_of_files, mean_scenario
 
 SCENARIO = (
     '[route]\nstart = [-14.0, 31.0]\nfinish = [-22.0, 25.0]\ndeparture = "2018-06-01T00:00:00Z"\n'

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from test_evaluate import write_ensemble_scenario
 
-from pyroute_rel import evaluate
-from pyroute_rel.ensemble import route_ensemble
-from pyroute_rel.members import member_scenario
-from pyroute_rel.weather import readers
+from pyroute_rel.analysis import evaluate
+from pyroute_rel.analysis.ensemble import route_ensemble
+from pyroute_rel.analysis.members import member_scenario
+from pyroute_rel.weather.io import readers
 
 
 @pytest.fixture(scope="module")

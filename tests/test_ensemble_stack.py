@@ -14,10 +14,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_evaluate import load_example
 
-from pyroute_rel import evaluate, load_scenario
+from pyroute_rel import load_scenario
+from pyroute_rel.analysis import evaluate
 from pyroute_rel.errors import WeatherError
 from pyroute_rel.weather.gridded import MemberStack, stack_members
-from pyroute_rel.weather.readers import weather_from_dataset
+from pyroute_rel.weather.io.readers import weather_from_dataset
 from pyroute_rel.weather.uniform import UniformWeather
 
 FIELDS = ("tws_kn", "twd_deg", "hs_m", "wave_dir_deg", "wave_period_s", "current_u_ms", "current_v_ms")
@@ -83,7 +84,7 @@ def test_sailing_in_members_is_the_same_stacked_unstacked_and_in_groups(
     problems = [replace(problem, weather=w) for w in MEMBERS]  # the same problem in each member's weather
     lon = np.linspace(-14.0, -26.0, 9)
     # the third track leaves the data west of 40 W: stopped there by missing weather (a craft in irons or a calm
-    # waits for the wind instead, pyroute_rel.march, so only missing weather stops a track)
+    # waits for the wind instead, pyroute_rel.routing.march, so only missing weather stops a track)
     west = np.array([[-14.0, 31.0], [-30.0, 27.0], [-48.0, 27.0]])
     tracks = [np.column_stack([lon, np.linspace(31.0, 22.0, 9)]), np.column_stack([lon[:6], np.full(6, 30.0)]), west]
 

@@ -10,7 +10,7 @@ import os
 
 import pytest
 
-from pyroute_rel.ensemble import _Workers
+from pyroute_rel.analysis.ensemble import _Workers
 
 
 def _pid() -> int:

@@ -14,11 +14,11 @@ import pytest
 import shapely
 
 from pyroute_rel import geodesy, load_scenario, scenario_from_mapping
+from pyroute_rel.analysis.evaluate import Track, evaluate_track, read_track
 from pyroute_rel.cli import main
 from pyroute_rel.errors import ScenarioError, TrackError
-from pyroute_rel.evaluate import Track, evaluate_track, read_track
 from pyroute_rel.outputs import write_outputs
-from pyroute_rel.route import LEG_FIELDS
+from pyroute_rel.routing.route import LEG_FIELDS
 
 ROOT = Path(__file__).resolve().parents[1]
 PATCH = {"lon": [-17.0, -15.0], "lat": [41.0, 44.0], "hs_m": 4.5}
@@ -86,7 +86,7 @@ def test_retiming_in_time_varying_member_weather(tmp_path: Path):
     """An ensemble member's route, re-timed in the same member's (time-varying) weather, with its track read back
     from the route's own GPX file: the same figures (the file keeps 6 decimals of a degree: to 1e-6 relative)."""
     path = write_ensemble_scenario(tmp_path)
-    from pyroute_rel.members import member_scenario
+    from pyroute_rel.analysis.members import member_scenario
 
     sc = member_scenario(path, 2)
     assert not sc.weather.steady

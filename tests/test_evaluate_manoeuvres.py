@@ -13,11 +13,11 @@ import pytest
 from test_evaluate import write_ensemble_scenario
 
 from pyroute_rel import load_scenario
+from pyroute_rel.analysis.evaluate import evaluate_track, evaluation_problem, sail_in_members, sail_tracks
+from pyroute_rel.analysis.members import member_scenario
+from pyroute_rel.analysis.monte_carlo import MonteCarloSettings, monte_carlo
+from pyroute_rel.boat.manoeuvre import GYBE, TACK, charge_manoeuvres, track_manoeuvres
 from pyroute_rel.cli import main
-from pyroute_rel.evaluate import evaluate_track, evaluation_problem, sail_in_members, sail_tracks
-from pyroute_rel.manoeuvre import GYBE, TACK, charge_manoeuvres, track_manoeuvres
-from pyroute_rel.members import member_scenario
-from pyroute_rel.monte_carlo import MonteCarloSettings, monte_carlo
 
 ROOT = Path(__file__).resolve().parents[1]
 # Tagliaferri-style tables [tws_kn, s]; large ones in the time-varying case, so that a missed penalty shows
@@ -83,8 +83,8 @@ def test_the_side_of_each_leg_is_the_wind_at_its_departure(members: Path) -> Non
     route = sc.route()
     ev = evaluate_track(sc, np.column_stack([route.lon_deg, route.lat_deg]))
     problem = evaluation_problem(sc)
-    from pyroute_rel.cost import arc_geometry
-    from pyroute_rel.manoeuvre import wind_side
+    from pyroute_rel.boat.manoeuvre import wind_side
+    from pyroute_rel.routing.cost import arc_geometry
 
     g = arc_geometry(
         route.lon_deg[:-1], route.lat_deg[:-1], route.lon_deg[1:], route.lat_deg[1:], samples=problem.samples
@@ -125,7 +125,7 @@ def test_charge_manoeuvres_is_track_manoeuvres_leg_by_leg() -> None:
     rng = np.random.default_rng(3)
     side = rng.integers(0, 2, 50).astype(np.int8)
     twa, tws = rng.uniform(0, 180, 50), rng.uniform(5, 25, 50)
-    from pyroute_rel.manoeuvre import ManoeuvrePenalties
+    from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
 
     pen = ManoeuvrePenalties(tack_s=((9.72, 30.0), (19.44, 20.0)), gybe_s=((9.72, 60.0), (19.44, 40.0)))
     whole = track_manoeuvres(side, twa, tws, pen, initial_side=0)

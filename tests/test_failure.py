@@ -20,9 +20,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pyroute_rel import diskcache, failure
+from pyroute_rel import diskcache
 from pyroute_rel.errors import FailureModelError
-from pyroute_rel.failure import QUANTITIES, build_network, list_failure_models, load_failure_model
+from pyroute_rel.reliability import failure
+from pyroute_rel.reliability.failure import QUANTITIES, build_network, list_failure_models, load_failure_model
 
 SHIPPED = files("failure_models")
 MODELS = ("dickson2018", "wind_wave_multistate")
@@ -317,9 +318,11 @@ def test_shipped_tables_equal_a_fresh_pgmpy_compile():
         toml_bytes = (SHIPPED / f"{name}.toml").read_bytes()
         net_bytes = (SHIPPED / f"{name}.bif").read_bytes()
         entry = shipped.get(failure._content_key(toml_bytes, net_bytes))
-        assert entry is not None, f"{name}: model files changed; refresh the tables: python -m pyroute_rel.failure"
+        assert entry is not None, (
+            f"{name}: model files changed; refresh the tables: python -m pyroute_rel.reliability.failure"
+        )
         fresh = load_failure_model(name, cache=False)  # compiled by pgmpy, no cache of any kind
-        assert np.array_equal(entry.table, fresh._full), f"{name}: refresh: python -m pyroute_rel.failure"
+        assert np.array_equal(entry.table, fresh._full), f"{name}: refresh: python -m pyroute_rel.reliability.failure"
         assert entry.nodes == list(fresh.nodes)
         assert entry.states == {k: list(v) for k, v in fresh.node_states.items()}
 
@@ -327,7 +330,7 @@ def test_shipped_tables_equal_a_fresh_pgmpy_compile():
 @pytest.mark.slow
 def test_first_run_of_a_shipped_model_needs_neither_pgmpy_nor_the_disk_cache(tmp_path):
     code = (
-        "import json, sys; from pyroute_rel.failure import load_failure_model; "
+        "import json, sys; from pyroute_rel.reliability.failure import load_failure_model; "
         "t = {n: load_failure_model(n).table.tolist() for n in ('dickson2018', 'wind_wave_multistate')}; "
         "print(json.dumps({'pgmpy': any(k.split('.')[0] == 'pgmpy' for k in sys.modules), 'tables': t}))"
     )
@@ -364,7 +367,7 @@ def test_disk_cache_second_run_does_not_import_pgmpy(tmp_path, monkeypatch):
     first = load_failure_model(toml)
     assert len(list((cache / diskcache.ENTRIES).glob("failure-*.npz"))) == 1
     code = (
-        "import json, sys; from pyroute_rel.failure import load_failure_model; "
+        "import json, sys; from pyroute_rel.reliability.failure import load_failure_model; "
         f"m = load_failure_model({str(toml)!r}); "
         "print(json.dumps({'pgmpy': any(k.split('.')[0] == 'pgmpy' for k in sys.modules), "
         "'table': m.table.tolist(), 'edges': [list(e) for e in m.edges]}))"
@@ -690,9 +693,9 @@ def test_p_fail_refuses_quantities_out_of_their_range() -> None:
 
 
 def test_one_map_from_quantities_to_weather_fields():
-    from pyroute_rel.cost import arc_quantities
-    from pyroute_rel.failure import QUANTITIES, QUANTITY_FIELDS
     from pyroute_rel.geodesy import angle_diff_deg
+    from pyroute_rel.reliability.failure import QUANTITIES, QUANTITY_FIELDS
+    from pyroute_rel.routing.cost import arc_quantities
     from pyroute_rel.weather import FIELDS, UniformWeather
 
     assert set(QUANTITY_FIELDS) == set(QUANTITIES)

@@ -1,5 +1,5 @@
 """Reading ensemble members from their stored values (issue 19's benchmark: each worker reads many members of one
-file kept open, :func:`~pyroute_rel.weather.readers.keep_files_open`, and the process routing the mean reads it).
+file kept open, :func:`~pyroute_rel.weather.io.readers.keep_files_open`, and the process routing the mean reads it).
 
 The stored values are read with netCDF4 and decoded by a table of every stored value (8/16-bit integers), then put
 in a :class:`~pyroute_rel.weather.gridded.GriddedWeather`. Checked here, bit for bit, against an independent
@@ -22,7 +22,7 @@ import pytest
 import xarray as xr
 
 from pyroute_rel.units import KN_PER_MS
-from pyroute_rel.weather import readers
+from pyroute_rel.weather.io import readers
 
 N_MEMBERS, NT, NY, NX = 4, 5, 6, 7
 FILL = -32767

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pyroute_rel.routing.solve import forward_dp
 from pyroute_rel.scenario import scenario_from_mapping
-from pyroute_rel.solve import forward_dp
 
 COURSE = Path(__file__).resolve().parents[1] / "examples" / "microtransat_real_course.toml"
 

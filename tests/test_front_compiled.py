@@ -1,4 +1,4 @@
-"""The compiled label reduction (pyroute_rel.front_compiled) keeps exactly the non-dominated labels (issue 20)."""
+"""The compiled label reduction (pyroute_rel._kernels.front) keeps exactly the non-dominated labels (issue 20)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pyroute_rel.front_compiled import extend_steady, nondominated
+from pyroute_rel._kernels.front import extend_steady, nondominated
 
 
 def brute_force(node: list[int], t: list[float], h: list[float]) -> list[int]:

@@ -34,12 +34,12 @@ from hypothesis import event as _event
 from hypothesis import strategies as st
 from hypothesis.control import currently_in_test_context
 
+from pyroute_rel.boat.polar import get_polar, read_pol, read_polar_csv
 from pyroute_rel.cli import main
 from pyroute_rel.config import SCHEMA
 from pyroute_rel.errors import PolarError, PolarWarning, PyrouteError, ScenarioError
-from pyroute_rel.polar import get_polar, read_pol, read_polar_csv
+from pyroute_rel.routing.solve import RoutingProblem
 from pyroute_rel.scenario import Scenario, load_scenario, scenario_from_mapping
-from pyroute_rel.solve import RoutingProblem
 from pyroute_rel.weather import FIELDS, UniformWeather
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""Tests of pyroute_rel.gci.numbers (grid convergence) and pyroute_rel.gci.plot.
+"""Tests of pyroute_rel.gci.numbers (grid convergence) and pyroute_rel.viz.convergence.
 
 References used as independent checks:
 - Celik et al. (2008), J. Fluids Eng. 130(7) 078001, doi:10.1115/1.2960953, Table 1 (worked examples).
@@ -527,7 +527,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"  # PNG specification (ISO/IEC 15948), secti
     ],
 )
 def test_plot_writes_png_atomically(tmp_path, h, phi) -> None:  # noqa: ANN001
-    from pyroute_rel.gci.plot import plot_convergence
+    from pyroute_rel.viz.convergence import plot_convergence
 
     out = tmp_path / "convergence.png"
     fig = plot_convergence(convergence_study(h, phi), path=out, title="test")
@@ -542,7 +542,7 @@ def test_plot_without_path_returns_open_figure(tmp_path) -> None:  # noqa: ANN00
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from pyroute_rel.gci.plot import plot_convergence
+    from pyroute_rel.viz.convergence import plot_convergence
 
     h = [1.0, 2.0, 4.0]
     fig = plot_convergence(convergence_study(h, [10.0 + v**2 for v in h]), ylabel="phi [h]")

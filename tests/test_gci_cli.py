@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from pyroute_rel.cli import main
-from pyroute_rel.grid import make_grid
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.solve import forward_dp
 from pyroute_rel.scenario import load_scenario
-from pyroute_rel.solve import forward_dp
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml"
 
@@ -425,14 +425,14 @@ def test_a_failed_write_is_an_output_error_and_leaves_nothing(
     """QA 7: an OSError while writing the outputs is a one-line OutputError (exit 2), with no partial file set."""
     import errno
 
-    import pyroute_rel.gci.plot
+    import pyroute_rel.viz.convergence
 
-    real_plot = pyroute_rel.gci.plot.plot_convergence
+    real_plot = pyroute_rel.viz.convergence.plot_convergence
 
     def full_disk(*args: object, **kwargs: object) -> None:
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(pyroute_rel.gci.plot, "plot_convergence", full_disk)
+    monkeypatch.setattr(pyroute_rel.viz.convergence, "plot_convergence", full_disk)
     args = ["gci", "--h", "1,2,4", "--phi", "700.3,701.2,704.8"]
     code, _, err = run([*args, "--out", str(tmp_path / "new")], capsys)
     assert_user_error(code, err, "--out", "No space left on device")
@@ -441,7 +441,7 @@ def test_a_failed_write_is_an_output_error_and_leaves_nothing(
     code, _, err = run([*args, "--out", str(tmp_path / "old")], capsys)
     assert_user_error(code, err, "--out")
     assert list((tmp_path / "old").iterdir()) == []  # no gci.csv / gci.json without gci.png, no staging folder
-    monkeypatch.setattr(pyroute_rel.gci.plot, "plot_convergence", real_plot)
+    monkeypatch.setattr(pyroute_rel.viz.convergence, "plot_convergence", real_plot)
     code, _, err = run([*args, "--out", str(tmp_path / "old")], capsys)
     assert code == 0, err
     assert sorted(p.name for p in (tmp_path / "old").iterdir()) == ["gci.csv", "gci.json", "gci.png"]

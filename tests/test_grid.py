@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from pyroute_rel import geodesy
 from pyroute_rel.errors import GridError
-from pyroute_rel.grid import FINISH, START, make_grid, plan_grid
+from pyroute_rel.routing.grid import FINISH, START, make_grid, plan_grid
 
 START_PT, FINISH_PT = (-12.0, 45.0), (-60.0, 17.5)
 
@@ -112,7 +112,7 @@ def test_start_equal_finish_is_an_error() -> None:
 
 
 def test_plan_grid_layouts() -> None:
-    from pyroute_rel.grid import plan_grid
+    from pyroute_rel.routing.grid import plan_grid
 
     sq = plan_grid(START_PT, FINISH_PT, layout="square", n_ranks=40, n_nodes=41)
     assert (sq.n_ranks, sq.n_nodes, sq.band) == (40, 41, 40) and sq.aspect == pytest.approx(1.0)
@@ -135,7 +135,7 @@ def test_plan_grid_layouts() -> None:
 
 
 def test_square_plan_refuses_bad_counts_and_numpy_scalars_are_numbers() -> None:
-    from pyroute_rel.grid import plan_grid
+    from pyroute_rel.routing.grid import plan_grid
 
     s, f = (-12.0, 45.0), (-60.0, 17.5)
     with pytest.raises(GridError, match=r"n_ranks must be a whole number >= 1 \(got 0\)"):
@@ -148,8 +148,8 @@ def test_square_plan_refuses_bad_counts_and_numpy_scalars_are_numbers() -> None:
 
 
 def test_derived_data_live_in_a_typed_cache_outside_equality_and_repr() -> None:
-    from pyroute_rel.grid import GridCache
-    from pyroute_rel.solve import grid_geometry
+    from pyroute_rel.routing.grid import GridCache
+    from pyroute_rel.routing.solve import grid_geometry
 
     a = make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=4, n_nodes=5)
     b = make_grid((-12.0, 45.0), (-60.0, 17.5), n_ranks=4, n_nodes=5)
@@ -169,7 +169,7 @@ def test_too_many_arcs_refused_before_nodes_are_placed(
     n_ranks: int, n_nodes: int, deviation: float | None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Issue 17: a square 100000 x 100000 grid allocated 74.5 GiB before the arc limit was checked."""
-    import pyroute_rel.grid as grid_module
+    import pyroute_rel.routing.grid as grid_module
 
     def placed(*args: object, **kw: object) -> None:
         raise AssertionError("rank_points called: nodes placed before the size check")
@@ -181,7 +181,7 @@ def test_too_many_arcs_refused_before_nodes_are_placed(
 
 def test_grid_nodes_over_the_budget_are_refused(monkeypatch: pytest.MonkeyPatch) -> None:
     from pyroute_rel.errors import MemoryBudgetError
-    from pyroute_rel.grid import NODE_BYTES
+    from pyroute_rel.routing.grid import NODE_BYTES
 
     monkeypatch.setenv("PYROUTE_REL_MAX_MEMORY", "1G")
     # band 0 (arcs within 1e-3 deg): one arc per node, so 20 M nodes pass the arc limit; their placement alone takes

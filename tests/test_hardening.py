@@ -759,7 +759,7 @@ def test_values_outside_the_cf_valid_range_are_missing(attrs: dict, missing: set
     import warnings
 
     from pyroute_rel.errors import WeatherError
-    from pyroute_rel.weather.readers import open_weather
+    from pyroute_rel.weather.io.readers import open_weather
 
     hs = [[[2.0, 25.0, 3.0, 4.0], [0.25, 1.0, 2.0, 3.0], [1.0, 2.0, 3.0, -1.0]]]
     path = _waves(hs, attrs, path=tmp_path / "w.nc")
@@ -786,7 +786,7 @@ def test_a_packed_variable_has_its_valid_range_in_packed_units(tmp_path: Path) -
 
     import numpy as np
 
-    from pyroute_rel.weather.readers import open_weather
+    from pyroute_rel.weather.io.readers import open_weather
 
     hs = [[[2.0, 25.0, 3.0, 4.0], [0.5, 1.0, 2.0, 3.0], [1.0, 2.0, 19.99, 20.01]]]
     enc = {"dtype": "int16", "scale_factor": 0.01, "_FillValue": np.int16(-32767)}
@@ -807,7 +807,7 @@ def test_a_packed_variable_has_its_valid_range_in_packed_units(tmp_path: Path) -
 )
 def test_a_malformed_valid_range_is_a_weather_error(attrs: dict, needle: str, tmp_path: Path) -> None:
     from pyroute_rel.errors import WeatherError
-    from pyroute_rel.weather.readers import open_weather
+    from pyroute_rel.weather.io.readers import open_weather
 
     path = _waves([[[1.0] * 4] * 3], attrs, path=tmp_path / "w.nc")
     with pytest.raises(WeatherError, match=f"variable 'swh'.*{needle}"):
@@ -879,8 +879,8 @@ def test_evaluate_monte_carlo_options_are_checked_first(
 @pytest.mark.parametrize("given", [[], (), "m0.nc"])
 def test_mean_of_no_member_files_is_refused(given: object, tmp_path: Path) -> None:
     """An empty list was an AssertionError, a single name was read letter by letter ('m', '0', ...)."""
+    from pyroute_rel.analysis.members import mean_of_files
     from pyroute_rel.errors import ScenarioError
-    from pyroute_rel.members import mean_of_files
 
     with pytest.raises(ScenarioError, match="member_files must be a list of one or more weather files"):
         mean_of_files(given, tmp_path / "mean.nc")  # type: ignore[arg-type]

@@ -13,15 +13,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pyroute_rel import solve
-from pyroute_rel.cost import REASONS
-from pyroute_rel.cost_compiled import judge_tables, sail_wind
+from pyroute_rel._kernels.cost import judge_tables, sail_wind
+from pyroute_rel.boat.polar import get_polar
 from pyroute_rel.errors import WeatherError
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.grid import make_grid
-from pyroute_rel.polar import get_polar
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing import solve
+from pyroute_rel.routing.cost import REASONS
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp
 from pyroute_rel.settings import settings_context
-from pyroute_rel.solve import RoutingProblem, forward_dp
 from pyroute_rel.weather import GriddedWeather, WeatherField
 
 DEP = np.datetime64("2018-06-01T00:00:00")

@@ -10,11 +10,11 @@ import gc
 import numpy as np
 import pytest
 
-from pyroute_rel import polar_compiled
-from pyroute_rel.cost_compiled import sail_wind
+from pyroute_rel._kernels import polar as polar_compiled
+from pyroute_rel._kernels.cost import sail_wind
+from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
+from pyroute_rel.boat.polar import Polar, boat_speed_kn
 from pyroute_rel.errors import WeatherError
-from pyroute_rel.manoeuvre import ManoeuvrePenalties
-from pyroute_rel.polar import Polar, boat_speed_kn
 from pyroute_rel.weather import GriddedWeather, WeatherField
 
 DEP = np.datetime64("2018-06-01T00:00:00")
@@ -51,7 +51,7 @@ def test_each_polar_is_sailed_with_its_own_tables() -> None:
 
 @pytest.mark.slow
 def test_each_manoeuvre_table_is_its_own() -> None:
-    from pyroute_rel.dp_compiled import _penalty_tables
+    from pyroute_rel._kernels.dp import _penalty_tables
 
     for k in range(10):
         p = ManoeuvrePenalties(tack_s=[[0.0, 100.0 * (k + 1)], [20.0, 50.0]], gybe_s=[[8.0, 10.0 * (k + 1)]])

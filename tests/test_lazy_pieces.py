@@ -1,10 +1,10 @@
 """Lazy judgement of arcs on the pieces they cross in the forward DP (issue 18, item 5).
 
-The DP costs every arc on its samples and judges on pieces (:mod:`pyroute_rel.crossings`) only the arcs it would pick
-(:func:`pyroute_rel.solve._lazy_pieces`). The reference is the eager judgement of every arc the cost function can
-judge (``settings_context(lazy_pieces=False)``, or a ``cost_hook``, which sees every arc's costs): the DP's arrival
-times, back-pointers, waits and labels, and the route built from them (voyage time, track, per-leg p_f, largest and
-voyage p_f), must be the same to the bit, on random small problems (patches and gridded weather, steady and
+The DP costs every arc on its samples and judges on pieces (:mod:`pyroute_rel.reliability.crossings`) only the arcs it
+would pick (:func:`pyroute_rel.routing.solve._lazy_pieces`). The reference is the eager judgement of every arc the cost
+function can judge (``settings_context(lazy_pieces=False)``, or a ``cost_hook``, which sees every arc's costs): the DP's
+arrival times, back-pointers, waits and labels, and the route built from them (voyage time, track, per-leg p_f, largest
+and voyage p_f), must be the same to the bit, on random small problems (patches and gridded weather, steady and
 time-varying, apf < 1, with waits, with side labels, with pruning) and on the example scenarios at apf 0.2 and 0.02.
 """
 
@@ -19,17 +19,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import pyroute_rel.cost as cost_module
-from pyroute_rel import solve
-from pyroute_rel.cost import geometry_costs
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.grid import make_grid
-from pyroute_rel.manoeuvre import ManoeuvrePenalties
-from pyroute_rel.polar import get_polar
-from pyroute_rel.route import build_route
+import pyroute_rel.routing.cost as cost_module
+from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
+from pyroute_rel.boat.polar import get_polar
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing import solve
+from pyroute_rel.routing.cost import geometry_costs
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.route import build_route
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp
 from pyroute_rel.scenario import load_scenario, scenario_from_mapping
 from pyroute_rel.settings import settings_context
-from pyroute_rel.solve import RoutingProblem, forward_dp
 from pyroute_rel.weather import GriddedWeather, Patch, UniformWeather, WeatherField
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -45,7 +45,8 @@ def props(n: int) -> settings:
 
 
 def counting(monkeypatch_or_context: pytest.MonkeyPatch) -> list[int]:
-    """Count the arcs judged on pieces (passed to :func:`~pyroute_rel.crossings.arc_extremes` by the cost module)."""
+    """Count the arcs judged on pieces (passed to :func:`~pyroute_rel.reliability.crossings.arc_extremes` by the cost
+    module)."""
     seen = [0]
     real = cost_module.arc_extremes
 

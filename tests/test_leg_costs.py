@@ -16,12 +16,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pyroute_rel.cost import arc_geometry
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.grid import make_grid
-from pyroute_rel.manoeuvre import ManoeuvrePenalties, manoeuvre_kind, wind_side
-from pyroute_rel.route import route_on_grid
-from pyroute_rel.solve import GUESS_PASSES, RoutingProblem, leg_manoeuvres
+from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties, manoeuvre_kind, wind_side
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing.cost import arc_geometry
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.route import route_on_grid
+from pyroute_rel.routing.solve import GUESS_PASSES, RoutingProblem, leg_manoeuvres
 from pyroute_rel.times import hours_after
 from tests.test_cost import _varying_field
 from tests.test_solve import DEP, random_polar

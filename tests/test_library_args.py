@@ -30,7 +30,6 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 import pyroute_rel as pr
-from pyroute_rel import tradeoff
 from pyroute_rel.errors import (
     ConvergenceError,
     FailureModelError,
@@ -42,7 +41,8 @@ from pyroute_rel.errors import (
     WeatherError,
     check_numbers,
 )
-from pyroute_rel.weather.readers import read_fields
+from pyroute_rel.routing import tradeoff
+from pyroute_rel.weather.io.readers import read_fields
 
 ROOT = Path(__file__).resolve().parents[1]
 T0 = np.datetime64("2018-06-01T00:00", "ns")
@@ -105,7 +105,7 @@ def _builder(table, *, base_dir, bbox, departure):  # a weather builder of the r
 
 
 class _MaskOf:
-    """An obstacle mask (pyroute_rel.solve.ArcMask) of the given grid that blocks nothing."""
+    """An obstacle mask (pyroute_rel.routing.solve.ArcMask) of the given grid that blocks nothing."""
 
     def __init__(self, grid: pr.Grid) -> None:
         self.grid, self.timed = grid, False
@@ -831,7 +831,7 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
         ScenarioError,
         ("risk must be a Risk",),
     ),
-    # ---- trade-off fronts (pyroute_rel.tradeoff, not exported at the top level)
+    # ---- trade-off fronts (pyroute_rel.routing.tradeoff, not exported at the top level)
     "tradeoff.bottleneck_front grid None": (
         lambda: tradeoff.bottleneck_front(None, route().problem),
         ScenarioError,

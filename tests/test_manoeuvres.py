@@ -14,14 +14,14 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from pyroute_rel.cost import arc_costs, arc_geometry
+from pyroute_rel.boat.manoeuvre import GYBE, PORT, STARBOARD, TACK, ManoeuvrePenalties, track_manoeuvres
 from pyroute_rel.errors import ScenarioError
-from pyroute_rel.grid import make_grid
-from pyroute_rel.manoeuvre import GYBE, PORT, STARBOARD, TACK, ManoeuvrePenalties, track_manoeuvres
-from pyroute_rel.plot import plot_route
-from pyroute_rel.route import route_on_grid
+from pyroute_rel.routing.cost import arc_costs, arc_geometry
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.route import route_on_grid
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp, leg_manoeuvres
 from pyroute_rel.scenario import load_scenario, scenario_from_mapping
-from pyroute_rel.solve import RoutingProblem, forward_dp, leg_manoeuvres
+from pyroute_rel.viz.maps import plot_route
 from tests.test_cli import run
 from tests.test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weather
 

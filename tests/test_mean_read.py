@@ -20,9 +20,9 @@ import xarray as xr
 from test_evaluate import load_example, write_ensemble_scenario
 
 from pyroute_rel import load_scenario
-from pyroute_rel.ensemble import route_ensemble
-from pyroute_rel.members import mean_of_files, mean_scenario
-from pyroute_rel.weather import readers
+from pyroute_rel.analysis.ensemble import route_ensemble
+from pyroute_rel.analysis.members import mean_of_files, mean_scenario
+from pyroute_rel.weather.io import readers
 
 N_MEMBERS = 5
 BOX = (-20.0, 26.0, -10.0, 34.0)  # inside the example's grid: the box cut is exercised too

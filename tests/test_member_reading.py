@@ -6,7 +6,7 @@ Checked against independent references: numpy's ``take`` and ``fmin``/``fmax`` r
 numpy construction of the blocks (the compiled fill switched off) on float, packed, coded-direction data with NaN;
 a fresh read without anything kept (files not kept open) for every member's weather, bit for bit, and the other
 settings of the scenario; and the kept settings are dropped when the scenario file changes or
-:func:`~pyroute_rel.weather.readers.keep_files_open` is called again.
+:func:`~pyroute_rel.weather.io.readers.keep_files_open` is called again.
 """
 
 from __future__ import annotations
@@ -21,9 +21,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pyroute_rel import members
-from pyroute_rel.weather import gridded, readers
+from pyroute_rel.analysis import members
+from pyroute_rel.weather import gridded
 from pyroute_rel.weather.gridded import CodedValues, GriddedWeather, WeatherField
+from pyroute_rel.weather.io import readers
 
 N_MEMBERS, NT, NY, NX = 3, 6, 5, 7
 

@@ -14,11 +14,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pyroute_rel import memory
+from pyroute_rel.boat.polar import get_polar
 from pyroute_rel.errors import MemoryBudgetError, PyrouteError, ScenarioError
-from pyroute_rel.grid import make_grid
-from pyroute_rel.polar import get_polar
-from pyroute_rel.solve import RoutingProblem, forward_dp, route_memory
+from pyroute_rel.routing import memory
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp, route_memory
 from pyroute_rel.weather import UniformWeather
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -160,7 +160,7 @@ def test_problem_budget_refuses_before_allocating() -> None:
 #: seconds and the error line as JSON.
 _CLI_CHILD = """
 import contextlib, io, json, sys, time
-import pyroute_rel.scenario, pyroute_rel.failure
+import pyroute_rel.scenario, pyroute_rel.reliability.failure
 from pyroute_rel.cli.main import main
 err = io.StringIO()
 t0 = time.process_time()  # processor time: a guard on the work done, not on how busy the machine is
@@ -281,7 +281,7 @@ def _check_refusal(name: str, args: list[str], env: dict[str, str], pattern: str
 _ROUTE_CHILD = """
 import json, sys
 from pyroute_rel.scenario import load_scenario
-from pyroute_rel.solve import route_memory
+from pyroute_rel.routing.solve import route_memory
 sc = load_scenario(sys.argv[1]).with_options(**json.loads(sys.argv[2]))
 grid = sc.make_grid()
 est = route_memory(grid, sc.problem(grid=grid))
@@ -332,8 +332,8 @@ def test_huge_failure_table_is_refused_before_compiling(tmp_path: Path) -> None:
 def test_the_cli_takes_a_budget_and_leaves_the_environment_as_it_was(capsys, monkeypatch) -> None:
     from pathlib import Path
 
-    from pyroute_rel import memory
     from pyroute_rel.cli import main
+    from pyroute_rel.routing import memory
 
     monkeypatch.delenv(memory.ENV, raising=False)
     control = str(Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml")

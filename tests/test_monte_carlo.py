@@ -10,9 +10,9 @@ import pytest
 from scipy import integrate, stats
 
 from pyroute_rel import scenario_from_mapping
+from pyroute_rel.analysis.evaluate import evaluate_track
+from pyroute_rel.analysis.monte_carlo import MonteCarloSettings, expected_speed_factor, monte_carlo, wind_errors
 from pyroute_rel.errors import ScenarioError
-from pyroute_rel.evaluate import evaluate_track
-from pyroute_rel.monte_carlo import MonteCarloSettings, expected_speed_factor, monte_carlo, wind_errors
 
 STEADY = {
     "route": {"start": [-12.0, 45.0], "finish": [-20.0, 40.0], "departure": "2018-06-01T00:00:00Z"},

@@ -21,7 +21,7 @@ from pyroute_rel.outputs import (
     turning_points,
     write_outputs,
 )
-from pyroute_rel.route import ForbiddenArcs, Legs
+from pyroute_rel.routing.route import ForbiddenArcs, Legs
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.times import iso_utc
 from pyroute_rel.units import KN_PER_MS

@@ -1,15 +1,15 @@
 """Arcs with an end on a patch edge (a waypoint, start, finish or grid node there) are judged by their interior.
 
 Found in session 9 (tests/test_tradeoff.py's course through the waypoint (-14, 44.5), on the north edge of the patch
-lon -15..-13, lat 43.5..44.5): :func:`pyroute_rel.crossings.split_fractions` found the edge through an arc's end a
-hair inside the arc (fraction 1 - 1.3e-14, or 6e-15 from the start), and the sliver piece it cut off was sampled on
-the edge itself, inside the closed box: some arcs that only touch the patch at the waypoint got its p_f (0.9), others
-in the same position not (the crossing rounded outside the arc), and a source without boundaries (time-varying
-costing, the arc one piece) never. A crossing within ``NUDGE`` of an end now cuts nothing off.
+lon -15..-13, lat 43.5..44.5): :func:`pyroute_rel.reliability.crossings.split_fractions` found the edge through an arc's
+end a hair inside the arc (fraction 1 - 1.3e-14, or 6e-15 from the start), and the sliver piece it cut off was sampled
+on the edge itself, inside the closed box: some arcs that only touch the patch at the waypoint got its p_f (0.9), others
+in the same position not (the crossing rounded outside the arc), and a source without boundaries (time-varying costing,
+the arc one piece) never. A crossing within ``NUDGE`` of an end now cuts nothing off.
 
-The reference is independent of :mod:`pyroute_rel.crossings` and of the cost function: each arc's interior densified
-every 20 m by a spherical interpolation written out here, the patch by a box test written out here, the table by
-``FailureModel.p_fail``.
+The reference is independent of :mod:`pyroute_rel.reliability.crossings` and of the cost function: each arc's interior
+densified every 20 m by a spherical interpolation written out here, the patch by a box test written out here, the table
+by ``FailureModel.p_fail``.
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pyroute_rel.cost import arc_costs
-from pyroute_rel.crossings import NUDGE, split_fractions
-from pyroute_rel.failure import load_failure_model
+from pyroute_rel.boat.polar import get_polar
 from pyroute_rel.geodesy import to_xyz
-from pyroute_rel.polar import get_polar
+from pyroute_rel.reliability.crossings import NUDGE, split_fractions
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing.cost import arc_costs
 from pyroute_rel.weather import Patch, UniformWeather, WeatherBase
 
 R_KM = 6371.0088

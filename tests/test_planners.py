@@ -2,8 +2,8 @@
 
 References: the DP (exact on its graph, itself tested against networkx and brute force in test_solve.py), networkx's
 Dijkstra on the grid of cells, scikit-learn's ``MLPRegressor.predict`` for the saved network's forward pass, the
-evaluator's re-timing (:func:`pyroute_rel.evaluate.evaluate_track`), GSHHG land (``points_on_land``) and shapely for
-the zones on densified tracks, and closed forms for the track similarity.
+evaluator's re-timing (:func:`pyroute_rel.analysis.evaluate.evaluate_track`), GSHHG land (``points_on_land``) and
+shapely for the zones on densified tracks, and closed forms for the track similarity.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import pytest
 import shapely
 
 from pyroute_rel import scenario_from_mapping
+from pyroute_rel.analysis.similarity import track_similarity
 from pyroute_rel.cli.planners import PLANNER_FILES
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.geodesy import gc_densify
@@ -27,10 +28,9 @@ from pyroute_rel.planners.mcts import MCTSPlanner
 from pyroute_rel.planners.plan import get_planner, plan
 from pyroute_rel.planners.qlearning import QLearningPlanner, cell_states, graph_states, shortest_time
 from pyroute_rel.planners.settings import PLANNERS, DQNSettings, MCTSSettings, QLearningSettings, parse_planner
-from pyroute_rel.similarity import track_similarity
 
 sklearn = pytest.importorskip("sklearn")
-evaluate = pytest.importorskip("pyroute_rel.evaluate")
+evaluate = pytest.importorskip("pyroute_rel.analysis.evaluate")
 
 #: A short course in the control weather with a patch of 4.5 m waves across the great circle: at apf 0.5 the
 #: failure model forbids it and the best route goes round.
@@ -298,8 +298,8 @@ def test_planner_and_compare_commands(tmp_path, capsys):
 def test_planner_outputs_are_the_evaluators_track(kind, tmp_path, capsys):
     """``route --planner X --out DIR`` writes what a DP route writes, from the evaluator's re-timing of the track:
     the GPX reads back as the track and its times, the CSV's times are the evaluator's."""
+    from pyroute_rel.analysis.evaluate import read_track
     from pyroute_rel.cli import main
-    from pyroute_rel.evaluate import read_track
     from pyroute_rel.times import iso_utc
 
     table = {**SMALL, "planner": {**TINY_LEARNERS, "kind": kind}}
@@ -438,7 +438,7 @@ def _veering_problem(**qlearning: object) -> PlanningProblem:
 def test_qlearning_in_time_varying_weather_sails_its_route_exactly():
     """Costing passes: the track's times are its exact sailing (the DP's arc costs leg after leg), its voyage the
     fastest pass's, and no faster than the DP on the same graph (exact there)."""
-    from pyroute_rel.route import route_on_grid
+    from pyroute_rel.routing.route import route_on_grid
 
     problem = _veering_problem(episodes=400, time_passes=2)
     assert not problem.problem.weather.steady

@@ -1,7 +1,7 @@
 """The compiled MCTS-UCT search (``engine = "lattice"``) and its weather modes (issue 22).
 
 References: a brute-force enumeration of every heading sequence on a toy lattice, stepped with
-:mod:`pyroute_rel.geodesy` and :func:`pyroute_rel.polar.boat_speed_kn` (not the kernel's own arithmetic), and the
+:mod:`pyroute_rel.geodesy` and :func:`pyroute_rel.boat.polar.boat_speed_kn` (not the kernel's own arithmetic), and the
 reward's closed form (Barde 2023); the evaluator's re-timing, GSHHG land and shapely for land, zones and apf on
 densified tracks.
 """
@@ -16,19 +16,19 @@ import pytest
 import shapely
 
 from pyroute_rel import geodesy, scenario_from_mapping
+from pyroute_rel._kernels.mcts import PARAMS, sailing_speeds, search
+from pyroute_rel._kernels.polar import speed_kn
+from pyroute_rel._kernels.polar import tables as polar_tables
+from pyroute_rel.boat.polar import MIN_SPEED_KN, Polar, boat_speed_kn, get_polar
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.geodesy import gc_densify
 from pyroute_rel.obstacles.land import points_on_land
 from pyroute_rel.planners.mcts import MCTSPlanner
-from pyroute_rel.planners.mcts_kernel import PARAMS, sailing_speeds, search
 from pyroute_rel.planners.plan import plan
 from pyroute_rel.planners.settings import parse_planner
-from pyroute_rel.polar import MIN_SPEED_KN, Polar, boat_speed_kn, get_polar
-from pyroute_rel.polar_compiled import speed_kn
-from pyroute_rel.polar_compiled import tables as polar_tables
 from pyroute_rel.units import KM_PER_NM
 
-evaluate = pytest.importorskip("pyroute_rel.evaluate")
+evaluate = pytest.importorskip("pyroute_rel.analysis.evaluate")
 
 #: The toy: 15 kn from the north, headings 45 deg apart of which only 135 and 225 may be sailed (TWA in
 #: [100, 160]), 2 h steps, a lattice that ends 0.5 deg south of the start (leaving it is a dead end), the finish to the

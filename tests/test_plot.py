@@ -9,7 +9,7 @@ import pytest
 import shapely
 
 from pyroute_rel import obstacles as ob
-from pyroute_rel.plot import _fill_polygons, new_figure
+from pyroute_rel.viz.maps import _fill_polygons, new_figure
 
 
 def _signed_area(xy: np.ndarray) -> float:
@@ -61,8 +61,8 @@ def test_a_refined_route_map_draws_the_grid_track_too() -> None:
     from dataclasses import replace
     from pathlib import Path
 
-    from pyroute_rel.plot import plot_route
     from pyroute_rel.scenario import load_scenario
+    from pyroute_rel.viz.maps import plot_route
 
     sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml")
     sc = sc.with_options(n_ranks=30, land=False)
@@ -80,8 +80,8 @@ def test_a_course_across_the_antimeridian_maps_continuously_and_splits_its_geojs
     import json
 
     from pyroute_rel.cli import main
-    from pyroute_rel.plot import plot_route
     from pyroute_rel.scenario import scenario_from_mapping
+    from pyroute_rel.viz.maps import plot_route
 
     sc = scenario_from_mapping(
         {
@@ -226,8 +226,8 @@ def _unambiguous(reference, heading, hours, delta_deg=3.0, delta_h=1.0):
 def test_the_shading_is_the_failure_model_for_the_routes_own_headings() -> None:
     from matplotlib.path import Path as MplPath
 
-    from pyroute_rel.plot import plot_route
-    from pyroute_rel.risk import route_risk_field
+    from pyroute_rel.reliability.risk import route_risk_field
+    from pyroute_rel.viz.maps import plot_route
 
     route = _control(0.95).route()
     fig = plot_route(route)
@@ -281,7 +281,7 @@ def _time_varying_weather(tmp_path=None):
     east, following a westbound route) grow 1/40 m per hour from 2 m: 4 m, where WH fires, 80 h after departure."""
     import xarray as xr
 
-    from pyroute_rel.weather.readers import weather_from_dataset
+    from pyroute_rel.weather.io.readers import weather_from_dataset
 
     hours = np.arange(0.0, 481.0, 6.0)
     lon, lat = np.arange(-40.0, 10.01, 1.0), np.arange(20.0, 60.01, 1.0)
@@ -314,9 +314,9 @@ def _time_varying_weather(tmp_path=None):
 def test_file_weather_is_drawn_and_judged_at_the_time_the_route_passes() -> None:
     from dataclasses import replace
 
-    from pyroute_rel.plot import plot_route
-    from pyroute_rel.risk import route_risk_field
+    from pyroute_rel.reliability.risk import route_risk_field
     from pyroute_rel.scenario import scenario_from_mapping
+    from pyroute_rel.viz.maps import plot_route
 
     weather, hours_axis, stored = _time_varying_weather()
     sc = scenario_from_mapping(
@@ -375,7 +375,7 @@ def test_lines_zones_and_every_legs_grid_are_drawn_and_named() -> None:
     from dataclasses import replace
 
     from pyroute_rel.obstacles.zones import Zone
-    from pyroute_rel.plot import plot_route
+    from pyroute_rel.viz.maps import plot_route
 
     sc = _control(
         1.0,
@@ -434,7 +434,7 @@ def test_probabilities_keep_their_digits() -> None:
     from hypothesis import given
     from hypothesis import strategies as st
 
-    from pyroute_rel.risk import format_probability
+    from pyroute_rel.reliability.risk import format_probability
 
     @given(st.floats(min_value=1e-12, max_value=1.0 - 1e-12))
     def check(p: float) -> None:
@@ -451,7 +451,7 @@ def test_probabilities_keep_their_digits() -> None:
 def test_a_small_probability_keeps_its_digits_on_the_map(tmp_path) -> None:
     from test_reliability import straight, write_model
 
-    from pyroute_rel.plot import plot_route
+    from pyroute_rel.viz.maps import plot_route
 
     route = straight(write_model(tmp_path, p=0.001), 20, patch_lon=[-12.0, -8.0])
     assert route.max_failure_probability == pytest.approx(0.001, rel=1e-12)
@@ -468,7 +468,7 @@ def test_in_a_current_the_shading_uses_the_heading_the_craft_steers() -> None:
     """West along the equator with 0.5 m/s of current to the north (as in test_reliability): the craft heads south
     of west to hold its course; waves from 208 deg are 62 deg off the course (WD would not fire) but within 60 deg of
     the heading, so the map shades WD (p_f 0.9) along the track, as the router's costs say leg by leg."""
-    from pyroute_rel.risk import route_risk_field
+    from pyroute_rel.reliability.risk import route_risk_field
     from pyroute_rel.scenario import scenario_from_mapping
 
     route = scenario_from_mapping(

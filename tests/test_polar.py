@@ -1,4 +1,4 @@
-"""Tests of pyroute_rel.polar: the table, its bilinear lookup, the .pol/.csv files and the built-in boat."""
+"""Tests of pyroute_rel.boat.polar: the table, its bilinear lookup, the .pol/.csv files and the built-in boat."""
 
 from __future__ import annotations
 
@@ -15,9 +15,8 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 from scipy.interpolate import RegularGridInterpolator
 
-from pyroute_rel import polar as polar_mod
-from pyroute_rel.errors import PolarError
-from pyroute_rel.polar import (
+from pyroute_rel.boat import polar as polar_mod
+from pyroute_rel.boat.polar import (
     BEYOND_MODES,
     BUILTIN_POLARS,
     Polar,
@@ -30,6 +29,7 @@ from pyroute_rel.polar import (
     write_pol,
     write_polar_csv,
 )
+from pyroute_rel.errors import PolarError
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
@@ -564,8 +564,8 @@ def test_example_file_is_the_builtin_written_by_write_pol(tmp_path):
 
 
 def test_polar_errors_are_domain_errors(tmp_path) -> None:
+    from pyroute_rel.boat.polar import boat_speed_kn, get_polar, write_pol
     from pyroute_rel.errors import OutputError, PolarError
-    from pyroute_rel.polar import boat_speed_kn, get_polar, write_pol
 
     vane = get_polar("maribot_vane")
     with pytest.raises(PolarError, match=r"'tws_kn' must be >= 0"):
@@ -575,10 +575,10 @@ def test_polar_errors_are_domain_errors(tmp_path) -> None:
 
 
 def test_beyond_is_checked_in_one_place_with_one_error():
-    from pyroute_rel.cost_compiled import sail_wind
+    from pyroute_rel._kernels.cost import sail_wind
+    from pyroute_rel.boat.polar import check_beyond
     from pyroute_rel.errors import PolarError
-    from pyroute_rel.polar import check_beyond
-    from pyroute_rel.solve import RoutingProblem
+    from pyroute_rel.routing.solve import RoutingProblem
     from pyroute_rel.weather import UniformWeather
 
     assert [check_beyond(b) for b in ("clamp", "forbid")] == ["clamp", "forbid"]

@@ -1,4 +1,4 @@
-"""The compiled polar lookup (pyroute_rel.polar_compiled) finds numpy's cells and speeds, on short and long axes."""
+"""The compiled polar lookup (pyroute_rel._kernels.polar) finds numpy's cells and speeds, on short and long axes."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import pyroute_rel.solve as solve
-from pyroute_rel.grid import make_grid
-from pyroute_rel.polar import Polar, boat_speed_kn
-from pyroute_rel.polar_compiled import SHORT_AXIS, cell, tables
+import pyroute_rel.routing.solve as solve
+from pyroute_rel._kernels.polar import SHORT_AXIS, cell, tables
+from pyroute_rel.boat.polar import Polar, boat_speed_kn
+from pyroute_rel.routing.grid import make_grid
 from tests.test_dp_compiled import assert_same, both
 from tests.test_solve import DEP, FINISH_PT, START_PT, random_weather
 
@@ -73,7 +73,7 @@ def _long_polar(rng: np.random.Generator) -> Polar:
 @pytest.mark.parametrize("beyond", ["clamp", "forbid"])
 def test_long_polar_speeds_are_numpys(beyond: str) -> None:
     """The compiled wind kernel's speeds with a long-axis polar are boat_speed_kn's, bit for bit (on the nodes too)."""
-    from pyroute_rel.cost_compiled import sail_wind
+    from pyroute_rel._kernels.cost import sail_wind
 
     rng = np.random.default_rng(7)
     polar = _long_polar(rng)

@@ -11,8 +11,8 @@ import warnings
 import numpy as np
 import pytest
 
+from pyroute_rel.boat.polar import read_pol, read_polar
 from pyroute_rel.errors import PolarError, PolarWarning
-from pyroute_rel.polar import read_pol, read_polar
 
 TWS = [6.0, 12.0]
 TWA = [0.0, 60.0, 120.0, 180.0]

@@ -1,7 +1,7 @@
 """Property tests of the router (issue 7): optimality, invariances, consistent times, and NaN never read as calm.
 
 References are independent of the code under test where it matters: path times are recomputed leg by leg with
-:func:`~pyroute_rel.solve.path_costs` (no DP), distances and sample points come from ``pyproj.Geod`` on the same
+:func:`~pyroute_rel.routing.solve.path_costs` (no DP), distances and sample points come from ``pyproj.Geod`` on the same
 sphere, and "inside a NaN box" is decided by the test's own comparison of coordinates.
 
 Examples are bounded and derandomised (deterministic CI); ``PYROUTE_FUZZ_EXAMPLES=N`` runs N random ones.
@@ -22,11 +22,11 @@ from pyproj import Geod
 from test_solve import SamplesOnly  # the WeatherSource protocol around a sample()-only test source
 
 from pyroute_rel import geodesy
+from pyroute_rel.boat.polar import Polar
 from pyroute_rel.errors import NoFeasibleRouteError
-from pyroute_rel.grid import Grid, make_grid
-from pyroute_rel.polar import Polar
-from pyroute_rel.route import route_on_grid
-from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
+from pyroute_rel.routing.grid import Grid, make_grid
+from pyroute_rel.routing.route import route_on_grid
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp, path_costs
 from pyroute_rel.weather import Conditions, Patch, UniformWeather
 
 DEP = np.datetime64("2018-06-01T00:00:00")
@@ -392,7 +392,7 @@ def test_nan_current_is_reported_as_missing_weather() -> None:
 
 def test_tiny_boat_speed_without_current_is_an_infinite_time() -> None:
     """Was a RuntimeWarning (overflow in seg_nm / sog) at a boat speed of ~1e-308 kn (fixed in 73a9571)."""
-    from pyroute_rel.cost import arc_costs
+    from pyroute_rel.routing.cost import arc_costs
 
     polar = Polar("light", twa_deg=[0.0, 180.0], tws_kn=[1.0, 20.0], speed_kn=[[2.0, 6.0], [2.0, 6.0]])
     c = arc_costs(
@@ -405,7 +405,7 @@ def test_tiny_boat_speed_without_current_is_an_infinite_time() -> None:
 
 def test_tiny_boat_speed_with_current_is_forbidden_without_warnings() -> None:
     """Was a RuntimeWarning (overflow in ratio**2) under a current (fixed in 2e654ee)."""
-    from pyroute_rel.cost import arc_costs
+    from pyroute_rel.routing.cost import arc_costs
 
     polar = Polar("light", twa_deg=[0.0, 180.0], tws_kn=[1.0, 20.0], speed_kn=[[2.0, 6.0], [2.0, 6.0]])
     weather = UniformWeather(tws_kn=1e-300, twd_deg=0.0, current_u_ms=-3.0)
@@ -415,7 +415,7 @@ def test_tiny_boat_speed_with_current_is_forbidden_without_warnings() -> None:
 
 
 def test_bug_subnormal_boat_speed_with_current_overflows_in_the_drift() -> None:
-    from pyroute_rel.cost import arc_costs
+    from pyroute_rel.routing.cost import arc_costs
 
     polar = Polar("light", twa_deg=[0.0, 180.0], tws_kn=[1.0, 20.0], speed_kn=[[2.0, 6.0], [2.0, 6.0]])
     weather = UniformWeather(tws_kn=2.2250738585072014e-309, twd_deg=0.0, current_u_ms=-10.0)

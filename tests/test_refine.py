@@ -15,14 +15,14 @@ from pyproj import Geod
 from test_solve import DEP, FINISH_PT, START_PT, random_polar, random_weather, weights_by_rank
 
 from pyroute_rel import geodesy
+from pyroute_rel.boat.polar import Polar
 from pyroute_rel.cli import main
 from pyroute_rel.errors import GridError, ScenarioError
-from pyroute_rel.grid import FINISH, START, make_grid
 from pyroute_rel.obstacles import land as ob
-from pyroute_rel.polar import Polar
-from pyroute_rel.refine import CORRIDOR_NODES, corridor_grid, refine, track_offsets_km
+from pyroute_rel.routing.grid import FINISH, START, make_grid
+from pyroute_rel.routing.refine import CORRIDOR_NODES, corridor_grid, refine, track_offsets_km
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp, path_costs
 from pyroute_rel.scenario import load_scenario, scenario_from_mapping
-from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
 from pyroute_rel.weather import Patch, UniformWeather
 
 CONTROL = Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml"
@@ -224,7 +224,7 @@ def test_scenario_refine_key_is_validated(tmp_path) -> None:
 def test_refine_weather_patch_detour_is_found(tmp_path) -> None:
     """A forbidding patch on the course: refinement keeps the detour (no refined leg crosses the patch)."""
     patch = Patch(lon=(-40.0, -30.0), lat=(28.0, 38.0), values={"hs_m": 6.0})
-    from pyroute_rel.failure import load_failure_model
+    from pyroute_rel.reliability.failure import load_failure_model
 
     grid = make_grid(START_PT, FINISH_PT, n_ranks=30, n_nodes=61, spacing_km=25.0, max_deviation_deg=45.0)
     problem = RoutingProblem(

@@ -16,10 +16,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pyroute_rel.errors import FailureModelError
-from pyroute_rel.exposure import EXPOSURE_STEP_KM, failure_probability, hazard
-from pyroute_rel.failure import DEFAULT_EXPOSURE_H, FailureModel, load_failure_model
 from pyroute_rel.geodesy import distance_km
-from pyroute_rel.route import Route
+from pyroute_rel.reliability.exposure import EXPOSURE_STEP_KM, failure_probability, hazard
+from pyroute_rel.reliability.failure import DEFAULT_EXPOSURE_H, FailureModel, load_failure_model
+from pyroute_rel.routing.route import Route
 from pyroute_rel.scenario import scenario_from_mapping
 from pyroute_rel.units import KM_PER_NM
 
@@ -236,9 +236,9 @@ def test_time_varying_weather_counts_the_hours_when_the_criterion_fires(tmp_path
     """Gridded weather whose Hs falls linearly from 5 m at departure to 3 m 40 h later (then stays): hs >= 4 m for
     the first 20 h wherever the craft is, so the route spends 20 h where WH fires (to the midpoint sampling of a
     1 km sub-arc: half of 1 km at 4.54 kn, 0.06 h)."""
-    from pyroute_rel.polar import get_polar
-    from pyroute_rel.route import route_on_grid
-    from pyroute_rel.solve import RoutingProblem
+    from pyroute_rel.boat.polar import get_polar
+    from pyroute_rel.routing.route import route_on_grid
+    from pyroute_rel.routing.solve import RoutingProblem
     from pyroute_rel.units import KN_PER_MS
     from pyroute_rel.weather import GriddedWeather, WeatherField
 
@@ -306,7 +306,7 @@ def test_criteria_see_the_heading_the_craft_steers_in_a_current() -> None:
 
 
 def test_legs_refuse_a_leg_probability_outside_0_1(tmp_path: Path) -> None:
-    from pyroute_rel.route import Legs
+    from pyroute_rel.routing.route import Legs
 
     route = straight(write_model(tmp_path), 6, patch_lon=[-13.0, -7.0])
     values = dict(route.legs)

@@ -8,11 +8,11 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from pyroute_rel.cost import REASONS
-from pyroute_rel.route import LEG_FIELDS, ForbiddenArcs, Legs, Route
+from pyroute_rel.routing.cost import REASONS
+from pyroute_rel.routing.route import LEG_FIELDS, ForbiddenArcs, Legs, Route
+from pyroute_rel.routing.solve import forward_dp
 from pyroute_rel.scenario import scenario_from_mapping
 from pyroute_rel.settings import settings_context
-from pyroute_rel.solve import forward_dp
 
 #: The paper's control course on a small grid, with its two patches and the dickson2018 model; apf 0.5 forbids
 #: the arcs through the patches (criteria WH and WD).
@@ -213,12 +213,12 @@ def test_forbidden_arcs_over_time_varying_weather_and_land() -> None:
 
     from test_cost import _varying_field
 
-    from pyroute_rel.failure import load_failure_model
-    from pyroute_rel.grid import make_grid
+    from pyroute_rel.boat.polar import get_polar
     from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
-    from pyroute_rel.polar import get_polar
-    from pyroute_rel.route import route_on_grid
-    from pyroute_rel.solve import RoutingProblem
+    from pyroute_rel.reliability.failure import load_failure_model
+    from pyroute_rel.routing.grid import make_grid
+    from pyroute_rel.routing.route import route_on_grid
+    from pyroute_rel.routing.solve import RoutingProblem
     from pyroute_rel.weather import UniformWeather
 
     dep = np.datetime64("2018-06-01T00:00")

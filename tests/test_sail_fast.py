@@ -19,14 +19,16 @@ import numpy as np
 import pytest
 from test_evaluate import load_example
 
-from pyroute_rel import crossings, evaluate, geodesy, load_scenario
-from pyroute_rel.cost import arc_geometry
-from pyroute_rel.crossings import arc_extremes, arc_pieces, needs_pieces
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.polar import get_polar
+from pyroute_rel import geodesy, load_scenario
+from pyroute_rel.analysis import evaluate
+from pyroute_rel.boat.polar import get_polar
+from pyroute_rel.reliability import crossings
+from pyroute_rel.reliability.crossings import arc_extremes, arc_pieces, needs_pieces
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing.cost import arc_geometry
 from pyroute_rel.weather.base import Boundaries
 from pyroute_rel.weather.gridded import GriddedWeather, WeatherField
-from pyroute_rel.weather.readers import weather_from_dataset
+from pyroute_rel.weather.io.readers import weather_from_dataset
 
 N_MEMBERS = 3
 

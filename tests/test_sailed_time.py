@@ -34,13 +34,13 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 from pyroute_rel import geodesy, scenario_from_mapping
-from pyroute_rel.evaluate import evaluate_track
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.polar import boat_speed_kn, get_polar
+from pyroute_rel.analysis.evaluate import evaluate_track
+from pyroute_rel.boat.polar import boat_speed_kn, get_polar
+from pyroute_rel.reliability.failure import load_failure_model
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.units import EARTH_RADIUS_KM, KM_PER_NM, KN_PER_MS
 from pyroute_rel.weather import Conditions
-from pyroute_rel.weather.readers import weather_from_dataset
+from pyroute_rel.weather.io.readers import weather_from_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 DEP = np.datetime64("2018-06-01T00:00:00", "ns")
@@ -350,8 +350,8 @@ def test_monte_carlo_runs_are_each_their_own_craft_sailed_continuously():
     the property test below checks for every arc. Scaling the deterministic leg times by the noise instead (the
     slow craft timed with the deterministic craft's wind) errs by more than 1 % on some run here: the check can
     fail."""
-    from pyroute_rel.evaluate import evaluation_problem
-    from pyroute_rel.monte_carlo import MonteCarloSettings, monte_carlo
+    from pyroute_rel.analysis.evaluate import evaluation_problem
+    from pyroute_rel.analysis.monte_carlo import MonteCarloSettings, monte_carlo
 
     sc = scenario(fronts_weather(), FRONTS_START, FRONTS_FINISH)
     lon = np.linspace(FRONTS_START[0], 0.5 * (FRONTS_START[0] + FRONTS_FINISH[0]), 5)  # half the course, 4 legs

@@ -12,13 +12,14 @@ import numpy as np
 import pytest
 
 import pyroute_rel
-import pyroute_rel.dp_compiled as dp_compiled
-from pyroute_rel import ensemble, sweep
+import pyroute_rel._kernels.dp as dp_compiled
+from pyroute_rel.analysis import ensemble
+from pyroute_rel.batch import sweep
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.parallel import thread_map
+from pyroute_rel.routing.solve import forward_dp
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.settings import Settings, get_settings, set_settings, settings_context
-from pyroute_rel.solve import forward_dp
 
 ROOT = Path(__file__).resolve().parents[1]
 FIELDS = ("compiled_rank_step", "compiled_march", "lazy_pieces", "locate_cache", "fused_sampling")

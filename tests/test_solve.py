@@ -12,13 +12,13 @@ import pytest
 from pyproj import Geod
 
 from pyroute_rel import geodesy
-from pyroute_rel.cost import arc_costs
+from pyroute_rel.boat.polar import Polar, boat_speed_kn, get_polar
 from pyroute_rel.errors import NoFeasibleRouteError, ScenarioError
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.grid import FINISH, START, make_grid
-from pyroute_rel.polar import Polar, boat_speed_kn, get_polar
-from pyroute_rel.route import route_on_grid
-from pyroute_rel.solve import RoutingProblem, forward_dp, path_costs
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing.cost import arc_costs
+from pyroute_rel.routing.grid import FINISH, START, make_grid
+from pyroute_rel.routing.route import route_on_grid
+from pyroute_rel.routing.solve import RoutingProblem, forward_dp, path_costs
 from pyroute_rel.times import hours_after
 from pyroute_rel.weather import FIELDS, Conditions, Patch, UniformWeather, WeatherBase
 
@@ -332,7 +332,7 @@ def _same_dp(grid, problem) -> tuple[int, int]:
 @pytest.mark.parametrize("seed", range(8))
 def test_pruning_finds_the_same_route_in_steady_weather(seed: int, monkeypatch) -> None:
     """Random polars (top speeds 0.5-8 kn), patched wind, with and without currents, square and banded grids."""
-    monkeypatch.setattr("pyroute_rel.solve.PRUNE_MIN_WIDTH", 0)  # prune these small grids too
+    monkeypatch.setattr("pyroute_rel.routing.solve.PRUNE_MIN_WIDTH", 0)  # prune these small grids too
     rng = np.random.default_rng(100 + seed)
     square = seed % 2 == 0
     grid = make_grid(
@@ -360,11 +360,11 @@ def test_pruning_finds_the_same_route_in_steady_weather(seed: int, monkeypatch) 
 def test_pruning_finds_the_same_route_over_time_varying_gridded_weather_and_land(monkeypatch) -> None:
     """The paper's failure model over a veering gridded wind with a NaN island, and a land mask tested lazily: the
     same route, with far fewer arcs costed on the square grid."""
-    monkeypatch.setattr("pyroute_rel.solve.PRUNE_MIN_WIDTH", 0)  # prune these small grids too
+    monkeypatch.setattr("pyroute_rel.routing.solve.PRUNE_MIN_WIDTH", 0)  # prune these small grids too
     from test_cost import _varying_field
 
-    from pyroute_rel.failure import load_failure_model
     from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
+    from pyroute_rel.reliability.failure import load_failure_model
 
     grid = make_grid((-31.5, 28.5), (-30.0, 30.0), n_ranks=16, n_nodes=16, max_deviation_deg=None)  # < 48 h
     problem = RoutingProblem(
@@ -468,7 +468,7 @@ class Breeze(WeatherBase, BreezeCore):
 
 def test_a_source_implementing_only_the_protocol_routes_like_the_built_in_one() -> None:
     from pyroute_rel.obstacles.mask import Avoid, ObstacleMask
-    from pyroute_rel.solve import ArcMask
+    from pyroute_rel.routing.solve import ArcMask
     from pyroute_rel.weather import WeatherSource
 
     assert isinstance(Breeze(), WeatherSource) and not isinstance(BreezeCore(), WeatherSource)

@@ -20,11 +20,12 @@ import pytest
 from test_evaluate import write_ensemble_scenario
 
 import pyroute_rel as pr
-from pyroute_rel import failure, sweep
+from pyroute_rel.batch import sweep
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.parallel import thread_map
+from pyroute_rel.reliability import failure
 from pyroute_rel.store import Shelf, current_store, file_stamps, kept, kept_call
-from pyroute_rel.weather import readers
+from pyroute_rel.weather.io import readers
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -285,8 +286,8 @@ def test_sweep_keys_follow_an_edited_referenced_file(tmp_path: Path) -> None:
 def test_an_ensemble_in_worker_processes_reads_edited_files_again(tmp_path: Path) -> None:
     """Two ensemble runs in worker processes, the scenario's finish moved between them: the second routes to the
     new finish, as the inline engine does. It guards the workers' side (each call's workers start with nothing kept,
-    :func:`pyroute_rel.ensemble._begin`); within one process, the stamps that make a kept scenario fresh are checked
-    by test_ensemble's ``test_route_member_reads_an_edited_scenario_or_weather_file_again``."""
+    :func:`pyroute_rel.analysis.ensemble._begin`); within one process, the stamps that make a kept scenario fresh are
+    checked by test_ensemble's ``test_route_member_reads_an_edited_scenario_or_weather_file_again``."""
     path = write_ensemble_scenario(tmp_path, n_members=2)
     first = pr.route_ensemble(path, engine="processes", workers=2)
     assert all(r.lon_deg[-1] == pytest.approx(-22.0) for r in first.routes)

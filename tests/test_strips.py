@@ -14,12 +14,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pyroute_rel import geodesy
-from pyroute_rel.grid import make_grid
 from pyroute_rel.obstacles import areas
 from pyroute_rel.obstacles import land as ob
 from pyroute_rel.obstacles.mask import Avoid, obstacle_mask
 from pyroute_rel.obstacles.strips import Group, fans_blocked
 from pyroute_rel.obstacles.zones import Zone
+from pyroute_rel.routing.grid import make_grid
 
 
 def reference(group: Group, area: shapely.Geometry) -> np.ndarray:

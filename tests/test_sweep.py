@@ -1,4 +1,4 @@
-"""Sweeps (pyroute_rel.sweep, ``pyroute-rel sweep``): each row is the single route of the same settings, a killed
+"""Sweeps (pyroute_rel.batch.sweep, ``pyroute-rel sweep``): each row is the single route of the same settings, a killed
 sweep resumes to the same table, a real dask cluster gives the same table and loses no run when a worker dies,
 bad specifications are one-line errors."""
 
@@ -19,8 +19,8 @@ import pyarrow.parquet as pq
 import pytest
 from dask_processes import dask_processes, free_port
 
+from pyroute_rel.batch.sweep import Run, departure_range, load_sweep, read_runs, run_key, run_sweep
 from pyroute_rel.cli.main import main
-from pyroute_rel.sweep import Run, departure_range, load_sweep, read_runs, run_key, run_sweep
 from pyroute_rel.weather import cache
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -147,7 +147,7 @@ def test_a_killed_sweep_resumes_to_the_uninterrupted_table(ensemble, uninterrupt
     kept = read_runs(out).to_pylist()
     assert 3 <= len(kept) < 12
     computed: list[str] = []
-    import pyroute_rel.sweep as sweep
+    import pyroute_rel.batch.sweep as sweep
 
     real = sweep.run_one
     monkeypatch.setattr(sweep, "run_one", lambda run, key: computed.append(key) or real(run, key))
@@ -219,7 +219,7 @@ def test_a_killed_pool_worker_loses_no_run(ensemble, uninterrupted, tmp_path) ->
 def test_a_run_that_keeps_failing_is_retried_a_bounded_number_of_times(ensemble, monkeypatch) -> None:
     """An internal error is tried ``retries`` more times in its worker, then is an internal-error row; a user
     error is a row at once, never retried."""
-    import pyroute_rel.sweep as sweep_module
+    import pyroute_rel.batch.sweep as sweep_module
 
     calls = []
 
@@ -244,7 +244,7 @@ def test_a_run_that_keeps_failing_is_retried_a_bounded_number_of_times(ensemble,
 
 
 def test_auto_engine_uses_the_cores_for_large_sweeps_only() -> None:
-    from pyroute_rel.sweep import AUTO_MIN_RUNS, auto_engine
+    from pyroute_rel.batch.sweep import AUTO_MIN_RUNS, auto_engine
 
     assert auto_engine(AUTO_MIN_RUNS - 1, 8) == ("inline", None)
     assert auto_engine(AUTO_MIN_RUNS, 8) == ("processes", 8)
@@ -252,7 +252,7 @@ def test_auto_engine_uses_the_cores_for_large_sweeps_only() -> None:
 
 
 def test_task_batches_group_members_and_cover_every_run_once() -> None:
-    from pyroute_rel.sweep import MAX_BATCH_RUNS, task_batches
+    from pyroute_rel.batch.sweep import MAX_BATCH_RUNS, task_batches
 
     todo = [(f"k{i}", Run("s.toml", member=i % 5, apf=float(i))) for i in range(103)]
     for workers in (1, 2, 7, 200):
@@ -313,7 +313,7 @@ def test_an_unreachable_scheduler_is_a_one_line_error(ensemble, tmp_path, capsys
 
 @pytest.mark.slow
 def test_runs_without_a_route_exit_0_and_are_recorded_and_plotted(ensemble, tmp_path, capsys) -> None:
-    from pyroute_rel.figures.sweep import sweep_figure
+    from pyroute_rel.viz.sweep import sweep_figure
 
     deps = "2018-06-02T00:00:00Z,2018-06-03T00:00:00Z"
     out = tmp_path / "out"
@@ -354,7 +354,7 @@ def test_a_process_pool_gives_the_inline_rows(ensemble) -> None:
 
 def test_many_series_are_drawn_as_the_members_medians() -> None:
     """With more series than lines, each apf's line holds each departure's median over the members."""
-    from pyroute_rel.figures.sweep import MAX_LINES, sweep_figure
+    from pyroute_rel.viz.sweep import MAX_LINES, sweep_figure
 
     rng = np.random.default_rng(3)
     rows = [

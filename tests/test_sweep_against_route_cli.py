@@ -80,7 +80,7 @@ def _edited(folder: Path, row: dict, polar_file: Path) -> Path:
 def test_rows_over_grids_polars_and_failure_models_equal_single_routes(tmp_path: Path, capsys) -> None:
     """8 runs (2 grids, one refined; 2 polars; 2 failure models): each row's voyage time within 1e-9 h of `route
     --json` on the edited file, the same track point by point; and every dimension changes the result."""
-    from pyroute_rel.sweep import read_runs
+    from pyroute_rel.batch.sweep import read_runs
 
     (tmp_path / "s.toml").write_text(SCENARIO)
     polar = _slow_polar(tmp_path / "slow.pol")
@@ -129,7 +129,7 @@ class _Terminal(io.StringIO):
 def test_progress_bar_shows_runs_done_failed_and_rate(tmp_path: Path, monkeypatch) -> None:
     """On a terminal the sweep's bar counts the runs (n/total), the failed ones (a user error and a run without a
     route) and the rate; quiet when not a terminal."""
-    from pyroute_rel.sweep import Run, run_sweep
+    from pyroute_rel.batch.sweep import Run, run_sweep
 
     (tmp_path / "s.toml").write_text(SCENARIO)
     s = str(tmp_path / "s.toml")
@@ -163,9 +163,9 @@ def test_progress_bar_shows_runs_done_failed_and_rate(tmp_path: Path, monkeypatc
 
 @pytest.mark.slow
 def test_route_departures_is_a_use_of_the_sweep_library(monkeypatch, capsys) -> None:
-    """`route --departures` routes each departure with pyroute_rel.sweep.run_one (one call per departure, the
+    """`route --departures` routes each departure with pyroute_rel.batch.sweep.run_one (one call per departure, the
     departure and the command's options in the Run) and prints the sweep's figures."""
-    import pyroute_rel.sweep as sweep
+    import pyroute_rel.batch.sweep as sweep
 
     calls: list[sweep.Run] = []
     rows: list[dict] = []
@@ -193,7 +193,7 @@ def test_workers_alone_start_a_dask_local_cluster_with_the_inline_rows(tmp_path:
     inline engine's."""
     import distributed
 
-    from pyroute_rel.sweep import load_sweep, read_runs, run_sweep
+    from pyroute_rel.batch.sweep import load_sweep, read_runs, run_sweep
 
     started: list[dict] = []
     real = distributed.LocalCluster
@@ -228,7 +228,7 @@ def test_a_runs_key_follows_every_file_it_reads(tmp_path: Path) -> None:
     file (the scenario's or the run's), a zones file and a failure-model file, and not when another file changes."""
     import shutil
 
-    from pyroute_rel.sweep import Run, run_key
+    from pyroute_rel.batch.sweep import Run, run_key
 
     shutil.copy(ROOT / "failure_models" / "dickson2018.toml", tmp_path / "model.toml")
     shutil.copy(ROOT / "failure_models" / "dickson2018.bif", tmp_path / "dickson2018.bif")

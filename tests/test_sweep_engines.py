@@ -1,4 +1,4 @@
-"""Sweep engines (pyroute_rel.sweep): on dask and in the local pool each member's runs go to one worker and its
+"""Sweep engines (pyroute_rel.batch.sweep): on dask and in the local pool each member's runs go to one worker and its
 weather is read there, in the task (not as tasks of the cluster); option combinations that would do nothing are
 one-line errors; local engines start at most one process per CPU."""
 
@@ -16,18 +16,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pyroute_rel.analysis.ensemble import route_ensemble
+from pyroute_rel.batch.sweep import READS_METADATA, BatchQueue, Run, SweepError, place_batches, run_sweep, task_batches
 from pyroute_rel.cli.main import main
-from pyroute_rel.ensemble import route_ensemble
 from pyroute_rel.errors import PyrouteWarning, ScenarioError
-from pyroute_rel.sweep import (
-    READS_METADATA,
-    BatchQueue,
-    Run,
-    SweepError,
-    place_batches,
-    run_sweep,
-    task_batches,
-)
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Columns that differ between two runs of the same sweep: the time it took.
@@ -61,7 +53,7 @@ def test_on_dask_each_member_runs_on_one_worker_and_reads_its_weather_in_the_tas
     both workers routed, and the table equals the inline engine's."""
     from distributed import Client, LocalCluster, get_task_stream
 
-    from pyroute_rel.sweep import WORKER_ENV
+    from pyroute_rel.batch.sweep import WORKER_ENV
 
     runs = _runs(ensemble, members=(0, 1))
     inline = run_sweep(runs, engine="inline")
@@ -292,7 +284,7 @@ def test_a_local_pool_reads_each_member_in_one_worker(ensemble) -> None:
     ],
 )
 def test_the_shared_engine_checks_keep_each_command_s_meaning_of_workers(call, message) -> None:
-    """pyroute_rel.cluster checks both commands' engine options: the sweep's ``--workers`` is a pool or a
+    """pyroute_rel.batch.cluster checks both commands' engine options: the sweep's ``--workers`` is a pool or a
     LocalCluster (never with ``inline``, even 1; ``--scheduler`` only with ``dask``), the ensemble's is its
     processes (``inline`` accepts 1; ``--scheduler`` with ``auto``); the messages are those of session 9, whole."""
     with pytest.raises(ScenarioError) as caught:
@@ -301,7 +293,7 @@ def test_the_shared_engine_checks_keep_each_command_s_meaning_of_workers(call, m
 
 
 def test_the_ensemble_accepts_one_worker_inline_and_a_scheduler_with_auto() -> None:
-    from pyroute_rel.cluster import WorkersOption, check_engine_combinations
+    from pyroute_rel.batch.cluster import WorkersOption, check_engine_combinations
 
     ensemble_meaning = WorkersOption(("auto", "dask"), "both", "{workers} inline", inline_allows=(1,))
     check_engine_combinations("inline", 1, None, ensemble_meaning)  # no error

@@ -21,13 +21,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pyroute_rel.errors import FailureModelError, LabelLimitError, ScenarioError
-from pyroute_rel.exposure import leg_exposure
-from pyroute_rel.failure import load_failure_model
-from pyroute_rel.grid import Grid
-from pyroute_rel.route import route_on_grid
-from pyroute_rel.scenario import Scenario, load_scenario, scenario_from_mapping
-from pyroute_rel.solve import RoutingProblem, leg_costs
-from pyroute_rel.tradeoff import (
+from pyroute_rel.reliability.exposure import leg_exposure
+from pyroute_rel.reliability.failure import load_failure_model
+from pyroute_rel.routing.grid import Grid
+from pyroute_rel.routing.route import route_on_grid
+from pyroute_rel.routing.solve import RoutingProblem, leg_costs
+from pyroute_rel.routing.tradeoff import (
     Front,
     bottleneck_front,
     bounding_criterion,
@@ -38,6 +37,7 @@ from pyroute_rel.tradeoff import (
     sensitivity,
     voyage_front,
 )
+from pyroute_rel.scenario import Scenario, load_scenario, scenario_from_mapping
 from pyroute_rel.weather import Conditions, WeatherBase
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -130,7 +130,7 @@ def every_path(
     """Voyage time [h], largest leg p_f and hazard of every sailable path, each costed leg by leg; the hazard in
     ``exposure``'s weather (default ``problem``'s): a steady problem's when ``problem`` wraps steady weather as
     time-varying (to screen nothing), since exposure times a leg's sub-arcs by their own speeds in steady weather and
-    on the leg's sailed sub-segments (pyroute_rel.march) in weather that changes in time."""
+    on the leg's sailed sub-segments (pyroute_rel.routing.march) in weather that changes in time."""
     adj = []
     for k in range(grid.n_ranks + 1):
         src, valid = grid.pattern(k)

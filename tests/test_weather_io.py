@@ -1,4 +1,4 @@
-"""Tests of pyroute_rel.weather.readers: readers, normalisation, trilinear sampling, coverage, scenario hook.
+"""Tests of pyroute_rel.weather.io.readers: readers, normalisation, trilinear sampling, coverage, scenario hook.
 
 Every dataset is built in tmp_path with xarray (or eccodes for GRIB); nothing touches the network.
 Independent references: scipy's RegularGridInterpolator, the same data in other layouts, analytical
@@ -22,7 +22,7 @@ from scipy.interpolate import RegularGridInterpolator
 
 from pyroute_rel.errors import ScenarioError, WeatherCoverageError, WeatherError
 from pyroute_rel.weather import WeatherSource
-from pyroute_rel.weather.readers import open_weather, weather_from_dataset, weather_from_mapping
+from pyroute_rel.weather.io.readers import open_weather, weather_from_dataset, weather_from_mapping
 
 KN = 1852.0 / 3600.0  # [m/s] per knot, exact by definition (international nautical mile)
 T0 = np.datetime64("2018-06-01T00:00", "ns")
@@ -733,7 +733,7 @@ def test_max_current_bounds_every_sampled_current():
 
 @pytest.mark.parametrize("special", ["/dev/zero", "/dev/null"])
 def test_a_device_as_weather_file_is_refused_in_one_line(special) -> None:
-    from pyroute_rel.weather.readers import open_weather
+    from pyroute_rel.weather.io.readers import open_weather
 
     with pytest.raises(WeatherError, match=r"is not a regular file \(a device, pipe or socket\)"):
         open_weather(special)

@@ -24,7 +24,7 @@ from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather import FIELDS, UniformWeather
 from pyroute_rel.weather.base import RANGES
 from pyroute_rel.weather.gridded import GriddedWeather, WeatherField
-from pyroute_rel.weather.readers import open_weather, weather_from_dataset, weather_from_mapping
+from pyroute_rel.weather.io.readers import open_weather, weather_from_dataset, weather_from_mapping
 
 T0 = np.datetime64("2018-06-01T00:00", "ns")
 LON = np.array([-20.0, -19.0, -18.0, -17.0])

@@ -17,7 +17,7 @@ import xarray as xr
 from pyroute_rel.errors import WeatherCoverageError, WeatherWarning
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.units import KN_PER_MS
-from pyroute_rel.weather.readers import open_weather
+from pyroute_rel.weather.io.readers import open_weather
 
 eccodes = pytest.importorskip("eccodes")
 pytest.importorskip("cfgrib")

@@ -76,15 +76,15 @@ def add_ensemble_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
 
 
 def _cmd_ensemble(args: argparse.Namespace) -> int:
-    from ..ensemble import parse_risk, route_ensemble
+    from pyroute_rel.analysis.ensemble import parse_risk, route_ensemble
 
     risk = parse_risk(args.risk)  # before the work
     if args.workers is not None and args.workers < 1:
-        from ..errors import ScenarioError
+        from pyroute_rel.errors import ScenarioError
 
         raise ScenarioError(f"--workers must be a whole number >= 1 (got {args.workers})")
     if args.out is not None:
-        from ..files import check_out_dir
+        from pyroute_rel.files import check_out_dir
 
         check_out_dir(args.out, files=ENSEMBLE_FILES)
     result = route_ensemble(
@@ -107,8 +107,8 @@ def _cmd_ensemble(args: argparse.Namespace) -> int:
 
 
 def _write(result: Any, summary: dict[str, Any], out: str) -> None:
-    from ..figures.ensemble import arrival_cdf, regret_heatmap, spaghetti_map
-    from ..files import write_together
+    from pyroute_rel.files import write_together
+    from pyroute_rel.viz.ensemble import arrival_cdf, regret_heatmap, spaghetti_map
 
     write_together(
         out,

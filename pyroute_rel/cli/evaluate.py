@@ -63,18 +63,18 @@ def add_evaluate_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from ..evaluate import evaluate_track, read_track
-    from ..scenario import load_scenario
+    from pyroute_rel.analysis.evaluate import evaluate_track, read_track
+    from pyroute_rel.scenario import load_scenario
 
     _check_monte_carlo_options(args)
     if args.out is not None:
-        from ..files import check_out_dir
+        from pyroute_rel.files import check_out_dir
 
         check_out_dir(args.out, files=EVALUATE_FILES)
     if args.member is None:
         scenario = load_scenario(args.scenario)
     else:
-        from ..members import member_scenario
+        from pyroute_rel.analysis.members import member_scenario
 
         scenario = member_scenario(args.scenario, args.member)
     track = read_track(args.track)
@@ -95,7 +95,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-#: The Monte-Carlo options and the :class:`~pyroute_rel.monte_carlo.MonteCarloSettings` field each sets.
+#: The Monte-Carlo options and the :class:`~pyroute_rel.analysis.monte_carlo.MonteCarloSettings` field each sets.
 MONTE_CARLO_OPTIONS = {
     "kappa": ("--kappa", "kappa"),
     "speed_tau": ("--speed-tau", "tau_speed_h"),
@@ -108,8 +108,8 @@ MONTE_CARLO_OPTIONS = {
 def _check_monte_carlo_options(args: argparse.Namespace) -> None:
     """Refuse, before any work, a Monte-Carlo option without ``--monte-carlo N`` (it would be silently ignored)
     and a bad value, naming the option."""
-    from ..errors import ScenarioError
-    from ..monte_carlo import MonteCarloSettings
+    from pyroute_rel.analysis.monte_carlo import MonteCarloSettings
+    from pyroute_rel.errors import ScenarioError
 
     given = {k: v for k, v in MONTE_CARLO_OPTIONS.items() if getattr(args, k) is not None}
     if args.monte_carlo is not None and args.monte_carlo < 1:
@@ -139,7 +139,7 @@ def _member(text: str) -> int | str:
 
 
 def _monte_carlo(args: argparse.Namespace, scenario: Any, track: Any) -> Any:
-    from ..monte_carlo import MonteCarloSettings, monte_carlo, spread_from_members
+    from pyroute_rel.analysis.monte_carlo import MonteCarloSettings, monte_carlo, spread_from_members
 
     given = {
         "kappa": args.kappa,
@@ -158,14 +158,14 @@ def _monte_carlo(args: argparse.Namespace, scenario: Any, track: Any) -> Any:
 
 
 def _write(ev: Any, summary: dict[str, Any], out: str, mc: Any = None) -> None:
-    from ..files import write_together
+    from pyroute_rel.files import write_together
 
     writers: dict[str, Callable[[Any], object]] = {
         "evaluation.json": lambda p: p.write_text(json.dumps(summary, indent=1), encoding="utf-8"),
         "evaluation.csv": lambda p: p.write_text(_csv(ev), encoding="utf-8"),
     }
     if mc is not None:
-        from ..figures.ensemble import monte_carlo_histogram
+        from pyroute_rel.viz.ensemble import monte_carlo_histogram
 
         writers["monte_carlo.png"] = lambda p: monte_carlo_histogram(mc, path=p)
     write_together(out, writers)
@@ -176,9 +176,9 @@ def _write(ev: Any, summary: dict[str, Any], out: str, mc: Any = None) -> None:
 
 def _csv(ev: Any) -> str:
     """One row per track point; leg columns describe the leg that starts at the point (as ``route.csv``)."""
-    from ..outputs import MANOEUVRE_FIELDS, manoeuvre_cells
-    from ..route import LEG_FIELDS
-    from ..times import iso_utc
+    from pyroute_rel.outputs import MANOEUVRE_FIELDS, manoeuvre_cells
+    from pyroute_rel.routing.route import LEG_FIELDS
+    from pyroute_rel.times import iso_utc
 
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")

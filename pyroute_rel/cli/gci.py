@@ -118,7 +118,7 @@ def _parse_max_gci(text: str) -> float:
     >>> _parse_max_gci("0.015"), _parse_max_gci("1.5%")
     (0.015, 0.015)
     """
-    from ..errors import ConvergenceError
+    from pyroute_rel.errors import ConvergenceError
 
     percent = text.strip().endswith("%")
     try:
@@ -168,9 +168,9 @@ def _gate_args(p: argparse.ArgumentParser) -> None:
 
 def _check_gate_args(args: argparse.Namespace) -> None:
     """Refuse bad gate and output options before any work (one line naming the option)."""
-    from ..errors import ConvergenceError
-    from ..files import check_out_dir
-    from ..gci.numbers import check_safety_factor
+    from pyroute_rel.errors import ConvergenceError
+    from pyroute_rel.files import check_out_dir
+    from pyroute_rel.gci.numbers import check_safety_factor
 
     check_safety_factor(args.safety_factor, "gci", "--safety-factor")
     if args.max_gci is not None:
@@ -212,8 +212,8 @@ def _gate(study: Any, args: argparse.Namespace) -> str | None:
 
 def _write_out(out: str, payload: dict[str, Any], csv_text: str, study: Any, title: str) -> None:
     """Write gci.png, gci.csv and gci.json into ``out``: all three, or none."""
-    from ..files import write_together
-    from ..gci.plot import plot_convergence
+    from pyroute_rel.files import write_together
+    from pyroute_rel.viz.convergence import plot_convergence
 
     write_together(
         out,
@@ -255,8 +255,8 @@ def _finish(payload: dict[str, Any], text: str, reason: str | None, args: argpar
 
 
 def _cmd_gci(args: argparse.Namespace) -> int:
-    from ..errors import ConvergenceError
-    from ..gci.numbers import convergence_study
+    from pyroute_rel.errors import ConvergenceError
+    from pyroute_rel.gci.numbers import convergence_study
 
     if args.h is None or args.phi is None:
         raise ConvergenceError("give --h and --phi (three or more values each), or use 'pyroute-rel gci study'")
@@ -281,7 +281,7 @@ def _cmd_gci(args: argparse.Namespace) -> int:
 
 def _check_study_args(args: argparse.Namespace) -> None:
     """Refuse options of ``gci study`` that are missing, out of range or do not apply to the --refinement."""
-    from ..errors import ConvergenceError
+    from pyroute_rel.errors import ConvergenceError
 
     if args.h is not None or args.phi is not None:
         raise ConvergenceError(
@@ -312,9 +312,9 @@ def _check_study_args(args: argparse.Namespace) -> None:
 
 
 def _cmd_study(args: argparse.Namespace) -> int:
-    from ..gci.study import angular_levels, check_study_scenario, run_study, square_levels
-    from ..geodesy import distance_km
-    from ..scenario import load_scenario
+    from pyroute_rel.gci.study import angular_levels, check_study_scenario, run_study, square_levels
+    from pyroute_rel.geodesy import distance_km
+    from pyroute_rel.scenario import load_scenario
 
     _check_study_args(args)
     if args.refinement == "square":

@@ -17,14 +17,14 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
-from ..errors import PyrouteError, PyrouteWarning, ScenarioError
-from .ensemble import add_ensemble_parser
-from .evaluate import add_evaluate_parser
-from .gci import NEGATIVE_NUMBERS, add_gci_parser
-from .planners import add_compare_parser
-from .sweep import add_sweep_parser
-from .tradeoff import add_tradeoff_parser
+from pyroute_rel import __version__
+from pyroute_rel.cli.ensemble import add_ensemble_parser
+from pyroute_rel.cli.evaluate import add_evaluate_parser
+from pyroute_rel.cli.gci import NEGATIVE_NUMBERS, add_gci_parser
+from pyroute_rel.cli.planners import add_compare_parser
+from pyroute_rel.cli.sweep import add_sweep_parser
+from pyroute_rel.cli.tradeoff import add_tradeoff_parser
+from pyroute_rel.errors import PyrouteError, PyrouteWarning, ScenarioError
 
 __all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
@@ -211,8 +211,8 @@ def _add_route_parser(sub: Any) -> None:
 def _cmd_route(args: argparse.Namespace) -> int:
     if args.max_memory is None:
         return _route(args)
-    from ..errors import MemoryBudgetError
-    from ..memory import ENV, parse_bytes
+    from pyroute_rel.errors import MemoryBudgetError
+    from pyroute_rel.routing.memory import ENV, parse_bytes
 
     budget = str(parse_bytes(args.max_memory, "--max-memory"))
     before = os.environ.get(ENV)
@@ -230,7 +230,7 @@ def _cmd_route(args: argparse.Namespace) -> int:
 
 def _route(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()  # runtime: loading the scenario, polar, weather and failure model, then routing
-    from ..scenario import load_scenario
+    from pyroute_rel.scenario import load_scenario
 
     options = dict(
         n_nodes=args.n_nodes,
@@ -252,12 +252,12 @@ def _route(args: argparse.Namespace) -> int:
     )
     scenario = load_scenario(args.scenario).with_options(**options)
     if (args.planner or scenario.planner.kind) != "dp":
-        from .planners import route_with_planner
+        from pyroute_rel.cli.planners import route_with_planner
 
         return route_with_planner(scenario, args, t0)
     if args.out is not None:  # '' too: refused, not read as "no --out"
-        from ..files import check_out_dir
-        from ..outputs import OUTPUT_FILES
+        from pyroute_rel.files import check_out_dir
+        from pyroute_rel.outputs import OUTPUT_FILES
 
         check_out_dir(args.out, files=OUTPUT_FILES)  # before the work, not after it
     if args.departures is not None:
@@ -272,7 +272,7 @@ def _route(args: argparse.Namespace) -> int:
     summary = route.summary()
     summary["runtime_s"] = elapsed
     if args.out is not None:
-        from ..outputs import write_outputs
+        from pyroute_rel.outputs import write_outputs
 
         write_outputs(route, args.out, extra={"runtime_s": elapsed})
     if scenario.layout == "angular" and args.n_nodes is not None and not args.json:
@@ -300,11 +300,12 @@ def _route(args: argparse.Namespace) -> int:
 
 def _departure_sweep(args: argparse.Namespace, options: dict[str, Any]) -> int:
     """Route one scenario for several departure times (planning): a table, or JSON with --json. A thin use of
-    :mod:`pyroute_rel.sweep` (one run per departure, on the sweep's default engine: a process pool from 16 runs)."""
-    from ..errors import NoFeasibleRouteError
-    from ..scenario import parse_departure
-    from ..sweep import Run, run_sweep
-    from ..times import iso_utc
+    :mod:`pyroute_rel.batch.sweep` (one run per departure, on the sweep's default engine: a process pool from 16
+    runs)."""
+    from pyroute_rel.batch.sweep import Run, run_sweep
+    from pyroute_rel.errors import NoFeasibleRouteError
+    from pyroute_rel.scenario import parse_departure
+    from pyroute_rel.times import iso_utc
 
     times = [parse_departure(t.strip(), "--departures") for t in args.departures.split(",") if t.strip()]
     if not times:
@@ -389,7 +390,7 @@ def _route_text(
         f"runtime          {elapsed:.2f} s (loading the scenario and its weather, routing)",
     ]
     if out:
-        from ..outputs import OUTPUT_FILES
+        from pyroute_rel.outputs import OUTPUT_FILES
 
         lines.append(f"outputs          {Path(out)}/ ({', '.join(OUTPUT_FILES)})")
     return "\n".join(lines)
@@ -415,7 +416,7 @@ def _refine_lines(info: Any) -> list[str]:
 
 
 def _cmd_failure(args: argparse.Namespace) -> int:
-    from ..failure import list_failure_models, load_failure_model
+    from pyroute_rel.reliability.failure import list_failure_models, load_failure_model
 
     if args.model is None:
         names = list_failure_models()

@@ -1,7 +1,7 @@
 """``pyroute-rel route --planner mcts|qlearning|dqn`` and ``pyroute-rel compare TRACK_A TRACK_B``.
 
 A planner other than the DP plans a track (:func:`pyroute_rel.planners.plan.plan`); the evaluator re-times it in the
-scenario's weather (:func:`pyroute_rel.evaluate.evaluate_track`), and those are the figures printed: the same
+scenario's weather (:func:`pyroute_rel.analysis.evaluate.evaluate_track`), and those are the figures printed: the same
 measure as every other track.
 """
 
@@ -24,9 +24,9 @@ PLANNER_FILES = ("route.geojson", "route.gpx", "route.csv", "summary.json", "rou
 
 
 def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any, Any, dict[str, Any]]:
-    from ..evaluate import evaluate_track
-    from ..planners.base import PlanningProblem
-    from ..planners.plan import get_planner, track_route
+    from pyroute_rel.analysis.evaluate import evaluate_track
+    from pyroute_rel.planners.base import PlanningProblem
+    from pyroute_rel.planners.plan import get_planner, track_route
 
     problem = PlanningProblem.of(scenario)
     planned = get_planner(kind).plan(problem, progress=progress)
@@ -46,9 +46,9 @@ def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any
 
 def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
     """Write the planner's files (all or none); the names written."""
-    from ..files import write_together
-    from ..outputs import OUTPUT_FILES, to_csv, to_geojson, to_gpx
-    from ..plot import plot_route
+    from pyroute_rel.files import write_together
+    from pyroute_rel.outputs import OUTPUT_FILES, to_csv, to_geojson, to_gpx
+    from pyroute_rel.viz.maps import plot_route
 
     text = json.dumps(summary, indent=1, allow_nan=False)
     writers: dict[str, Callable[[Path], object]] = {
@@ -73,10 +73,10 @@ def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
 
 def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> int:
     """Plan the scenario with ``args.planner`` (or its ``[planner].kind``), re-time the track, print and write it."""
-    from ..errors import ScenarioError
-    from ..files import check_out_dir
-    from ..outputs import finite_or_null
-    from ..planners.settings import unused_settings
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.files import check_out_dir
+    from pyroute_rel.outputs import finite_or_null
+    from pyroute_rel.planners.settings import unused_settings
 
     kind = args.planner or scenario.planner.kind
     scenario = replace(scenario, planner=replace(scenario.planner, kind=kind))
@@ -144,8 +144,8 @@ def add_compare_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser],
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from ..evaluate import read_track
-    from ..similarity import track_similarity
+    from pyroute_rel.analysis.evaluate import read_track
+    from pyroute_rel.analysis.similarity import track_similarity
 
     a, b = read_track(args.track_a), read_track(args.track_b)
     s = track_similarity(

@@ -1,4 +1,4 @@
-"""``pyroute-rel sweep``: many routes of one scenario (:mod:`pyroute_rel.sweep`), a table and a plot."""
+"""``pyroute-rel sweep``: many routes of one scenario (:mod:`pyroute_rel.batch.sweep`), a table and a plot."""
 
 from __future__ import annotations
 
@@ -93,8 +93,8 @@ def add_sweep_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], N
 
 def _spec_table(args: argparse.Namespace) -> tuple[dict[str, Any], Path, str]:
     """The sweep table of the file (a spec, or a scenario made into one), with the options written in."""
-    from ..scenario import read_scenario_table
-    from ..sweep import SweepError
+    from pyroute_rel.batch.sweep import SweepError
+    from pyroute_rel.scenario import read_scenario_table
 
     path = Path(args.spec)
     table = read_scenario_table(path)
@@ -119,7 +119,7 @@ def _engine(args: argparse.Namespace) -> str:
 
 def _check_combinations(args: argparse.Namespace) -> None:
     """Options that would do nothing with the others given: a one-line error naming the option."""
-    from ..sweep import SweepError
+    from pyroute_rel.batch.sweep import SweepError
 
     if args.batch is not None and args.out is None:
         raise SweepError("--batch sets how often --out is written: it needs --out")
@@ -132,7 +132,7 @@ def _check_combinations(args: argparse.Namespace) -> None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from ..sweep import SweepError, run_sweep, sweep_from_mapping
+    from pyroute_rel.batch.sweep import SweepError, run_sweep, sweep_from_mapping
 
     _check_combinations(args)
     table, base, source = _spec_table(args)
@@ -146,7 +146,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         raise SweepError(msg) from None
     plot = Path(args.plot) if args.plot else (Path(args.out) / "sweep.png" if args.out else None)
     if args.out is not None:
-        from ..files import check_out_dir
+        from pyroute_rel.files import check_out_dir
 
         check_out_dir(args.out)
     if args.plot and not Path(args.plot).resolve().parent.is_dir():
@@ -165,7 +165,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     )
     rows = result.to_pylist()
     if plot is not None:
-        from ..figures.sweep import write_sweep_figure
+        from pyroute_rel.viz.sweep import write_sweep_figure
 
         write_sweep_figure(rows, plot)
     if args.json:
@@ -180,7 +180,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _exit_code(rows: list[dict[str, Any]]) -> int:
     """3 when a run hit an internal error; 2 when every run was a user error; else 0 (runs without a route are
     results)."""
-    from ..errors import ScenarioError
+    from pyroute_rel.errors import ScenarioError
 
     if any(str(r["message"]).startswith("internal error") for r in rows):
         first = next(r for r in rows if str(r["message"]).startswith("internal error"))
@@ -193,7 +193,7 @@ def _exit_code(rows: list[dict[str, Any]]) -> int:
 
 def _table_text(rows: list[dict[str, Any]]) -> str:
     """The runs as a table: the settings that vary, then the results."""
-    from ..figures.sweep import VARIED
+    from pyroute_rel.viz.sweep import VARIED
 
     varied = [c for c in VARIED if len({json.dumps(r.get(c)) for r in rows}) > 1]
     head = f"{'departure':<21}" + "".join(f" {c:<14}" for c in varied)

@@ -1,4 +1,4 @@
-"""``pyroute-rel tradeoff``: time against reliability (:mod:`pyroute_rel.tradeoff`) from the command line."""
+"""``pyroute-rel tradeoff``: time against reliability (:mod:`pyroute_rel.routing.tradeoff`) from the command line."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..errors import ScenarioError
+from pyroute_rel.errors import ScenarioError
 
 __all__ = ["add_tradeoff_parser", "OUTPUT_FILES"]
 
@@ -20,7 +20,7 @@ OUTPUT_FILES = ("front.png", "routes.png", "sensitivity.png", "tradeoff.json")
 
 def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], None]) -> None:
     """Add ``tradeoff`` to the CLI."""
-    from ..tradeoff import MAX_LABELS
+    from pyroute_rel.routing.tradeoff import MAX_LABELS
 
     t = sub.add_parser(
         "tradeoff",
@@ -61,9 +61,9 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
 
 
 def _cmd_tradeoff(args: argparse.Namespace) -> int:
-    from ..files import check_out_dir, write_together
-    from ..outputs import finite_or_null
-    from ..scenario import load_scenario
+    from pyroute_rel.files import check_out_dir, write_together
+    from pyroute_rel.outputs import finite_or_null
+    from pyroute_rel.scenario import load_scenario
 
     t0 = time.perf_counter()
     if args.max_labels < 1:  # refused whichever front: a bad value is never silently ignored
@@ -99,7 +99,7 @@ def _png_writer(fig: Any) -> Callable[[Path], object]:
 def _compute(scenario: Any, args: argparse.Namespace) -> dict[str, Any]:
     """The fronts (the bottleneck front always: its routes are the single-apf routes), the route at the apf and
     the sensitivity table; a course through waypoints leg after leg, on one grid per leg."""
-    from ..tradeoff import (
+    from pyroute_rel.routing.tradeoff import (
         course_bottleneck_front,
         course_route,
         course_sensitivity,
@@ -142,8 +142,8 @@ def _document(result: dict[str, Any], kind: str) -> dict[str, Any]:
 
 
 def _figures(result: dict[str, Any], kind: str) -> dict[str, Any]:
-    from ..figures.tradeoff import OBJECTIVE, front_figure, routes_figure, sensitivity_figure
-    from ..tradeoff import bounding_criterion
+    from pyroute_rel.routing.tradeoff import bounding_criterion
+    from pyroute_rel.viz.tradeoff import OBJECTIVE, front_figure, routes_figure, sensitivity_figure
 
     key, _ = OBJECTIVE[kind]
     marked = [

@@ -1,4 +1,6 @@
-"""Grid convergence: the GCI numbers, studies routed over families of grids, and their plots.
+"""Grid convergence: the GCI numbers and studies routed over families of grids.
+
+Their plots are drawn by :func:`pyroute_rel.viz.convergence.plot_convergence`.
 
 =================  ======================================================================================
 module             holds
@@ -6,7 +8,6 @@ module             holds
 ``gci.numbers``    :func:`grid_convergence` (Celik et al. 2008), :func:`least_squares_convergence`
                    (Eca and Hoekstra 2014), :func:`convergence_study`
 ``gci.study``      families of grids (:func:`angular_levels`, :func:`square_levels`) routed by :func:`run_study`
-``gci.plot``       :func:`plot_convergence` (matplotlib, imported on first use)
 =================  ======================================================================================
 """
 
@@ -15,7 +16,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .numbers import (
+from pyroute_rel.gci.numbers import (
     CONVERGENCE_LABELS,
     LeastSquaresResult,
     StudyResult,
@@ -37,7 +38,6 @@ __all__ = [
     "angular_levels",
     "square_levels",
     "run_study",
-    "plot_convergence",
 ]
 
 _LAZY = {
@@ -45,7 +45,6 @@ _LAZY = {
     "angular_levels": ".study",
     "square_levels": ".study",
     "run_study": ".study",
-    "plot_convergence": ".plot",
 }
 
 

@@ -42,7 +42,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import brentq, minimize_scalar
 
-from ..errors import ConvergenceError
+from pyroute_rel.errors import ConvergenceError
 
 __all__ = [
     "CONVERGENCE_LABELS",

@@ -28,13 +28,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ConvergenceError
-from ..grid import make_grid
-from ..solve import forward_dp
-from .numbers import StudyResult, convergence_study
+from pyroute_rel.errors import ConvergenceError
+from pyroute_rel.gci.numbers import StudyResult, convergence_study
+from pyroute_rel.routing.grid import make_grid
+from pyroute_rel.routing.solve import forward_dp
 
 if TYPE_CHECKING:
-    from ..scenario import Scenario
+    from pyroute_rel.scenario import Scenario
 
 __all__ = [
     "GridLevel",
@@ -160,14 +160,13 @@ def angular_levels(
     and the angular resolution ``atan(1 / aspect)`` improves with every level. The half-width is fixed.
 
     The defaults differ from a single route's (``aspect = 6``, ``half_width_km = 1000``, ``max_deviation_deg =
-    45``, see :func:`pyroute_rel.grid.make_grid`) on purpose, because they describe a path of grids rather than one
-    grid. ``aspect0`` is the coarsest grid's aspect: from 2, the levels 41, 81, 161 ranks have aspects 2, 4, 8, so
+    45``, see :func:`pyroute_rel.routing.grid.make_grid`) on purpose, because they describe a path of grids rather than
+    one grid. ``aspect0`` is the coarsest grid's aspect: from 2, the levels 41, 81, 161 ranks have aspects 2, 4, 8, so
     the finest grid resolves angles better than the default route; from 6 they would be 6, 12, 24 (with the route's
-    three settings the finest grid has 10.8 M arcs against 2.5 M with these defaults, on the 5382 km example
-    course). The band is wider
-    (60 deg) so that the coarse, low-aspect grids can still turn: at aspect 2 a 45 deg band holds two arcs on each
-    side (26.6 and 45 deg), a 60 deg band three (up to 56.3 deg). The half-width is fixed along the path, so it
-    keeps a margin (1200 km) over the route's 1000 km. Results documented with these defaults stay as they are.
+    three settings the finest grid has 10.8 M arcs against 2.5 M with these defaults, on the 5382 km example course).
+    The band is wider (60 deg) so that the coarse, low-aspect grids can still turn: at aspect 2 a 45 deg band holds two
+    arcs on each side (26.6 and 45 deg), a 60 deg band three (up to 56.3 deg). The half-width is fixed along the path,
+    so it keeps a margin (1200 km) over the route's 1000 km. Results documented with these defaults stay as they are.
 
     Raises
     ------
@@ -202,8 +201,8 @@ def check_study_scenario(scenario: Scenario) -> None:
     reference points) on land or inside an exclusion zone is refused with the message of
     :meth:`~pyroute_rel.scenario.Scenario.route`.
     """
-    from ..errors import ScenarioError
-    from ..obstacles.mask import check_points
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.obstacles.mask import check_points
 
     if scenario.waypoints:
         raise ScenarioError(
@@ -277,7 +276,7 @@ def run_study(
         res = forward_dp(grid, problem)
         dt = time.perf_counter() - t0
         if not np.isfinite(res.finish_h):
-            from ..solve import explain_infeasible
+            from pyroute_rel.routing.solve import explain_infeasible
 
             raise ConvergenceError(f"grid {lv.n_ranks}x{lv.n_nodes}: {explain_infeasible(grid, problem, res)}")
         h = grid.spacing_km if refinement == "square" else grid.rank_spacing_km

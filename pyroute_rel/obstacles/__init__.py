@@ -13,10 +13,10 @@ module                   holds
 
 from __future__ import annotations
 
-from .areas import arcs_blocked
-from .land import RESOLUTIONS, arcs_on_land, land_geometry, land_within, points_on_land
-from .mask import Avoid, ObstacleMask, check_points, obstacle_mask
-from .zones import Zone, load_zones
+from pyroute_rel.obstacles.areas import arcs_blocked
+from pyroute_rel.obstacles.land import RESOLUTIONS, arcs_on_land, land_geometry, land_within, points_on_land
+from pyroute_rel.obstacles.mask import Avoid, ObstacleMask, check_points, obstacle_mask
+from pyroute_rel.obstacles.zones import Zone, load_zones
 
 __all__ = [
     "RESOLUTIONS",

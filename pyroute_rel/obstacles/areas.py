@@ -36,10 +36,10 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from ..errors import GridError, ScenarioError
-from ..geodesy import from_xyz, gc_densify, to_xyz
-from ..store import Held, current_store
-from ..units import EARTH_RADIUS_KM
+from pyroute_rel.errors import GridError, ScenarioError
+from pyroute_rel.geodesy import from_xyz, gc_densify, to_xyz
+from pyroute_rel.store import Held, current_store
+from pyroute_rel.units import EARTH_RADIUS_KM
 
 __all__ = [
     "arcs_blocked",

@@ -52,13 +52,13 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from .. import diskcache
-from ..errors import ScenarioError
-from ..geodesy import to_xyz
-from ..parallel import default_workers, thread_map
-from ..store import kept_call
-from ..units import EARTH_RADIUS_KM
-from .areas import arc_caps, area_index, as_arcs, blocked_flat, checked_samples, polygon_parts
+from pyroute_rel import diskcache
+from pyroute_rel.errors import ScenarioError
+from pyroute_rel.geodesy import to_xyz
+from pyroute_rel.obstacles.areas import arc_caps, area_index, as_arcs, blocked_flat, checked_samples, polygon_parts
+from pyroute_rel.parallel import default_workers, thread_map
+from pyroute_rel.store import kept_call
+from pyroute_rel.units import EARTH_RADIUS_KM
 
 __all__ = [
     "RESOLUTIONS",

@@ -1,9 +1,9 @@
 """Obstacle masks for the solver: land, coastal margins and exclusion zones, cached per grid.
 
 The solver asks ``blocked(k, departure_times)`` for the arcs into rank k (:class:`ObstacleMask` implements the
-solver's :class:`~pyroute_rel.solve.ArcMask` protocol). Whether an arc touches land or a zone does not depend on
+solver's :class:`~pyroute_rel.routing.solve.ArcMask` protocol). Whether an arc touches land or a zone does not depend on
 time, so each arc is tested once per grid and the answer kept on the grid (its
-:class:`~pyroute_rel.grid.ObstacleCache` in ``grid.cache``; routing the same grid again - another apf, departure
+:class:`~pyroute_rel.routing.grid.ObstacleCache` in ``grid.cache``; routing the same grid again - another apf, departure
 or weather - reuses it). Zones with a ``valid_from``/``valid_to`` window are remembered per arc as a bit set, and
 their windows are applied to each arc's departure time when the solver asks.
 
@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ScenarioError
-from ..grid import Grid
-from .zones import Zone
+from pyroute_rel.errors import ScenarioError
+from pyroute_rel.obstacles.zones import Zone
+from pyroute_rel.routing.grid import Grid
 
 __all__ = ["Avoid", "ObstacleMask", "obstacle_mask", "check_points"]
 
@@ -60,7 +60,7 @@ class Avoid:
                 f"Avoid.resolution must be a string such as 'intermediate' (got {self.resolution!r:.60})"
             )
         if self.resolution != "intermediate":
-            from .land import RESOLUTIONS
+            from pyroute_rel.obstacles.land import RESOLUTIONS
 
             if self.resolution not in RESOLUTIONS:
                 raise ScenarioError(f"Avoid.resolution must be one of {list(RESOLUTIONS)} (got {self.resolution!r})")
@@ -121,7 +121,7 @@ def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
     """
     import shapely
 
-    from ..geodesy import gc_densify
+    from pyroute_rel.geodesy import gc_densify
 
     def ring(lon: npt.NDArray[np.float64], lat: npt.NDArray[np.float64]) -> tuple[Any, Any]:
         x, y, _ = gc_densify(lon, lat, np.roll(lon, -1), np.roll(lat, -1), max_step_km=25.0)
@@ -156,7 +156,7 @@ def _region(grid: Grid, pad_deg: float = 0.05) -> Any:
 def _land(grid: Grid, avoid: Avoid, parent: Grid | None) -> Any:
     """The (grown) land that can touch the grid's arcs, kept on the grid; a grid lying inside ``parent``'s outline
     (a corridor of :mod:`pyroute_rel.refine`) takes the parent's land instead of reading and growing it again."""
-    from . import land as obstacles
+    from pyroute_rel.obstacles import land as obstacles
 
     mine = grid.cache.obstacles_for(avoid.key())
     if mine.land is not None:
@@ -191,8 +191,8 @@ class ObstacleMask:
     def __init__(self, grid: Grid, avoid: Avoid, *, parent: Grid | None = None) -> None:
         import shapely
 
-        from . import areas as obstacles
-        from . import zones
+        from pyroute_rel.obstacles import areas as obstacles
+        from pyroute_rel.obstacles import zones
 
         self.grid = grid
         self._obstacles = obstacles
@@ -218,7 +218,7 @@ class ObstacleMask:
     def _groups(self) -> tuple[list[Any], list[tuple[int, int]]]:
         """The grid's arcs as :class:`~pyroute_rel.obstacles.strips.Group` s, with the (rank, first group) of each
         rank."""
-        from .strips import Group
+        from pyroute_rel.obstacles.strips import Group
 
         g = self.grid
         groups: list[Any] = []
@@ -243,7 +243,7 @@ class ObstacleMask:
         arcs one by one does, and leaves nothing for the DP to learn; ranks the shadows do not handle (e.g. a
         single node per rank) are left to the arc-by-arc test.
         """
-        from .strips import fans_blocked
+        from pyroute_rel.obstacles.strips import fans_blocked
 
         groups, spans = self._groups()
         areas = ([] if self.land is None else [self.land]) + [z.geometry for z in self.static + self.timed_zones]
@@ -386,7 +386,7 @@ def check_points(points: Sequence[tuple[str, tuple[float, float]]], avoid: Avoid
         return
     import shapely
 
-    from . import land as obstacles
+    from pyroute_rel.obstacles import land as obstacles
 
     lon = np.array([p[1][0] for p in points])
     lat = np.array([p[1][1] for p in points])

@@ -47,8 +47,8 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from ..geodesy import from_xyz, to_xyz
-from ..units import EARTH_RADIUS_KM
+from pyroute_rel.geodesy import from_xyz, to_xyz
+from pyroute_rel.units import EARTH_RADIUS_KM
 
 __all__ = ["Group", "fans_blocked"]
 

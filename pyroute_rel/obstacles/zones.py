@@ -23,9 +23,9 @@ import numpy as np
 import numpy.typing as npt
 import shapely
 
-from ..errors import ScenarioError, brief, check_path
-from ..files import brief_path, read_regular_bytes
-from .areas import area_index, as_arcs, blocked_flat, checked_samples
+from pyroute_rel.errors import ScenarioError, brief, check_path
+from pyroute_rel.files import brief_path, read_regular_bytes
+from pyroute_rel.obstacles.areas import area_index, as_arcs, blocked_flat, checked_samples
 
 __all__ = [
     "Zone",

@@ -3,7 +3,7 @@
 One module per planner (:mod:`.dp`, :mod:`.mcts`, :mod:`.qlearning`, :mod:`.dqn`), what they share in
 :mod:`.base` (the :class:`~pyroute_rel.planners.base.Planner` protocol), their settings (the scenario's
 ``[planner]`` table) in :mod:`.settings`, and :func:`pyroute_rel.planners.plan.plan` to run the scenario's planner.
-Each returns a track; :func:`pyroute_rel.evaluate.evaluate_track` re-times it, so their figures compare.
+Each returns a track; :func:`pyroute_rel.analysis.evaluate.evaluate_track` re-times it, so their figures compare.
 
 This package's ``__init__`` imports nothing: the scenario reader uses :mod:`.settings` alone.
 """

@@ -3,16 +3,16 @@ protocol.
 
 A planner takes the same routing problem as the DP - the scenario's course, weather, polar, failure model, apf,
 land and zones (:class:`PlanningProblem`) - and returns a track (:class:`PlannedTrack`). The evaluator
-(:func:`pyroute_rel.evaluate.evaluate_track`) re-times any track in the scenario's weather, so every planner's
+(:func:`pyroute_rel.analysis.evaluate.evaluate_track`) re-times any track in the scenario's weather, so every planner's
 figures are measured the same way.
 
-Sailing a leg (:meth:`PlanningProblem.sail`) is the DP's arc cost (:meth:`pyroute_rel.solve.RoutingProblem.costs`:
-polar, weather sampled along the leg, failure model with its apf) plus the obstacles the DP avoids: land grown by
-the scenario's margin (:func:`pyroute_rel.obstacles.land.land_geometry` of the planning box, tested with
+Sailing a leg (:meth:`PlanningProblem.sail`) is the DP's arc cost
+(:meth:`pyroute_rel.routing.solve.RoutingProblem.costs`: polar, weather sampled along the leg, failure model with its
+apf) plus the obstacles the DP avoids: land grown by the scenario's margin
+(:func:`pyroute_rel.obstacles.land.land_geometry` of the planning box, tested with
 :func:`pyroute_rel.obstacles.areas.arcs_blocked`) and the zones active while the leg is sailed
-(:func:`pyroute_rel.obstacles.zones.arcs_blocked_by_zones`). A leg that any of them forbids takes ``inf``. Planners
-stay in the planning box: the DP grid's bounding box grown by :data:`BOX_PAD_DEG`; a leg that leaves it is
-forbidden too.
+(:func:`pyroute_rel.obstacles.zones.arcs_blocked_by_zones`). A leg that any of them forbids takes ``inf``. Planners stay
+in the planning box: the DP grid's bounding box grown by :data:`BOX_PAD_DEG`; a leg that leaves it is forbidden too.
 """
 
 from __future__ import annotations
@@ -23,20 +23,20 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from .. import geodesy
-from ..errors import ScenarioError, TrackError, check_flag, check_instance, check_numbers
-from ..obstacles.areas import arcs_blocked
-from ..obstacles.land import land_geometry
-from ..obstacles.zones import arcs_blocked_by_zones
-from ..times import hours_after
-from ..units import KM_PER_NM
-from .settings import PlannerSettings
+from pyroute_rel import geodesy
+from pyroute_rel.errors import ScenarioError, TrackError, check_flag, check_instance, check_numbers
+from pyroute_rel.obstacles.areas import arcs_blocked
+from pyroute_rel.obstacles.land import land_geometry
+from pyroute_rel.obstacles.zones import arcs_blocked_by_zones
+from pyroute_rel.planners.settings import PlannerSettings
+from pyroute_rel.times import hours_after
+from pyroute_rel.units import KM_PER_NM
 
 if TYPE_CHECKING:
-    from ..grid import Grid
-    from ..scenario import Scenario
-    from ..solve import RoutingProblem
-    from ..weather import WeatherSource
+    from pyroute_rel.routing.grid import Grid
+    from pyroute_rel.routing.solve import RoutingProblem
+    from pyroute_rel.scenario import Scenario
+    from pyroute_rel.weather import WeatherSource
 
 __all__ = ["PlanningProblem", "PlannedTrack", "Planner", "SailedLegs"]
 
@@ -309,7 +309,7 @@ class PlannedTrack:
         return float(self.elapsed_h[-1])
 
     def points(self) -> FloatArray:
-        """The track as an (N, 2) array of (lon, lat) [deg], what :func:`pyroute_rel.evaluate.evaluate_track`
+        """The track as an (N, 2) array of (lon, lat) [deg], what :func:`pyroute_rel.analysis.evaluate.evaluate_track`
         takes."""
         return np.column_stack([self.lon_deg, self.lat_deg])
 

@@ -2,7 +2,7 @@
 refined DP), feasibility, runtime and training time, and each track's distance from the DP's.
 
 :func:`compare_planners` is what ``benchmarks/planners.py`` and ``examples/planners_comparison.py`` run per course;
-:func:`pyroute_rel.figures.planners.planners_map` draws its tracks.
+:func:`pyroute_rel.viz.planners.planners_map` draws its tracks.
 """
 
 from __future__ import annotations
@@ -13,14 +13,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..evaluate import Evaluation, evaluate_track
-from ..similarity import TrackSimilarity, track_similarity
-from .base import PlannedTrack, PlanningProblem
-from .plan import get_planner
-from .settings import PLANNERS, PlannerSettings
+from pyroute_rel.analysis.evaluate import Evaluation, evaluate_track
+from pyroute_rel.analysis.similarity import TrackSimilarity, track_similarity
+from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
+from pyroute_rel.planners.plan import get_planner
+from pyroute_rel.planners.settings import PLANNERS, PlannerSettings
 
 if TYPE_CHECKING:
-    from ..scenario import Scenario
+    from pyroute_rel.scenario import Scenario
 
 __all__ = ["PlannerRun", "Comparison", "compare_planners", "episodes_to_final"]
 

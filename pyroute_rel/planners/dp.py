@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time as _time
 
-from .base import PlannedTrack, PlanningProblem
+from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
 
 __all__ = ["DPPlanner"]
 

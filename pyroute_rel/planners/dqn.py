@@ -50,13 +50,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .. import geodesy
-from ..errors import PyrouteError, ScenarioError
-from ..files import write_together
-from ..progress import progress_bar
-from ..units import KM_PER_NM
-from .base import PlannedTrack, PlanningProblem
-from .settings import DQNSettings
+from pyroute_rel import geodesy
+from pyroute_rel.errors import PyrouteError, ScenarioError
+from pyroute_rel.files import write_together
+from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
+from pyroute_rel.planners.settings import DQNSettings
+from pyroute_rel.progress import progress_bar
+from pyroute_rel.units import KM_PER_NM
 
 __all__ = ["DQNPlanner", "QNetwork", "features", "N_ACTIONS", "DEAD_END_REWARD"]
 

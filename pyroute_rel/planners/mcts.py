@@ -46,13 +46,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .. import geodesy
-from ..errors import ScenarioError
-from ..progress import progress_bar
-from ..units import KM_PER_NM
-from .base import PlannedTrack, PlanningProblem
-from .qlearning import TabularProblem, graph_states
-from .settings import MCTSSettings
+from pyroute_rel import geodesy
+from pyroute_rel.errors import ScenarioError
+from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
+from pyroute_rel.planners.qlearning import TabularProblem, graph_states
+from pyroute_rel.planners.settings import MCTSSettings
+from pyroute_rel.progress import progress_bar
+from pyroute_rel.units import KM_PER_NM
 
 __all__ = [
     "MCTSPlanner",
@@ -362,11 +362,11 @@ class MCTSPlanner:
 
 
 def kernel_inputs(problem: PlanningProblem, s: MCTSSettings, lattice: Any) -> tuple[Any, ...]:
-    """The headings [deg], the polar tables and the scalar parameters (:data:`~.mcts_kernel.PARAMS`) of the
+    """The headings [deg], the polar tables and the scalar parameters (``pyroute_rel._kernels.mcts.PARAMS``) of the
     compiled search of ``problem`` over ``lattice``."""
-    from ..polar import MIN_SPEED_KN
-    from ..polar_compiled import tables as polar_tables
-    from .mcts_kernel import PARAMS
+    from pyroute_rel._kernels.mcts import PARAMS
+    from pyroute_rel._kernels.polar import tables as polar_tables
+    from pyroute_rel.boat.polar import MIN_SPEED_KN
 
     top, t_min, t_max = time_limits(problem, s)
     pol = problem.problem.polar
@@ -399,8 +399,8 @@ def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progre
     """The receding-horizon MCTS with the compiled search (``engine = "lattice"``): a new tree per decision over
     the problem on a lattice; the action sailed is the most visited (or best) among those that may be sailed
     exactly (:meth:`_HeadingSim.moves`)."""
-    from .mcts_kernel import search
-    from .mcts_lattice import build_lattice
+    from pyroute_rel._kernels.mcts import search
+    from pyroute_rel.planners.mcts_lattice import build_lattice
 
     t0 = _time.perf_counter()
     mode = weather_mode(s, problem)

@@ -1,19 +1,19 @@
 """The weather, failure model, land and zones of a planning problem on a lattice, for the compiled MCTS search.
 
-:func:`build_lattice` samples, once per voyage, what :mod:`pyroute_rel.planners.mcts_kernel` reads at every
+:func:`build_lattice` samples, once per voyage, what :mod:`pyroute_rel._kernels.mcts` reads at every
 simulated step: on a lon/lat lattice of ``spacing_deg`` over the planning box
 (:meth:`~pyroute_rel.planners.base.PlanningProblem.box`), at slices ``slice_h`` apart (one slice when nothing
 changes in time):
 
 - the wind's "from" components ``u = tws sin(twd)``, ``v = tws cos(twd)`` [kn] and the wave speed factor [-]
-  (:class:`~pyroute_rel.cost.WaveLoss`, 1 without) of each weather source (the scenario's, or each member);
+  (:class:`~pyroute_rel.routing.cost.WaveLoss`, 1 without) of each weather source (the scenario's, or each member);
 - whether the failure model allows each heading (a :data:`~pyroute_rel.planners.base.PROBE_NM` leg costed like
   every arc has ``p_f <= apf``; all allowed when no failure model can forbid anything at this apf);
 - which cells are open water: neither of the cell's diagonals touches land (grown by the scenario's margin) nor a
   zone active during the slice;
 - in ``"perturbed"`` weather, the standard deviation of each wind component [kn]: the members' spread when there
-  are members (and their mean as the wind), else :class:`~pyroute_rel.monte_carlo.MonteCarloSettings`' documented
-  forecast error growing with lead time (one value per slice).
+  are members (and their mean as the wind), else :class:`~pyroute_rel.analysis.monte_carlo.MonteCarloSettings`'
+  documented forecast error growing with lead time (one value per slice).
 
 The lattice is the search's model of the problem only: the step the craft sails after each decision is costed by
 :meth:`~pyroute_rel.planners.base.PlanningProblem.sail` (the DP's arc cost, land and zones, exactly).
@@ -27,14 +27,14 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .. import geodesy
-from ..errors import ScenarioError
-from ..monte_carlo import MonteCarloSettings
-from ..obstacles.areas import arcs_blocked
-from ..obstacles.zones import arcs_blocked_by_zones
-from ..times import hours_after
-from ..units import KM_PER_NM, KN_PER_MS
-from .base import PROBE_NM, PlanningProblem
+from pyroute_rel import geodesy
+from pyroute_rel.analysis.monte_carlo import MonteCarloSettings
+from pyroute_rel.errors import ScenarioError
+from pyroute_rel.obstacles.areas import arcs_blocked
+from pyroute_rel.obstacles.zones import arcs_blocked_by_zones
+from pyroute_rel.planners.base import PROBE_NM, PlanningProblem
+from pyroute_rel.times import hours_after
+from pyroute_rel.units import KM_PER_NM, KN_PER_MS
 
 __all__ = ["Lattice", "build_lattice", "WEATHER_MODES"]
 
@@ -45,7 +45,7 @@ WEATHER_MODES = ("forecast", "members", "perturbed")
 
 @dataclass(frozen=True)
 class Lattice:
-    """The problem on a lattice (see the module notes); arrays as :func:`~.mcts_kernel.search` takes them.
+    """The problem on a lattice (see the module notes); arrays as ``pyroute_rel._kernels.mcts.search`` takes them.
 
     Attributes
     ----------
@@ -75,7 +75,7 @@ class Lattice:
 
     @property
     def weather(self) -> tuple[Any, ...]:
-        """``W`` of :func:`~.mcts_kernel.search`."""
+        """``W`` of ``pyroute_rel._kernels.mcts.search``."""
         return (self.u, self.v, self.factor, self.sigma_u, self.sigma_v)
 
 

@@ -7,15 +7,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..errors import ScenarioError, brief, check_flag, check_instance
-from .base import PlannedTrack, Planner, PlanningProblem
-from .settings import PLANNERS
+from pyroute_rel.errors import ScenarioError, brief, check_flag, check_instance
+from pyroute_rel.planners.base import PlannedTrack, Planner, PlanningProblem
+from pyroute_rel.planners.settings import PLANNERS
 
 if TYPE_CHECKING:
-    from ..evaluate import Evaluation
-    from ..route import Route
-    from ..scenario import Scenario
-    from ..weather import WeatherSource
+    from pyroute_rel.analysis.evaluate import Evaluation
+    from pyroute_rel.routing.route import Route
+    from pyroute_rel.scenario import Scenario
+    from pyroute_rel.weather import WeatherSource
 
 __all__ = ["get_planner", "plan", "track_route"]
 
@@ -24,19 +24,19 @@ def get_planner(kind: str) -> Planner:
     """The planner named ``kind`` (one of :data:`~pyroute_rel.planners.settings.PLANNERS`), with the settings of the
     problem it is given."""
     if kind == "dp":
-        from .dp import DPPlanner
+        from pyroute_rel.planners.dp import DPPlanner
 
         return DPPlanner()
     if kind == "mcts":
-        from .mcts import MCTSPlanner
+        from pyroute_rel.planners.mcts import MCTSPlanner
 
         return MCTSPlanner()
     if kind == "qlearning":
-        from .qlearning import QLearningPlanner
+        from pyroute_rel.planners.qlearning import QLearningPlanner
 
         return QLearningPlanner()
     if kind == "dqn":
-        from .dqn import DQNPlanner
+        from pyroute_rel.planners.dqn import DQNPlanner
 
         return DQNPlanner()
     raise ScenarioError(f"planner must be one of {list(PLANNERS)} (got {kind!r})")
@@ -63,8 +63,8 @@ def plan(
     >>> track.planner, track.reached, track.stats["nodes"] == plan(sc, kind="dp").stats["nodes"]
     ('qlearning', True, True)
     """
-    from ..scenario import Scenario
-    from ..weather import WeatherSource
+    from pyroute_rel.scenario import Scenario
+    from pyroute_rel.weather import WeatherSource
 
     check_instance(scenario, Scenario, "scenario", ScenarioError, expected="a Scenario (pyroute_rel.load_scenario)")
     progress = check_flag(progress, "progress", ScenarioError)
@@ -78,15 +78,15 @@ def plan(
 
 
 def track_route(problem: PlanningProblem, planned: PlannedTrack, evaluation: Evaluation) -> Route | None:
-    """A planner's track as a :class:`~pyroute_rel.route.Route`, so the DP's outputs (map, GPX, CSV, GeoJSON:
-    :mod:`pyroute_rel.outputs`, :func:`pyroute_rel.plot.plot_route`) write it: the evaluator's re-timed track, its
+    """A planner's track as a :class:`~pyroute_rel.routing.route.Route`, so the DP's outputs (map, GPX, CSV, GeoJSON:
+    :mod:`pyroute_rel.outputs`, :func:`pyroute_rel.viz.maps.plot_route`) write it: the evaluator's re-timed track, its
     legs and exposure, on the scenario's grid and problem; None when a leg cannot be sailed (no times after it).
 
     The route's ``dp`` is empty (no arc was costed by the DP: every node unreached) and its ``nodes`` are the
     planner's nodes on the grid (Q-learning on the graph) or none.
     """
-    from ..route import Route
-    from ..solve import DPResult
+    from pyroute_rel.routing.route import Route
+    from pyroute_rel.routing.solve import DPResult
 
     if not np.all(np.isfinite(evaluation.elapsed_h)):
         return None

@@ -25,7 +25,7 @@ published).
 Costing. The moves are costed before they are learned from, in vectorised calls, not one move at a time:
 
 - On a static problem (steady weather, no zone with a time window) every action is costed once, in one call per
-  rank (the DP's own arc costs, :meth:`pyroute_rel.solve.RoutingProblem.costs`, with its obstacle mask).
+  rank (the DP's own arc costs, :meth:`pyroute_rel.routing.solve.RoutingProblem.costs`, with its obstacle mask).
 - In time-varying weather (or with zones that have time windows) the actions are costed on a time lattice: the
   voyage's first ``max_voyage_h`` are cut into buckets of ``time_bucket_h``, and a move made at time ``t`` takes the
   time of its action costed at the middle of ``t``'s bucket. A group of states (a rank of the digraph, a few rows
@@ -33,7 +33,7 @@ Costing. The moves are costed before they are learned from, in vectorised calls,
   approximates: the weather (and the failure model's ``p_f``) met by a move are those of up to half a bucket
   earlier or later; with zones that have time windows a move is forbidden when a zone blocks it at its bucket's
   start, middle or end. Moves beyond ``max_voyage_h`` are not actions. The evaluator re-times the learned track
-  exactly (:func:`pyroute_rel.evaluate.evaluate_track`), and that re-timing is the planner's reported voyage.
+  exactly (:func:`pyroute_rel.analysis.evaluate.evaluate_track`), and that re-timing is the planner's reported voyage.
 
 Learning runs in a compiled loop (numba) over the costed table, its random numbers drawn in blocks from the seeded
 numpy generator, so results are reproducible.
@@ -55,13 +55,13 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from .. import geodesy
-from ..grid import plan_grid
-from ..progress import progress_bar
-from ..times import hours_after
-from ..units import KM_PER_NM
-from .base import PlannedTrack, PlanningProblem
-from .settings import QLearningSettings
+from pyroute_rel import geodesy
+from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
+from pyroute_rel.planners.settings import QLearningSettings
+from pyroute_rel.progress import progress_bar
+from pyroute_rel.routing.grid import plan_grid
+from pyroute_rel.times import hours_after
+from pyroute_rel.units import KM_PER_NM
 
 __all__ = [
     "QLearningPlanner",

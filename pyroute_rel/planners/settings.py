@@ -79,7 +79,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from ..errors import ScenarioError, brief, show
+from pyroute_rel.errors import ScenarioError, brief, show
 
 __all__ = [
     "PLANNERS",
@@ -196,11 +196,11 @@ class MCTSSettings:
     weather : How the search samples the weather: ``"forecast"`` the scenario's; ``"members"`` one ensemble member
         per iteration; ``"perturbed"`` each wind component drawn from N(mean, sigma^2) at each step (Barde), sigma
         from the members' spread, or without members from
-        :class:`~pyroute_rel.monte_carlo.MonteCarloSettings`' forecast error; ``"auto"`` (default): ``"perturbed"``
-        when there are members (published), else ``"forecast"``.
+        :class:`~pyroute_rel.analysis.monte_carlo.MonteCarloSettings`' forecast error; ``"auto"`` (default):
+        ``"perturbed"`` when there are members (published), else ``"forecast"``.
     sigma_scale : In ``"perturbed"`` weather, multiplies the standard deviation of the wind error (1: as stated
         under ``weather``; 0: no noise, the same search as the mean weather) [-].
-    engine : ``"lattice"`` (default): the compiled search (:mod:`~pyroute_rel.planners.mcts_kernel`) over the
+    engine : ``"lattice"`` (default): the compiled search (:mod:`~pyroute_rel._kernels.mcts`) over the
         problem sampled on a lattice (:mod:`~pyroute_rel.planners.mcts_lattice`), a new tree per decision;
         ``"python"``: the reference search with every step costed exactly, keeping the subtree (weather with
         currents needs it; no ``"perturbed"``). ``graph = true`` always searches with the Python engine.

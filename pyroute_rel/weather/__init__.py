@@ -6,7 +6,7 @@ module                 holds
 ``weather.base``       :class:`Conditions`, the :class:`WeatherSource` protocol, physical ranges
 ``weather.uniform``    :class:`UniformWeather` and :class:`Patch` (the paper's control weather)
 ``weather.gridded``    :class:`GriddedWeather`: time-varying fields on lon/lat grids
-``weather.readers``    :func:`open_weather`: ERA5, GFS, WAVEWATCH III and CMEMS files (NetCDF, GRIB)
+``weather.io``         :func:`open_weather`: ERA5, GFS, WAVEWATCH III and CMEMS files (NetCDF, GRIB)
 =====================  =======================================================================
 
 The gridded sampler and the readers load numba and xarray; they are imported on first use.
@@ -17,8 +17,8 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from .base import FIELDS, RANGES, Conditions, Range, WeatherBase, WeatherSource
-from .uniform import Patch, UniformWeather
+from pyroute_rel.weather.base import FIELDS, RANGES, Conditions, Range, WeatherBase, WeatherSource
+from pyroute_rel.weather.uniform import Patch, UniformWeather
 
 __all__ = [
     "FIELDS",
@@ -34,7 +34,7 @@ __all__ = [
     "open_weather",
 ]
 
-_LAZY = {"GriddedWeather": ".gridded", "WeatherField": ".gridded", "open_weather": ".readers"}
+_LAZY = {"GriddedWeather": ".gridded", "WeatherField": ".gridded", "open_weather": ".io.readers"}
 
 
 def __getattr__(name: str) -> Any:

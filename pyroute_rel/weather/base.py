@@ -4,7 +4,7 @@ A weather source answers one question, vectorised: *what are the wind and waves 
 times?* (:meth:`WeatherSource.sample`). The cost function, the solver and the route builder only ever call the
 methods of :class:`WeatherSource`, so a uniform control field with patches (:mod:`pyroute_rel.weather.uniform`)
 and gridded, time-varying reanalysis or forecast data (:mod:`pyroute_rel.weather.gridded`, read by
-:mod:`pyroute_rel.weather.readers`) plug into the same solver.
+:mod:`pyroute_rel.weather.io.readers`) plug into the same solver.
 
 Conventions
 -----------
@@ -27,8 +27,8 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import WeatherError, check_numbers
-from ..times import to_datetime64
+from pyroute_rel.errors import WeatherError, check_numbers
+from pyroute_rel.times import to_datetime64
 
 __all__ = [
     "Boundaries",
@@ -193,7 +193,7 @@ class WeatherSource(Protocol):
     asks for them by name and never probes. :class:`~pyroute_rel.weather.uniform.UniformWeather` and
     :class:`~pyroute_rel.weather.gridded.GriddedWeather` are the two shipped implementations. The protocol is
     ``runtime_checkable``: ``isinstance(x, WeatherSource)`` checks that the members exist (not their types); a
-    :class:`~pyroute_rel.solve.RoutingProblem` refuses a source that lacks some, naming them.
+    :class:`~pyroute_rel.routing.solve.RoutingProblem` refuses a source that lacks some, naming them.
 
     Conventions of the methods: positions are longitude/latitude [deg] (any longitude convention), times
     ``numpy.datetime64`` (UTC), and every array argument is broadcast with the others.
@@ -202,8 +202,8 @@ class WeatherSource(Protocol):
     @property
     def steady(self) -> bool:
         """True when the conditions do not change with time: the router then samples every arc once, at the
-        departure time, and skips the timing pass (see :mod:`pyroute_rel.cost`). False makes the router sample each
-        point at the time the craft gets there; it is always correct, only slower."""
+        departure time, and skips the timing pass (see :mod:`pyroute_rel.routing.cost`). False makes the router sample
+        each point at the time the craft gets there; it is always correct, only slower."""
         ...
 
     @property
@@ -224,9 +224,9 @@ class WeatherSource(Protocol):
     def time_steps(self) -> npt.NDArray[np.datetime64] | None:
         """The times (``datetime64[ns]``, UTC, increasing) at which the source's conditions may change their rate in
         time: a file's time steps, between which every field is linear in time. The cost function cuts each arc's
-        march where the craft crosses one (:mod:`pyroute_rel.cost`), so that no step is timed across a change of
+        march where the craft crosses one (:mod:`pyroute_rel.routing.cost`), so that no step is timed across a change of
         the weather's trend. None: no such times (a steady source; or a source smooth in time, whose march steps are
-        then bounded by :data:`~pyroute_rel.cost.MAX_STEP_H` instead)."""
+        then bounded by :data:`~pyroute_rel.routing.cost.MAX_STEP_H` instead)."""
         ...
 
     def sample(
@@ -310,13 +310,14 @@ class WeatherSource(Protocol):
     @property
     def boundaries(self) -> Boundaries | None:
         """Where conditions change abruptly or bend (grid lines, patch edges): arcs are judged on every piece
-        between them (:mod:`pyroute_rel.crossings`). None: nowhere known; arcs are judged on their samples."""
+        between them (:mod:`pyroute_rel.reliability.crossings`). None: nowhere known; arcs are judged on their
+        samples."""
         ...
 
     def variation(self, field: str) -> Variation | None:
         """A bound on how much a :class:`Conditions` field changes between two points (None: no bound known): lets
         the judge on pieces skip arcs that cannot reach a criterion's edge
-        (:func:`pyroute_rel.crossings.needs_pieces`)."""
+        (:func:`pyroute_rel.reliability.crossings.needs_pieces`)."""
         ...
 
     @property
@@ -350,7 +351,7 @@ class WeatherSource(Protocol):
 
     def wind_errors(self) -> tuple[Any, FloatArray | None, FloatArray | None]:
         """The source this one offsets the wind of, and the offsets east and north per row [kn] (None: no offset):
-        how the compiled march samples a perturbed source (:class:`pyroute_rel.monte_carlo.PerturbedWind`). A
+        how the compiled march samples a perturbed source (:class:`pyroute_rel.analysis.monte_carlo.PerturbedWind`). A
         source that offsets nothing returns itself and None, None."""
         ...
 

@@ -1,8 +1,8 @@
 """A per-process cache of opened weather files, for processes that route many times (sweeps).
 
 Opening a gridded weather file costs about 2 s (imports, reading, building the compiled sampler), several times the
-route itself. A process that routes many runs over the same files (a sweep's worker, :mod:`pyroute_rel.sweep`)
-turns the cache on with :func:`caching`; from then on :func:`~pyroute_rel.weather.readers.weather_from_mapping`
+route itself. A process that routes many runs over the same files (a sweep's worker, :mod:`pyroute_rel.batch.sweep`)
+turns the cache on with :func:`caching`; from then on :func:`~pyroute_rel.weather.io.readers.weather_from_mapping`
 keeps each weather it reads, keyed by the files' resolved paths, sizes and modification times and the reading
 options (variables, member, box), and hands the same prepared sampler to every later run. With the cache on, the
 whole time range of the files is read (not only the route's window), so that runs departing at different times
@@ -19,7 +19,7 @@ from collections.abc import Callable, Hashable, Iterator
 from contextlib import contextmanager
 from typing import TypeVar
 
-from ..store import Shelf, Store, current_store, file_stamps
+from pyroute_rel.store import Shelf, Store, current_store, file_stamps
 
 __all__ = ["caching", "enabled", "file_stamps", "cached", "clear", "stats", "MAX_BYTES"]
 

@@ -1,6 +1,6 @@
 """Gridded weather in memory, and sampling it: the :class:`~pyroute_rel.weather.WeatherSource` files become.
 
-:mod:`pyroute_rel.weather.readers` reads files into :class:`WeatherField` objects (numpy arrays on (time, lat, lon),
+:mod:`pyroute_rel.weather.io.readers` reads files into :class:`WeatherField` objects (numpy arrays on (time, lat, lon),
 longitude contiguous, latitude ascending, units normalised); :class:`GriddedWeather` keeps them and samples
 them, linear in time, latitude and longitude.
 
@@ -31,11 +31,11 @@ import numba
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import WeatherCoverageError, WeatherError, WeatherWarning, brief, check_numbers
-from ..settings import get_settings
-from ..times import iso_minute, to_datetime64
-from ..units import KN_PER_MS
-from .base import RANGES, Boundaries, Conditions, Variation, WeatherBase, sample_points
+from pyroute_rel.errors import WeatherCoverageError, WeatherError, WeatherWarning, brief, check_numbers
+from pyroute_rel.settings import get_settings
+from pyroute_rel.times import iso_minute, to_datetime64
+from pyroute_rel.units import KN_PER_MS
+from pyroute_rel.weather.base import RANGES, Boundaries, Conditions, Variation, WeatherBase, sample_points
 
 if TYPE_CHECKING:
     pass
@@ -76,7 +76,7 @@ _NEEDS: dict[str, tuple[str, ...]] = {
 
 @dataclass(frozen=True)
 class WeatherField:
-    """One field on its own (time, lat, lon) grid, in the units of :data:`~pyroute_rel.weather.readers.VARIABLES`.
+    """One field on its own (time, lat, lon) grid, in the units of :data:`~pyroute_rel.weather.io.readers.VARIABLES`.
 
     Attributes
     ----------
@@ -567,8 +567,8 @@ def speed_bearing(e, n, scale):  # type: ignore[no-untyped-def]  # pragma: no co
 class GriddedWeather(WeatherBase):
     """Gridded, time-varying weather: a :class:`~pyroute_rel.weather.WeatherSource` over numpy arrays.
 
-    Build it with :func:`~pyroute_rel.weather.readers.open_weather` (files) or
-    :func:`~pyroute_rel.weather.readers.weather_from_dataset` (an in-memory :class:`xarray.Dataset`); the
+    Build it with :func:`~pyroute_rel.weather.io.readers.open_weather` (files) or
+    :func:`~pyroute_rel.weather.io.readers.weather_from_dataset` (an in-memory :class:`xarray.Dataset`); the
     constructor takes ready :class:`WeatherField` objects. The source is :attr:`steady` when no field has a time axis
     (readers give files whose fields each have a single time that way).
 
@@ -650,7 +650,7 @@ class GriddedWeather(WeatherBase):
     @functools.cached_property
     def boundaries(self) -> Boundaries:
         """The grid lines of every field (meridians and parallels [deg]): fields are bilinear within a cell and bend
-        across its edges. Used to judge arcs on every cell they cross (:mod:`pyroute_rel.crossings`)."""
+        across its edges. Used to judge arcs on every cell they cross (:mod:`pyroute_rel.reliability.crossings`)."""
         lons = np.unique(np.concatenate([np.asarray(b.lon, dtype=float) for b in self._blocks]))
         lats = np.unique(np.concatenate([np.asarray(b.lat, dtype=float) for b in self._blocks]))
         return Boundaries(lons, lats, None, continuous=True)
@@ -726,7 +726,7 @@ class GriddedWeather(WeatherBase):
         the same arc points at the departure time and again at the times the boat gets there).
 
         >>> import xarray as xr
-        >>> from pyroute_rel.weather.readers import weather_from_dataset
+        >>> from pyroute_rel.weather.io.readers import weather_from_dataset
         >>> ds = xr.Dataset({"u10": (("latitude", "longitude"), np.ones((2, 2))),
         ...                  "v10": (("latitude", "longitude"), np.zeros((2, 2)))},
         ...                 coords={"latitude": [40.0, 50.0], "longitude": [-20.0, -10.0]})
@@ -760,7 +760,7 @@ class GriddedWeather(WeatherBase):
         (nothing is located again) when that source's :attr:`grid_key` equals this one's, else None.
 
         The cost kernel keeps the points of each arc geometry it costs and reuses them in every source on the same
-        grid (:func:`pyroute_rel.cost.geometry_costs`): locating them is a tenth of a route over time-varying
+        grid (:func:`pyroute_rel.routing.cost.geometry_costs`): locating them is a tenth of a route over time-varying
         gridded weather.
         """
         key = self.grid_key
@@ -927,8 +927,8 @@ class MemberStack:
     part of it within ``box`` (``lon_min, lon_max, lat_min, lat_max`` [deg]: the cells of every point that may be
     queried; a point outside it is refused).
 
-    Used to sail many tracks in many members at once (:func:`pyroute_rel.evaluate.sail_in_members`): one call per
-    leg instead of one per member.
+    Used to sail many tracks in many members at once (:func:`pyroute_rel.analysis.evaluate.sail_in_members`): one call
+    per leg instead of one per member.
     """
 
     def __init__(self, sources: list[GriddedWeather], box: tuple[float, float, float, float] | None = None) -> None:
@@ -968,7 +968,7 @@ class MemberStack:
     @property
     def joined(self) -> GriddedWeather:
         """The first source's grids over every source's data: what points located by :meth:`prepare` index (the
-        compiled march, :mod:`pyroute_rel.march_compiled`, reads it)."""
+        compiled march, :mod:`pyroute_rel._kernels.march`, reads it)."""
         return self._joined
 
     def prepare(self, lon_deg: npt.ArrayLike, lat_deg: npt.ArrayLike, member: npt.ArrayLike) -> PreparedPoints:

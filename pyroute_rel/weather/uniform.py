@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import ScenarioError, WeatherError, brief
-from .base import FIELDS, Boundaries, Conditions, WeatherBase, sample_points
+from pyroute_rel.errors import ScenarioError, WeatherError, brief
+from pyroute_rel.weather.base import FIELDS, Boundaries, Conditions, WeatherBase, sample_points
 
 __all__ = ["Patch", "PreparedUniform", "UniformWeather"]
 
@@ -138,7 +138,7 @@ class UniformWeather(WeatherBase):
     @property
     def boundaries(self) -> Boundaries | None:
         """Where conditions change: the patches' edges (meridians and parallels) within their boxes (None without
-        patches). Used to judge arcs on every patch they cross (:mod:`pyroute_rel.crossings`)."""
+        patches). Used to judge arcs on every patch they cross (:mod:`pyroute_rel.reliability.crossings`)."""
         if not self.patches:
             return None
         lons = sorted({v for p in self.patches for v in p.lon})

@@ -1,0 +1,161 @@
+"""The dask.distributed clusters the sweep and the ensemble run on: a client of a running scheduler's cluster
+(``tcp://HOST:PORT``), or of a ``LocalCluster`` started for the call, whose worker processes run one thread each
+(:data:`WORKER_ENV`), and the environment every worker process of the product runs with; the weather read in a
+task without the cluster's help (:func:`synchronous_reads`); the checks of the engine options both commands share
+(:func:`check_engine_name`, :func:`check_engine_combinations`, each command saying what its ``--workers`` means
+with a :class:`WorkersOption`).
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+from pyroute_rel.errors import ScenarioError, brief
+
+__all__ = [
+    "WORKER_ENV",
+    "dask_client",
+    "close_client",
+    "synchronous_reads",
+    "WorkersOption",
+    "check_engine_name",
+    "check_engine_combinations",
+]
+
+#: Environment of worker processes (a process pool, a dask ``LocalCluster``): one thread each, also in the BLAS,
+#: OpenMP and numba thread pools, since the workers already use every core.
+WORKER_ENV = {
+    "PYROUTE_REL_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "NUMBA_NUM_THREADS": "1",
+}
+
+
+def dask_client(
+    scheduler: str | None = None,
+    *,
+    workers: int | None = None,
+    timeout_s: float = 10.0,
+    error: type[Exception] = ScenarioError,
+) -> Any:
+    """A :class:`distributed.Client` of ``scheduler``'s cluster (``tcp://HOST:PORT``), or of a new
+    ``LocalCluster`` of ``workers`` processes (default 1), one thread each, with
+    :data:`WORKER_ENV`; closing the client (:func:`close_client`) closes that cluster.
+
+    Raises
+    ------
+    error
+        One line: distributed is not installed, the scheduler cannot be reached in ``timeout_s`` [s], or it has no
+        worker after that time.
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:  # pragma: no cover - a dependency
+        raise error(f"the dask engine needs distributed: pip install distributed ({exc})") from None
+    if scheduler is None:
+        with warnings.catch_warnings():  # without a dashboard the scheduler still serves /metrics, by default on 8787
+            warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+            cluster = LocalCluster(
+                n_workers=workers or 1,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                env=dict(WORKER_ENV),
+                silence_logs=logging.ERROR,  # not the nannies' warnings when the cluster closes
+            )
+        return Client(cluster, set_as_default=False)
+    try:
+        client = Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise error(
+            f"--scheduler {scheduler}: cannot reach the dask scheduler ({' '.join(str(exc).split())})"
+        ) from None
+    try:
+        client.wait_for_workers(1, timeout=timeout_s)
+    except (OSError, TimeoutError) as exc:
+        client.close()
+        raise error(
+            f"--scheduler {scheduler}: the dask scheduler has no worker after {timeout_s:g} s ({exc})"
+        ) from None
+    return client
+
+
+def close_client(client: Any) -> None:
+    """Close a client of :func:`dask_client` and, when it started one, its ``LocalCluster``."""
+    cluster = client.cluster
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
+@contextmanager
+def synchronous_reads() -> Iterator[None]:
+    """Inside the block, dask arrays (a weather file's) are computed by dask's synchronous scheduler, in this
+    thread. In a dask worker the default would be the cluster itself: a task waiting there for its weather's chunks
+    secedes from the worker's thread, so that the worker starts its next task, and the next, all at once.
+
+    >>> import dask
+    >>> with synchronous_reads():
+    ...     dask.config.get("scheduler")
+    'synchronous'
+    """
+    import dask
+
+    with dask.config.set(scheduler="synchronous"):
+        yield
+
+
+@dataclass(frozen=True)
+class WorkersOption:
+    """What a command's ``--workers`` means, as its option errors say it (:func:`check_engine_combinations`).
+
+    Attributes
+    ----------
+    scheduler_engines : The engines ``--scheduler`` goes with.
+    with_scheduler : The error for ``--workers`` with ``--scheduler``.
+    with_inline : The error for ``--workers`` with the engine ``"inline"`` (``{workers}``: the value given).
+    inline_allows : Values of ``--workers`` the engine ``"inline"`` accepts (1: this process alone).
+    """
+
+    scheduler_engines: tuple[str, ...]
+    with_scheduler: str
+    with_inline: str
+    inline_allows: tuple[int, ...] = ()
+
+
+def check_engine_name(engine: Any, engines: Sequence[str], error: type[Exception] = ScenarioError) -> str:
+    """``engine`` if it is one of ``engines``, else ``error`` naming them.
+
+    >>> check_engine_name("dask", ("inline", "dask"))
+    'dask'
+    """
+    if not isinstance(engine, str) or engine not in engines:
+        raise error(f"engine must be one of {', '.join(engines)} (got {brief(engine)})")
+    return engine
+
+
+def check_engine_combinations(
+    engine: str, workers: Any, scheduler: Any, option: WorkersOption, error: type[Exception] = ScenarioError
+) -> None:
+    """The combinations of ``engine``, ``--workers`` and ``--scheduler`` that would do nothing, refused (in this
+    order): ``--scheduler`` without one of ``option.scheduler_engines``, ``--workers`` with the engine
+    ``"inline"`` (but for ``option.inline_allows``), ``--workers`` with ``--scheduler``.
+
+    Raises
+    ------
+    error
+        The first of these, in one line.
+    """
+    if scheduler is not None and engine not in option.scheduler_engines:
+        raise error(f"--scheduler needs the dask engine (got engine {engine!r})")
+    if engine == "inline" and workers is not None and workers not in option.inline_allows:
+        raise error(option.with_inline.format(workers=workers))
+    if workers is not None and scheduler is not None:
+        raise error(option.with_scheduler)

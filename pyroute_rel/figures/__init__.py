@@ -1,1 +1,0 @@
-"""Figures of the many-route capabilities (sweep, ensemble, tradeoff, planners), drawn with matplotlib's object API."""

@@ -1,0 +1,268 @@
+"""A memory budget, checked before a route allocates its large arrays.
+
+A route's peak memory follows from sizes known before anything large is allocated: the grid (ranks, nodes, candidate
+arcs per node), the weather samples per arc, whether the weather varies in time, the obstacle masks and the failure
+model's table. :func:`route_estimate` adds up the arrays the router keeps or builds at its peak, each counted from
+the code that allocates it (:mod:`pyroute_rel.routing.solve`, :mod:`pyroute_rel.routing.cost`,
+:mod:`pyroute_rel.obstacles.mask`); :func:`check_budget` refuses a route whose estimate exceeds the budget with a
+:class:`MemoryBudgetError` that says how much it needs and which setting to turn.
+
+What the arrays are (``A`` = candidate arcs of the whole grid, ``a`` = of the widest rank, ``s`` = samples per arc,
+8 bytes per float64):
+
+- **arc geometry**, cached on the grid for every rank (:func:`pyroute_rel.routing.solve.grid_geometry`): longitude,
+  latitude and course at each sample, and one sub-segment length per arc: ``A (3 s + 1) 8`` bytes. This is the
+  bulk of an all-to-all grid's memory.
+- **obstacle masks**, cached per rank (:class:`pyroute_rel.routing.grid.ObstacleCache`): tested, hit (bool) and zone
+  bits (uint64) per arc: ``10 A`` bytes.
+- **one rank at work**: the weather at every sample of the arcs into a rank, the quantities and speeds derived
+  from it, the per-sample times, p_f and flags (:func:`pyroute_rel.routing.cost.geometry_costs`), or, before that, the
+  halving of the arcs into samples (:func:`pyroute_rel.routing.cost.geometry_from_xyz`): about
+  :data:`RANK_ARRAYS_STEADY` (steady weather) or :data:`RANK_ARRAYS_TIMED` (time-varying weather: two passes and
+  prepared sampling positions) float64 arrays of ``a s`` values at once, plus :data:`RANK_ARC_ARRAYS` arrays of ``a``
+  values (departure times, totals, waits, flags of the DP step).
+- **DP state**: arrival time, back-pointer and wait per node: ``24 n_ranks n_nodes`` bytes.
+- **failure table**: the criteria-fired bits the cost kernel gathers next to the compiled table (uint32 per entry).
+
+Waiting (``max_wait_h`` on a time lattice) repeats the work of a rank once per wait step but keeps only the best so
+far: it multiplies the time a route takes, not its memory.
+
+The budget (:func:`budget_bytes`): ``max_memory`` where the router is called, else ``$PYROUTE_REL_MAX_MEMORY``
+(bytes, or with a unit: ``8G``, ``500M``), else the memory the process already uses plus :data:`AVAILABLE_FRACTION`
+of the memory available on the machine (``MemAvailable`` in ``/proc/meminfo``; half the physical memory where that
+file is missing).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass
+
+from pyroute_rel.errors import MemoryBudgetError, ScenarioError
+
+__all__ = [
+    "ENV",
+    "AVAILABLE_FRACTION",
+    "MemoryEstimate",
+    "parse_bytes",
+    "format_bytes",
+    "available_bytes",
+    "resident_bytes",
+    "budget_bytes",
+    "route_estimate",
+    "table_estimate",
+    "check_budget",
+]
+
+#: Environment variable that sets the budget [bytes, or with a unit K, M, G, T (powers of 1024)].
+ENV = "PYROUTE_REL_MAX_MEMORY"
+#: Share of the machine's available memory a route may take by default.
+AVAILABLE_FRACTION = 0.75
+#: Float64 arrays of one value per sample alive at once while the arcs into a rank are costed (steady weather):
+#: the sampled conditions (7 fields), sample positions, TWA, boat speed, speed over ground, per-sample time and
+#: p_f, flags, the failure table's gather index, temporaries of ``np.where``; the same bound covers the halving
+#: of arcs into samples (sub-arc ends and midpoints as x, y, z). An upper count: ``benchmarks/memory.py`` measures
+#: 14-16 on all-to-all grids (square 80 with 32 samples, square 240 with 8).
+RANK_ARRAYS_STEADY = 24
+#: As :data:`RANK_ARRAYS_STEADY` with time-varying weather: sample times of both passes, elapsed times and the
+#: prepared sampling positions (cell indices and weights) kept between the passes.
+RANK_ARRAYS_TIMED = 36
+#: Arrays of one value per arc of a rank alive in a DP step (departure, total and best times, waits, flags, costs).
+RANK_ARC_ARRAYS = 16
+
+_UNITS = {"": 1, "K": 1024, "M": 1024**2, "G": 1024**3, "T": 1024**4}
+_BYTES = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?|\.[0-9]+)\s*([KMGT]?)(?:I?B)?\s*$", re.IGNORECASE)
+
+
+def parse_bytes(value: object, where: str = ENV) -> int:
+    """A memory size [bytes] from a number of bytes or a string with a unit (K, M, G, T: powers of 1024).
+
+    >>> parse_bytes("8G"), parse_bytes("500M"), parse_bytes("1.5 GiB"), parse_bytes(4096)
+    (8589934592, 524288000, 1610612736, 4096)
+    """
+    if isinstance(value, bool):
+        raise ScenarioError(f"{where} must be a memory size such as 8G or 500M (got {value!r})")
+    if isinstance(value, int | float):
+        number, unit = float(value), ""
+    else:
+        m = _BYTES.match(str(value)) if isinstance(value, str) and len(value) < 40 else None
+        if m is None:
+            raise ScenarioError(f"{where} must be a memory size such as 8G, 500M or 1073741824 (got {value!r:.60})")
+        number, unit = float(m.group(1)), m.group(2).upper()
+    size = number * _UNITS[unit]
+    if not (math.isfinite(size) and 1 <= size < 2**62):
+        raise ScenarioError(
+            f"{where} must be a memory size of at least 1 byte and below 4 EiB, such as 8G or 500M (got {value!r:.60})"
+        )
+    return int(size)
+
+
+def format_bytes(n: float) -> str:
+    """A size [bytes] for a message: ``'21.3 GiB'``, ``'512 MiB'``.
+
+    >>> format_bytes(21.3 * 1024**3), format_bytes(512 * 1024**2), format_bytes(3 * 1024**5)
+    ('21.3 GiB', '512 MiB', '3072.0 TiB')
+    >>> format_bytes(1000), format_bytes(2048)  # below 1 MiB: not "0 MiB"
+    ('1000 bytes', '2.0 KiB')
+    """
+    if n < 1024:
+        return f"{n:.0f} bytes"
+    if n < 1024**2:
+        return f"{n / 1024:.1f} KiB"
+    if n < 1024**3:
+        return f"{n / 1024**2:.0f} MiB"
+    if n < 1024**4:
+        return f"{n / 1024**3:.1f} GiB"
+    return f"{n / 1024**4:.1f} TiB"
+
+
+def available_bytes() -> int | None:
+    """Memory the machine can still give [bytes]: ``MemAvailable`` of ``/proc/meminfo``, else half the physical
+    memory, else None."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")) // 2
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
+def resident_bytes() -> int:
+    """Memory this process uses now [bytes] (resident set of ``/proc/self/statm``; 0 where unknown)."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return 0
+
+
+#: Budget when neither a setting nor the machine's memory is known [bytes].
+FALLBACK_BUDGET = 8 * 1024**3
+
+
+def budget_bytes(max_memory: int | str | None = None) -> tuple[int, str]:
+    """The memory budget [bytes] and where it comes from (for messages).
+
+    Parameters
+    ----------
+    max_memory : A size [bytes, or a string with a unit, see :func:`parse_bytes`]; None: ``$PYROUTE_REL_MAX_MEMORY``,
+        else what the process uses plus :data:`AVAILABLE_FRACTION` of the available memory.
+    """
+    if max_memory is not None:
+        return parse_bytes(max_memory, "max_memory"), "the budget"
+    env = os.environ.get(ENV, "").strip()
+    if env:
+        return parse_bytes(env, f"environment variable {ENV}"), f"the budget {ENV}"
+    free = available_bytes()
+    if free is None:
+        return FALLBACK_BUDGET, "the default budget"
+    return resident_bytes() + int(AVAILABLE_FRACTION * free), (
+        f"the default budget ({AVAILABLE_FRACTION:.0%} of the available memory)"
+    )
+
+
+@dataclass(frozen=True)
+class MemoryEstimate:
+    """Estimated peak memory of a route [bytes], by part, and a short description of its size.
+
+    Attributes
+    ----------
+    parts : Bytes per part (``"process"``: what the process uses already; ``"arc geometry"``, ...).
+    what : The sizes that matter, e.g. ``"grid 250 x 400, 64 samples per arc"``.
+    subject : What needs the memory, as the message names it.
+    """
+
+    parts: dict[str, int]
+    what: str
+    subject: str = "this route"
+
+    @property
+    def total_bytes(self) -> int:
+        """Estimated peak [bytes]: the sum of the parts."""
+        return sum(self.parts.values())
+
+
+def route_estimate(
+    *,
+    n_ranks: int,
+    n_nodes: int,
+    arcs: int,
+    rank_arcs: int,
+    samples: int,
+    steady: bool = True,
+    obstacles: bool = False,
+    table_entries: int = 0,
+    resident: int | None = None,
+) -> MemoryEstimate:
+    """Estimated peak memory of the forward DP on a grid (see the module notes for each part).
+
+    Parameters
+    ----------
+    n_ranks, n_nodes : Ranks and nodes per rank.
+    arcs : Candidate arcs of the grid, start and finish arcs included (the dense ``(n_nodes, width)`` blocks).
+    rank_arcs : Candidate arcs into the widest rank.
+    samples : Weather samples per arc.
+    steady : Whether the weather is steady (time-varying weather costs arcs in two passes).
+    obstacles : Whether an obstacle mask is cached per arc.
+    table_entries : Entries of the failure model's compiled table (0: no model).
+    resident : Memory the process uses already [bytes] (None: :func:`resident_bytes`).
+
+    >>> e = route_estimate(n_ranks=10, n_nodes=10, arcs=1000, rank_arcs=100, samples=2, resident=0)
+    >>> e.parts["arc geometry"], e.total_bytes  # 1000 arcs x (3 x 2 + 1) x 8 bytes; + 100 x (24 x 2 + 16) x 8 + 2400
+    (56000, 109600)
+    """
+    per_sample = RANK_ARRAYS_STEADY if steady else RANK_ARRAYS_TIMED
+    parts = {
+        "process": resident_bytes() if resident is None else int(resident),
+        "arc geometry": arcs * (3 * samples + 1) * 8,
+        "obstacle masks": 10 * arcs if obstacles else 0,
+        "one rank at work": rank_arcs * (per_sample * samples + RANK_ARC_ARRAYS) * 8,
+        "DP state": 24 * n_ranks * n_nodes,
+        "failure table": 4 * table_entries,
+    }
+    plural = "s" if samples != 1 else ""
+    return MemoryEstimate(parts=parts, what=f"grid {n_ranks} x {n_nodes}, {samples} sample{plural} per arc")
+
+
+def table_estimate(criteria_states: list[int], target_states: int, label: str = "") -> MemoryEstimate:
+    """Estimated peak memory of compiling a failure model's table [bytes] (:mod:`pyroute_rel.reliability.failure`).
+
+    The network's joint of target and criteria (``target_states x prod(states)`` float64), grown by one "unobserved"
+    slot per criterion (``prod(states + 1)``) in two copies per target state, then the evidence and the table.
+
+    ``label`` names the model's file in the message.
+
+    >>> table_estimate([2, 2], 2).parts["failure table"]  # 3 x 3 entries x (2 x 2 + 2) arrays x 8 bytes
+    432
+    """
+    entries = math.prod(n + 1 for n in criteria_states)
+    return MemoryEstimate(
+        parts={"process": resident_bytes(), "failure table": 8 * entries * (2 * target_states + 2)},
+        what=f"a table of {entries:.3g} entries for {len(criteria_states)} criteria",
+        subject=f"{label}: compiling this failure model" if label else "compiling this failure model",
+    )
+
+
+def check_budget(estimate: MemoryEstimate, *, max_memory: int | str | None = None, knobs: str) -> None:
+    """Refuse a route whose estimate exceeds the budget (:func:`budget_bytes`).
+
+    Raises
+    ------
+    MemoryBudgetError
+        One line: the estimate, the budget and ``knobs`` (the settings that lower the need), then how to raise the
+        budget.
+    """
+    budget, source = budget_bytes(max_memory)
+    need = estimate.total_bytes
+    if need > budget:
+        raise MemoryBudgetError(
+            f"{estimate.subject} needs about {format_bytes(need)} ({estimate.what}) but {source} is "
+            f"{format_bytes(budget)}: {knobs}, or raise {ENV} / --max-memory"
+        )
