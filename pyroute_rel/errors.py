@@ -13,7 +13,11 @@ Inner kernels trust their callers and stay fast.
 
 from __future__ import annotations
 
+import math
+import numbers
 import os
+import sys
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -27,6 +31,8 @@ __all__ = [
     "check_instance",
     "check_path",
     "check_callable",
+    "check_fields",
+    "FINITE",
     "PyrouteError",
     "ScenarioError",
     "PolarError",
@@ -253,3 +259,73 @@ def check_callable(value: Any, name: str, error: type[PyrouteError]) -> Any:
     if callable(value):
         return value
     raise error(f"{name} must be a function (got {_got(value)})")
+
+
+#: The largest finite float: the upper end of a range that refuses only the infinite.
+FINITE = sys.float_info.max
+
+
+def _number(value: Any, where: str, lo: float, hi: float, *, lo_open: bool = False, expected: str = "") -> float:
+    ok = not isinstance(value, bool) and isinstance(value, numbers.Real)
+    if ok:
+        try:
+            x = float(value)
+        except OverflowError:  # a whole number beyond the floats
+            x = math.nan
+        ok = (x > lo if lo_open else x >= lo) and x <= hi  # False for NaN
+    if not ok:
+        bracket = "(" if lo_open else "["
+        raise ScenarioError(
+            f"{where} must be {expected or f'a number in {bracket}{lo:g}, {hi:g}]'} (got {brief(value)})"
+        )
+    return x
+
+
+def _whole(value: Any, where: str, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not lo <= int(value) <= hi:
+        raise ScenarioError(f"{where} must be a whole number in [{lo}, {hi}] (got {brief(value)})")
+    return int(value)
+
+
+def check_fields(obj: Any, limits: Mapping[str, tuple[Any, ...]], *, where: str) -> None:
+    """Check the fields of a frozen settings dataclass, in the order of ``limits``, raising a one-line
+    :class:`~pyroute_rel.errors.ScenarioError` that names the first bad one as ``where + name``; numbers are stored
+    back as ``int`` or ``float``.
+
+    Parameters
+    ----------
+    obj : The settings (``object.__setattr__`` stores the checked values).
+    limits : Field name -> its rule: ``("int", lo, hi)`` a whole number in [lo, hi]; ``("float", lo, hi)`` a real
+        number in [lo, hi] (NaN never; ``hi = inf`` takes the infinite, :data:`FINITE` does not), with optional
+        ``lo_open`` (``(lo, hi]``) and the phrase of what is expected (default ``"a number in [lo, hi]"``);
+        ``("bool",)``; ``("choice", options)`` one of the strings ``options``; ``("str",)`` a file name.
+    where : What the message names a field with: ``"[planner.mcts]."`` gives ``"[planner.mcts].iterations"``.
+
+    Examples
+    --------
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class Noise:
+    ...     sd: float = 1.0
+    >>> check_fields(Noise(sd=-2), {"sd": ("float", 0.0, FINITE, False, "a finite number >= 0")}, where="Noise ")
+    Traceback (most recent call last):
+    ...
+    pyroute_rel.errors.ScenarioError: Noise sd must be a finite number >= 0 (got -2)
+    """
+    for name, spec in limits.items():
+        value = getattr(obj, name)
+        at = f"{where}{name}"
+        if spec[0] == "int":
+            object.__setattr__(obj, name, _whole(value, at, spec[1], spec[2]))
+        elif spec[0] == "float":
+            lo_open, expected = (spec[3:] + (False, ""))[:2]
+            object.__setattr__(obj, name, _number(value, at, spec[1], spec[2], lo_open=lo_open, expected=expected))
+        elif spec[0] == "bool":
+            if not isinstance(value, bool):
+                raise ScenarioError(f"{at} must be true or false (got {brief(value)})")
+        elif spec[0] == "choice":
+            if not isinstance(value, str) or value not in spec[1]:
+                raise ScenarioError(f"{at} must be one of {list(spec[1])} (got {brief(value)})")
+        elif spec[0] == "str":
+            if not isinstance(value, str):
+                raise ScenarioError(f"{at} must be a file name (a string) (got {brief(value)})")

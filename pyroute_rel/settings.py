@@ -17,17 +17,17 @@ False
 True
 
 Settings live in a :class:`contextvars.ContextVar`: a thread or asyncio task sees the settings of the context it
-runs in; the threads pyroute_rel starts itself (:func:`pyroute_rel.parallel.thread_map`) run in a copy of the
+runs in; the threads pyroute_rel starts itself (:func:`pyroute_rel.resources.thread_map`) run in a copy of the
 caller's context, and the worker processes of sweeps and ensembles are started with the caller's settings. Dask
 workers run with the defaults.
 
 Environment variables (read when the job that needs them runs):
 
 ``PYROUTE_REL_THREADS``
-    Threads for the hot spots that release the GIL (:func:`pyroute_rel.parallel.default_workers`; default: the CPUs
+    Threads for the hot spots that release the GIL (:func:`pyroute_rel.resources.default_workers`; default: the CPUs
     this process may use; ``1`` turns threads off). Worker processes set it to ``1``.
 ``PYROUTE_REL_MAX_MEMORY``
-    The memory budget of one route (:mod:`pyroute_rel.routing.memory`; the CLI's ``--max-memory`` sets it for a run).
+    The memory budget of one route (:mod:`pyroute_rel.resources`; the CLI's ``--max-memory`` sets it for a run).
 ``PYROUTE_REL_KEEP``
     ``0`` (or ``false``, ``no``, ``off``): the process keeps nothing between calls (:mod:`pyroute_rel.store`: files,
     parsed models, grids and tables are read and built afresh each time); default: kept, by content.
@@ -58,7 +58,7 @@ class Settings:
     compiled_rank_step : The forward DP hands a rank to compiled code where it can (steady weather with wind only,
         or a failure model on uniform weather with patches: :mod:`pyroute_rel._kernels.dp`); False: the numpy path.
     compiled_march : Time-varying gridded weather with wind only is sailed by the compiled march
-        (:mod:`pyroute_rel._kernels.march`); False: the numpy march (:mod:`pyroute_rel.routing.march`).
+        (:mod:`pyroute_rel._kernels.march`); False: the numpy march (:mod:`pyroute_rel.boat.march`).
     lazy_pieces : The DP judges on the pieces they cross (:mod:`pyroute_rel.reliability.crossings`) only the arcs it
         would pick (:func:`pyroute_rel.routing.solve._lazy_pieces`); False: every arc the cost function would judge,
         eagerly.

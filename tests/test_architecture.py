@@ -120,27 +120,58 @@ def test_no_private_names_imported_across_modules():
     assert not offences, "\n".join(offences)
 
 
+#: The package's layers, lowest first: a module imports only from its own layer and those below (imports under
+#: ``if TYPE_CHECKING:`` are annotations, not dependencies). A module belongs to the entry naming the longest prefix of
+#: its name; the top-level package is a foundation too (it imports nothing until a name is asked for).
+LAYERS: list[tuple[str, ...]] = [
+    ("", "errors", "units", "times", "settings", "store", "files", "progress", "resources", "diskcache", "geodesy"),
+    ("weather",),
+    ("boat",),
+    ("reliability", "obstacles"),
+    ("_kernels",),
+    ("routing",),
+    ("scenario", "config", "planners.settings"),  # a scenario file holds the planners' settings
+    ("batch",),
+    ("analysis",),
+    ("gci",),
+    ("planners",),
+    ("viz",),
+    ("outputs",),
+    ("cli", "__main__"),
+]
+
+
+def _layer(module: str) -> int:
+    name = module.removeprefix("pyroute_rel").removeprefix(".")
+    best, found = -1, -1
+    for level, entries in enumerate(LAYERS):
+        for entry in entries:
+            if (name == entry or name.startswith(entry + ".") or entry == "") and len(entry) > best:
+                best, found = len(entry), level
+    return found
+
+
+def test_every_module_has_a_layer():
+    assert all(_layer(name) >= 0 for name in MODULES)
+    assert _layer("pyroute_rel.planners.settings") < _layer("pyroute_rel.planners.plan")
+
+
 @pytest.mark.slow
 def test_lower_layers_never_import_higher_ones():
-    """cost and solve never draw or write files; weather, obstacles, geodesy and polar know nothing of routing."""
-    forbidden = {
-        "pyroute_rel.routing.cost": ("plot", "outputs", "route", "scenario", "cli", "solve"),
-        "pyroute_rel.routing.solve": ("plot", "outputs", "route", "scenario", "cli"),
-        "pyroute_rel.routing.route": ("plot", "outputs", "scenario", "cli"),
-        "pyroute_rel.viz.maps": ("outputs", "scenario", "cli", "solve", "cost"),
-        "pyroute_rel.geodesy": ("grid", "cost", "solve", "route"),
-        "pyroute_rel.boat.polar": ("cost", "solve", "route", "weather"),
-    }
-    for pkg in ("weather", "obstacles"):
-        for name in MODULES:
-            if name.startswith(f"pyroute_rel.{pkg}."):
-                forbidden[name] = ("cost", "solve", "route", "scenario", "plot", "outputs", "cli", "refine")
+    """Folders are layers (``LAYERS``): weather knows nothing of boats, reliability nothing of routing, routing never
+    draws or writes files, and the figures, outputs and command line sit on top."""
     offences = []
-    for name, higher in forbidden.items():
+    for name in MODULES:
         for target, _, line in _imports(name):
-            if target.removeprefix("pyroute_rel.").split(".")[0] in higher:
+            if _layer(target) > _layer(name):
                 offences.append(f"{name}:{line} imports {target}")
     assert not offences, "\n".join(offences)
+
+
+def test_few_modules_at_the_top():
+    """The package's top holds the entry points and the foundation; everything else lives in a layer's folder."""
+    top = sorted(path.name for path in PACKAGE.glob("*.py"))
+    assert len(top) <= 15, top
 
 
 def test_public_api_resolves_and_is_documented():

@@ -191,7 +191,7 @@ def test_threads_split_a_block_without_changing_a_number() -> None:
 
 @pytest.mark.parametrize("value", ["0", "two", "-1"])
 def test_thread_count_from_the_environment_is_checked(monkeypatch, value) -> None:
-    from pyroute_rel.parallel import default_workers
+    from pyroute_rel.resources import default_workers
 
     monkeypatch.setenv("PYROUTE_REL_THREADS", value)
     with pytest.raises(ValueError, match="PYROUTE_REL_THREADS must be a whole number >= 1"):
@@ -326,7 +326,7 @@ def test_compiled_wind_kernel_per_arc_lengths_equal_broadcast_ones(shape) -> Non
 @pytest.mark.parametrize("wave_loss", [None, WaveLoss(hs_m=(0.0, 2.0, 6.0), factor=(1.0, 0.9, 0.3))])
 def test_gridded_uniform_field_costs_like_the_uniform_source(current, wave_loss) -> None:
     """A time-varying gridded file holding a uniform field gives the arc costs of UniformWeather (the march of
-    pyroute_rel.routing.march over a field constant in time is the steady cost), with and without a current or wave
+    pyroute_rel.boat.march over a field constant in time is the steady cost), with and without a current or wave
     loss."""
     import xarray as xr
 

@@ -201,10 +201,10 @@ def test_dp_is_the_same_with_the_fused_sampling_on_and_off(apf: float) -> None:
 @pytest.mark.parametrize("name", list_failure_models())
 def test_compiled_evidence_index_is_the_models(name: str) -> None:
     """For every shipped failure model: the compiled evidence (quantities folded to the course, binned) is
-    FailureModel.evidence_index of cost.arc_quantities: the same flat index everywhere (NaN points included: the fired
-    criteria are read there) and the same unknown points, with values on the bin edges, beyond them and NaN."""
+    FailureModel.evidence_index of failure.arc_quantities: the same flat index everywhere (NaN points included: the
+    fired criteria are read there) and the same unknown points, with values on the bin edges, beyond them and NaN."""
     from pyroute_rel._kernels.cost import evidence_index
-    from pyroute_rel.routing.cost import arc_quantities
+    from pyroute_rel.reliability.failure import arc_quantities
     from pyroute_rel.weather import Conditions
 
     model = load_failure_model(name)

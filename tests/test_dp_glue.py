@@ -377,11 +377,11 @@ def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
 def test_compiled_march_applies_each_runs_speed_noise_as_the_numpy_march(
     seed: int, samples: int, model: str | None
 ) -> None:
-    """Monte Carlo's noisy boat (:class:`~pyroute_rel.routing.march.SpeedNoise`, one gain and spread per row) at every
+    """Monte Carlo's noisy boat (:class:`~pyroute_rel.boat.march.SpeedNoise`, one gain and spread per row) at every
     step: the compiled march gives the numpy march's costs and marks bit for bit; the noise changes the times; and in
     weather that does not change along an arc or in time, the noisy time is the noiseless one over the noise's factor on
     the speed (``v / v'``, with the floor), by hand."""
-    from pyroute_rel.routing.march import SpeedNoise
+    from pyroute_rel.boat.march import SpeedNoise
 
     rng = np.random.default_rng(seed)
     geom, t0 = arcs(seed, shape=(6, 5), samples=samples)

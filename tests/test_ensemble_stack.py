@@ -84,7 +84,7 @@ def test_sailing_in_members_is_the_same_stacked_unstacked_and_in_groups(
     problems = [replace(problem, weather=w) for w in MEMBERS]  # the same problem in each member's weather
     lon = np.linspace(-14.0, -26.0, 9)
     # the third track leaves the data west of 40 W: stopped there by missing weather (a craft in irons or a calm
-    # waits for the wind instead, pyroute_rel.routing.march, so only missing weather stops a track)
+    # waits for the wind instead, pyroute_rel.boat.march, so only missing weather stops a track)
     west = np.array([[-14.0, 31.0], [-30.0, 27.0], [-48.0, 27.0]])
     tracks = [np.column_stack([lon, np.linspace(31.0, 22.0, 9)]), np.column_stack([lon[:6], np.full(6, 30.0)]), west]
 

@@ -694,8 +694,7 @@ def test_p_fail_refuses_quantities_out_of_their_range() -> None:
 
 def test_one_map_from_quantities_to_weather_fields():
     from pyroute_rel.geodesy import angle_diff_deg
-    from pyroute_rel.reliability.failure import QUANTITIES, QUANTITY_FIELDS
-    from pyroute_rel.routing.cost import arc_quantities
+    from pyroute_rel.reliability.failure import QUANTITIES, QUANTITY_FIELDS, arc_quantities
     from pyroute_rel.weather import FIELDS, UniformWeather
 
     assert set(QUANTITY_FIELDS) == set(QUANTITIES)

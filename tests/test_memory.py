@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from pyroute_rel import resources
 from pyroute_rel.boat.polar import get_polar
 from pyroute_rel.errors import MemoryBudgetError, PyrouteError, ScenarioError
-from pyroute_rel.routing import memory
 from pyroute_rel.routing.grid import make_grid
 from pyroute_rel.routing.solve import RoutingProblem, forward_dp, route_memory
 from pyroute_rel.weather import UniformWeather
@@ -50,56 +50,56 @@ def _problem(**kw: Any) -> RoutingProblem:
     ],
 )
 def test_parse_bytes(text: Any, expected: int) -> None:
-    assert memory.parse_bytes(text) == expected
+    assert resources.parse_bytes(text) == expected
 
 
 @pytest.mark.parametrize("text", ["", "G", "8X", "-1G", "0", "1e400", "8 G G", "nan", True, "9" * 100, 0.5])
 def test_parse_bytes_refuses(text: Any) -> None:
     with pytest.raises(ScenarioError, match="memory size"):
-        memory.parse_bytes(text, "--max-memory")
+        resources.parse_bytes(text, "--max-memory")
 
 
 def test_budget_sources(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(memory, "available_bytes", lambda: 8 * 1024**3)
-    monkeypatch.setattr(memory, "resident_bytes", lambda: 100 * 1024**2)
-    monkeypatch.delenv(memory.ENV, raising=False)
+    monkeypatch.setattr(resources, "available_bytes", lambda: 8 * 1024**3)
+    monkeypatch.setattr(resources, "resident_bytes", lambda: 100 * 1024**2)
+    monkeypatch.delenv(resources.MEMORY_ENV, raising=False)
     # default: what the process uses (100 MiB) + 75 % of 8 GiB available = 100 MiB + 6 GiB
-    assert memory.budget_bytes()[0] == 100 * 1024**2 + 6 * 1024**3
-    monkeypatch.setenv(memory.ENV, "2G")
-    assert memory.budget_bytes() == (2 * 1024**3, f"the budget {memory.ENV}")
-    assert memory.budget_bytes("1M")[0] == 1024**2  # an explicit setting wins over the environment
-    monkeypatch.setenv(memory.ENV, "lots")
-    with pytest.raises(ScenarioError, match=f"environment variable {memory.ENV} must be a memory size"):
-        memory.budget_bytes()
-    monkeypatch.delenv(memory.ENV)
-    monkeypatch.setattr(memory, "available_bytes", lambda: None)
-    assert memory.budget_bytes()[0] == memory.FALLBACK_BUDGET
+    assert resources.budget_bytes()[0] == 100 * 1024**2 + 6 * 1024**3
+    monkeypatch.setenv(resources.MEMORY_ENV, "2G")
+    assert resources.budget_bytes() == (2 * 1024**3, f"the budget {resources.MEMORY_ENV}")
+    assert resources.budget_bytes("1M")[0] == 1024**2  # an explicit setting wins over the environment
+    monkeypatch.setenv(resources.MEMORY_ENV, "lots")
+    with pytest.raises(ScenarioError, match=f"environment variable {resources.MEMORY_ENV} must be a memory size"):
+        resources.budget_bytes()
+    monkeypatch.delenv(resources.MEMORY_ENV)
+    monkeypatch.setattr(resources, "available_bytes", lambda: None)
+    assert resources.budget_bytes()[0] == resources.FALLBACK_BUDGET
 
 
 def test_machine_figures_are_plausible() -> None:
     # the process runs numpy: it holds more than 10 MB; MemAvailable is positive and below the physical memory
-    assert memory.resident_bytes() > 10 * 1024**2
-    free = memory.available_bytes()
+    assert resources.resident_bytes() > 10 * 1024**2
+    free = resources.available_bytes()
     assert free is not None and 0 < free <= os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
 
 
 def test_error_is_a_memory_error_and_a_pyroute_error() -> None:
-    est = memory.MemoryEstimate(parts={"a": 3 * 1024**3, "b": 1024**3}, what="grid 1 x 2")
+    est = resources.MemoryEstimate(parts={"a": 3 * 1024**3, "b": 1024**3}, what="grid 1 x 2")
     with pytest.raises(MemoryBudgetError) as info:
-        memory.check_budget(est, max_memory="1G", knobs="use fewer nodes")
+        resources.check_budget(est, max_memory="1G", knobs="use fewer nodes")
     assert isinstance(info.value, MemoryError) and isinstance(info.value, PyrouteError)
     assert str(info.value) == (
         "this route needs about 4.0 GiB (grid 1 x 2) but the budget is 1.0 GiB: use fewer nodes, or raise "
-        f"{memory.ENV} / --max-memory"
+        f"{resources.MEMORY_ENV} / --max-memory"
     )
-    memory.check_budget(est, max_memory=4 * 1024**3, knobs="")  # exactly the budget: accepted
+    resources.check_budget(est, max_memory=4 * 1024**3, knobs="")  # exactly the budget: accepted
 
 
 # ------------------------------------------------------------------------------------------------- estimate
 
 
 def test_estimate_arithmetic() -> None:
-    e = memory.route_estimate(
+    e = resources.route_estimate(
         n_ranks=3, n_nodes=5, arcs=70, rank_arcs=25, samples=4, steady=False, obstacles=True, table_entries=9,
         resident=1000,
     )  # fmt: skip
@@ -107,7 +107,7 @@ def test_estimate_arithmetic() -> None:
         "process": 1000,
         "arc geometry": 70 * (3 * 4 + 1) * 8,  # lon, lat, course per sample + one length per arc
         "obstacle masks": 70 * 10,  # known, hit (bool) + zone bits (uint64)
-        "one rank at work": 25 * (memory.RANK_ARRAYS_TIMED * 4 + memory.RANK_ARC_ARRAYS) * 8,
+        "one rank at work": 25 * (resources.RANK_ARRAYS_TIMED * 4 + resources.RANK_ARC_ARRAYS) * 8,
         "DP state": 3 * 5 * 24,
         "failure table": 9 * 4,
     }
@@ -219,7 +219,7 @@ def _refused_cases(tmp: Path) -> dict[str, tuple[list[str], dict[str, str], str]
         # issue 17: "--layout square --n-ranks 250 --n-nodes 400 --samples 64 (accepted) reached 19.9 GB and died"
         "square 250 x 400, 64 samples": (
             [str(CONTROL), "--layout", "square", "--n-ranks", "250", "--n-nodes", "400", "--samples", "64"],
-            {memory.ENV: "16G"},
+            {resources.MEMORY_ENV: "16G"},
             r"needs about 59\.\d GiB \(grid 250 x 400, 64 samples per arc\) but the budget PYROUTE_REL_MAX_MEMORY is "
             r"16\.0 GiB: use fewer samples per arc",
         ),
@@ -240,7 +240,7 @@ def _refused_cases(tmp: Path) -> dict[str, tuple[list[str], dict[str, str], str]
                 "--max-wait",
                 "1000",
             ],
-            {memory.ENV: "1G"},
+            {resources.MEMORY_ENV: "1G"},
             r"grid 240 x 240, 8 samples per arc\) but the budget PYROUTE_REL_MAX_MEMORY is 1\.0 GiB",
         ),  # fmt: skip
         # issue 17: "a failure model with 33 criteria (allocates 128 GiB; the documented error is never reached)"
@@ -261,7 +261,7 @@ def test_refusals_are_quick_and_small(tmp_path: Path) -> None:
     """Each refused case exits 2 with one line within 1 s of processor time and 200 MB (a guard that nothing heavy
     ran before the refusal, not a speed target)."""
     base = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_CACHE_DIR": str(tmp_path / "cache")}
-    base.pop(memory.ENV, None)
+    base.pop(resources.MEMORY_ENV, None)
     for name, (args, env, pattern) in _refused_cases(tmp_path).items():
         _check_refusal(name, args, {**base, **env}, pattern, seconds=1.0)
 
@@ -300,7 +300,7 @@ _REPORT = json.dumps({"rc": 0, "s": 0, "err": "", "estimate": est.total_bytes})
 def test_estimate_within_2x_of_measured_peak(options: dict[str, Any], monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(sys.modules[__name__], "_CLI_CHILD", _ROUTE_CHILD)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    env.pop(memory.ENV, None)
+    env.pop(resources.MEMORY_ENV, None)
     report, peak = _run_child([str(CONTROL), json.dumps(options)], env)
     ratio = peak / report["estimate"]
     assert 0.5 <= ratio <= 2.0, ratio
@@ -312,7 +312,12 @@ def test_huge_failure_table_is_refused_before_compiling(tmp_path: Path) -> None:
     known, before the joint is queried. Reading any network imports pgmpy and builds its BIF grammar (about 2 s and
     350 MB on this machine, the same for a one-criterion model), so the guard here is that refusing costs about what
     loading the one-criterion model of the same form costs (processor time), far from compiling the table."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_CACHE_DIR": str(tmp_path / "cache"), memory.ENV: "16G"}
+    env = {
+        **os.environ,
+        "PYTHONPATH": str(ROOT),
+        "PYROUTE_REL_CACHE_DIR": str(tmp_path / "cache"),
+        resources.MEMORY_ENV: "16G",
+    }
     one, one_peak = _run_child(["failure", str(_failure_model(_mkdir(tmp_path / "m1"), 1)), "--json"], env)
     assert one["rc"] == 0, one  # compiled: the cache folder was empty
     report, peak = _run_child(["failure", str(_failure_model(_mkdir(tmp_path / "m24"), 24))], env)
@@ -332,20 +337,20 @@ def test_huge_failure_table_is_refused_before_compiling(tmp_path: Path) -> None:
 def test_the_cli_takes_a_budget_and_leaves_the_environment_as_it_was(capsys, monkeypatch) -> None:
     from pathlib import Path
 
+    from pyroute_rel import resources
     from pyroute_rel.cli import main
-    from pyroute_rel.routing import memory
 
-    monkeypatch.delenv(memory.ENV, raising=False)
+    monkeypatch.delenv(resources.MEMORY_ENV, raising=False)
     control = str(Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml")
     assert main(["route", control, "--quiet", "--no-land", "--max-memory", "1M"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "needs about" in err[0] and "--max-memory" in err[0]
     # The budget is named as the user gave it (it said "the budget PYROUTE_REL_MAX_MEMORY is", the CLI's carrier),
     # and 1 KiB is not rounded to "0 MiB".
-    assert "the budget --max-memory is 1 MiB" in err[0] and f"the budget {memory.ENV} is" not in err[0]
+    assert "the budget --max-memory is 1 MiB" in err[0] and f"the budget {resources.MEMORY_ENV} is" not in err[0]
     assert main(["route", control, "--quiet", "--no-land", "--max-memory", "1K"]) == 2
     assert "the budget --max-memory is 1.0 KiB" in capsys.readouterr().err
-    assert memory.ENV not in os.environ
+    assert resources.MEMORY_ENV not in os.environ
     assert main(["route", control, "--quiet", "--no-land", "--max-memory", "lots"]) == 2
     assert "--max-memory must be a memory size" in capsys.readouterr().err
 
@@ -355,4 +360,4 @@ def test_parse_bytes_states_both_bounds(text: Any) -> None:
     # 999999999999T is positive but too large: the message said "must be a positive memory size".
     # 4194304T = 2**22 * 2**40 = 2**62 bytes (4 EiB) is the first size refused.
     with pytest.raises(ScenarioError, match=r"at least 1 byte and below 4 EiB"):
-        memory.parse_bytes(text, "--max-memory")
+        resources.parse_bytes(text, "--max-memory")

@@ -16,7 +16,7 @@ import pyroute_rel._kernels.dp as dp_compiled
 from pyroute_rel.analysis import ensemble
 from pyroute_rel.batch import sweep
 from pyroute_rel.errors import ScenarioError
-from pyroute_rel.parallel import thread_map
+from pyroute_rel.resources import thread_map
 from pyroute_rel.routing.solve import forward_dp
 from pyroute_rel.scenario import load_scenario
 from pyroute_rel.settings import Settings, get_settings, set_settings, settings_context

@@ -22,8 +22,8 @@ from test_evaluate import write_ensemble_scenario
 import pyroute_rel as pr
 from pyroute_rel.batch import sweep
 from pyroute_rel.errors import ScenarioError
-from pyroute_rel.parallel import thread_map
 from pyroute_rel.reliability import failure
+from pyroute_rel.resources import thread_map
 from pyroute_rel.store import Shelf, current_store, file_stamps, kept, kept_call
 from pyroute_rel.weather.io import readers
 

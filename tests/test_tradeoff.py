@@ -130,7 +130,7 @@ def every_path(
     """Voyage time [h], largest leg p_f and hazard of every sailable path, each costed leg by leg; the hazard in
     ``exposure``'s weather (default ``problem``'s): a steady problem's when ``problem`` wraps steady weather as
     time-varying (to screen nothing), since exposure times a leg's sub-arcs by their own speeds in steady weather and
-    on the leg's sailed sub-segments (pyroute_rel.routing.march) in weather that changes in time."""
+    on the leg's sailed sub-segments (pyroute_rel.boat.march) in weather that changes in time."""
     adj = []
     for k in range(grid.n_ranks + 1):
         src, valid = grid.pattern(k)

@@ -7,7 +7,7 @@ pins the two together:
 - ``_kernels.crossings``: :mod:`pyroute_rel.reliability.crossings` (the largest p_f along an arc, in patches);
 - ``_kernels.dp``: one rank of :func:`pyroute_rel.routing.solve.forward_dp`;
 - ``_kernels.front``: the voyage front's non-dominated labels (:mod:`pyroute_rel.routing.tradeoff`);
-- ``_kernels.march``: :func:`pyroute_rel.routing.march.march` on gridded wind;
+- ``_kernels.march``: :func:`pyroute_rel.boat.march.march` on gridded wind;
 - ``_kernels.polar``: the polar lookup of :mod:`pyroute_rel.boat.polar`, for the other kernels;
 - ``_kernels.mcts``: the search of :mod:`pyroute_rel.planners.mcts`.
 """

@@ -85,10 +85,10 @@ def evidence_index(
     model: FailureModel, conditions: Conditions, course_deg: FloatArray
 ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.bool_] | None]:
     """:meth:`FailureModel.evidence_index <pyroute_rel.reliability.failure.FailureModel.evidence_index>` of the
-    quantities :func:`pyroute_rel.routing.cost.arc_quantities` makes of the weather ``conditions`` on ``course_deg``
-    [deg] (no current: the heading is the course), in one compiled loop: each quantity's field, or its angle to the
-    course (:func:`~pyroute_rel._kernels.polar.fold_twa`, the TWA :func:`sail_wind` gives), classified as the model's
-    numpy rules classify it (the same flat index and unknown points;
+    quantities :func:`pyroute_rel.reliability.failure.arc_quantities` makes of the weather ``conditions`` on
+    ``course_deg`` [deg] (no current: the heading is the course), in one compiled loop: each quantity's field, or its
+    angle to the course (:func:`~pyroute_rel._kernels.polar.fold_twa`, the TWA :func:`sail_wind` gives), classified as
+    the model's numpy rules classify it (the same flat index and unknown points;
     :meth:`~pyroute_rel.reliability.failure.FailureModel.evidence_rules`).
 
     Returns

@@ -1,4 +1,4 @@
-"""Compiled twin of :func:`pyroute_rel.routing.march.march` for gridded weather with wind only (no current, no wave
+"""Compiled twin of :func:`pyroute_rel.boat.march.march` for gridded weather with wind only (no current, no wave
 speed loss), the failure model included.
 
 The numpy march advances every arc of a block one step per round, and a block's slowest arc (a craft waiting days
@@ -13,7 +13,7 @@ does), the polar of :mod:`pyroute_rel._kernels.polar` and the failure model's ev
 It covers sources whose fields the march needs (wind, and the fields the failure model judges) share one grid (one
 block); :func:`pyroute_rel.routing.cost.geometry_costs` uses the numpy march for everything else.
 
-Numpy twin: :func:`pyroute_rel.routing.march.march` (:attr:`~pyroute_rel.settings.Settings.compiled_march` False);
+Numpy twin: :func:`pyroute_rel.boat.march.march` (:attr:`~pyroute_rel.settings.Settings.compiled_march` False);
 pinned by ``tests/test_dp_glue.py::test_compiled_bookkeeping_equals_the_numpy_path`` and the Monte Carlo tests there.
 """
 
@@ -28,9 +28,9 @@ import numpy.typing as npt
 
 from pyroute_rel._kernels.cost import evidence_point, judge_tables, model_rules
 from pyroute_rel._kernels.polar import fmax, fold_twa, speed_kn, tables
+from pyroute_rel.boat.march import MIN_STEP_H, SPEED_CHANGE, SPEED_FLOOR_KN, Marched, SpeedNoise, step_hours
 from pyroute_rel.boat.polar import MIN_SPEED_KN, Polar
 from pyroute_rel.reliability.failure import FailureModel
-from pyroute_rel.routing.march import MIN_STEP_H, SPEED_CHANGE, SPEED_FLOOR_KN, Marched, SpeedNoise, step_hours
 from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather.gridded import GriddedWeather, PreparedPoints, axis_cell, lerp, speed_bearing
 
@@ -83,7 +83,7 @@ def march_gridded(
     wind_error_kn: tuple[FloatArray, FloatArray] | None = None,
     speed_noise: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[Marched, FloatArray]:
-    """:func:`pyroute_rel.routing.march.march` of ``n`` arcs in a gridded weather, in one compiled loop.
+    """:func:`pyroute_rel.boat.march.march` of ``n`` arcs in a gridded weather, in one compiled loop.
 
     Parameters
     ----------
@@ -96,7 +96,7 @@ def march_gridded(
     flags : The reason bits of no speed, missing weather and a failure above apf.
     wind_error_kn : An error east and north added to the wind at each arc [kn], shape (n,) each, as
         :class:`~pyroute_rel.analysis.monte_carlo.PerturbedWind` adds it (the same arithmetic), or None.
-    speed_noise : The gain and spread of a :class:`~pyroute_rel.routing.march.SpeedNoise` at each arc, shape (n,) each,
+    speed_noise : The gain and spread of a :class:`~pyroute_rel.boat.march.SpeedNoise` at each arc, shape (n,) each,
         applied to every speed taken (the same arithmetic), or None.
 
     Returns
@@ -199,7 +199,7 @@ def _column(flat, corners, weights, at, st, wt, c):  # type: ignore[no-untyped-d
 @numba.njit(nogil=True, cache=True)
 def _march_kernel(field, cols, pol, model, rule, arcs, out, kept):  # type: ignore[no-untyped-def]  # noqa: C901  # pragma: no cover
     """:func:`march_gridded` into ``out`` (time, marks, p_f, reason, fired) and ``kept``, arc after arc, sub-segment
-    after sub-segment, step after step (:func:`pyroute_rel.routing.march.march`'s steps); returns whether any sample was
+    after sub-segment, step after step (:func:`pyroute_rel.boat.march.march`'s steps); returns whether any sample was
     judged above apf (fired criteria). One flat loop: split into helpers taking these tuples, numba compiled it 4x
     slower and ran it 2x slower (measured).
 

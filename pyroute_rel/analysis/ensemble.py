@@ -624,7 +624,7 @@ def route_ensemble(
     mean_field : Also route the ensemble-mean field (with ``member_files``, their mean:
         :func:`~pyroute_rel.analysis.members.mean_of_files`).
     workers : Processes of the ``processes`` engine (default: the CPUs this process may use,
-        :func:`~pyroute_rel.parallel.default_workers`; 1: in this process), or of the ``dask`` engine's
+        :func:`~pyroute_rel.resources.default_workers`; 1: in this process), or of the ``dask`` engine's
         ``LocalCluster`` (default the same).
     options : Scenario options for every member (:meth:`~pyroute_rel.scenario.Scenario.with_options`).
     progress : Show progress bars.
@@ -710,7 +710,7 @@ def _check_engine(engine: Any, workers: int | None, scheduler: Any, connect_time
 def _engine(engine: str, workers: int | None, scheduler: str | None, timeout_s: float, jobs: int | None) -> Any:
     """The workers of an engine: :class:`_Workers` (local processes, or this process) or
     :class:`~pyroute_rel.batch.ensemble_dask.DaskWorkers`."""
-    from pyroute_rel.parallel import default_workers
+    from pyroute_rel.resources import default_workers
 
     if engine == "dask":
         from pyroute_rel.batch.ensemble_dask import DaskWorkers, dask_client

@@ -17,7 +17,7 @@ Boat-speed noise (per run, per leg, AR(1) in time)
     The speed over ground ``V`` becomes ``V' = V + sqrt(kappa V) eta_k`` (variance ``kappa V`` [kn**2]), floored
     at 10 % of ``V``: ``kappa = 0.2`` kn as in the MCTS-UCT router of Barde (ISAE 2023), which draws the boat speed
     with variance ``kappa V`` with ``kappa = 20 %``. It applies to the speed at every step of the march
-    (:class:`~pyroute_rel.routing.march.SpeedNoise`), ``V`` the speed where and when the run's craft is: a slower craft
+    (:class:`~pyroute_rel.boat.march.SpeedNoise`), ``V`` the speed where and when the run's craft is: a slower craft
     sails on into the wind of its own, later times (in steady weather with a speed constant along a leg, the
     leg's time is ``t V / V'``). ``eta_k`` is a unit AR(1)
     process along the legs, ``eta_k = psi_k eta_(k-1) + sqrt(1 - psi_k**2) xi_k``, ``psi_k = exp(-dt_k /
@@ -58,10 +58,9 @@ import numpy as np
 import numpy.typing as npt
 
 from pyroute_rel.analysis.evaluate import Track, as_track, evaluation_problem, sail_tracks
-from pyroute_rel.errors import ScenarioError, brief, check_instance, check_numbers
-from pyroute_rel.planners.settings import FINITE, check_fields
+from pyroute_rel.boat.march import SpeedNoise
+from pyroute_rel.errors import FINITE, ScenarioError, brief, check_fields, check_instance, check_numbers
 from pyroute_rel.routing.cost import ArcGeometry, arc_geometry, geometry_costs
-from pyroute_rel.routing.march import SpeedNoise
 from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather.base import Conditions, WeatherBase
 
@@ -89,7 +88,7 @@ MAX_RUNS = 10_000_000
 
 _SPREAD = ("float", 0.0, FINITE, False, "a finite number >= 0")
 _TAU = ("float", 0.0, math.inf, True, "> 0 [h]")  # infinite: one error all along
-#: The rules of :class:`MonteCarloSettings`' numbers (:func:`~pyroute_rel.planners.settings.check_fields`).
+#: The rules of :class:`MonteCarloSettings`' numbers (:func:`~pyroute_rel.errors.check_fields`).
 _LIMITS = {
     **dict.fromkeys(("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "kappa", "polar_sd"), _SPREAD),
     **dict.fromkeys(("tau_h", "tau_speed_h"), _TAU),

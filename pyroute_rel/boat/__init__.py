@@ -1,1 +1,2 @@
-"""The boat: polars (speed over wind angle and speed), tacks and gybes, and holding a course in a current."""
+"""The boat: polars (speed over wind angle and speed), sailing an arc through time-varying weather (the march),
+tacks and gybes, and holding a course in a current."""

@@ -212,20 +212,20 @@ def _cmd_route(args: argparse.Namespace) -> int:
     if args.max_memory is None:
         return _route(args)
     from pyroute_rel.errors import MemoryBudgetError
-    from pyroute_rel.routing.memory import ENV, parse_bytes
+    from pyroute_rel.resources import MEMORY_ENV, parse_bytes
 
     budget = str(parse_bytes(args.max_memory, "--max-memory"))
-    before = os.environ.get(ENV)
-    os.environ[ENV] = budget  # the grid, the failure table and the DP all read it
+    before = os.environ.get(MEMORY_ENV)
+    os.environ[MEMORY_ENV] = budget  # the grid, the failure table and the DP all read it
     try:
         return _route(args)
     except MemoryBudgetError as exc:  # the budget is the user's --max-memory, not the environment's
-        raise MemoryBudgetError(str(exc).replace(f"the budget {ENV} is", "the budget --max-memory is")) from None
+        raise MemoryBudgetError(str(exc).replace(f"the budget {MEMORY_ENV} is", "the budget --max-memory is")) from None
     finally:
         if before is None:
-            del os.environ[ENV]
+            del os.environ[MEMORY_ENV]
         else:
-            os.environ[ENV] = before
+            os.environ[MEMORY_ENV] = before
 
 
 def _route(args: argparse.Namespace) -> int:

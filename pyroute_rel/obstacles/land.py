@@ -56,7 +56,7 @@ from pyroute_rel import diskcache
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.geodesy import to_xyz
 from pyroute_rel.obstacles.areas import arc_caps, area_index, as_arcs, blocked_flat, checked_samples, polygon_parts
-from pyroute_rel.parallel import default_workers, thread_map
+from pyroute_rel.resources import default_workers, thread_map
 from pyroute_rel.store import kept_call
 from pyroute_rel.units import EARTH_RADIUS_KM
 

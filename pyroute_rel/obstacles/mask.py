@@ -20,14 +20,16 @@ import hashlib
 import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from pyroute_rel.errors import ScenarioError
 from pyroute_rel.obstacles.zones import Zone
-from pyroute_rel.routing.grid import Grid
+
+if TYPE_CHECKING:  # a mask is made for a grid; obstacles know nothing else of routing
+    from pyroute_rel.routing.grid import Grid
 
 __all__ = ["Avoid", "ObstacleMask", "obstacle_mask", "check_points"]
 

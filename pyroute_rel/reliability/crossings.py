@@ -32,7 +32,7 @@ What this guarantees:
   line; within a cell a bilinear field along the piece is a product of two nearly linear functions, a parabola,
   whose extremum is sampled. The residual is the curvature of the great circle in lon/lat within one cell, far
   below 100 m on cells of a degree or less. In time, the arc is also cut wherever the craft crosses one of the
-  file's time steps, at the times the march of :mod:`pyroute_rel.routing.march` gives (linear between the ends of its
+  file's time steps, at the times the march of :mod:`pyroute_rel.boat.march` gives (linear between the ends of its
   sub-segments): within a piece every field is then linear in time as well, and the piece is judged along its path
   in space and time.
 - *Smooth sources without boundaries*: the arc is one piece: its ends, middle and the extremum of each quantity's
@@ -58,9 +58,9 @@ import numpy.typing as npt
 
 from pyroute_rel import geodesy
 from pyroute_rel.boat.crab import steer
+from pyroute_rel.boat.march import step_hours, time_along
 from pyroute_rel.boat.polar import Polar
 from pyroute_rel.reliability.failure import QUANTITY_FIELDS, FailureModel
-from pyroute_rel.routing.march import step_hours, time_along
 from pyroute_rel.times import hours_after
 from pyroute_rel.units import KM_PER_NM
 from pyroute_rel.weather.base import Boundaries, Conditions, WeatherSource
@@ -663,7 +663,7 @@ def arc_extremes(
         ``take_rows(rows)``: the same weather for queries whose rows are those pieces.
     marks_h : The time the craft reaches each of the arc's ``S`` equal sub-segments' ends [h after ``departure``],
         shape (n, S + 1) (:attr:`~pyroute_rel.routing.cost.ArcCosts.marks_h`, the march of
-        :mod:`pyroute_rel.routing.march`), or None: ``t0_h + f * time_h``. With marks the time along the arc is linear
+        :mod:`pyroute_rel.boat.march`), or None: ``t0_h + f * time_h``. With marks the time along the arc is linear
         between them, and every piece is also cut where the craft crosses one of the weather's
         :attr:`~pyroute_rel.weather.WeatherSource.time_steps`, so that a piece lies within one step of the file in time
         as in one cell in space.

@@ -12,7 +12,7 @@ constraint is unchanged: it bounds the conditions' ``p_f`` (an arc with ``p_f > 
 
 Where a leg's time goes: each leg of a route is cut into sub-arcs of at most :data:`EXPOSURE_STEP_KM` along its great
 circle. In weather that changes in time each sub-arc is timed on the times the leg was sailed at (the march of
-:mod:`pyroute_rel.routing.march`: linear between the ends of its sub-segments), the times the failure criteria were
+:mod:`pyroute_rel.boat.march`: linear between the ends of its sub-segments), the times the failure criteria were
 judged at; in steady weather the cost function times each sub-arc (sampled at its midpoint, as the router samples arcs),
 and the times are scaled so that they add up to the leg's time exactly. Each sub-arc contributes the hazard of the
 conditions at its midpoint (the failure model's ``p_f`` for the heading the craft steers there), so the hours in each
@@ -35,8 +35,8 @@ import numpy.typing as npt
 
 from pyroute_rel import geodesy
 from pyroute_rel.boat.crab import steer
-from pyroute_rel.routing.cost import arc_quantities
-from pyroute_rel.routing.march import time_along
+from pyroute_rel.boat.march import time_along
+from pyroute_rel.reliability.failure import arc_quantities
 
 if TYPE_CHECKING:
     from pyroute_rel.routing.solve import RoutingProblem
@@ -152,7 +152,7 @@ def leg_exposure(
     step_km : Longest sub-arc [km] (> 0).
     marks_h : With time-varying weather, when the craft reaches each leg's sub-segment ends [h after
         ``problem.departure``], shape (legs, samples + 1) (:attr:`~pyroute_rel.routing.cost.ArcCosts.marks_h`): each
-        sub-arc is then timed on them (:func:`~pyroute_rel.routing.march.time_along`), as the cost function sailed it
+        sub-arc is then timed on them (:func:`~pyroute_rel.boat.march.time_along`), as the cost function sailed it
         and judged its pieces. None: the sub-arcs are timed by the cost function from their own departures, then scaled
         to the leg's time.
 
@@ -214,7 +214,7 @@ def arc_exposure(
             )
     if problem.weather.steady:
         marks = None
-    elif marks_h is None:  # the times the arcs are sailed at (pyroute_rel.routing.march), from their departures
+    elif marks_h is None:  # the times the arcs are sailed at (pyroute_rel.boat.march), from their departures
         marks = problem.costs(a0, b0, a1, b1, start_leg).marks_h
     else:
         marks = np.asarray(marks_h, dtype=float)

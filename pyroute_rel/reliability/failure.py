@@ -44,22 +44,25 @@ import os
 import re
 import tomllib
 import warnings
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from importlib import resources
 from importlib.resources.abc import Traversable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from pyroute_rel import diskcache
+from pyroute_rel import diskcache, geodesy
 from pyroute_rel.errors import FailureModelError, brief, check_flag, check_instance, check_numbers
 from pyroute_rel.files import brief_path, read_regular_bytes
-from pyroute_rel.routing.memory import check_budget, table_estimate
+from pyroute_rel.resources import check_budget, table_estimate
 from pyroute_rel.store import Shelf, current_store, file_stamps
+
+if TYPE_CHECKING:
+    from pyroute_rel.weather.base import Conditions
 
 __all__ = [
     "QUANTITIES",
@@ -88,7 +91,7 @@ QUANTITIES: dict[str, str] = {
 #: The weather field (of :class:`~pyroute_rel.weather.Conditions`) each quantity is computed from, and whether it is
 #: that field's angle to the craft's heading (folded to [0, 180] deg) rather than the field itself. The one map from
 #: failure quantities to weather fields: the cost function computes quantities with it
-#: (:func:`pyroute_rel.routing.cost.arc_quantities`) and :attr:`FailureModel.fields` tells which fields a model needs.
+#: (:func:`arc_quantities`) and :attr:`FailureModel.fields` tells which fields a model needs.
 QUANTITY_FIELDS: dict[str, tuple[str, bool]] = {
     "hs_m": ("hs_m", False),
     "awd_deg": ("wave_dir_deg", True),
@@ -143,6 +146,39 @@ _CRITERION_KEYS = (
 _PROB_ATOL = 1e-6
 _CACHE_FORMAT = "1"
 _SHIPPED_TABLES = "compiled_tables.json"  # compiled tables of the shipped models, in failure_models/
+
+
+def arc_quantities(
+    conditions: Conditions, heading_deg: npt.ArrayLike, names: Iterable[str] = tuple(QUANTITIES)
+) -> dict[str, FloatArray]:
+    """Environmental quantities seen by a craft on a heading (inputs of failure criteria).
+
+    Each is a weather field, or its angle to the heading, as :data:`QUANTITY_FIELDS`
+    says.
+
+    Parameters
+    ----------
+    conditions : Weather at the points.
+    heading_deg : The craft's heading, clockwise from north [deg].
+    names : Quantities wanted (default all of :data:`QUANTITIES`).
+
+    Returns
+    -------
+    ``hs_m`` [m], ``awd_deg`` apparent wave direction [deg] in [0, 180] (0 = head seas: waves from
+    dead ahead), ``tws_kn`` [kn], ``twa_deg`` true wind angle [deg] in [0, 180], ``wave_period_s`` [s].
+
+    >>> from pyroute_rel.weather import UniformWeather
+    >>> c = UniformWeather(tws_kn=10.0, twd_deg=0.0, hs_m=2.0, wave_dir_deg=240.0).sample(0.0, 0.0, 0)
+    >>> q = arc_quantities(c, 250.0)
+    >>> float(q["awd_deg"]), float(q["twa_deg"])
+    (10.0, 110.0)
+    """
+    out: dict[str, FloatArray] = {}
+    for name in names:
+        attr, relative = QUANTITY_FIELDS[name]
+        value = getattr(conditions, attr)
+        out[name] = geodesy.angle_diff_deg(value, heading_deg) if relative else value
+    return out
 
 
 def _compiled_tables() -> Shelf:

@@ -3,7 +3,7 @@ for the heading and time of the route where it passes nearest (:func:`route_risk
 
 The maps of :mod:`pyroute_rel.viz.maps` only draw; the physics they show (weather sampled on a mesh, the quantities the
 failure model reads, its probability) is computed here, from the same functions the router costs arcs with
-(:func:`~pyroute_rel.routing.cost.arc_quantities`).
+(:func:`~pyroute_rel.reliability.failure.arc_quantities`).
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import numpy.typing as npt
 
 from pyroute_rel import geodesy
 from pyroute_rel.boat.crab import steer
-from pyroute_rel.routing.cost import arc_quantities
-from pyroute_rel.routing.march import time_along
+from pyroute_rel.boat.march import time_along
+from pyroute_rel.reliability.failure import arc_quantities
 
 if TYPE_CHECKING:
     from pyroute_rel.reliability.failure import FailureModel

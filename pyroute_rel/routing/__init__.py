@@ -1,2 +1,1 @@
-"""Routing: the rank digraph, marching arcs through time-varying weather, arc costs, the forward DP, the Route
-result, corridor refinement, Pareto fronts and the memory budget."""
+"""Routing: the rank digraph, arc costs, the forward DP, the Route result, corridor refinement and Pareto fronts."""

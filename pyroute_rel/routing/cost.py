@@ -33,7 +33,6 @@ Algorithm 1. Proc. International Robotic Sailing Conference 2018.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from dataclasses import fields as dataclass_fields
 from typing import TYPE_CHECKING, Any, overload
@@ -43,12 +42,12 @@ import numpy.typing as npt
 
 from pyroute_rel import geodesy
 from pyroute_rel.boat.crab import steer
+from pyroute_rel.boat.march import Marched, SpeedNoise, Step, march, step_hours
 from pyroute_rel.boat.polar import MIN_SPEED_KN, Polar, boat_speed_kn
 from pyroute_rel.errors import ScenarioError
-from pyroute_rel.parallel import default_workers, row_blocks, thread_map
 from pyroute_rel.reliability.crossings import arc_extremes, needs_pieces
-from pyroute_rel.reliability.failure import QUANTITIES, QUANTITY_FIELDS, FailureModel
-from pyroute_rel.routing.march import Marched, SpeedNoise, Step, march, step_hours
+from pyroute_rel.reliability.failure import FailureModel, arc_quantities
+from pyroute_rel.resources import default_workers, row_blocks, thread_map
 from pyroute_rel.settings import get_settings
 from pyroute_rel.store import kept_by
 from pyroute_rel.weather.base import Conditions, WeatherSource
@@ -66,7 +65,6 @@ __all__ = [
     "geometry_costs",
     "deferred_costs",
     "PendingPieces",
-    "arc_quantities",
     "REASONS",
 ]
 
@@ -97,7 +95,7 @@ class ArcCosts:
     fired_bits : With a failure model and some arc it forbids: bit ``c`` is set where criterion ``c`` of the
         model fired somewhere along the arc (read it where ``reason`` has the failure flag); None otherwise.
     marks_h : With time-varying weather, the time the craft reaches each sub-segment end [h after the departure
-        origin], shape (..., samples + 1) (:attr:`pyroute_rel.routing.march.Marched.marks_h`); None with steady weather
+        origin], shape (..., samples + 1) (:attr:`pyroute_rel.boat.march.Marched.marks_h`); None with steady weather
         (the time along an arc is then its departure plus its share of the arc's time).
     """
 
@@ -112,39 +110,6 @@ class ArcCosts:
         if self.fired_bits is None:
             return np.zeros(self.time_h.shape, np.uint32)
         return np.broadcast_to(self.fired_bits, self.time_h.shape)
-
-
-def arc_quantities(
-    conditions: Conditions, heading_deg: npt.ArrayLike, names: Iterable[str] = tuple(QUANTITIES)
-) -> dict[str, FloatArray]:
-    """Environmental quantities seen by a craft on a heading (inputs of failure criteria).
-
-    Each is a weather field, or its angle to the heading, as :data:`~pyroute_rel.reliability.failure.QUANTITY_FIELDS`
-    says.
-
-    Parameters
-    ----------
-    conditions : Weather at the points.
-    heading_deg : The craft's heading, clockwise from north [deg].
-    names : Quantities wanted (default all of :data:`~pyroute_rel.reliability.failure.QUANTITIES`).
-
-    Returns
-    -------
-    ``hs_m`` [m], ``awd_deg`` apparent wave direction [deg] in [0, 180] (0 = head seas: waves from
-    dead ahead), ``tws_kn`` [kn], ``twa_deg`` true wind angle [deg] in [0, 180], ``wave_period_s`` [s].
-
-    >>> from pyroute_rel.weather import UniformWeather
-    >>> c = UniformWeather(tws_kn=10.0, twd_deg=0.0, hs_m=2.0, wave_dir_deg=240.0).sample(0.0, 0.0, 0)
-    >>> q = arc_quantities(c, 250.0)
-    >>> float(q["awd_deg"]), float(q["twa_deg"])
-    (10.0, 110.0)
-    """
-    out: dict[str, FloatArray] = {}
-    for name in names:
-        attr, relative = QUANTITY_FIELDS[name]
-        value = getattr(conditions, attr)
-        out[name] = geodesy.angle_diff_deg(value, heading_deg) if relative else value
-    return out
 
 
 @dataclass(frozen=True)
@@ -251,7 +216,7 @@ def geometry_from_xyz(
     Sample points by repeated halving of the arc (``samples`` a power of two) or spherical linear interpolation;
     the course at a point p towards b is
     ``atan2(b . east(p), b . north(p))``; the arc length is the central angle times the Earth radius.
-    ``workers`` > 1 (None: :func:`~pyroute_rel.parallel.default_workers`) splits a large block along its first
+    ``workers`` > 1 (None: :func:`~pyroute_rel.resources.default_workers`) splits a large block along its first
     axis between threads (trigonometry on arrays releases the GIL); every arc's numbers are the same either way.
     """
     a, b = np.broadcast_arrays(a_xyz, b_xyz)
@@ -378,7 +343,7 @@ def arc_costs(
 #: Arcs (times samples) per block below which the cost and geometry kernels do not split work between threads.
 PARALLEL_MIN_ARCS = 8192
 
-# : The same for arcs sailed through time-varying weather (:mod:`pyroute_rel.routing.march`): each costs several
+# : The same for arcs sailed through time-varying weather (:mod:`pyroute_rel.boat.march`): each costs several
 # samplings,
 #: so smaller blocks pay for the threads (the default grid over an hourly 0.25 deg file, 4,200 arcs a rank: 0.89 s
 #: a route in one thread, 0.67 s in two, measured).
@@ -407,7 +372,7 @@ def geometry_costs(
     failure table's largest ``p_f``): the arcs' ``p_f`` is then their samples' largest; their times are the same.
 
     With time-varying weather, a large block is split along its first axis between ``workers`` threads (default
-    :func:`~pyroute_rel.parallel.default_workers`): the compiled sampling kernels and numpy's ufuncs release the
+    :func:`~pyroute_rel.resources.default_workers`): the compiled sampling kernels and numpy's ufuncs release the
     GIL, so the parts run in parallel. Each arc's cost depends on that arc alone, so the result is the same as in
     one piece.
 
@@ -547,7 +512,7 @@ def _geometry_costs(
         dt, p_f, reason, fired, cond = _steady_costs(geom, options)
         costs = _arc_totals(dt, p_f, reason, fired)
     else:
-        # time-varying weather: every arc is sailed sub-segment by sub-segment (pyroute_rel.routing.march)
+        # time-varying weather: every arc is sailed sub-segment by sub-segment (pyroute_rel.boat.march)
         costs, cond = _marched_costs(geom, np.broadcast_to(np.asarray(t0_h, dtype=float), shape), options)
     if options.failure is None or geom.a_xyz is None or geom.b_xyz is None:
         return costs, None
@@ -559,7 +524,7 @@ def _geometry_costs(
 
 
 def _marched_costs(geom: ArcGeometry, t0_h: FloatArray, options: _CostOptions) -> tuple[ArcCosts, Conditions]:
-    """Arcs of time-varying weather sailed by :func:`pyroute_rel.routing.march.march`: their costs (with the marks) and
+    """Arcs of time-varying weather sailed by :func:`pyroute_rel.boat.march.march`: their costs (with the marks) and
     the weather at their samples when the craft was last there (for :func:`_pieces_todo`)."""
     o, weather = options, options.weather
     shape, samples = geom.shape, geom.samples

@@ -41,7 +41,7 @@ import numpy.typing as npt
 
 from pyroute_rel import geodesy
 from pyroute_rel.errors import GridError, brief, check_numbers
-from pyroute_rel.routing.memory import MemoryEstimate, check_budget, resident_bytes
+from pyroute_rel.resources import MemoryEstimate, check_budget, resident_bytes
 
 if TYPE_CHECKING:
     import networkx as nx

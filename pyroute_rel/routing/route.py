@@ -22,10 +22,11 @@ import numpy.typing as npt
 
 from pyroute_rel import geodesy
 from pyroute_rel.boat.manoeuvre import TrackManoeuvres
+from pyroute_rel.boat.march import time_along
 from pyroute_rel.errors import NoFeasibleRouteError, ScenarioError, check_flag, check_instance
 from pyroute_rel.reliability.exposure import LegExposure, combined_failure_probability, leg_exposure
-from pyroute_rel.routing.cost import REASONS, ArcCosts, arc_quantities
-from pyroute_rel.routing.march import time_along
+from pyroute_rel.reliability.failure import arc_quantities
+from pyroute_rel.routing.cost import REASONS, ArcCosts
 from pyroute_rel.routing.solve import (
     DPResult,
     RoutingProblem,
@@ -233,8 +234,8 @@ class Route:
     manoeuvres : Side of the wind of each leg, the tack or gybe at its start and the time it cost
         (:class:`~pyroute_rel.boat.manoeuvre.TrackManoeuvres`; penalties zero unless the boat has them).
     leg_marks_h : In time-varying weather, when the craft reaches the end of each of a leg's sub-segments [h after
-        departure], shape (legs, samples + 1): the times the legs were sailed at (:mod:`pyroute_rel.routing.march`; the
-        time along a sub-segment is linear between its marks, :func:`~pyroute_rel.routing.march.time_along`); None with
+        departure], shape (legs, samples + 1): the times the legs were sailed at (:mod:`pyroute_rel.boat.march`; the
+        time along a sub-segment is linear between its marks, :func:`~pyroute_rel.boat.march.time_along`); None with
         steady weather (a leg's time is then shared along it by distance).
     """
 

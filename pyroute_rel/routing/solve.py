@@ -48,6 +48,7 @@ from pyroute_rel.boat.polar import MIN_SPEED_KN, Polar, check_beyond
 from pyroute_rel.errors import ScenarioError, brief, check_callable, check_flag, check_instance, check_numbers
 from pyroute_rel.progress import progress_bar
 from pyroute_rel.reliability.failure import FailureModel
+from pyroute_rel.resources import MemoryEstimate, check_budget, parse_bytes, route_estimate
 from pyroute_rel.routing.cost import (
     REASONS,
     ArcCosts,
@@ -61,7 +62,6 @@ from pyroute_rel.routing.cost import (
     geometry_from_xyz,
 )
 from pyroute_rel.routing.grid import Grid
-from pyroute_rel.routing.memory import MemoryEstimate, check_budget, parse_bytes, route_estimate
 from pyroute_rel.settings import get_settings
 from pyroute_rel.times import hours_after
 from pyroute_rel.units import KN_PER_MS
@@ -171,7 +171,7 @@ class RoutingProblem:
         weather source whose bound on currents (``max_current_ms``) is not finite.
     max_memory : Memory budget of a route [bytes, or a string with a unit: ``"8G"``, ``"500M"``]; None:
         ``$PYROUTE_REL_MAX_MEMORY``, else a share of the available memory
-        (:func:`pyroute_rel.routing.memory.budget_bytes`). :func:`forward_dp` refuses a grid whose estimated peak
+        (:func:`pyroute_rel.resources.budget_bytes`). :func:`forward_dp` refuses a grid whose estimated peak
         (:func:`route_memory`) exceeds it before allocating.
     manoeuvres : Time lost by tacks and gybes (:class:`~pyroute_rel.boat.manoeuvre.ManoeuvrePenalties`); when any is
         non-zero the DP's label is (node, side of the wind) (:mod:`pyroute_rel.boat.manoeuvre`), without pruning.
@@ -654,7 +654,7 @@ def _result(
 def route_memory(grid: Grid, problem: RoutingProblem) -> MemoryEstimate:
     """Estimated peak memory of :func:`forward_dp` on a grid [bytes], from sizes alone (nothing is allocated): the
     process as it is, the arc geometry not cached on the grid yet, obstacle masks, the arrays of one rank at work,
-    the DP state and the failure table (:func:`pyroute_rel.routing.memory.route_estimate`)."""
+    the DP state and the failure table (:func:`pyroute_rel.resources.route_estimate`)."""
     n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
 
     def arcs_into(k: int) -> int:  # candidate arcs into rank k: from the start points, between ranks, to the finish

@@ -1,4 +1,16 @@
-"""A memory budget, checked before a route allocates its large arrays.
+"""What a job may take from the machine: worker threads, and a memory budget checked before large arrays are made.
+
+Threads
+-------
+Threads for the few hot spots where numpy or shapely release the GIL long enough to pay.
+
+Used for arc costs over time-varying weather, arc geometry and the coastal-margin buffer; each caller splits
+work whose pieces are independent, so results do not depend on the number of threads (tested per caller).
+``$PYROUTE_REL_THREADS`` sets the number of threads (default: the CPUs this process may use; 1 turns them off).
+
+Memory
+------
+A memory budget, checked before a route allocates its large arrays.
 
 A route's peak memory follows from sizes known before anything large is allocated: the grid (ranks, nodes, candidate
 arcs per node), the weather samples per arc, whether the weather varies in time, the obstacle masks and the failure
@@ -35,15 +47,25 @@ file is missing).
 
 from __future__ import annotations
 
+import contextvars
 import math
 import os
 import re
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TypeVar
 
 from pyroute_rel.errors import MemoryBudgetError, ScenarioError
+from pyroute_rel.store import current_store
 
 __all__ = [
-    "ENV",
+    "default_workers",
+    "thread_map",
+    "row_blocks",
+    "MEMORY_ENV",
     "AVAILABLE_FRACTION",
     "MemoryEstimate",
     "parse_bytes",
@@ -56,8 +78,98 @@ __all__ = [
     "check_budget",
 ]
 
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+class _Threads:
+    """The store's pool of threads (:mod:`pyroute_rel.store`): made at the first call that needs it and replaced by
+    a larger one when a call asks for more threads. A pool replaced, or dropped when the store is emptied, is shut
+    down once no call is using it (a call given a pool keeps it to its end)."""
+
+    def __init__(self, store: object) -> None:
+        self.pool: ThreadPoolExecutor | None = None
+        self.size = 0
+        self.users: dict[ThreadPoolExecutor, int] = {}  # calls using each pool, by the pool itself
+        self.lock = threading.Lock()
+
+    @contextmanager
+    def use(self, workers: int) -> Iterator[ThreadPoolExecutor]:
+        with self.lock:
+            if self.pool is None or self.size < workers:
+                self._retire()
+                self.pool, self.size = (
+                    ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pyroute_rel"),
+                    workers,
+                )
+            pool = self.pool
+            self.users[pool] = self.users.get(pool, 0) + 1
+        try:
+            yield pool
+        finally:
+            with self.lock:
+                self.users[pool] -= 1
+                idle = self.users[pool] == 0
+                if idle:
+                    del self.users[pool]
+            if idle and pool is not self.pool:  # replaced or dropped meanwhile: its last user shuts it down
+                pool.shutdown(wait=False)
+
+    def _retire(self) -> None:
+        """Drop the current pool (under the lock), shut down at once if no call is using it."""
+        if self.pool is not None and self.pool not in self.users:
+            self.pool.shutdown(wait=False)
+        self.pool, self.size = None, 0
+
+    def clear(self) -> None:
+        with self.lock:
+            self._retire()
+
+
+def default_workers() -> int:
+    """Threads to use: ``$PYROUTE_REL_THREADS``, else the CPUs this process may use.
+
+    >>> default_workers() >= 1
+    True
+    """
+    env = os.environ.get("PYROUTE_REL_THREADS", "").strip()
+    if env:
+        try:
+            n = int(env)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ScenarioError(f"environment variable PYROUTE_REL_THREADS must be a whole number >= 1 (got {env!r})")
+        return n
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def thread_map(fn: Callable[[T], R], items: Iterable[T], workers: int) -> list[R]:
+    """``[fn(x) for x in items]``, in a shared pool of ``workers`` threads when ``workers`` > 1 (the current store's,
+    :mod:`pyroute_rel.store`); order kept. Each call runs in a copy of the caller's context (its
+    :mod:`pyroute_rel.settings` among others)."""
+    items = list(items)
+    if workers <= 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    with current_store().part("threads", _Threads).use(workers) as pool:
+        contexts = [contextvars.copy_context() for _ in items]  # (a context is entered by one thread at a time)
+        return list(pool.map(lambda c, x: c.run(fn, x), contexts, items))
+
+
+def row_blocks(n_rows: int, parts: int) -> list[slice]:
+    """``parts`` contiguous slices covering ``range(n_rows)`` (fewer when there are fewer rows).
+
+    >>> row_blocks(10, 3)
+    [slice(0, 3, None), slice(3, 6, None), slice(6, 10, None)]
+    """
+    parts = max(1, min(parts, n_rows))
+    cuts = [n_rows * i // parts for i in range(parts + 1)]
+    return [slice(a, b) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+
+
 #: Environment variable that sets the budget [bytes, or with a unit K, M, G, T (powers of 1024)].
-ENV = "PYROUTE_REL_MAX_MEMORY"
+MEMORY_ENV = "PYROUTE_REL_MAX_MEMORY"
 #: Share of the machine's available memory a route may take by default.
 AVAILABLE_FRACTION = 0.75
 #: Float64 arrays of one value per sample alive at once while the arcs into a rank are costed (steady weather):
@@ -76,7 +188,7 @@ _UNITS = {"": 1, "K": 1024, "M": 1024**2, "G": 1024**3, "T": 1024**4}
 _BYTES = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?|\.[0-9]+)\s*([KMGT]?)(?:I?B)?\s*$", re.IGNORECASE)
 
 
-def parse_bytes(value: object, where: str = ENV) -> int:
+def parse_bytes(value: object, where: str = MEMORY_ENV) -> int:
     """A memory size [bytes] from a number of bytes or a string with a unit (K, M, G, T: powers of 1024).
 
     >>> parse_bytes("8G"), parse_bytes("500M"), parse_bytes("1.5 GiB"), parse_bytes(4096)
@@ -157,9 +269,9 @@ def budget_bytes(max_memory: int | str | None = None) -> tuple[int, str]:
     """
     if max_memory is not None:
         return parse_bytes(max_memory, "max_memory"), "the budget"
-    env = os.environ.get(ENV, "").strip()
+    env = os.environ.get(MEMORY_ENV, "").strip()
     if env:
-        return parse_bytes(env, f"environment variable {ENV}"), f"the budget {ENV}"
+        return parse_bytes(env, f"environment variable {MEMORY_ENV}"), f"the budget {MEMORY_ENV}"
     free = available_bytes()
     if free is None:
         return FALLBACK_BUDGET, "the default budget"
@@ -264,5 +376,5 @@ def check_budget(estimate: MemoryEstimate, *, max_memory: int | str | None = Non
     if need > budget:
         raise MemoryBudgetError(
             f"{estimate.subject} needs about {format_bytes(need)} ({estimate.what}) but {source} is "
-            f"{format_bytes(budget)}: {knobs}, or raise {ENV} / --max-memory"
+            f"{format_bytes(budget)}: {knobs}, or raise {MEMORY_ENV} / --max-memory"
         )
