@@ -207,9 +207,8 @@ class Scenario:
         (:func:`~pyroute_rel.routing.grid.auto_samples`).
         """
         if failure is not None:
-            from pyroute_rel.reliability.failure import (
-                FailureModel,
-            )  # at run time only when given (loading it is not cheap)
+            # at run time only when given (loading it is not cheap)
+            from pyroute_rel.reliability.failure import FailureModel
 
             check_instance(failure, FailureModel, "failure", ScenarioError, expected="a FailureModel or None")
         if isinstance(blocked, str) and blocked != "auto":

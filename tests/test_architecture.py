@@ -125,7 +125,7 @@ def test_no_private_names_imported_across_modules():
 #: its name; the top-level package is a foundation too (it imports nothing until a name is asked for).
 LAYERS: list[tuple[str, ...]] = [
     ("", "errors", "units", "times", "settings", "store", "files", "progress", "resources", "diskcache", "geodesy"),
-    ("weather",),
+    ("weather", "_kernels.sampling"),  # the compiled sampling imports nothing of the package
     ("boat",),
     ("reliability", "obstacles"),
     ("_kernels",),
@@ -266,3 +266,20 @@ def test_weather_capabilities_are_declared_not_probed():
                 if isinstance(key, ast.Constant) and key.value in names:
                     found.append(f"{name}:{node.lineno} {node.func.id}(..., {key.value!r})")
     assert not found, found
+
+
+def test_compiled_code_lives_in_the_kernels():
+    """Every numba-compiled function is in ``pyroute_rel._kernels`` (each kernel module names its numpy twin)."""
+    outside = []
+    for name, path in MODULES.items():
+        if name.startswith("pyroute_rel._kernels"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                for dec in node.decorator_list:
+                    if "numba" in ast.unparse(dec) or "njit" in ast.unparse(dec):
+                        outside.append(f"{name}.{node.name}")
+    assert not outside, outside
+    for name, path in MODULES.items():
+        if name.startswith("pyroute_rel._kernels.") and "njit" in path.read_text():
+            assert "tests/test_" in (ast.get_docstring(ast.parse(path.read_text())) or ""), f"{name} names no test"

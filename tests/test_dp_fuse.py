@@ -2,8 +2,9 @@
 
 - ``Settings.fused_sampling``: :meth:`GriddedWeather.sample_at` turns the wind's (u, v) and the wave
   direction's (sin, cos) as it interpolates each point; the reference is the components interpolated, then turned by
-  ``_vector_kernel`` (the switch off). The interpolation kernel also keeps the last time's cell for the points that
-  share it: the reference for that is :meth:`GriddedWeather.sample` at explicit times (other points in between).
+  ``_kernels.sampling.vectors`` (the switch off). The interpolation kernel also keeps the last time's cell for the
+  points that share it: the reference for that is :meth:`GriddedWeather.sample` at explicit times (other points in
+  between).
 - ``cost_compiled._wind_kernel`` reads the polar table itself (no array passed to an inlined helper); the reference
   is numpy's :func:`~pyroute_rel.boat.polar.boat_speed_kn` and the numpy cost path, on short axes (counted) and long
   irregular ones (found with ``polar_compiled.cell_finder``, including axes so uneven that its bins are capped).

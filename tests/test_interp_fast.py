@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pyroute_rel._kernels import sampling
 from pyroute_rel.weather import gridded
 
 KN = 3600.0 / 1852.0
@@ -48,7 +49,7 @@ def _ref_speed_bearing(e: float, n: float, scale: float) -> tuple[float, float]:
 
 
 def _ref_interpolate(flat, nf, columns, base, sx, sy, wx, wy, ok, t, scale, shift, t_axis, ru, rv, rs, rc, kn, out):  # type: ignore[no-untyped-def]
-    """``_interpolate_kernel`` in plain Python, operation for operation."""
+    """``_kernels.sampling.interpolate`` in plain Python, operation for operation."""
     nt = t_axis.size
     t_first = float(t_axis[0]) if nt else 0.0
     t_last = float(t_axis[-1]) if nt else 0.0
@@ -127,7 +128,7 @@ def test_interpolate_kernel_equals_reference_bits(seed, call, nt, regular, same_
     expected = np.full(shape, 5.0)
     got = np.full(shape, 5.0)
     _ref_interpolate(*args, *convert, KN, expected)
-    gridded._interpolate_kernel(*args, *convert, KN, got)
+    sampling.interpolate(*args, *convert, KN, got)
     _assert_same_bits(got, expected)
 
 

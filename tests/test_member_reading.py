@@ -21,6 +21,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pyroute_rel._kernels import sampling
 from pyroute_rel.analysis import members
 from pyroute_rel.weather import gridded
 from pyroute_rel.weather.gridded import CodedValues, GriddedWeather, WeatherField
@@ -38,8 +39,8 @@ N_MEMBERS, NT, NY, NX = 3, 6, 5, 7
     with_codes=st.booleans(),
 )
 def test_look_up_is_numpy_take_and_nan_ignoring_extremes(seed, shape, special, with_codes):
-    """``readers._look_up``: the codes taken along each axis, looked up, laid out (lat, lon, time); the extremes of
-    ``table[codes]`` as numpy's fmin/fmax reductions (NaN only when all are NaN); whether any is finite."""
+    """``sampling.look_up_codes``: the codes taken along each axis, looked up, laid out (lat, lon, time); the extremes
+    of ``table[codes]`` as numpy's fmin/fmax reductions (NaN only when all are NaN); whether any is finite."""
     rng = np.random.default_rng(seed)
     table = rng.uniform(-50.0, 50.0, 256).astype(np.float32)
     if special == "nan":
@@ -51,7 +52,7 @@ def test_look_up_is_numpy_take_and_nan_ignoring_extremes(seed, shape, special, w
     lookup = table * np.float32(2.0) + np.float32(1.0)  # another table: the values looked up
     codes = rng.integers(0, 256, shape).astype(np.uint8)
     order = [rng.integers(0, n, rng.integers(1, 6)) for n in shape]  # repeats and any order, as _reorder allows
-    values, kept, lo, hi, finite = readers._look_up(codes, *order, table, lookup, with_codes)
+    values, kept, lo, hi, finite = sampling.look_up_codes(codes, *order, table, lookup, with_codes)
     taken = codes
     for axis, idx in enumerate(order):
         taken = np.take(taken, idx, axis=axis)

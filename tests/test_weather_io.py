@@ -692,16 +692,16 @@ def test_example_script_writes_an_era5_layout_file(tmp_path):
 def test_compiled_wind_vector_equals_numpy(seed):
     """The compiled speed and direction of (u, v) vectors equal numpy's hypot and geodesy.bearing_deg (signed zeros,
     calm, NaN and the axes included): wind *from* = bearing of (-u, -v)."""
+    from pyroute_rel._kernels.sampling import vectors  # the arithmetic under test
     from pyroute_rel.geodesy import bearing_deg
     from pyroute_rel.units import KN_PER_MS
-    from pyroute_rel.weather.gridded import _vector_kernel  # private kernel: the arithmetic under test
 
     rng = np.random.default_rng(seed)
     special = np.array([0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300, np.nan])
     u = np.concatenate([rng.normal(0.0, 8.0, 2000), np.repeat(special, special.size)])
     v = np.concatenate([rng.normal(0.0, 8.0, 2000), np.tile(special, special.size)])
     speed, direction = np.empty(u.size), np.empty(u.size)
-    _vector_kernel(u, v, -1.0, KN_PER_MS, speed, direction)
+    vectors(u, v, -1.0, KN_PER_MS, speed, direction)
     # sqrt(u^2 + v^2), not hypot (15x slower): a wind under 1e-154 m/s underflows to calm
     np.testing.assert_allclose(speed, np.hypot(u, v) * KN_PER_MS, rtol=1e-15, atol=1e-290)
     expected = bearing_deg(-u, -v)

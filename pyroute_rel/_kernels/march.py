@@ -5,7 +5,7 @@ The numpy march advances every arc of a block one step per round, and a block's 
 in irons for the wind to shift) sets the number of rounds; each round costs two sampling calls and a few dozen array
 operations. Here each arc is sailed from its departure to its end in one compiled loop: the same steps, the same
 sampling arithmetic as :meth:`~pyroute_rel.weather.GriddedWeather.sample_at` (trilinear in the block's stored
-float32 values, the wind turned into speed and direction as :func:`~pyroute_rel.weather.gridded.speed_bearing`
+float32 values, the wind turned into speed and direction as :func:`~pyroute_rel._kernels.sampling.speed_bearing`
 does), the polar of :mod:`pyroute_rel._kernels.polar` and the failure model's evidence as
 :func:`pyroute_rel._kernels.cost.evidence_index` classifies it; the same numbers as the numpy march (tested in
 ``tests/test_march.py``, which pins the two).
@@ -28,11 +28,12 @@ import numpy.typing as npt
 
 from pyroute_rel._kernels.cost import evidence_point, judge_tables, model_rules
 from pyroute_rel._kernels.polar import fmax, fold_twa, speed_kn, tables
+from pyroute_rel._kernels.sampling import axis_cell, lerp, speed_bearing
 from pyroute_rel.boat.march import MIN_STEP_H, SPEED_CHANGE, SPEED_FLOOR_KN, Marched, SpeedNoise, step_hours
 from pyroute_rel.boat.polar import MIN_SPEED_KN, Polar
 from pyroute_rel.reliability.failure import FailureModel
 from pyroute_rel.units import KN_PER_MS
-from pyroute_rel.weather.gridded import GriddedWeather, PreparedPoints, axis_cell, lerp, speed_bearing
+from pyroute_rel.weather.gridded import GriddedWeather, PreparedPoints
 
 __all__ = ["KEPT_FIELDS", "march_gridded", "usable"]
 

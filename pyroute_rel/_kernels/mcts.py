@@ -30,6 +30,10 @@ Random numbers come from two splitmix64 streams held in a ``uint64[2]`` array: s
 choices and the member draws, stream 1 for the weather noise, so ``sigma = 0`` gives the same search as
 ``"forecast"``, and a seed gives the same search on every machine.
 
+Twin: the Python engine of :mod:`pyroute_rel.planners.mcts` (``engine = "python"``); pinned by
+``tests/test_planners_mcts.py`` (a full search finds the brute-force best of each first heading, steps sail at the
+DP's polar speeds, land, zones and apf are respected).
+
 References
 ----------
 Steele, G. L., Lea, D. and Flood, C. H. (2014). Fast splittable pseudorandom number generators. OOPSLA 2014,

@@ -51,11 +51,11 @@ import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import numpy.typing as npt
 
 from pyroute_rel import geodesy
+from pyroute_rel._kernels import qlearning as kernels
 from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
 from pyroute_rel.planners.settings import QLearningSettings
 from pyroute_rel.progress import progress_bar
@@ -324,90 +324,6 @@ class CostLattice:
         return self.pool[o : o + n]
 
 
-@numba.njit(cache=True)
-def _lookup(s, t, ptr, group_of, first_action, slot, bucket_h):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Offset of state ``s``'s action times at ``t`` in the pool: -2 beyond the horizon, -1 not costed yet."""
-    b = int(t / bucket_h)
-    if b >= slot.shape[1]:
-        return -2, b
-    g = group_of[s]
-    if slot[g, b] < 0:
-        return -1, b
-    return slot[g, b] + ptr[s] - first_action[g], b
-
-
-@numba.njit(cache=True)
-def _value(q, pool, lo, hi, o, dead_end):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """The best Q-value among the actions that may be taken (``-dead_end`` with none) and how many there are."""
-    best = -math.inf
-    n = 0
-    if o >= 0:
-        for i in range(hi - lo):
-            if math.isfinite(pool[o + i]):
-                n += 1
-                if q[lo + i] > best:
-                    best = q[lo + i]
-    return (best if n else -dead_end), n
-
-
-@numba.njit(cache=True)
-def _choose(q, pool, lo, hi, o, n_ok, best, explore, u):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Index of the action taken: the ``u``-th allowed one when exploring, else the ``u``-th best."""
-    n = n_ok
-    if not explore:
-        n = 0
-        for i in range(hi - lo):
-            if math.isfinite(pool[o + i]) and q[lo + i] == best:
-                n += 1
-    k = min(int(u * n), n - 1)
-    for i in range(hi - lo):
-        if math.isfinite(pool[o + i]) and (explore or q[lo + i] == best):
-            if k == 0:
-                return i
-            k -= 1
-    return -1
-
-
-@numba.njit(cache=True)
-def _learn(q, ptr, target, group_of, first_action, slot, pool, bucket_h, start, goal, alpha, gamma, eps,
-           max_steps, dead_end, u, st, clock, n_episodes):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
-    """One-step Q-learning episodes until ``st[0] == n_episodes``; resumable.
-
-    ``st`` = (episode, state, step, random position, group, bucket), ``clock[0]`` the time [h]. Returns 0 when
-    done, 1 when group ``st[4]`` must be costed for bucket ``st[5]``, 2 when ``u`` is used up.
-    """
-    while st[0] < n_episodes:
-        s, t = st[1], clock[0]
-        lo, hi = ptr[s], ptr[s + 1]
-        o, b = _lookup(s, t, ptr, group_of, first_action, slot, bucket_h)
-        if o == -1:
-            st[4], st[5] = group_of[s], b
-            return 1
-        best, n_ok = _value(q, pool, lo, hi, o, dead_end)
-        end = n_ok == 0
-        if not end:
-            if st[3] + 2 > u.size:
-                return 2
-            i = _choose(q, pool, lo, hi, o, n_ok, best, u[st[3]] < eps, u[st[3] + 1])
-            a = lo + i
-            nxt, t1 = target[a], t + pool[o + i]
-            future = 0.0
-            if nxt != goal:
-                o1, b1 = _lookup(nxt, t1, ptr, group_of, first_action, slot, bucket_h)
-                if o1 == -1:
-                    st[4], st[5] = group_of[nxt], b1
-                    return 1
-                future = _value(q, pool, ptr[nxt], ptr[nxt + 1], o1, dead_end)[0]
-            q[a] += alpha * (-pool[o + i] + gamma * future - q[a])
-            st[3] += 2
-            st[1], st[2], clock[0] = nxt, st[2] + 1, t1
-            end = nxt == goal or st[2] >= max_steps
-        if end:
-            st[0] += 1
-            st[1], st[2], clock[0] = start, 0, 0.0
-    return 0
-
-
 def _horizon_h(problem: PlanningProblem, s: QLearningSettings) -> float:
     """``max_voyage_h``, or three times the great circle at the polar's mean speed [h]."""
     if s.max_voyage_h:
@@ -460,9 +376,9 @@ def train_q(
     done = 0
     for stop in stops:
         while True:
-            code = _learn(q, tab.ptr, tab.target, lat.group_of, lat.first_action, lat.slot, lat.pool, lat.bucket_h,
-                          tab.start, tab.goal, settings.alpha, settings.gamma, settings.epsilon, tab.n_states,
-                          DEAD_END_H, u, st, clock, stop)  # fmt: skip
+            code = kernels.learn(q, tab.ptr, tab.target, lat.group_of, lat.first_action, lat.slot, lat.pool,
+                                 lat.bucket_h, tab.start, tab.goal, settings.alpha, settings.gamma, settings.epsilon,
+                                 tab.n_states, DEAD_END_H, u, st, clock, stop)  # fmt: skip
             if code == 0:
                 break
             if code == 1:

@@ -674,9 +674,8 @@ def _column_sampler(geom: ArcGeometry, weather: WeatherSource, departure: np.dat
     query from its own member or run), and the points wanted are taken from its answer."""
     shape, samples = geom.shape, geom.samples
     n = math.prod(shape)
-    from pyroute_rel.weather.gridded import (
-        GriddedWeather,
-    )  # here: importing it loads numba, which steady routes never need
+    # here: importing it loads numba, which steady routes never need
+    from pyroute_rel.weather.gridded import GriddedWeather
 
     if isinstance(weather, GriddedWeather):
         prepared = _located(geom, weather)

@@ -36,11 +36,11 @@ from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, NamedTuple, TypeVar
 
-import numba
 import numpy as np
 import numpy.typing as npt
 import xarray as xr
 
+from pyroute_rel._kernels import sampling
 from pyroute_rel.errors import (
     ScenarioError,
     WeatherCoverageError,
@@ -1146,7 +1146,7 @@ def _finish_looked_up(
 ) -> WeatherField | None:
     """:func:`_finish_coded` in one pass over the codes read (``inverse``: as :func:`_reorder` reorders them) when
     every value is plausible and some finite (else None: :func:`_finish` says what is wrong): each code looked up
-    (:func:`_look_up`) into an array laid out (lat, lon, time), the layout of
+    (:func:`sampling.look_up_codes`) into an array laid out (lat, lon, time), the layout of
     :class:`~pyroute_rel.weather.gridded.GriddedWeather`'s blocks, the field's values its (time, lat, lon) view; the
     same numbers."""
     if codes.ndim != 3 or codes.size == 0 or table.dtype != np.float32 or normalised.dtype != np.float32:
@@ -1156,47 +1156,13 @@ def _finish_looked_up(
     )
     direction = _KIND[name] == "direction"
     lookup = normalised if direction else table
-    values, kept, lo, hi, finite = _look_up(codes, it, iy, ix, table, lookup, direction)
+    values, kept, lo, hi, finite = sampling.look_up_codes(codes, it, iy, ix, table, lookup, direction)
     rng = RANGES[name]
     if lo < rng.lo or hi > rng.hi or not finite:  # (NaN only when all NaN; check_plausible's test)
         return None
     values = values.transpose(2, 0, 1)
     coded = CodedValues(values, kept.transpose(2, 0, 1), lookup) if direction else None
     return WeatherField(name, values, plan.lon, plan.lat, plan.times, source, var, plan.periodic, coded=coded)
-
-
-@numba.njit(nogil=True, cache=True)
-def _look_up(codes, it, iy, ix, table, lookup, with_codes):  # type: ignore[no-untyped-def]  # pragma: no cover
-    """Codes read (time, lat, lon), taken along each axis at ``it``, ``iy``, ``ix`` -> (``lookup[codes]`` on (lat,
-    lon, time); the codes on (lat, lon, time) when ``with_codes``, else empty; the smallest and largest
-    ``table[codes]``, NaN ignored (NaN when all are NaN, as :func:`numpy.fmin.reduce` and :func:`numpy.fmax.reduce`);
-    whether any of them is finite)."""
-    nt, ny, nx = it.size, iy.size, ix.size
-    out = np.empty((ny, nx, nt), np.float32)
-    kept = np.empty((ny, nx, nt if with_codes else 0), codes.dtype)
-    seen = np.zeros(table.size, np.bool_)
-    for y in range(ny):
-        yy = iy[y]
-        for x in range(nx):
-            xx, row, kept_row = ix[x], out[y, x], kept[y, x]
-            for t in range(nt):  # (written in order, read across)
-                c = codes[it[t], yy, xx]
-                seen[c] = True
-                row[t] = lookup[c]
-                if with_codes:
-                    kept_row[t] = c
-    lo = np.float32(np.nan)
-    hi = np.float32(np.nan)
-    finite = False
-    for c in range(table.size):
-        v = table[c]
-        if seen[c] and v == v:
-            if not (lo <= v):  # (NaN so far)
-                lo = v
-            if not (hi >= v):
-                hi = v
-            finite |= abs(v) < np.inf
-    return out, kept, lo, hi, finite
 
 
 def _fixed_with_member(plan: _Plan, member: int | str | None) -> dict[Hashable, Any]:
