@@ -219,7 +219,7 @@ def test_reading_kept_members_and_the_mean_never_imports_dask_array(tmp_path: Pa
     path = _write(tmp_path / "ens.nc", packed=True)
     code = (
         "import sys\n"
-        "from pyroute_rel.weather import readers\n"
+        "from pyroute_rel.weather.io import readers\n"
         "readers.keep_files_open(True)\n"
         f"for m in (0, 1): readers.open_weather({str(path)!r}, member=m)\n"
         "readers.keep_files_open(False)\n"
@@ -270,3 +270,30 @@ def test_the_lock_around_netcdf4_calls_is_the_one_xarrays_backend_takes(tmp_path
         assert ours and all(any(lock is h for h in held) for lock in ours)
     finally:
         store.close()
+
+
+def test_a_file_the_fast_path_cannot_read_is_read_by_xarray_and_a_bug_is_not_hidden(
+    ens_file: Path, kept: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """When netCDF4 cannot give the stored values (an HDF5 error is an OSError), the member is read by xarray: the
+    same block as the fast path's. Any other exception (a bug of ours) is not taken for the file's trouble."""
+    fast = readers.open_weather(ens_file, member=2)._blocks[0].data.tobytes()
+    readers.keep_files_open(False)
+    readers.keep_files_open(True)
+
+    def damaged(*args: object, **kwargs: object) -> None:
+        raise OSError("NetCDF: HDF error")
+
+    monkeypatch.setattr(readers, "_raw_variable", damaged)
+    slow = readers.open_weather(ens_file, member=2)
+    assert slow._blocks[0].data.tobytes() == fast
+    assert all(v is None for _, raw in readers._files().raw for v in raw._variables.values())
+    readers.keep_files_open(False)
+    readers.keep_files_open(True)
+
+    def bug(*args: object, **kwargs: object) -> None:
+        raise AttributeError("a bug")
+
+    monkeypatch.setattr(readers, "_raw_variable", bug)
+    with pytest.raises(AttributeError, match="a bug"):
+        readers.open_weather(ens_file, member=2)

@@ -594,6 +594,11 @@ def _close(ds: xr.Dataset) -> None:
     _files().close(ds)
 
 
+#: What netCDF4, HDF5 and xarray's CF decoding raise for a file they cannot read or decode (a damaged chunk is an
+#: OSError or RuntimeError, odd packing attributes a ValueError); anything else is a bug of ours and propagates.
+FILE_ERRORS = (OSError, RuntimeError, ValueError)
+
+
 class _RawFile:
     """The stored values (packed integers, fill values: as in the file) of the variables of a netCDF4 file xarray
     opened lazily, read with netCDF4 and decoded here exactly as xarray decodes them (:class:`_RawVariable`): the
@@ -617,7 +622,7 @@ class _RawFile:
             try:
                 with _NETCDF4_LOCK:
                     self._variables[var] = _raw_variable(self._open(), var, da)
-            except Exception:  # any trouble: xarray reads it (and says what is wrong)
+            except FILE_ERRORS:  # the file's trouble, not ours: xarray reads it (and says what is wrong)
                 self._variables[var] = None
         return self._variables[var]
 
