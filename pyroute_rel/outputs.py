@@ -180,7 +180,9 @@ def to_gpx(route: Route, *, threshold_deg: float = TURN_THRESHOLD_DEG) -> str:
 
     - ``<trk>``: every track point with its UTC ``<time>`` (arrival) and, for every point but the finish, the speed
       over ground of the leg sailed from it [m/s] as ``<gpxtpx:speed>`` in a Garmin TrackPointExtension v2
-      (GPX 1.1 has no speed in ``<trkpt>``; OpenCPN ignores it, Garmin BaseCamp, GPXSee and gpxpy read it).
+      (GPX 1.1 has no speed in ``<trkpt>``; OpenCPN ignores it, Garmin BaseCamp, GPXSee and gpxpy read it). Where the
+      route waits, the point is written twice, as a GPS log records a stay: at its arrival, then at its departure
+      (with the speed); :func:`~pyroute_rel.analysis.evaluate.read_track` reads the pair back as the wait.
     - ``<rte>``: the :func:`turning_points` (``threshold_deg``, default 1 deg) with their arrival ``<time>``, as
       OpenCPN reads a voyage plan: each point after the start carries the mean speed over ground of the route leg
       that ends at it [kn] (along the track, waits excluded), and each point before the finish its departure time
@@ -194,9 +196,14 @@ def to_gpx(route: Route, *, threshold_deg: float = TURN_THRESHOLD_DEG) -> str:
     gpx.nsmap.update({"opencpn": _OPENCPN_NS, "gpxtpx": _GPXTPX_NS})
     times = [_utc(t) for t in route.time]
     sog_ms = np.asarray(route.legs["sog_kn"], dtype=float) / KN_PER_MS
+    waits = np.asarray(route.legs["wait_h"], dtype=float)
     segment = gpxpy.gpx.GPXTrackSegment()
     for i, (lo, la) in enumerate(zip(route.lon_deg, route.lat_deg, strict=True)):
         point = gpxpy.gpx.GPXTrackPoint(round(float(la), 6), round(float(lo), 6), time=times[i])
+        if i < len(waits) and waits[i] > 0.0:  # the stay: arrival here, departure next
+            segment.points.append(point)
+            leave = route.departure + np.round((route.elapsed_h[i] + waits[i]) * 3600.0).astype("timedelta64[s]")
+            point = gpxpy.gpx.GPXTrackPoint(round(float(la), 6), round(float(lo), 6), time=_utc(leave))
         if i < len(sog_ms) and np.isfinite(sog_ms[i]):
             ext = ET.Element(f"{{{_GPXTPX_NS}}}TrackPointExtension")
             ET.SubElement(ext, f"{{{_GPXTPX_NS}}}speed").text = f"{sog_ms[i]:.4f}"

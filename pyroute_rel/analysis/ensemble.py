@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from pyroute_rel.analysis.evaluate import evaluation_problem, member_figures
+from pyroute_rel.analysis.evaluate import Track, evaluation_problem, member_figures
 from pyroute_rel.analysis.members import member_count, member_scenario
 from pyroute_rel.errors import (
     NoFeasibleRouteError,
@@ -189,6 +189,7 @@ class MemberRoute:
     max_failure_probability : The route's largest leg ``p_f`` sailed in its own member's weather (NaN before it is
         sailed, and for the mean-field route, which is sailed in the members only).
     error : Why there is no route (None when there is one).
+    wait_h : The route's wait before each leg [h] (None: it never waits), kept so that it is sailed with them.
     """
 
     member: int | str
@@ -197,6 +198,7 @@ class MemberRoute:
     voyage_time_h: float
     max_failure_probability: float = math.nan
     error: str | None = None
+    wait_h: FloatArray | None = None
 
     @property
     def ok(self) -> bool:
@@ -283,16 +285,16 @@ def route_member(
         grids = sc.leg_grids()
         _grids().put(key, (grids, stamp))
     try:
-        lon, lat, hours = _track(sc, grids)
+        lon, lat, hours, waits = _track(sc, grids)
     except (NoFeasibleRouteError, WeatherCoverageError) as exc:
         return MemberRoute(member, np.zeros(0), np.zeros(0), math.inf, error=" ".join(str(exc).split()))
-    return MemberRoute(member, lon, lat, hours, math.nan)
+    return MemberRoute(member, lon, lat, hours, math.nan, wait_h=waits)
 
 
-def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, float]:
-    """The route's track and voyage time [h]: the forward DP's path on the grid when the course is one leg that
-    the DP finishes exactly as :meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>` does (no waypoints,
-    refinement, start or finish line, zones, waiting or manoeuvre penalties), else that route's."""
+def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, float, FloatArray | None]:
+    """The route's track, voyage time [h] and waits [h] (None: none): the forward DP's path on the grid when the course
+    is one leg that the DP finishes exactly as :meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>` does (no
+    waypoints, refinement, start or finish line, zones, waiting or manoeuvre penalties), else that route's."""
     simple = (
         len(grids) == 1
         and not sc.refine
@@ -304,7 +306,8 @@ def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, floa
     problem = sc.problem(grid=grids[0]) if simple else None
     if problem is None or problem.sides:
         route = sc.route(grids=grids)
-        return route.lon_deg, route.lat_deg, route.voyage_time_h
+        waits = np.asarray(route.legs.wait_h, dtype=float)
+        return route.lon_deg, route.lat_deg, route.voyage_time_h, waits if waits.any() else None
     from pyroute_rel.obstacles.mask import check_points
     from pyroute_rel.routing.route import explain_infeasible
     from pyroute_rel.routing.solve import forward_dp
@@ -318,7 +321,7 @@ def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, floa
     if result.dead_rank is not None or not np.isfinite(result.finish_h):
         raise NoFeasibleRouteError(explain_infeasible(grid, problem, result))
     lon, lat = result.points(grid)
-    return lon, lat, float(result.finish_h)
+    return lon, lat, float(result.finish_h), None
 
 
 def _sail_in_members(
@@ -326,7 +329,7 @@ def _sail_in_members(
     members: list[int],
     files: tuple[str, ...] | None,
     options: dict[str, Any],
-    tracks: list[FloatArray],
+    tracks: list[Track],
     land: bool,
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Every candidate sailed in each of some members' weather, all together
@@ -749,12 +752,13 @@ def _route_and_sail(
         raise NoFeasibleRouteError(f"no member has a feasible route: {member_routes[0].error}")
     names = tuple(MEAN_NAME if c.member == MEAN_NAME else f"member {c.member}" for c in cands)
     tracks = [np.column_stack([c.lon_deg, c.lat_deg]) for c in cands]
+    sail = [Track(c.lon_deg, c.lat_deg, wait_h=c.wait_h) for c in cands]  # each sailed with its waits
     held: dict[int, list[int]] = {}
     for m, w in zip(jobs, where, strict=True):
         if m != MEAN_NAME:
             held.setdefault(w, []).append(int(m))
     n_w = pool.size
-    tasks = [(p, held[w], files, opts, tracks, w == min(held)) if w in held else None for w in range(n_w)]
+    tasks = [(p, held[w], files, opts, sail, w == min(held)) if w in held else None for w in range(n_w)]
     bar = progress_bar(len(chosen), enabled=progress, desc="sailing in members", unit="member")
     sailed = pool.each(tasks, _sail_task)
     bar.update(len(chosen))

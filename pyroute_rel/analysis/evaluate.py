@@ -17,8 +17,11 @@ Unlike the router, the evaluation does not refuse a leg: it reports why a leg wo
 
 ``reason`` names the first leg's problem; :attr:`Evaluation.leg_reasons` lists each leg's.
 
-Times in a track file are not imposed: the first one is the departure (unless given), the others are ignored, and
-the craft sails each leg as fast as the weather lets it, without waiting.
+Times in a track file are not imposed: the first one is the departure (unless given), and the craft sails each leg as
+fast as the weather lets it. It waits only where the track says so: a track's waits (:attr:`Track.wait_h`: a routed
+track's ``leg_wait_h`` in its CSV or GeoJSON, or a point repeated with a later time, as a GPS log or the route's GPX
+records a stay) delay the leg they stand before, as the router's waits do. A leg of zero length is never sailed: the
+files' repeated points are merged (their times giving the wait), and a :class:`Track` refuses one.
 """
 
 from __future__ import annotations
@@ -82,21 +85,24 @@ _STOPS = {"no_speed": REASONS["polar"], "current": REASONS["current"], "weather"
 _LON_NAMES = ("lon", "lon_deg", "longitude", "long", "x")
 _LAT_NAMES = ("lat", "lat_deg", "latitude", "y")
 _TIME_NAMES = ("time", "time_utc", "timestamp", "datetime", "date")
+_WAIT_NAMES = ("leg_wait_h", "wait_h")
 
 
 @dataclass(frozen=True)
 class Track:
-    """A line to sail: points [deg] and, optionally, a time at each point.
+    """A line to sail: points [deg] and, optionally, a time at each point and a wait before each leg.
 
     Attributes
     ----------
-    lon_deg, lat_deg : Points [deg], at least two.
-    time : UTC time at each point (``datetime64[s]``), or None.
+    lon_deg, lat_deg : Points [deg], at least two, no two consecutive ones the same place.
+    time : UTC time at each point (``datetime64[s]``, never decreasing), or None.
+    wait_h : Time the craft waits at each point but the last before sailing on [h] (finite, >= 0), or None: no wait.
     """
 
     lon_deg: FloatArray
     lat_deg: FloatArray
     time: npt.NDArray[np.datetime64] | None = None
+    wait_h: FloatArray | None = None
 
     def __post_init__(self) -> None:
         lon = check_numbers(self.lon_deg, "Track.lon_deg", TrackError, infinite=True, unit="deg")
@@ -110,13 +116,37 @@ class Track:
             raise TrackError(
                 f"track point {i} is off the globe (lon {lon[i]:g}, lat {lat[i]:g}): expected lon, lat [deg]"
             )
+        same = np.flatnonzero((lon[1:] == lon[:-1]) & (lat[1:] == lat[:-1]))
+        if same.size:
+            i = int(same[0])
+            raise TrackError(
+                f"track points {i} and {i + 1} are the same place (lon {lon[i]:g}, lat {lat[i]:g}): a leg of zero "
+                "length; drop one (a track file's repeated point is read as a wait there)"
+            )
         object.__setattr__(self, "lon_deg", lon)
         object.__setattr__(self, "lat_deg", lat)
         if self.time is not None:
             t = _track_times(self.time)
             if t.shape != lon.shape or np.isnat(t).any():
                 raise TrackError(f"a track's times must be one UTC time per point ({lon.size}) (got {t.shape})")
+            back = np.flatnonzero(t[1:] < t[:-1])
+            if back.size:
+                i = int(back[0])
+                raise TrackError(f"a track's times must not run backwards: point {i + 1} ({t[i + 1]}Z) is before "
+                                 f"point {i} ({t[i]}Z)")  # fmt: skip
             object.__setattr__(self, "time", t)
+        if self.wait_h is not None:
+            w = check_numbers(self.wait_h, "Track.wait_h", TrackError, missing=False, unit="h")
+            if w.shape != (lon.size - 1,) or (w < 0.0).any():
+                raise TrackError(
+                    f"Track.wait_h must be one wait >= 0 per leg ({lon.size - 1}) [h] (got {brief(self.wait_h)})"
+                )
+            object.__setattr__(self, "wait_h", w)
+
+    @property
+    def waits_h(self) -> FloatArray:
+        """The wait before each leg [h] (zeros when the track has none)."""
+        return np.zeros(self.lon_deg.size - 1) if self.wait_h is None else self.wait_h
 
     @property
     def points(self) -> FloatArray:
@@ -184,6 +214,33 @@ def read_track(path: str | Path) -> Track:
         raise TrackError(f"{label}: {exc}") from None
 
 
+def _read_points(
+    lon: FloatArray, lat: FloatArray, times: npt.NDArray[np.datetime64] | None, waits: FloatArray | None
+) -> Track:
+    """A :class:`Track` of points read from a file: a point repeated at once (the same place, as a GPS log or the
+    route's GPX records a stay) is one point, where the craft waits from its first time to its last (plus the waits
+    the file gives there); ``waits`` (one per point, the last ignored) are the file's own."""
+    lon, lat = np.asarray(lon, dtype=float), np.asarray(lat, dtype=float)
+    w = np.zeros(lon.size) if waits is None else np.asarray(waits, dtype=float).copy()
+    keep = np.ones(lon.size, dtype=bool)
+    keep[1:] = (lon[1:] != lon[:-1]) | (lat[1:] != lat[:-1])
+    if keep.all() or lon.size < 2:
+        return Track(lon, lat, times, None if waits is None else w[:-1])
+    if times is not None:
+        t = np.asarray(times, dtype="datetime64[s]")
+        if (t[1:] < t[:-1]).any():
+            return Track(lon, lat, t)  # refused, the point named
+        stay_h = (t[1:] - t[:-1]).astype(float) / 3600.0
+        w[:-1] += np.where(keep[1:], 0.0, stay_h)  # the time spent at a point before its repeat
+    n = int(keep.sum())
+    if n < 2:
+        raise TrackError("a track needs two or more distinct points (all its points are the same place)")
+    group = np.cumsum(keep) - 1  # the point each one is merged into
+    wait = np.bincount(group[:-1], weights=w[:-1], minlength=n)[: n - 1].astype(np.float64)
+    kept_times = None if times is None else np.asarray(times, dtype="datetime64[s]")[keep]
+    return Track(lon[keep], lat[keep], kept_times, None if waits is None and not wait.any() else wait)
+
+
 def _gpx_track(text: str) -> Track:
     import gpxpy
     import gpxpy.gpx
@@ -202,10 +259,11 @@ def _gpx_track(text: str) -> Track:
     times = None
     if all(pt.time is not None for pt in points):
         times = np.array([_utc64(pt.time) for pt in points], dtype="datetime64[s]")
-    return Track(
+    return _read_points(
         np.array([pt.longitude for pt in points], dtype=float),
         np.array([pt.latitude for pt in points], dtype=float),
         times,
+        None,
     )
 
 
@@ -239,7 +297,38 @@ def _geojson_track(text: str) -> Track:
     t = None
     if isinstance(times, list) and len(times) == len(arr):
         t = np.array([_parse_time(v, f"time {i}") for i, v in enumerate(times)], dtype="datetime64[s]")
-    return Track(arr[:, 0], arr[:, 1], t) if len(arr) >= 2 else Track(arr[:, 0], arr[:, 1])
+    at_points, waits = _point_times(doc, len(arr))
+    if t is None:
+        t = at_points
+    return _read_points(arr[:, 0], arr[:, 1], t, waits) if len(arr) >= 2 else Track(arr[:, 0], arr[:, 1])
+
+
+def _point_times(doc: Any, n: int) -> tuple[npt.NDArray[np.datetime64] | None, FloatArray | None]:
+    """The times and waits [h] of a route's GeoJSON (:func:`~pyroute_rel.outputs.to_geojson`): its Point features
+    numbered ``index`` 0 to ``n - 1``, each with a ``time`` and (but the last) a ``leg_wait_h``; (None, None) when the
+    file has not one such point per track point."""
+    if not isinstance(doc, dict) or doc.get("type") != "FeatureCollection" or not isinstance(doc.get("features"), list):
+        return None, None
+    found: dict[int, dict[str, Any]] = {}
+    for f in doc["features"]:
+        geom = f.get("geometry") if isinstance(f, dict) else None
+        props = f.get("properties") if isinstance(f, dict) else None
+        if isinstance(geom, dict) and geom.get("type") == "Point" and isinstance(props, dict):
+            i = props.get("index")
+            if isinstance(i, int) and not isinstance(i, bool) and 0 <= i < n and "time" in props:
+                found[i] = props
+    if len(found) != n:
+        return None, None
+    times = np.array([_parse_time(found[i]["time"], f"point {i}'s time") for i in range(n)], dtype="datetime64[s]")
+    waits = np.zeros(n)
+    for i in range(n - 1):
+        w = found[i].get("leg_wait_h", 0.0)
+        if w is None:
+            continue
+        if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w) or w < 0.0:
+            raise TrackError(f"point {i}'s leg_wait_h must be a number of hours >= 0 (got {brief(w)})")
+        waits[i] = float(w)
+    return times, waits
 
 
 def _lines(doc: Any) -> list[tuple[dict[str, Any], Any]]:
@@ -291,13 +380,13 @@ def _csv_track(text: str) -> Track:
     header = [c.strip().lower() for c in rows[0]]
     first_line = 1
     if any(_is_word(c) for c in header[:2]):  # a header names the columns; data start with two numbers
-        cols = [_column(header, names) for names in (_LON_NAMES, _LAT_NAMES, _TIME_NAMES)]
+        cols = [_column(header, names) for names in (_LON_NAMES, _LAT_NAMES, _TIME_NAMES, _WAIT_NAMES)]
         if cols[0] is None or cols[1] is None:
             raise TrackError(f"CSV header needs lon and lat columns (got {', '.join(header)})")
         rows, first_line = rows[1:], 2
     else:
-        cols = [0, 1, 2 if len(header) > 2 else None]
-    lon, lat, times = [], [], []
+        cols = [0, 1, 2 if len(header) > 2 else None, None]
+    lon, lat, times, waits = [], [], [], []
     for n, row in enumerate(rows, start=first_line):
         try:
             lon.append(float(row[cols[0]]))  # type: ignore[index]
@@ -306,9 +395,29 @@ def _csv_track(text: str) -> Track:
             raise TrackError(f"CSV row {n}: expected numbers for lon and lat (got {brief(row)})") from None
         if cols[2] is not None:
             times.append(_parse_time(row[cols[2]] if cols[2] < len(row) else "", f"CSV row {n}"))
+        if cols[3] is not None:
+            waits.append(_wait_cell(row[cols[3]].strip() if cols[3] < len(row) else "", f"CSV row {n}"))
     if len(lon) < 2:
         raise TrackError(f"CSV file has {len(lon)} point(s) (a track needs two or more)")
-    return Track(np.array(lon), np.array(lat), np.array(times, dtype="datetime64[s]") if times else None)
+    return _read_points(
+        np.array(lon),
+        np.array(lat),
+        np.array(times, dtype="datetime64[s]") if times else None,
+        np.array(waits) if waits else None,
+    )
+
+
+def _wait_cell(cell: str, where: str) -> float:
+    """A CSV's wait before the leg [h]: empty (the last point's) is none."""
+    if not cell:
+        return 0.0
+    try:
+        w = float(cell)
+    except ValueError:
+        w = math.nan
+    if not (math.isfinite(w) and w >= 0.0):
+        raise TrackError(f"{where}: expected the wait before the leg as a number of hours >= 0 (got {brief(cell)})")
+    return w
 
 
 def _is_word(cell: str) -> bool:
@@ -338,6 +447,7 @@ class Sailed:
         ``p_f`` and ``reason`` NaN and 0 after it).
     land, zone : Which legs touch land (or the coastal margin) and an exclusion zone active when they are sailed.
     apf : The acceptable probability of failure the legs' ``p_f`` is held to.
+    wait_h : The wait before each leg [h] (the track's, :attr:`Track.wait_h`; zeros without).
     manoeuvres : The side of each leg and the tack or gybe at its start, with the time it cost
         (:class:`~pyroute_rel.boat.manoeuvre.TrackManoeuvres`; penalties zero unless the boat has them; after a leg that
         cannot be sailed: no manoeuvre).
@@ -351,6 +461,7 @@ class Sailed:
     zone: npt.NDArray[np.bool_]
     apf: float
     manoeuvres: TrackManoeuvres | None = None
+    wait_h: FloatArray | None = None
 
     @property
     def voyage_time_h(self) -> float:
@@ -527,6 +638,8 @@ class _Sailing:
     man: _Manoeuvres | None
     #: Time-varying weather: when each leg's sub-segment ends are reached, (rows, legs, samples + 1); else None.
     marks: FloatArray | None = None
+    #: The wait before each leg [h], (rows, legs).
+    wait: FloatArray | None = None
 
     def sailed(self) -> list[list[Sailed]]:
         """Each row's :class:`Sailed`, ``out[j][i]``."""
@@ -538,7 +651,8 @@ class _Sailing:
                 r, n = j * n_c + i, int(self.n_legs[i])
                 sailed = _sailed(t, self.elapsed[r, : n + 1], self.time_h[r, :n], self.p_f[r, :n], self.reason[r, :n],
                                  self.land[r, :n], self.zone[r, :n], float(problem.apf),
-                                 None if self.marks is None else self.marks[r, :n])  # fmt: skip
+                                 None if self.marks is None else self.marks[r, :n],
+                                 None if self.wait is None else self.wait[r, :n])  # fmt: skip
                 out[j].append(sailed if man is None else replace(sailed, manoeuvres=man.track(r, n, sailed.elapsed_h)))
         return out
 
@@ -588,8 +702,12 @@ def _sail_rows(
     for i, t in enumerate(tr):
         lon1[i, : t.lon_deg.size], lat1[i, : t.lat_deg.size] = t.lon_deg, t.lat_deg
     has1 = np.arange(width)[None, :] < n_legs[:, None]
+    wait1 = np.zeros((n_c, width))
+    for i, t in enumerate(tr):
+        wait1[i, : t.lon_deg.size - 1] = t.waits_h
     # rows: track i in weather j is row j * n_c + i
     lon, lat, has = np.tile(lon1, (n_m, 1)), np.tile(lat1, (n_m, 1)), np.tile(has1, (n_m, 1))
+    wait = np.tile(wait1, (n_m, 1))
     legs = np.tile(n_legs, n_m)
     elapsed = np.where(np.arange(width + 1)[None, :] <= legs[:, None], 0.0, np.nan)
     time_h, p_f = np.full(has.shape, np.nan), np.full(has.shape, np.nan)
@@ -610,24 +728,24 @@ def _sail_rows(
                 block[has1] = v
                 arr[rows] = block
         if man is None or man.penalties is None:
-            elapsed[:, 1:] = np.where(has, np.cumsum(np.where(has, time_h, 0.0), axis=1), np.nan)
+            elapsed[:, 1:] = np.where(has, np.cumsum(np.where(has, wait + time_h, 0.0), axis=1), np.nan)
         if man is not None:
-            man.charge_tracks(has, time_h, elapsed)
+            man.charge_tracks(has, time_h, elapsed, wait)
     else:
         legs1 = _Legs.of(lon1, lat1, has1, first.samples)
         make_stack = _member_stack(problems)
         stack = None if make_stack is None else make_stack(box=legs1.box())
         marks = np.full(has.shape + (first.samples + 1,), np.nan)
-        _sail_legs(problems, legs1, stack, has, elapsed, time_h, p_f, reason, man, marks)
-        _judge_legs(problems, legs1, stack, elapsed, time_h, p_f, marks)
+        _sail_legs(problems, legs1, stack, has, elapsed, time_h, p_f, reason, man, marks, wait)
+        _judge_legs(problems, legs1, stack, elapsed[:, :-1] + wait, time_h, p_f, marks)
     land1 = None
     if avoid is not None and avoid.land:  # the same in every weather
-        land1, _ = _obstacles(first, replace(avoid, zones=()), lon1, lat1, elapsed[:n_c], has1)
+        land1, _ = _obstacles(first, replace(avoid, zones=()), lon1, lat1, elapsed[:n_c, :-1], has1)
     zone = np.zeros(has.shape, dtype=bool)
     if avoid is not None and avoid.zones:
-        _, zone = _obstacles(first, replace(avoid, land=False), lon, lat, elapsed, has)
+        _, zone = _obstacles(first, replace(avoid, land=False), lon, lat, elapsed[:, :-1] + wait, has)
     land = np.zeros(has.shape, dtype=bool) if land1 is None else np.tile(land1, (n_m, 1))
-    return _Sailing(tr, problems, n_legs, elapsed, time_h, p_f, reason, land, zone, man, marks)
+    return _Sailing(tr, problems, n_legs, elapsed, time_h, p_f, reason, land, zone, man, marks, wait)
 
 
 @dataclass
@@ -666,14 +784,16 @@ class _Manoeuvres:
         self.kind[rows, k], self.penalty_h[rows, k] = kind, pen
         return pen
 
-    def charge_tracks(self, has: npt.NDArray[np.bool_], time_h: FloatArray, elapsed: FloatArray) -> None:
+    def charge_tracks(
+        self, has: npt.NDArray[np.bool_], time_h: FloatArray, elapsed: FloatArray, wait: FloatArray
+    ) -> None:
         """Steady weather: charge every leg and, with penalties, chain the arrivals as the DP adds them
-        ((departure + sailing) + penalty), in place."""
+        ((departure after the wait + sailing) + penalty), in place."""
         for k in range(has.shape[1]):
             rows = np.flatnonzero(has[:, k])
             pen = self.charge(rows, k)
             if self.penalties is not None:
-                elapsed[rows, k + 1] = (elapsed[rows, k] + time_h[rows, k]) + pen
+                elapsed[rows, k + 1] = ((elapsed[rows, k] + wait[rows, k]) + time_h[rows, k]) + pen
 
     def track(self, r: int, n: int, elapsed_h: FloatArray) -> TrackManoeuvres:
         """Row ``r``'s first ``n`` legs; legs from one that cannot be sailed on have no manoeuvre."""
@@ -695,6 +815,7 @@ def _sailed(
     zone: npt.NDArray[np.bool_],
     apf: float,
     marks: FloatArray | None = None,
+    wait: FloatArray | None = None,
 ) -> Sailed:
     """One track's :class:`Sailed` from its rows (copies), the legs after one that cannot be sailed cleared."""
     e = elapsed.copy()
@@ -707,7 +828,8 @@ def _sailed(
         e[stop[0] :] = np.inf
         costs.time_h[stop[0] :], costs.p_f[stop[0] :], costs.reason[stop[0] :] = np.nan, np.nan, 0
         hit_land[stop[0] :], hit_zone[stop[0] :] = False, False
-    return Sailed(t.lon_deg, t.lat_deg, e, costs, hit_land, hit_zone, apf)
+    waits = np.zeros(time_h.size) if wait is None else wait.copy()
+    return Sailed(t.lon_deg, t.lat_deg, e, costs, hit_land, hit_zone, apf, wait_h=waits)
 
 
 @dataclass(frozen=True)
@@ -771,6 +893,7 @@ def _sail_legs(
     reason: npt.NDArray[np.uint8],
     man: _Manoeuvres | None = None,
     marks: FloatArray | None = None,
+    wait: FloatArray | None = None,
 ) -> None:
     """Time-varying weather: the k-th legs of every row costed together (their samples' ``p_f``), leg after leg,
     filling the arrays in place; ``man``: each leg's side found at its departure and its manoeuvre charged. The
@@ -783,7 +906,7 @@ def _sail_legs(
         if not go.any():
             continue
         rows = np.flatnonzero(go)
-        t0 = elapsed[rows, k]
+        t0 = elapsed[rows, k] if wait is None else elapsed[rows, k] + wait[rows, k]  # leaving after its wait
         _, geom = legs.at(rows, k)  # samples only: pieces later
         weather = _rows_weather(problems, rows // n_c, stack)
         c = geometry_costs(
@@ -841,16 +964,17 @@ def _judge_legs(
     problems: Sequence[RoutingProblem],
     legs: _Legs,
     stack: Any,
-    elapsed: FloatArray,
+    depart: FloatArray,
     time_h: FloatArray,
     p_f: FloatArray,
     marks: FloatArray | None = None,
 ) -> None:
-    """Each weather's legs judged on every piece they cross, as the cost function judges an arc
-    (:func:`~pyroute_rel.routing.cost.geometry_costs` with its end points): the legs sailed whose samples did not meet
-    the table's largest ``p_f`` and that may need it (:func:`~pyroute_rel.reliability.crossings.needs_pieces`) get the
-    largest ``p_f`` met anywhere along them (in place). With one weather, or the members' weathers on one grid
-    (``stack``), each leg is cut into pieces once and every weather's legs are judged in one call."""
+    """Each weather's legs (leaving at ``depart`` [h], (rows, legs)) judged on every piece they cross, as the cost
+    function judges an arc (:func:`~pyroute_rel.routing.cost.geometry_costs` with its end points): the legs sailed whose
+    samples did not meet the table's largest ``p_f`` and that may need it
+    (:func:`~pyroute_rel.reliability.crossings.needs_pieces`) get the largest ``p_f`` met anywhere along them (in
+    place). With one weather, or the members' weathers on one grid (``stack``), each leg is cut into pieces once and
+    every weather's legs are judged in one call."""
     first = problems[0]
     model = first.failure
     if model is None:
@@ -869,7 +993,7 @@ def _judge_legs(
             continue
         r = r + j * n_c
         i, geom = legs.at(r, k)
-        near = needs_pieces(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, elapsed[r, k], time_h[r, k],
+        near = needs_pieces(geom.lon_deg, geom.lat_deg, geom.course_deg, geom.seg_nm, depart[r, k], time_h[r, k],
                             weather=problem.weather, failure=model, departure=first.departure)  # fmt: skip
         pick = slice(None) if near is None else np.flatnonzero(near)
         picked.append((j, r[pick], k[pick], i[pick]))
@@ -892,7 +1016,7 @@ def _judge_legs(
         ext = arc_extremes(
             g.a_xyz[i],
             g.b_xyz[i],
-            elapsed[r, k],
+            depart[r, k],
             time_h[r, k],
             departure=first.departure,
             weather=weather,
@@ -987,9 +1111,10 @@ def _join(parts: Sequence[Conditions]) -> Conditions:
 
 
 def _obstacles(
-    problem: RoutingProblem, avoid: Any, lon: FloatArray, lat: FloatArray, elapsed: FloatArray, has: Any
+    problem: RoutingProblem, avoid: Any, lon: FloatArray, lat: FloatArray, depart: FloatArray, has: Any
 ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """Which legs touch land and which an exclusion zone active at the leg's departure (as the router's mask)."""
+    """Which legs touch land and which an exclusion zone active at the leg's departure (``depart`` [h], (rows, legs):
+    after its wait; as the router's mask)."""
     land = np.zeros(has.shape, dtype=bool)
     zone = np.zeros(has.shape, dtype=bool)
     if avoid is None or not has.any():
@@ -1003,7 +1128,7 @@ def _obstacles(
         from pyroute_rel.obstacles.zones import arcs_blocked_by_zones
         from pyroute_rel.times import hours_after
 
-        t0 = elapsed[:, :-1][has]
+        t0 = depart[has]
         when = hours_after(problem.departure, np.where(np.isfinite(t0), t0, 0.0))
         zone[has] = arcs_blocked_by_zones(a, b, c, d, avoid.zones, when)
     return land, zone
@@ -1180,13 +1305,14 @@ def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | 
     k = n if finite.all() else int(np.flatnonzero(~finite)[0]) - 1  # legs sailed in full
     cols = {name: np.full(n, np.nan) for name in Legs.__dataclass_fields__}
     cols["distance_nm"] = geodesy.distance_nm(lon[:-1], lat[:-1], lon[1:], lat[1:])
-    cols["wait_h"] = np.zeros(n)
+    waits = np.zeros(n) if sailed.wait_h is None else sailed.wait_h
+    cols["wait_h"] = waits.copy()
     exposure: dict[str, float] = {}
     if k > 0:
         c = sailed.costs
         marks = None if c.marks_h is None else c.marks_h[:k]
         part = ArcCosts(time_h=c.time_h[:k], p_f=c.p_f[:k], reason=c.reason[:k], marks_h=marks)
-        legs, exp = track_legs(problem, lon[: k + 1], lat[: k + 1], e[: k + 1], np.zeros(k), part)
+        legs, exp = track_legs(problem, lon[: k + 1], lat[: k + 1], e[: k + 1], waits[:k], part)
         for name in cols:
             cols[name][:k] = legs[name]
         exposure = {c: float(v.sum()) for c, v in exp.criterion_h.items()}

@@ -427,7 +427,7 @@ def _sail_runs(
     from pyroute_rel.routing.solve import first_sample_wind
 
     runs, n_legs = eta.shape
-    lon, lat = track.lon_deg, track.lat_deg
+    lon, lat, waits = track.lon_deg, track.lat_deg, track.waits_h
     elapsed = np.zeros(runs)
     p_f = np.full((runs, n_legs), np.nan)
     side = np.full(runs, -1 if problem.initial_side is None else int(problem.initial_side), dtype=np.int8)
@@ -436,6 +436,7 @@ def _sail_runs(
         if not go.any():
             break
         idx = np.flatnonzero(go)
+        elapsed[idx] += waits[k]  # the track's wait before the leg (as sail_tracks waits)
         weather = PerturbedWind(problem.weather, east[idx, k], north[idx, k])
         one = arc_geometry(lon[k], lat[k], lon[k + 1], lat[k + 1], samples=problem.samples)  # the same arc for all
         geom = ArcGeometry(
