@@ -109,10 +109,8 @@ def test_route_files_read_back_as_the_track(tmp_path: Path, name: str):
     track = read_track(tmp_path / name)
     np.testing.assert_allclose(track.lon_deg, route.lon_deg, atol=5e-7)
     np.testing.assert_allclose(track.lat_deg, route.lat_deg, atol=5e-7)
-    if name == "route.geojson":
-        assert track.time is None
-    else:
-        assert (track.time == route.time).all()
+    assert (track.time == route.time).all()  # the GeoJSON's from its points (issue 34: they were not read)
+    assert (track.waits_h == route.legs.wait_h).all()
 
 
 def test_geojson_split_at_the_antimeridian_is_joined(tmp_path: Path):
