@@ -225,7 +225,8 @@ def test_workers_alone_start_a_dask_local_cluster_with_the_inline_rows(tmp_path:
 
 def test_a_runs_key_follows_every_file_it_reads(tmp_path: Path) -> None:
     """Re-running skips a run only when nothing it reads changed: the key changes with the scenario file, a polar
-    file (the scenario's or the run's), a zones file and a failure-model file, and not when another file changes."""
+    file (the scenario's or the run's), a zones file, a failure-model file and the network it names (issue 34: an
+    edited .bif behind an unchanged TOML kept the old rows), and not when another file changes."""
     import shutil
 
     from pyroute_rel.batch.sweep import Run, run_key
@@ -248,12 +249,14 @@ def test_a_runs_key_follows_every_file_it_reads(tmp_path: Path) -> None:
 
     def touch(name: str) -> None:
         with open(tmp_path / name, "a") as fh:
-            fh.write("\n# edited\n" if name.endswith((".toml", ".pol")) else " ")
+            comment = {".toml": "\n# edited\n", ".pol": "\n# edited\n", ".bif": "\n// edited\n"}
+            fh.write(comment.get(Path(name).suffix, " "))
 
     (tmp_path / "unrelated.txt").write_text("b")
     assert [run_key(run), run_key(other_polar)] == keys
     for name, changes in (("boat.pol", [True, False]), ("other.pol", [False, True]), ("zone.geojson", [True, True]),
-                          ("model.toml", [True, True]), ("s.toml", [True, True])):  # fmt: skip
+                          ("model.toml", [True, True]), ("dickson2018.bif", [True, True]),  # the model's network
+                          ("s.toml", [True, True])):  # fmt: skip
         touch(name)
         now = [run_key(run), run_key(other_polar)]
         assert [a != b for a, b in zip(now, keys, strict=True)] == changes, name

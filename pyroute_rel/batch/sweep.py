@@ -443,7 +443,13 @@ def _referenced_files(table: Mapping[str, Any], base: Path, run: Run) -> list[st
     if isinstance(weather, Mapping) and weather.get("kind") == "file" and isinstance(weather.get("paths"), list):
         names += weather["paths"]
     boat, failure, avoid = (_subtable(table, k) for k in ("boat", "failure", "avoid"))
-    names += [run.polar or boat.get("polar"), run.failure_model or failure.get("model")]
+    names.append(run.polar or boat.get("polar"))
+    model = run.failure_model or failure.get("model")
+    if isinstance(model, str):  # the model's TOML and the network it names (a shipped one's too)
+        from pyroute_rel.reliability.failure import model_files
+
+        resolved = str(_resolve(model, base)) if _resolve(model, base).is_file() else model
+        names += [str(f) for f in model_files(resolved)]
     if isinstance(avoid.get("zones"), list):
         names += avoid["zones"]
     return [n for n in names if isinstance(n, str) and _resolve(n, base).is_file()]

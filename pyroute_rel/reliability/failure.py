@@ -77,6 +77,7 @@ __all__ = [
     "load_failure_model",
     "list_failure_models",
     "build_network",
+    "model_files",
     "check_exposure_h",
 ]
 
@@ -711,6 +712,26 @@ def _resolve(name_or_path: str | os.PathLike[str]) -> Traversable:
     raise FailureModelError(
         f"failure model {brief(text)} not found: expected a shipped name, one of {shipped}, or the path of a .toml file"
     )
+
+
+def model_files(name_or_path: str | os.PathLike[str]) -> list[Path]:
+    """The files on disk a failure model is read from: its TOML file and the network file it names (what anything
+    computed with the model depends on, e.g. a sweep's keys); [] for a name or path that does not resolve to a file.
+
+    >>> [p.name for p in model_files("dickson2018")]
+    ['dickson2018.toml', 'dickson2018.bif']
+    """
+    try:
+        toml_file = _resolve(name_or_path)
+    except FailureModelError:
+        return []
+    if not isinstance(toml_file, Path) or not toml_file.is_file():
+        return []
+    try:
+        network = tomllib.loads(toml_file.read_text(encoding="utf-8")).get("network")
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return [toml_file]
+    return [toml_file, *([toml_file.parent / network] if isinstance(network, str) else [])]
 
 
 def _sibling(toml_file: Traversable, name: str) -> Traversable:
