@@ -48,7 +48,7 @@ def random_patches(
     patches = []
     for _ in range(int(rng.integers(1, 5))):
         lo0 = max(float(rng.uniform(*lon)), -180.0)  # (some on the antimeridian)
-        la0 = float(rng.uniform(*lat))
+        la0 = min(float(rng.uniform(*lat)), 89.8)
         values: dict[str, float] = {}
         if rng.random() < 0.7:
             values["hs_m"] = float(rng.choice([1.0, 3.5, 4.0, 6.0]))
@@ -60,7 +60,8 @@ def random_patches(
             values["tws_kn"] = float(rng.uniform(0.0, 40.0))
         values = values or {"hs_m": 4.5}
         lo1 = min(lo0 + float(rng.uniform(0.2, 6.0)), 180.0)
-        patches.append(Patch(lon=(lo0, lo1), lat=(la0, la0 + float(rng.uniform(0.2, 6.0))), values=values))
+        la1 = min(la0 + float(rng.uniform(0.2, 6.0)), 90.0)  # (some up to the pole)
+        patches.append(Patch(lon=(lo0, lo1), lat=(la0, la1), values=values))
     return UniformWeather(
         tws_kn=float(rng.uniform(5.0, 25.0)),
         twd_deg=float(rng.uniform(0.0, 360.0)),

@@ -375,3 +375,41 @@ def test_many_series_are_drawn_as_the_members_medians() -> None:
             for d in (1, 2, 3)
         ]
         assert list(ln.get_ydata()) == expected
+
+
+def test_a_second_sweep_into_a_folder_in_use_refuses_and_rows_are_never_doubled(ensemble, tmp_path, capsys) -> None:
+    """Issue 34: two sweeps writing to one folder at once both recorded every run (48 rows for 24 runs). The folder is
+    held by the sweep writing it (another process here): a second one refuses with one line (exit 2 from the
+    command), writes nothing, and once the first is done it runs and records each run once."""
+    spec_path = _spec(tmp_path, ensemble, 'departures = ["2018-06-02T00:00:00Z"]\nmembers = [0]')
+    out = tmp_path / "out"
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import fcntl, os, sys, time\n"
+         f"os.makedirs({str(out)!r}, exist_ok=True); fd = os.open({str(out)!r}, os.O_RDONLY)\n"
+         "fcntl.flock(fd, fcntl.LOCK_EX); print('held', flush=True); sys.stdin.read()"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        assert main(["sweep", str(spec_path), "--out", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert (
+            err
+            == f"pyroute-rel: error: another sweep is writing to '{out}': wait for it to finish, or give another --out"
+        )
+        assert list(out.iterdir()) == []
+    finally:
+        holder.communicate("", timeout=30)
+    assert main(["sweep", str(spec_path), "--out", str(out), "--quiet"]) == 0
+    assert main(["sweep", str(spec_path), "--out", str(out), "--quiet"]) == 0  # resumed: nothing to run
+    capsys.readouterr()
+    keys = [r["key"] for r in read_runs(out).to_pylist()]
+    assert len(keys) == 1 == len(set(keys))
+
+
+def test_a_folder_made_only_to_hold_a_sweep_is_removed_when_nothing_is_written(tmp_path) -> None:
+    with pytest.raises(Exception, match="runs"):
+        run_sweep([object()], out=tmp_path / "never")  # refused before the folder is made
+    assert not (tmp_path / "never").exists()
+    assert run_sweep([], out=tmp_path / "empty").num_rows == 0
+    assert not (tmp_path / "empty").exists()

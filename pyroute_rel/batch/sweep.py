@@ -35,6 +35,7 @@ recorded. Internal errors are returned but not recorded, so a re-run tries them 
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import itertools
@@ -44,8 +45,14 @@ import os
 import socket
 import time
 import uuid
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None  # type: ignore[assignment]
 import warnings
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -1071,10 +1078,59 @@ def run_sweep(
     SweepError
         For an unknown engine, bad options, or a scheduler that cannot be reached.
     """
-    from pyroute_rel.progress import progress_bar
 
     _check_engine(engine, workers, scheduler, retries, batch)
     runs = _check_run_options(runs, out, progress, log, flush_s, connect_timeout_s)
+    with _writing_to(None if out is None else Path(out)):
+        return _run_sweep(runs, out, engine, workers, scheduler, batch, flush_s, retries, connect_timeout_s,
+                          progress, log)  # fmt: skip
+
+
+@contextmanager
+def _writing_to(out: Path | None) -> Iterator[None]:
+    """Hold the output folder for one sweep: a second sweep into it (another process, or this one) refuses with one
+    line instead of routing and recording the same runs again (their rows doubled). The lock is the kernel's
+    (``flock`` on the folder itself: released when the process ends, however it ends; nothing written for it). A
+    folder made only to hold the lock is removed if the sweep writes nothing into it."""
+    if out is None or fcntl is None:  # (no flock: Windows)
+        yield
+        return
+    made = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        fd = os.open(out, os.O_RDONLY)
+    except OSError as exc:
+        raise SweepError(f"out folder '{brief_path(out)}' cannot be used: {exc.strerror or exc}") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise SweepError(
+                f"another sweep is writing to '{brief_path(out)}': wait for it to finish, or give another --out"
+            ) from None
+        yield
+    finally:
+        os.close(fd)  # (releases the lock)
+        if made:
+            with contextlib.suppress(OSError):
+                out.rmdir()  # only if nothing was written
+
+
+def _run_sweep(
+    runs: list[Run],
+    out: str | Path | None,
+    engine: str,
+    workers: int | None,
+    scheduler: str | None,
+    batch: int,
+    flush_s: float,
+    retries: int,
+    connect_timeout_s: float,
+    progress: bool,
+    log: Callable[[str], object] | None,
+) -> pa.Table:
+    from pyroute_rel.progress import progress_bar
+
     keyed = [(run_key(r), r) for r in runs]
     store = _Store(Path(out), batch=batch, flush_s=flush_s) if out is not None else None
     done = {r["key"]: r for r in read_runs(out).to_pylist()} if out is not None else {}
