@@ -806,6 +806,11 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
         ScenarioError,
         ("members must be whole numbers",),
     ),
+    "route_ensemble members [0, 0, 1]": (  # issue 34: member 0 weighed twice in every risk measure
+        lambda: pr.route_ensemble("/nonexistent/s.toml", members=[0, 0, 1]),
+        ScenarioError,
+        ("members must name each member once (got [0] more than once)",),
+    ),
     "route_ensemble workers 0": (
         lambda: pr.route_ensemble("/nonexistent/s.toml", workers=0),
         ScenarioError,

@@ -606,3 +606,22 @@ def test_an_unknown_polar_name_is_cut_in_the_message() -> None:
     with pytest.raises(PolarError, match=r"unknown polar 'xxx+\.\.\.: expected one of the built-in polars") as info:
         get_polar("x" * 5000)
     assert len(str(info.value)) < 200
+
+
+@pytest.mark.parametrize("fast", [300.0, 1e30])
+def test_a_polar_faster_than_any_sailing_craft_is_refused(tmp_path, fast) -> None:
+    """Issue 34: a 300 kn (or 1e30 kn) polar crossed 534 nm in 1.78 h. 100 kn is accepted (an edge of the rule), more
+    is refused with the cell named, from a file as from arrays."""
+    from pyroute_rel.boat.polar import MAX_SPEED_KN, Polar, read_polar
+    from pyroute_rel.errors import PolarError
+
+    twa, tws = np.array([0.0, 90.0, 180.0]), np.array([0.0, 10.0])
+    assert Polar("edge", twa, tws, np.array([[0.0, MAX_SPEED_KN], [0.0, 5.0], [0.0, 4.0]])).speed_kn.max() == 100.0
+    with pytest.raises(
+        PolarError, match=re.escape(f"must be at most 100 [kn] (got {fast:g} at TWA 90 deg, TWS 10 kn)")
+    ):
+        Polar("fast", twa, tws, np.array([[0.0, 1.0], [0.0, fast], [0.0, 4.0]]))
+    path = tmp_path / "fast.pol"
+    path.write_text(f"TWA\\TWS\t0\t10\n0\t0\t1\n90\t0\t{fast:g}\n180\t0\t4\n")
+    with pytest.raises(PolarError, match="is the table in another unit"):
+        read_polar(path)

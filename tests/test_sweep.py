@@ -413,3 +413,20 @@ def test_a_folder_made_only_to_hold_a_sweep_is_removed_when_nothing_is_written(t
     assert not (tmp_path / "never").exists()
     assert run_sweep([], out=tmp_path / "empty").num_rows == 0
     assert not (tmp_path / "empty").exists()
+
+
+def test_a_scenario_planned_by_another_planner_is_refused_not_routed_by_the_dp(tmp_path, capsys) -> None:
+    """Issue 34: a sweep of a scenario with ``[planner] kind = "mcts"`` was routed by the DP without a word."""
+    text = (ROOT / "examples" / "microtransat_control.toml").read_text(encoding="utf-8")
+    (tmp_path / "s.toml").write_text(text + '\n[planner]\nkind = "mcts"\n', encoding="utf-8")
+    for argv in (
+        ["sweep", str(_spec(tmp_path, tmp_path / "s.toml", ""))],
+        ["sweep", str(tmp_path / "s.toml"), "--departures", "2018-06-01T00:00Z,2018-06-01T12:00Z,12"],
+    ):
+        assert main([*argv, "--quiet", "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err.strip()
+        assert (
+            err.count("\n") == 0
+            and "plans with [planner] kind = 'mcts', but a sweep routes every run with the DP" in err
+        )
+        assert not (tmp_path / "out").exists()

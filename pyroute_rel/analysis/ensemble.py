@@ -675,6 +675,9 @@ def _check_ensemble_args(
         check_instance(members, (list, tuple, range, np.ndarray), "members", ScenarioError, expected="a list of ints")
         if any(isinstance(m, bool) or not isinstance(m, int | np.integer) for m in members):
             raise ScenarioError(f"members must be whole numbers (member indices) (got {brief(members)})")
+        twice = sorted({int(m) for m in members if list(members).count(m) > 1})
+        if twice:  # each member is one equally likely weather: a repeat would weigh it twice in every risk measure
+            raise ScenarioError(f"members must name each member once (got {twice} more than once)")
     if member_files is not None:
         check_instance(member_files, (list, tuple), "member_files", ScenarioError, expected="a list of file names")
         for f in member_files:

@@ -377,6 +377,23 @@ def _sweep_from_mapping(table: Mapping[str, Any], base: Path) -> SweepSpec:
     return SweepSpec(source="", runs=runs, base_dir=base)
 
 
+def _check_routed_by_the_dp(scenario: Path) -> None:
+    """A sweep routes every run with the DP: a scenario whose ``[planner] kind`` names another planner is refused
+    rather than routed by the DP without a word (issue 34)."""
+    from pyroute_rel.scenario import read_scenario_table
+
+    try:
+        planner = read_scenario_table(scenario).get("planner")
+    except ScenarioError:
+        return  # (the file's own error comes with its first run)
+    kind = planner.get("kind", "dp") if isinstance(planner, Mapping) else "dp"
+    if kind != "dp":
+        raise SweepError(
+            f"scenario {brief_path(scenario)} plans with [planner] kind = {brief(kind)}, but a sweep routes "
+            'every run with the DP: remove the [planner] table (or set kind = "dp"), or run `pyroute-rel plan`'
+        )
+
+
 def load_sweep(path: str | Path) -> SweepSpec:
     """Read and validate a sweep specification (TOML)::
 
@@ -1081,6 +1098,8 @@ def run_sweep(
 
     _check_engine(engine, workers, scheduler, retries, batch)
     runs = _check_run_options(runs, out, progress, log, flush_s, connect_timeout_s)
+    for scenario in sorted({r.scenario for r in runs}):
+        _check_routed_by_the_dp(Path(scenario))
     with _writing_to(None if out is None else Path(out)):
         return _run_sweep(runs, out, engine, workers, scheduler, batch, flush_s, retries, connect_timeout_s,
                           progress, log)  # fmt: skip

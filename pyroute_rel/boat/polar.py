@@ -95,6 +95,7 @@ from pyroute_rel.files import atomic_write_text, read_regular_bytes
 __all__ = [
     "Polar",
     "MIN_SPEED_KN",
+    "MAX_SPEED_KN",
     "BEYOND_MODES",
     "check_beyond",
     "POLAR_SUFFIXES",
@@ -112,6 +113,9 @@ __all__ = [
 #: Slowest useful speed over ground [kn]: below it (near-calm air, a current almost as strong as the boat) an arc
 #: is forbidden as "no speed" rather than sailed for thousands of hours.
 MIN_SPEED_KN = 0.01
+#: Largest boat speed a polar may hold [kn]: the fastest sailing craft make about 65 kn (Sailrocket 2, 2012), so a
+#: larger one is a table in another unit or a typo, never a craft (issue 34: 300 kn crossed 534 nm in 1.78 h).
+MAX_SPEED_KN = 100.0
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -207,12 +211,19 @@ class Polar:
         expected = (twa.size, tws.size)
         if speed.shape != expected:
             raise PolarError(f"{where}: 'speed_kn' must have shape (n_twa, n_tws) = {expected} (got {speed.shape})")
-        for bad, rule in ((~np.isfinite(speed), "finite"), (speed < 0.0, ">= 0")):
+        too_fast = np.isfinite(speed) & (speed > MAX_SPEED_KN)
+        rules = ((~np.isfinite(speed), "finite"), (speed < 0.0, ">= 0"), (too_fast, f"at most {MAX_SPEED_KN:g}"))
+        for bad, rule in rules:
             if np.any(bad):
                 i, j = np.argwhere(bad)[0]
                 raise PolarError(
                     f"{where}: 'speed_kn' must be {rule} [kn] "
                     f"(got {speed[i, j]:g} at TWA {twa[i]:g} deg, TWS {tws[j]:g} kn)"
+                    + (
+                        "; the fastest sailing craft make about 65 kn: is the table in another unit?"
+                        if bad is too_fast
+                        else ""
+                    )
                 )
         object.__setattr__(self, "twa_deg", twa)
         object.__setattr__(self, "tws_kn", tws)
