@@ -642,7 +642,7 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
     "MonteCarloSettings sigma NaN": (
         lambda: pr.MonteCarloSettings(sigma0_ms=NAN),
         ScenarioError,
-        ("sigma0_ms must be a finite number",),
+        ("sigma0_ms must be in [0, 50] [m/s]",),
     ),
     "MonteCarloSettings kappa None": (lambda: pr.MonteCarloSettings(kappa=None), ScenarioError, ("kappa",)),
     "kept keep 'no'": (lambda: pr.kept("no"), ScenarioError, ("kept: keep must be True or False (got 'no')",)),
@@ -716,7 +716,7 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
     "MonteCarloSettings sigma0 True": (
         lambda: pr.MonteCarloSettings(sigma0_ms=True),
         ScenarioError,
-        ("sigma0_ms must be a finite number",),
+        ("sigma0_ms must be in [0, 50] [m/s]",),
     ),
     "MonteCarloSettings tau 'x'": (lambda: pr.MonteCarloSettings(tau_h="x"), ScenarioError, ("tau_h must be > 0",)),
     "MonteCarloSettings spread 'x'": (
@@ -732,12 +732,17 @@ CASES: dict[str, tuple[Callable[[], Any], type[PyrouteError], tuple[str, ...]]] 
     "MonteCarloSettings spread negative": (
         lambda: pr.MonteCarloSettings(spread_ms=[1.0, -1.0]),
         ScenarioError,
-        ("spread_ms must be one value >= 0 per leg",),
+        ("spread_ms must be one value in [0, 50] per leg [m/s]",),
+    ),
+    "MonteCarloSettings spread 1e6": (  # issue 34: a wind SD of 1e6 m/s was accepted
+        lambda: pr.MonteCarloSettings(spread_ms=[1.0, 1e6]),
+        ScenarioError,
+        ("spread_ms must be one value in [0, 50] per leg [m/s]",),
     ),
     "MonteCarloSettings spread 2-D": (
         lambda: pr.MonteCarloSettings(spread_ms=np.ones((2, 2))),
         ScenarioError,
-        ("spread_ms must be one value >= 0 per leg",),
+        ("spread_ms must be one value in [0, 50] per leg [m/s]",),
     ),
     "monte_carlo seed 'x'": (
         lambda: public("monte_carlo")(scenario(), [[-12.0, 45.0], [-20.0, 40.0]], runs=2, seed="x"),

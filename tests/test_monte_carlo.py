@@ -103,16 +103,29 @@ def test_zero_speed_noise_is_the_deterministic_evaluation():
     assert (runs.voyage_time_h == ev.voyage_time_h).all()
 
 
-_SCALARS = ("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "kappa", "polar_sd")
+#: Each noise size's plausible range, as its message gives it (issue 34: kappa 1e308 and a wind SD of 1e6 m/s were
+#: accepted).
+_SCALARS = {
+    "sigma0_ms": (50.0, "in [0, 50] [m/s]"),
+    "sigma_max_ms": (50.0, "in [0, 50] [m/s]"),
+    "growth_ms_per_h": (1.0, "in [0, 1] [m/s per h]"),
+    "kappa": (10.0, "in [0, 10] [kn]"),
+    "polar_sd": (1.0, "in [0, 1] (a share of the polar's speed)"),
+}
 
 
-@pytest.mark.parametrize("name", _SCALARS)
-@pytest.mark.parametrize("value", [-1.0, -1e-300, math.nan, math.inf, -math.inf, True, "1", None])
+@pytest.mark.parametrize("name", sorted(_SCALARS))
+@pytest.mark.parametrize("value", [-1.0, -1e-300, math.nan, math.inf, -math.inf, True, "1", None, 1e6, 1e308, "top"])
 def test_settings_refuse_a_bad_spread_naming_it(name, value):
-    """The noise sizes are finite numbers >= 0; the message names the setting and quotes the value."""
+    """The noise sizes are numbers in a plausible range; the message names the setting and quotes the value. The
+    range's top is accepted."""
+    top, rule = _SCALARS[name]
+    if value == "top":
+        assert getattr(MonteCarloSettings(**{name: top}), name) == top
+        value = np.nextafter(top, math.inf)
     with pytest.raises(ScenarioError) as info:
         MonteCarloSettings(**{name: value})
-    assert str(info.value) == f"Monte-Carlo {name} must be a finite number >= 0 (got {value!r})"
+    assert str(info.value) == f"Monte-Carlo {name} must be {rule} (got {value!r})"
 
 
 @pytest.mark.parametrize("name", ["tau_h", "tau_speed_h"])
@@ -125,10 +138,10 @@ def test_settings_refuse_a_correlation_time_not_above_zero(name, value):
 
 def test_settings_take_zero_noise_and_any_positive_correlation_time():
     """0 is no noise, an infinite correlation time a constant error (phi = 1), whole numbers are numbers."""
-    s = MonteCarloSettings(sigma0_ms=0, growth_ms_per_h=0.0, sigma_max_ms=1e300, kappa=0, polar_sd=0.0, tau_h=math.inf,
+    s = MonteCarloSettings(sigma0_ms=0, growth_ms_per_h=0.0, sigma_max_ms=50, kappa=0, polar_sd=0.0, tau_h=math.inf,
                            tau_speed_h=1e-300)  # fmt: skip
     assert s.describe_values() == {
-        "sigma0_ms": 0.0, "growth_ms_per_h": 0.0, "sigma_max_ms": 1e300, "tau_h": math.inf, "kappa": 0.0,
+        "sigma0_ms": 0.0, "growth_ms_per_h": 0.0, "sigma_max_ms": 50.0, "tau_h": math.inf, "kappa": 0.0,
         "polar_sd": 0.0, "tau_speed_h": 1e-300,
     }  # fmt: skip
     assert float(wind_errors(np.random.default_rng(1), 3, [1.0, 1.0], [0.0, 5.0], s.tau_h).std(axis=1).max()) == 0.0

@@ -59,7 +59,7 @@ import numpy.typing as npt
 
 from pyroute_rel.analysis.evaluate import Track, as_track, evaluation_problem, sail_tracks
 from pyroute_rel.boat.march import SpeedNoise
-from pyroute_rel.errors import FINITE, ScenarioError, brief, check_fields, check_instance, check_numbers
+from pyroute_rel.errors import ScenarioError, brief, check_fields, check_instance, check_numbers
 from pyroute_rel.routing.cost import ArcGeometry, arc_geometry, geometry_costs
 from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather.base import Conditions, WeatherBase
@@ -86,11 +86,21 @@ FloatArray = npt.NDArray[np.float64]
 MAX_RUNS = 10_000_000
 
 
-_SPREAD = ("float", 0.0, FINITE, False, "a finite number >= 0")
+#: Largest wind error standard deviation [m/s]: a hurricane's whole wind, far beyond any forecast's error (issue 34:
+#: 1e6 m/s was accepted).
+MAX_WIND_SD_MS = 50.0
+#: Largest boat-speed variance per unit speed [kn]: 50 times the published 0.2 (Barde 2023), a speed noise larger than
+#: any boat's speed (1e308 was accepted).
+MAX_KAPPA_KN = 10.0
 _TAU = ("float", 0.0, math.inf, True, "> 0 [h]")  # infinite: one error all along
 #: The rules of :class:`MonteCarloSettings`' numbers (:func:`~pyroute_rel.errors.check_fields`).
 _LIMITS = {
-    **dict.fromkeys(("sigma0_ms", "growth_ms_per_h", "sigma_max_ms", "kappa", "polar_sd"), _SPREAD),
+    **dict.fromkeys(
+        ("sigma0_ms", "sigma_max_ms"), ("float", 0.0, MAX_WIND_SD_MS, False, f"in [0, {MAX_WIND_SD_MS:g}] [m/s]")
+    ),
+    "growth_ms_per_h": ("float", 0.0, 1.0, False, "in [0, 1] [m/s per h]"),
+    "kappa": ("float", 0.0, MAX_KAPPA_KN, False, f"in [0, {MAX_KAPPA_KN:g}] [kn]"),
+    "polar_sd": ("float", 0.0, 1.0, False, "in [0, 1] (a share of the polar's speed)"),
     **dict.fromkeys(("tau_h", "tau_speed_h"), _TAU),
 }
 
@@ -125,8 +135,11 @@ class MonteCarloSettings:
         check_fields(self, _LIMITS, where="Monte-Carlo ")
         if self.spread_ms is not None:
             spread = check_numbers(self.spread_ms, "Monte-Carlo spread_ms", ScenarioError, missing=False, unit="m/s")
-            if spread.ndim != 1 or (spread < 0.0).any():
-                raise ScenarioError(f"Monte-Carlo spread_ms must be one value >= 0 per leg [m/s] (got {spread!r})")
+            if spread.ndim != 1 or (spread < 0.0).any() or (spread > MAX_WIND_SD_MS).any():
+                raise ScenarioError(
+                    f"Monte-Carlo spread_ms must be one value in [0, {MAX_WIND_SD_MS:g}] per leg [m/s] "
+                    f"(got {brief(spread)})"
+                )
             object.__setattr__(self, "spread_ms", spread)
 
     @classmethod
