@@ -486,6 +486,18 @@ def test_cli_refuses_a_negative_cap_even_for_the_bottleneck_front(tmp_path: Path
 
 
 @pytest.mark.slow
+def test_cli_refuses_a_cap_for_the_bottleneck_front_it_would_ignore(tmp_path: Path) -> None:
+    """Issue 34: ``--max-labels`` was accepted and ignored for the bottleneck front."""
+    out = tmp_path / "out"
+    run = cli("tradeoff", str(small_toml(tmp_path)), "--max-labels", "5000", "--out", str(out), "--quiet")
+    assert run.returncode == 2 and not out.exists()
+    assert run.stderr.strip() == (
+        "pyroute-rel: error: --max-labels applies to the voyage front (--front voyage): the bottleneck front holds "
+        "one label a node"
+    )
+
+
+@pytest.mark.slow
 def test_cli_through_a_waypoint_equals_the_library_and_refine_is_for_the_bottleneck_front(
     tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:

@@ -39,7 +39,7 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
     t.add_argument(
         "--max-labels",
         type=int,
-        default=MAX_LABELS,
+        default=None,
         help=f"voyage front: most non-dominated labels a node may hold (default {MAX_LABELS}); past it the run "
         "stops with an error",
     )
@@ -66,8 +66,12 @@ def _cmd_tradeoff(args: argparse.Namespace) -> int:
     from pyroute_rel.scenario import load_scenario
 
     t0 = time.perf_counter()
-    if args.max_labels < 1:  # refused whichever front: a bad value is never silently ignored
+    if args.max_labels is not None and args.max_labels < 1:  # refused whichever front
         raise ScenarioError(f"--max-labels must be a whole number >= 1 (got {args.max_labels})")
+    if args.max_labels is not None and args.front != "voyage":  # never silently ignored
+        raise ScenarioError(
+            "--max-labels applies to the voyage front (--front voyage): the bottleneck front holds one label a node"
+        )
     if args.refine < 0:
         raise ScenarioError(f"--refine must be a whole number >= 0 (got {args.refine})")
     if args.refine and args.front == "voyage":
@@ -100,6 +104,7 @@ def _compute(scenario: Any, args: argparse.Namespace) -> dict[str, Any]:
     """The fronts (the bottleneck front always: its routes are the single-apf routes), the route at the apf and
     the sensitivity table; a course through waypoints leg after leg, on one grid per leg."""
     from pyroute_rel.routing.tradeoff import (
+        MAX_LABELS,
         course_bottleneck_front,
         course_route,
         course_sensitivity,
@@ -121,7 +126,8 @@ def _compute(scenario: Any, args: argparse.Namespace) -> dict[str, Any]:
         bottleneck = refined_front(bottleneck, route_at, progress=progress)
     voyage = None
     if args.front == "voyage":
-        voyage = course_voyage_front(legs, max_labels=args.max_labels, progress=progress)
+        max_labels = MAX_LABELS if args.max_labels is None else args.max_labels
+        voyage = course_voyage_front(legs, max_labels=max_labels, progress=progress)
     route = course_route(legs)  # the route at the apf (its arc costs are cached on the grids by now)
     rows = course_sensitivity(legs, route)
     return {"bottleneck": bottleneck, "voyage": voyage, "route": route, "rows": rows, "problem": legs[0][1]}
