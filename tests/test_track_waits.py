@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from _march import march_track
-from test_sailed_time import assert_times, gridded, sailor, scenario
+from test_sailed_time import assert_times, era5_scenario, gridded, sailor, scenario
 
 from pyroute_rel.analysis.evaluate import Track, evaluate_track, read_track
 from pyroute_rel.errors import TrackError
@@ -131,3 +131,24 @@ def test_a_track_refuses_a_zero_length_leg_and_times_that_run_backwards(tmp_path
     bad.write_text("lon,lat,leg_wait_h\n0,0,x\n1,0,\n")
     with pytest.raises(TrackError, match=r"CSV row 2: expected the wait before the leg"):
         read_track(bad)
+
+
+def test_a_track_starting_where_or_when_the_weather_has_no_data_is_an_error(tmp_path, capsys):
+    """Issue 34: it evaluated to a null voyage time with exit 0. The weather covers 300 h from the departure over
+    25 W to 17.5 W."""
+    from pyroute_rel.cli.main import main
+    from pyroute_rel.errors import WeatherCoverageError
+
+    sc = storm_scenario()
+    late = np.datetime64(sc.departure, "s") + np.timedelta64(400, "h")
+    with pytest.raises(WeatherCoverageError):
+        evaluate_track(sc, np.array([[-20.0, 30.0], [-21.0, 30.0]]), departure=late)
+    with pytest.raises(WeatherCoverageError):
+        evaluate_track(sc, np.array([[-40.0, 30.0], [-21.0, 30.0]]))
+    assert evaluate_track(sc, np.array([[-20.0, 30.0], [-21.0, 30.0]])).voyage_time_h > 0.0  # covered
+    era5_scenario()  # (writes the example's data file when it is missing)
+    track = _csv(tmp_path / "t.csv", ["-12,45,2030-01-01T00:00Z", "-13,44.5,2030-01-01T12:00Z"])
+    scenario_file = Path(__file__).resolve().parents[1] / "examples" / "microtransat_era5.toml"
+    assert main(["evaluate", str(scenario_file), str(track), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith("pyroute-rel: error:") and "2030-01-01" in err, err

@@ -1292,6 +1292,9 @@ def evaluate_track(
     if departure is None and trk.time is not None:
         departure = trk.time[0]
     problem = evaluation_problem(scenario, departure=departure, apf=apf, samples=samples, weather=weather)
+    lon0, lat0 = float(trk.lon_deg[0]), float(trk.lat_deg[0])
+    # a track that starts where or when the weather has no data is an error, not a voyage of no time (issue 34)
+    problem.weather.check_coverage((lon0, lon0), (lat0, lat0), (problem.departure, problem.departure))
     sailed = sail_tracks(problem, [trk], avoid=scenario.avoid, manoeuvres=True)[0]
     return describe(problem, sailed, meta={"scenario": scenario.source, "land": scenario.avoid.land})
 
