@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import socket
 import subprocess
+import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 
@@ -23,11 +24,15 @@ def dask_processes(env: Mapping[str, str], workers: int = 2) -> Iterator[tuple[s
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     quiet = {"env": dict(env), "stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
-    procs = [subprocess.Popen(["dask", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
-                              **quiet)]  # fmt: skip
+    # ``python -m dask``, not the ``dask`` command: a venv that is not activated has it off PATH (issue 34); the HTTP
+    # server a scheduler keeps without its dashboard on a free port, not 8787 (another process may hold it)
+    dask = [sys.executable, "-m", "dask"]
+    scheduler = [*dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard",
+                 "--dashboard-address", "127.0.0.1:0"]  # fmt: skip
+    procs = [subprocess.Popen(scheduler, **quiet)]
     try:
         for _ in range(workers):
-            worker = ["dask", "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"]
+            worker = [*dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"]
             procs.append(subprocess.Popen(worker, **quiet))
         yield address, procs
     finally:

@@ -59,7 +59,7 @@ def test_on_dask_each_member_runs_on_one_worker_and_reads_its_weather_in_the_tas
     inline = run_sweep(runs, engine="inline")
     with (
         LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, env=dict(WORKER_ENV)
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0", env=dict(WORKER_ENV)
         ) as cluster,
         Client(cluster) as client,
     ):
