@@ -606,3 +606,29 @@ def test_zero_phi_on_the_fine_grid_says_why_errors_are_infinite() -> None:
     r = grid_convergence([1.0, 2.0, 4.0], [0.0, 1.0, 3.0])
     assert r.e_a == math.inf and "phi is 0 on a fine grid" in r.note
     assert "phi is 0" not in grid_convergence([1.0, 2.0, 4.0], [1.0, 2.0, 4.0]).note
+
+
+@pytest.mark.parametrize("offsets", [(0.0, 0.0, 0.0), (0.0, 1e-12, 0.0), (0.0, 1e-12, -2e-12), (3e-12, 0.0, 1e-12)])
+def test_values_equal_to_round_off_are_converged_as_identical_ones(offsets) -> None:
+    """Issue 34: three identical values passed as "converged, GCI 0" while a fine-grid difference of 1e-12 failed as
+    "at round-off level". Differences all within 1e-10 of max |phi| (1.2e-8 here) are one verdict: converged, GCI 0;
+    a round-off fine difference with a coarse one above it stays indeterminate (phi1 == phi2 != phi3 likewise)."""
+    phi = 120.0 + np.array(offsets)
+    res = grid_convergence([1.0, 2.0, 4.0], phi)
+    assert res.convergence == "converged" and res.gci_fine == 0.0 and res.phi_ext == phi[0] and res.p is None
+    ls = least_squares_convergence([1.0, 2.0, 4.0, 8.0], [*phi, phi[0]])
+    assert ls.convergence == "converged" and ls.uncertainty == 0.0
+    tol = 1e-10 * 120.0
+    above = grid_convergence([1.0, 2.0, 4.0], [120.0, 120.0 + tol / 2, 120.0 + 3 * tol])
+    assert above.convergence == "indeterminate" and above.gci_fine is None
+    assert grid_convergence([1.0, 2.0, 4.0], [120.0, 120.0 + 2 * tol, 120.0 + 4 * tol]).convergence != "converged"
+
+
+def test_the_gate_passes_values_equal_exactly_or_to_round_off_alike(capsys) -> None:
+    from pyroute_rel.cli.main import main
+
+    for phi in ("120,120,120", "120,120.000000000001,120"):
+        assert main(["gci", "--h", "1,2,4", "--phi", phi, "--max-gci", "0.001"]) == 0, phi
+        # no change to measure has no asymptotic range either: that gate fails both alike
+        assert main(["gci", "--h", "1,2,4", "--phi", phi, "--require-asymptotic"]) == 1, phi
+        assert "convergence converged, asymptotic ratio undefined" in capsys.readouterr().err

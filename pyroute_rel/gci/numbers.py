@@ -63,8 +63,8 @@ FloatArray = npt.NDArray[np.float64]
 #: Labels of ``ThreeGridResult.convergence`` (and of ``LeastSquaresResult.convergence``, which uses the
 #: first three). With R = eps21 / eps32 and R' = R ln(r32) / ln(r21) (= R for a constant ratio):
 #: "monotonic" 0 < R' < 1, "oscillatory" R < 0, "divergent" R' >= 1 (including phi3 == phi2 != phi1),
-#: "converged" phi1 == phi2 == phi3, "indeterminate" phi1 == phi2 != phi3 or |phi2 - phi1| at round-off level
-#: (:data:`ROUNDOFF_REL`).
+#: "converged" phi1 == phi2 == phi3 or both differences at round-off level (:data:`ROUNDOFF_REL`),
+#: "indeterminate" phi1 == phi2 != phi3 or only |phi2 - phi1| at round-off level.
 CONVERGENCE_LABELS = ("monotonic", "oscillatory", "divergent", "converged", "indeterminate")
 
 #: Forms :func:`least_squares_convergence` may fit, in the normalised spacing x = h / h_fine:
@@ -354,9 +354,10 @@ def grid_convergence(
     R = eps21/eps32: monotonic (0 < R' < 1), oscillatory (R < 0), divergent (R' >= 1, or
     phi3 == phi2 != phi1), where R' = R ln(r32) / ln(r21) equals Celik's R for a constant ratio and, for
     r21 != r32, moves the boundary to where the apparent order reaches 0 (data phi0 + C h^0.3 on
-    r21 = 1.5, r32 = 4/3 converge although R = 1.27); converged (phi1 == phi2 == phi3: p None,
-    phi_ext = phi1, errors and GCI 0) or indeterminate (phi1 == phi2 != phi3, or 0 < |phi2 - phi1| <=
-    :data:`ROUNDOFF_REL` max |phi|, a difference at round-off level: p, phi_ext, e_ext and GCI None). An order
+    r21 = 1.5, r32 = 4/3 converge although R = 1.27); converged (phi1 == phi2 == phi3, or both differences at
+    round-off level, at most :data:`ROUNDOFF_REL` max |phi|: p None, phi_ext = phi1, errors and GCI 0) or
+    indeterminate (phi1 == phi2 != phi3, or 0 < |phi2 - phi1| <= :data:`ROUNDOFF_REL` max |phi| while phi3 differs
+    by more: the fine difference at round-off level, p, phi_ext, e_ext and GCI None). An order
     outside :data:`P_PLAUSIBLE` is reported as computed; :meth:`StudyResult.verdict` judges it. For divergent
     triplets, or when the order equation has no positive root, p and everything derived from it are None;
     ``note`` says why.
@@ -471,6 +472,13 @@ def _classify_triplet(
     """
     if eps21 == 0.0 and eps32 == 0.0:
         return "converged", None, "converged: phi1 == phi2 == phi3, no discretisation change; apparent order undefined"
+    if abs(eps21) <= tol and abs(eps32) <= tol:  # as equal as the arithmetic can tell: the same verdict (issue 34)
+        return (
+            "converged",
+            None,
+            f"converged: phi1, phi2, phi3 agree to round-off (differences <= {ROUNDOFF_REL:g} of max |phi|), no "
+            "discretisation change measurable; apparent order undefined",
+        )
     if eps21 == 0.0:
         return "indeterminate", 0.0, "indeterminate: phi1 == phi2 but phi3 differs; apparent order unbounded, no GCI"
     if abs(eps21) <= tol:
@@ -744,7 +752,8 @@ def least_squares_convergence(
         max_difference=delta_m,
         method="eca-hoekstra2014",
     )
-    without_fit = _without_fit(phi1, delta_m, np.diff(phi_s), common)
+    roundoff = ROUNDOFF_REL * float(np.max(np.abs(phi_s)))
+    without_fit = _without_fit(phi1, delta_m, np.diff(phi_s), common, roundoff)
     if without_fit is not None:
         return without_fit
     fit, p, chosen, note = _best_fit(x, h_s, phi_s, weighting, p_lo, p_hi)
@@ -789,9 +798,12 @@ def _check_ls_options(weighting: str, p_bounds: tuple[float, float], func: str) 
     return p_lo, p_hi
 
 
-def _without_fit(phi1: float, delta_m: float, diffs: FloatArray, common: dict[str, Any]) -> LeastSquaresResult | None:
-    """The results made without a fit (step 6): all values equal, or oscillatory/anomalous data; else None."""
-    if delta_m == 0.0:
+def _without_fit(
+    phi1: float, delta_m: float, diffs: FloatArray, common: dict[str, Any], roundoff: float = 0.0
+) -> LeastSquaresResult | None:
+    """The results made without a fit (step 6): all values equal (to round-off, ``roundoff`` [unit of phi]), or
+    oscillatory/anomalous data; else None."""
+    if delta_m <= roundoff:
         return LeastSquaresResult(
             p=None,
             phi_ext=phi1,
@@ -804,7 +816,9 @@ def _without_fit(phi1: float, delta_m: float, diffs: FloatArray, common: dict[st
             uncertainty_abs=0.0,
             uncertainty=0.0,
             convergence="converged",
-            note="all values equal: no discretisation change",
+            note="all values equal"
+            + ("" if delta_m == 0.0 else f" to round-off (spread {delta_m:.3g} <= {ROUNDOFF_REL:g} of max |phi|)")
+            + ": no discretisation change",
             **common,
         )
     if not (np.all(diffs > 0.0) or np.all(diffs < 0.0)):
