@@ -239,6 +239,37 @@ def test_dqn_saves_and_reads_its_network(tmp_path):
     assert np.allclose(QNetwork.of(learner.mlp)(x), learner.mlp.predict(x), rtol=1e-12, atol=1e-12)
 
 
+def test_dqn_model_file_stays_in_the_scenario_folder_and_is_never_another_file(tmp_path):
+    """Issue 34: ``model = "../../elsewhere/x.npz"`` wrote outside the scenario folder, and an unrelated ``.npz`` of
+    the user's was replaced. A name leaving the folder is refused; a file that is not a model this planner saved
+    (another program's arrays, text, pickled objects) is refused and left as it was."""
+    from pyroute_rel.errors import ScenarioError
+
+    folder = tmp_path / "scenario"
+    folder.mkdir()
+
+    def planned(model: str):
+        sc = scenario_from_mapping(
+            {**SMALL, "planner": {"dqn": {**TINY_LEARNERS["dqn"], "model": model}}}, base_dir=folder
+        )
+        return plan(sc, kind="dqn")
+
+    for name in ("../x.npz", "../../elsewhere/x.npz", str(tmp_path / "abs.npz"), "."):
+        with pytest.raises(
+            ScenarioError, match=r"\[planner\.dqn\]\.model must name a file inside the scenario's folder"
+        ):
+            planned(name)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scenario"]
+    np.savez(folder / "theirs.npz", data=np.arange(5))
+    (folder / "text.npz").write_text("not a model")
+    np.savez(folder / "pickled.npz", settings=np.array([{"a": 1}], dtype=object))
+    for name in ("theirs.npz", "text.npz", "pickled.npz"):
+        before = (folder / name).read_bytes()
+        with pytest.raises(ScenarioError, match=r"is not a DQN model this planner saved .*it is never replaced"):
+            planned(name)
+        assert (folder / name).read_bytes() == before
+
+
 def test_track_similarity_closed_forms():
     # a track one degree north of the equator's 0-10 E leg (parallel, so every point is 60.04 nm off)
     lon = np.linspace(0.0, 10.0, 11)

@@ -43,6 +43,7 @@ import contextlib
 import copy
 import json
 import time as _time
+import zipfile
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -51,14 +52,14 @@ import numpy as np
 import numpy.typing as npt
 
 from pyroute_rel import geodesy
-from pyroute_rel.errors import PyrouteError, ScenarioError
-from pyroute_rel.files import write_together
+from pyroute_rel.errors import PyrouteError, ScenarioError, brief
+from pyroute_rel.files import brief_path, write_together
 from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
 from pyroute_rel.planners.settings import DQNSettings
 from pyroute_rel.progress import progress_bar
 from pyroute_rel.units import KM_PER_NM
 
-__all__ = ["DQNPlanner", "QNetwork", "features", "N_ACTIONS", "DEAD_END_REWARD"]
+__all__ = ["DQNPlanner", "QNetwork", "features", "model_path", "N_ACTIONS", "DEAD_END_REWARD"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -112,12 +113,40 @@ class QNetwork:
 
     @classmethod
     def load(cls, path: Path, settings: DQNSettings) -> QNetwork | None:
-        """The weights saved at ``path`` when they were trained with ``settings``, else None."""
-        with np.load(path, allow_pickle=False) as data:
-            if str(data["settings"]) != _settings_key(settings):
-                return None
-            n = sum(1 for k in data.files if k.startswith("coef_"))
-            return cls(tuple(data[f"coef_{i}"] for i in range(n)), tuple(data[f"intercept_{i}"] for i in range(n)))
+        """The weights saved at ``path`` when they were trained with ``settings``, else None (a model of other
+        settings, trained again and replaced). A file that is not a model this planner wrote (text, pickled objects,
+        another program's arrays) is a ScenarioError: it is never read as one, nor replaced."""
+        where = f"[planner.dqn].model {brief_path(path)}"
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                if not isinstance(data, np.lib.npyio.NpzFile) or "settings" not in data.files:
+                    raise ValueError("no network saved by pyroute_rel in it")
+                key = str(data["settings"])
+                json.loads(key)
+                if key != _settings_key(settings):
+                    return None
+                n = sum(1 for k in data.files if k.startswith("coef_"))
+                coefs = tuple(np.asarray(data[f"coef_{i}"], dtype=float) for i in range(n))
+                intercepts = tuple(np.asarray(data[f"intercept_{i}"], dtype=float) for i in range(n))
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+            raise ScenarioError(
+                f"{where} is not a DQN model this planner saved ({' '.join(str(exc).split())[:120]}): remove it or "
+                "name another file (it is never replaced)"
+            ) from None
+        return cls(coefs, intercepts)
+
+
+def model_path(base_dir: Path, model: str) -> Path:
+    """The file ``[planner.dqn].model`` names, inside the scenario's folder ``base_dir``: a relative name that stays
+    in it (issue 34: ``"../../elsewhere/x.npz"`` wrote outside the scenario folder and any ``--out``)."""
+    name = Path(model)
+    base = Path(base_dir).resolve()
+    path = (base / name).resolve()
+    if name.is_absolute() or not path.is_relative_to(base) or path == base:
+        raise ScenarioError(
+            f"[planner.dqn].model must name a file inside the scenario's folder {brief_path(base)} (got {brief(model)})"
+        )
+    return path
 
 
 def _settings_key(settings: DQNSettings) -> str:
@@ -376,8 +405,8 @@ class DQNPlanner:
         s = self.settings or problem.settings.dqn
         seed = problem.settings.seed if self.seed is None else self.seed
         t0 = _time.perf_counter()
-        path = (problem.scenario.base_dir / s.model) if s.model else None
-        net = QNetwork.load(path, s) if path is not None and path.is_file() else None
+        path = model_path(problem.scenario.base_dir, s.model) if s.model else None
+        net = QNetwork.load(path, s) if path is not None and path.exists() else None
         info: dict[str, Any] = {"loaded": net is not None}
         if net is None:
             with _one_thread():
