@@ -430,3 +430,40 @@ def test_a_scenario_planned_by_another_planner_is_refused_not_routed_by_the_dp(t
             and "plans with [planner] kind = 'mcts', but a sweep routes every run with the DP" in err
         )
         assert not (tmp_path / "out").exists()
+
+
+def test_a_resume_sets_aside_unreadable_parts_and_routes_only_their_runs_again(ensemble, tmp_path) -> None:
+    """Issue 34: a truncated or corrupt part in runs.parquet ended a resume as an internal error (ArrowInvalid); a
+    part of another schema, a directory or an empty file were read or refused as badly. Now each is set aside with a
+    warning naming it, only its runs are routed again, and the table is the uninterrupted one."""
+    import pyarrow as pa
+
+    from pyroute_rel.errors import PyrouteWarning
+
+    spec_path = _spec(
+        tmp_path, ensemble, 'departures = ["2018-06-02T00:00:00Z", "2018-06-03T00:00:00Z"]\nmembers = [0]'
+    )
+    runs = load_sweep(spec_path).runs
+    out = tmp_path / "out"
+    first = run_sweep(runs, out=out, batch=1)
+    parts = sorted((out / "runs.parquet").glob("part-*.parquet"))
+    assert len(parts) == 2
+    lost_key = pq.read_table(parts[0]).column("key")[0].as_py()
+    parts[0].write_bytes(parts[0].read_bytes()[:40])  # truncated
+    folder = out / "runs.parquet"
+    (folder / "part-empty.parquet").write_bytes(b"")
+    (folder / "part-garbage.parquet").write_bytes(b"PAR1 not parquet at all")
+    (folder / "part-dir.parquet").mkdir()
+    pq.write_table(pa.table({"key": [lost_key], "other": [1]}), folder / "part-other.parquet")
+    with pytest.warns(PyrouteWarning, match="not a readable part of the runs") as seen:
+        assert read_runs(out).num_rows == 1  # a reader skips them, moving nothing
+    assert len(seen) == 5 and (folder / "part-empty.parquet").exists()
+    routed: list[str] = []
+    with pytest.warns(PyrouteWarning, match="set aside in"):
+        again = run_sweep(runs, out=out, batch=1, log=routed.append)
+    assert routed == ["1 done, 1 to run"]
+    assert _comparable(again) == _comparable(first)
+    assert sorted(p.name for p in (folder / "set-aside").iterdir()) == sorted(
+        [parts[0].name, "part-dir.parquet", "part-empty.parquet", "part-garbage.parquet", "part-other.parquet"]
+    )
+    assert _comparable(read_runs(out)) == _comparable(first)  # read cleanly now, each run once

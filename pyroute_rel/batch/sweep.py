@@ -611,8 +611,14 @@ def _table(rows: Sequence[Mapping[str, Any]]) -> pa.Table:
     return pa.Table.from_pylist([{c: r.get(c) for c in COLUMNS} for r in rows], schema=_schema())
 
 
-def read_runs(out: str | Path) -> pa.Table:
-    """Every run recorded in a sweep's output folder (``out/runs.parquet``), once per key (an empty table if none)."""
+def read_runs(out: str | Path, *, set_aside: bool = False) -> pa.Table:
+    """Every run recorded in a sweep's output folder (``out/runs.parquet``), once per key (an empty table if none).
+
+    A part that cannot be read as this table (truncated, corrupt, empty, not a file, another schema) is skipped with a
+    :class:`~pyroute_rel.errors.PyrouteWarning` naming it; with ``set_aside`` (a sweep resuming) it is also moved to
+    ``runs.parquet/set-aside/``, so that its runs are routed again and the folder reads cleanly afterwards.
+    """
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
     folder = Path(out) / RUNS_DIR
@@ -621,9 +627,33 @@ def read_runs(out: str | Path) -> pa.Table:
         return _table([])
     rows: dict[str, dict[str, Any]] = {}
     for p in parts:
-        for r in pq.read_table(p, schema=_schema()).to_pylist():
+        try:
+            if not p.is_file():
+                raise IsADirectoryError("not a file")
+            if set(pq.read_schema(p).names) != set(COLUMNS):
+                raise ValueError("not the runs' columns")
+            table = pq.read_table(p, schema=_schema())
+        except (OSError, ValueError, pa.ArrowException) as exc:
+            _unreadable_part(p, exc, set_aside)
+            continue
+        for r in table.to_pylist():
             rows.setdefault(r["key"], r)
     return _table(list(rows.values()))
+
+
+def _unreadable_part(part: Path, exc: BaseException, set_aside: bool) -> None:
+    """Warn of a part :func:`read_runs` cannot read and, with ``set_aside``, move it out of the runs."""
+    why = f"{type(exc).__name__}: {_one_line(exc)}"[:200]
+    what = "skipped"
+    if set_aside:
+        aside = part.parent / "set-aside"
+        try:
+            aside.mkdir(exist_ok=True)
+            part.rename(aside / part.name)
+            what = f"set aside in {brief_path(aside)}: its runs are routed again"
+        except OSError as move:
+            raise SweepError(f"{brief_path(part)}: cannot be read ({why}) nor set aside ({move.strerror})") from None
+    warnings.warn(f"{brief_path(part)}: not a readable part of the runs ({why}); {what}", PyrouteWarning, stacklevel=3)
 
 
 def _track_geojson(row: Mapping[str, Any]) -> str:
@@ -1152,7 +1182,7 @@ def _run_sweep(
 
     keyed = [(run_key(r), r) for r in runs]
     store = _Store(Path(out), batch=batch, flush_s=flush_s) if out is not None else None
-    done = {r["key"]: r for r in read_runs(out).to_pylist()} if out is not None else {}
+    done = {r["key"]: r for r in read_runs(out, set_aside=True).to_pylist()} if out is not None else {}
     todo = list({k: r for k, r in keyed if k not in done}.items())
     if log is not None:
         log(f"{len(set(k for k, _ in keyed) & set(done))} done, {len(todo)} to run")
