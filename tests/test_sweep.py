@@ -467,3 +467,37 @@ def test_a_resume_sets_aside_unreadable_parts_and_routes_only_their_runs_again(e
         [parts[0].name, "part-dir.parquet", "part-empty.parquet", "part-garbage.parquet", "part-other.parquet"]
     )
     assert _comparable(read_runs(out)) == _comparable(first)  # read cleanly now, each run once
+
+
+def test_a_full_disk_is_one_line_keeps_the_runs_recorded_and_the_sweep_resumes(
+    ensemble, tmp_path, monkeypatch, capsys
+) -> None:
+    """Issue 34: 'No space left on device' during a sweep ended as an internal error (exit 3). Now: exit 2 and one
+    line; the part written before stays, and the sweep run again routes only the run that was not recorded."""
+    import errno
+
+    from pyroute_rel.batch import sweep as sweep_module
+
+    spec_path = _spec(
+        tmp_path, ensemble, 'departures = ["2018-06-02T00:00:00Z", "2018-06-03T00:00:00Z"]\nmembers = [0]'
+    )
+    out = tmp_path / "out"
+    real = sweep_module.atomic_write
+    calls = []
+
+    def full_after_one(path, writer):
+        calls.append(path)
+        if len(calls) > 1:
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return real(path, writer)
+
+    monkeypatch.setattr(sweep_module, "atomic_write", full_after_one)
+    argv = ["sweep", str(spec_path), "--out", str(out), "--quiet", "--batch", "1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "No space left on device; the runs recorded before are kept" in err, err
+    assert read_runs(out).num_rows == 1
+    monkeypatch.setattr(sweep_module, "atomic_write", real)
+    assert main([*argv[:-2], "--batch", "1"]) == 0
+    capsys.readouterr()
+    assert read_runs(out).num_rows == 2

@@ -684,12 +684,13 @@ class _Store:
     def add(self, row: dict[str, Any]) -> None:
         if row.get("_internal"):
             return  # not recorded: a re-run tries it again
-        (self.out / RUNS_DIR).mkdir(parents=True, exist_ok=True)  # on the first result: nothing before
-        (self.out / TRACKS_DIR).mkdir(exist_ok=True)
-        if row.get("_track") is not None:
-            name = f"{TRACKS_DIR}/{row['key']}.geojson"
-            atomic_write_text(self.out / name, _track_geojson(row))
-            row["track"] = name
+        with self._writing():
+            (self.out / RUNS_DIR).mkdir(parents=True, exist_ok=True)  # on the first result: nothing before
+            (self.out / TRACKS_DIR).mkdir(exist_ok=True)
+            if row.get("_track") is not None:
+                name = f"{TRACKS_DIR}/{row['key']}.geojson"
+                atomic_write_text(self.out / name, _track_geojson(row))
+                row["track"] = name
         self.pending.append(row)
         if len(self.pending) >= self.batch or time.monotonic() - self.last >= self.flush_s:
             self.flush()
@@ -702,7 +703,22 @@ class _Store:
 
         table, self.pending = _table(self.pending), []
         name = f"part-{time.strftime('%Y%m%dT%H%M%S')}-{uuid.uuid4().hex[:12]}.parquet"
-        atomic_write(self.out / RUNS_DIR / name, lambda p: pq.write_table(table, p))
+        with self._writing():
+            atomic_write(self.out / RUNS_DIR / name, lambda p: pq.write_table(table, p))
+
+    @contextmanager
+    def _writing(self) -> Iterator[None]:
+        """The folder's own trouble (a full disk, a folder made read-only, a name taken by a directory) as one line:
+        the runs recorded so far stay, and running the sweep again resumes after them (issue 34: exit 3)."""
+        try:
+            yield
+        except OSError as exc:
+            self.pending = []  # (not recorded: the resume routes them again)
+            where = brief_path(exc.filename) if exc.filename else brief_path(self.out)
+            raise SweepError(
+                f"cannot write the sweep's results to {where}: {exc.strerror or exc}; the runs recorded before are "
+                "kept, and running the sweep again resumes after them"
+            ) from None
 
 
 # --- engines -----------------------------------------------------------------------------------------------------
