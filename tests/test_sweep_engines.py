@@ -8,6 +8,7 @@ import importlib.util
 import json
 import math
 import os
+import time
 import warnings
 from collections import defaultdict
 from pathlib import Path
@@ -300,3 +301,47 @@ def test_the_ensemble_accepts_one_worker_inline_and_a_scheduler_with_auto() -> N
     check_engine_combinations("auto", None, "tcp://127.0.0.1:9", ensemble_meaning)
     with pytest.raises(ScenarioError, match="^2 inline$"):
         check_engine_combinations("inline", 2, None, ensemble_meaning)
+
+
+@pytest.mark.parametrize(
+    ("address", "expected"),
+    [
+        ("garbage", "--scheduler must be a dask scheduler address tcp://HOST:PORT (got 'garbage')"),
+        ("tls://127.0.0.1:9", "tls:// is not supported, only plain tcp://"),
+        ("ucx://127.0.0.1:9", "ucx:// is not supported, only plain tcp://"),
+        ("127.0.0.1:99999", "(got '127.0.0.1:99999')"),
+        ("", "(got '')"),
+    ],
+)
+def test_a_malformed_scheduler_address_is_refused_at_once(address, expected) -> None:
+    """Issue 34: malformed addresses and tls:// or ucx:// schemes waited for the connect timeout and ended in a
+    traceback (exit 3)."""
+    from pyroute_rel.batch.cluster import check_scheduler_address
+    from pyroute_rel.errors import ScenarioError
+
+    t0 = time.perf_counter()
+    with pytest.raises(ScenarioError) as info:
+        check_scheduler_address(address)
+    assert expected in str(info.value) and time.perf_counter() - t0 < 1.0
+
+
+def test_a_peer_that_accepts_and_stays_silent_is_an_error_within_the_timeout() -> None:
+    """Issue 34: an address that accepts and never answers (an HTTP server waiting for its request) hung the sweep."""
+    import socket
+    import threading
+
+    from pyroute_rel.batch.sweep import SweepError
+
+    server = socket.create_server(("127.0.0.1", 0))
+    held: list[socket.socket] = []
+    threading.Thread(target=lambda: held.append(server.accept()[0]), daemon=True).start()
+    port = server.getsockname()[1]
+    runs = [Run(str(ROOT / "examples" / "microtransat_control.toml"))]
+    t0 = time.perf_counter()
+    try:
+        with pytest.raises(SweepError, match=r"no dask scheduler answers there within 1 s"):
+            run_sweep(runs, engine="dask", scheduler=f"tcp://127.0.0.1:{port}", connect_timeout_s=1.0)
+    finally:
+        for s in (*held, server):
+            s.close()
+    assert time.perf_counter() - t0 < 5.0

@@ -9,6 +9,8 @@ with a :class:`WorkersOption`).
 from __future__ import annotations
 
 import logging
+import re
+import socket
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -20,6 +22,7 @@ from pyroute_rel.errors import ScenarioError, brief
 __all__ = [
     "WORKER_ENV",
     "dask_client",
+    "check_scheduler_address",
     "close_client",
     "synchronous_reads",
     "WorkersOption",
@@ -71,8 +74,12 @@ def dask_client(
                 silence_logs=logging.ERROR,  # not the nannies' warnings when the cluster closes
             )
         return Client(cluster, set_as_default=False)
+    scheduler = check_scheduler_address(scheduler, error)
+    _answers(scheduler, timeout_s, error)
     try:
         client = Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
+    except MemoryError:  # (a frame length read from another protocol's bytes, e.g. an HTTP server's answer)
+        raise error(f"--scheduler {scheduler}: what answers there is not a dask scheduler") from None
     except (OSError, TimeoutError, ValueError) as exc:
         raise error(
             f"--scheduler {scheduler}: cannot reach the dask scheduler ({' '.join(str(exc).split())})"
@@ -85,6 +92,47 @@ def dask_client(
             f"--scheduler {scheduler}: the dask scheduler has no worker after {timeout_s:g} s ({exc})"
         ) from None
     return client
+
+
+#: A scheduler address: ``tcp://HOST:PORT`` or ``HOST:PORT`` (an IPv6 host in brackets).
+_ADDRESS = re.compile(r"(?:tcp://)?(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):([0-9]{1,5})")
+
+
+def check_scheduler_address(scheduler: Any, error: type[Exception] = ScenarioError) -> str:
+    """``scheduler`` as a dask scheduler address over plain TCP (``tcp://HOST:PORT``), or ``error`` at once: a
+    malformed address used to wait for the full connect timeout and end in a traceback, and ``tls://`` or ``ucx://``
+    need a security or transport setup pyroute-rel does not make (issue 34). The scheduler must be trusted: dask's
+    protocol unpickles what it sends.
+
+    >>> check_scheduler_address("127.0.0.1:8786"), check_scheduler_address("tcp://node7:8786")
+    ('tcp://127.0.0.1:8786', 'tcp://node7:8786')
+    """
+    text = scheduler.strip() if isinstance(scheduler, str) else None
+    m = _ADDRESS.fullmatch(text) if text else None
+    if text is None or m is None or not 0 < int(m.group(1)) < 65536:
+        scheme = text.split("://", 1)[0] if text and "://" in text else None
+        hint = f": {scheme}:// is not supported, only plain tcp://" if scheme and scheme != "tcp" else ""
+        raise error(f"--scheduler must be a dask scheduler address tcp://HOST:PORT (got {brief(scheduler)}){hint}")
+    return text if text.startswith("tcp://") else f"tcp://{text}"
+
+
+def _answers(scheduler: str, timeout_s: float, error: type[Exception]) -> None:
+    """Connect to ``tcp://HOST:PORT`` and wait up to ``timeout_s`` [s] for its first bytes: a dask scheduler greets a
+    new connection at once; a peer that accepts and stays silent (an HTTP server waits for a request) is an error
+    within the timeout, where dask's client would wait for ever (issue 34)."""
+    host, _, port = scheduler.removeprefix("tcp://").rpartition(":")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s) as sock:
+            sock.settimeout(timeout_s)
+            if not sock.recv(1):
+                raise ConnectionError("it closed the connection")
+    except TimeoutError:
+        raise error(
+            f"--scheduler {scheduler}: no dask scheduler answers there within {timeout_s:g} s (something accepts the "
+            "connection but says nothing; a dask scheduler greets at once)"
+        ) from None
+    except OSError as exc:
+        raise error(f"--scheduler {scheduler}: cannot reach the dask scheduler ({exc.strerror or exc})") from None
 
 
 def close_client(client: Any) -> None:
