@@ -501,3 +501,20 @@ def test_a_full_disk_is_one_line_keeps_the_runs_recorded_and_the_sweep_resumes(
     assert main([*argv[:-2], "--batch", "1"]) == 0
     capsys.readouterr()
     assert read_runs(out).num_rows == 2
+
+
+@pytest.mark.parametrize(
+    ("departures", "expected"),
+    [
+        ("2018-06-01T00:00Z,2018-06-02T00:00Z,5e-324", "step_h must be at least one second, 1/3600 h"),
+        ("2018-06-01T00:00Z,2030-06-02T00:00Z,0.001", "departures (at most 100000): use a larger step_h"),
+    ],
+)
+def test_a_tiny_step_or_too_many_departures_is_refused_at_once(tmp_path, capsys, departures, expected) -> None:
+    """Issue 34: a denormal step ended in an OverflowError (exit 3); 10^6 departures started to be built."""
+    t0 = time.perf_counter()
+    argv = ["sweep", str(ROOT / "examples" / "microtransat_control.toml"), "--departures", departures, "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and expected in err, err
+    assert time.perf_counter() - t0 < 5.0

@@ -152,3 +152,19 @@ def test_a_track_starting_where_or_when_the_weather_has_no_data_is_an_error(tmp_
     assert main(["evaluate", str(scenario_file), str(track), "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and err.startswith("pyroute-rel: error:") and "2030-01-01" in err, err
+
+
+def test_a_geojson_number_of_5000_digits_is_a_one_line_error(tmp_path):
+    """Issue 34: Python's limit on integer digits ended the read as an internal error (exit 3), in a track as in a
+    zones file."""
+    from pyroute_rel.errors import ScenarioError
+    from pyroute_rel.obstacles.zones import load_zones
+
+    big = '{"type":"LineString","coordinates":[[' + "9" * 5000 + ",45],[-13,44]]}"
+    (tmp_path / "big.geojson").write_text(big)
+    with pytest.raises(TrackError, match=r"big\.geojson: not valid JSON \(Exceeds the limit"):
+        read_track(tmp_path / "big.geojson")
+    zone = '{"type":"Polygon","coordinates":[[[' + "9" * 5000 + ",45],[-13,44],[-13,45],[0,45]]]}"
+    (tmp_path / "zone.geojson").write_text(zone)
+    with pytest.raises(ScenarioError, match=r"zone\.geojson: not valid JSON \(Exceeds the limit"):
+        load_zones([tmp_path / "zone.geojson"])

@@ -278,7 +278,7 @@ def _utc64(t: Any) -> np.datetime64:
 def _geojson_track(text: str) -> Track:
     try:
         doc = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as exc:
+    except (ValueError, RecursionError) as exc:  # (ValueError: JSON syntax, or a number of 4300+ digits)
         raise TrackError(f"not valid JSON ({exc})") from None
     lines = _lines(doc)
     if len(lines) != 1:

@@ -120,8 +120,9 @@ __all__ = [
 READS_METADATA = "pyroute_rel.weather_reads"
 #: Engines of :func:`run_sweep`.
 ENGINES = ("auto", "inline", "processes", "dask")
-#: Most runs one sweep may hold.
-MAX_RUNS = 1_000_000
+#: Most runs one sweep may hold: a day and more of routing on a few cores at a second a run; more is a typo or a job
+#: for several sweeps (10^6 runs used to be built and keyed for minutes before anything was routed).
+MAX_RUNS = 100_000
 #: Files larger than this are keyed by size, modification time and their first and last MB instead of their whole
 #: content [bytes].
 HASH_WHOLE_BYTES = 256_000_000
@@ -223,12 +224,15 @@ def departure_range(start: Any, end: Any, step_h: Any, where: str = "departures"
     t1 = parse_departure(end, f"{where}.end")
     if isinstance(step_h, bool) or not isinstance(step_h, int | float) or not math.isfinite(step_h) or step_h <= 0:
         raise SweepError(f"{where}.step_h must be a positive number of hours (got {brief(step_h)})")
+    if step_h < 1.0 / 3600.0:  # (departures are to the second; a denormal step overflowed, issue 34)
+        raise SweepError(f"{where}.step_h must be at least one second, 1/3600 h (got {brief(step_h)})")
     if t1 < t0:
         raise SweepError(f"{where}.end must not be before {where}.start (got {iso_utc(t1)} < {iso_utc(t0)})")
     span_h = float((t1 - t0) / np.timedelta64(1, "s")) / 3600.0
-    n = int(math.floor(span_h / step_h + 1e-9)) + 1
-    if n > MAX_RUNS:
-        raise SweepError(f"{where} gives {n} departures (at most {MAX_RUNS}): use a larger step_h")
+    steps = math.floor(span_h / step_h + 1e-9)
+    if steps + 1 > MAX_RUNS:  # (before anything is made of them)
+        raise SweepError(f"{where} gives {steps + 1} departures (at most {MAX_RUNS}): use a larger step_h")
+    n = int(steps) + 1
     return [iso_utc(t0 + np.timedelta64(round(i * step_h * 3600.0), "s")) for i in range(n)]
 
 

@@ -198,6 +198,8 @@ def _read_zone_file(path: Path) -> list[Zone]:
         ) from None
     except RecursionError:
         raise ScenarioError(f"{brief_path(path)}: JSON arrays or objects nested too deeply to read") from None
+    except ValueError as exc:  # (a number of more than 4300 digits)
+        raise ScenarioError(f"{brief_path(path)}: not valid JSON ({' '.join(str(exc).split())[:120]})") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("type"), str):
         raise ScenarioError(
             f"{brief_path(path)}: expected a GeoJSON object with a 'type' member (got {type(doc).__name__})"
