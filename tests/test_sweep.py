@@ -518,3 +518,25 @@ def test_a_tiny_step_or_too_many_departures_is_refused_at_once(tmp_path, capsys,
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and expected in err, err
     assert time.perf_counter() - t0 < 5.0
+
+
+@pytest.mark.parametrize("case", ["plot is a folder", "runs is a file", "tracks is a file", "tracks is a link"])
+def test_an_out_folder_whose_parts_are_of_the_wrong_kind_is_refused_before_routing(tmp_path, capsys, case) -> None:
+    """Issue 34: ``--out`` whose sweep.png was a folder ended as an internal error after routing, runs.parquet or
+    tracks as a file likewise, and a tracks link sent the track files elsewhere. Each is one line, nothing written."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    out.mkdir()
+    elsewhere.mkdir()
+    {
+        "plot is a folder": lambda: (out / "sweep.png").mkdir(),
+        "runs is a file": lambda: (out / "runs.parquet").write_text("x"),
+        "tracks is a file": lambda: (out / "tracks").write_text("x"),
+        "tracks is a link": lambda: (out / "tracks").symlink_to(elsewhere),
+    }[case]()
+    before = sorted(p.name for p in out.iterdir())
+    argv = ["sweep", str(ROOT / "examples" / "microtransat_control.toml"), "--departures",
+            "2018-06-01T00:00Z,2018-06-01T06:00Z,6", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.endswith("(nothing was written)"), err
+    assert sorted(p.name for p in out.iterdir()) == before and not list(elsewhere.iterdir())

@@ -1161,6 +1161,8 @@ def _writing_to(out: Path | None) -> Iterator[None]:
     line instead of routing and recording the same runs again (their rows doubled). The lock is the kernel's
     (``flock`` on the folder itself: released when the process ends, however it ends; nothing written for it). A
     folder made only to hold the lock is removed if the sweep writes nothing into it."""
+    if out is not None:
+        _check_layout(out)
     if out is None or fcntl is None:  # (no flock: Windows)
         yield
         return
@@ -1183,6 +1185,19 @@ def _writing_to(out: Path | None) -> Iterator[None]:
         if made:
             with contextlib.suppress(OSError):
                 out.rmdir()  # only if nothing was written
+
+
+def _check_layout(out: Path) -> None:
+    """The folders a sweep writes into ``out`` (:data:`RUNS_DIR`, :data:`TRACKS_DIR`) are folders of its own where
+    they exist: not a file, nor a link that would send the runs or the tracks elsewhere (issue 34)."""
+    for name in (RUNS_DIR, TRACKS_DIR):
+        target = out / name
+        if target.is_symlink() or (os.path.lexists(target) and not target.is_dir()):
+            kind = "a link" if target.is_symlink() else "not a folder"
+            raise SweepError(
+                f"{brief_path(target)} is {kind}: the sweep writes its {'runs' if name == RUNS_DIR else 'tracks'} "
+                "there; move it away or give another --out (nothing was written)"
+            )
 
 
 def _run_sweep(

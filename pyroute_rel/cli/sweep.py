@@ -148,9 +148,13 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     if args.out is not None:
         from pyroute_rel.files import check_out_dir
 
-        check_out_dir(args.out)
+        check_out_dir(args.out, files=() if args.plot else ("sweep.png",))
     if args.plot and not Path(args.plot).resolve().parent.is_dir():
         raise SweepError(f"--plot {args.plot}: its folder does not exist")
+    if args.plot:
+        from pyroute_rel.files import check_targets
+
+        check_targets(Path(args.plot).parent, [Path(args.plot).name], option="--plot")
     result = run_sweep(
         runs,
         engine=_engine(args),
