@@ -52,6 +52,7 @@ import math
 import os
 import re
 import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
@@ -63,6 +64,7 @@ from pyroute_rel.store import current_store
 
 __all__ = [
     "default_workers",
+    "end_with_parent",
     "thread_map",
     "row_blocks",
     "MEMORY_ENV",
@@ -125,6 +127,34 @@ class _Threads:
     def clear(self) -> None:
         with self.lock:
             self._retire()
+
+
+def end_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
+    """In a pool's worker process: exit as soon as the process ``parent_pid`` that made the pool is gone, however it
+    ended (SIGKILL included), so that no worker outlives the command. Orphaned workers of a killed sweep kept its
+    output pipe open, and ``pyroute-rel sweep ... | cat`` never ended (issue 34). The pool's own process is watched,
+    not this one's parent: a forkserver's workers hold the pipe that would end the forkserver, so the forkserver
+    ends after them. Not for processes a user starts (a ``dask worker``)."""
+
+    def gone() -> bool:
+        try:
+            os.kill(parent_pid, 0)
+        except ProcessLookupError:
+            return True
+        except PermissionError:  # (alive, another user's: a reused number)
+            return False
+        try:  # killed but not yet reaped by its own parent: a zombie (Linux)
+            with open(f"/proc/{parent_pid}/stat", "rb") as fh:
+                return fh.read().rsplit(b")", 1)[-1].split()[0] == b"Z"
+        except (OSError, IndexError):
+            return False
+
+    def watch() -> None:
+        while not gone():
+            time.sleep(poll_s)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="pyroute-rel-end-with-parent", daemon=True).start()
 
 
 def default_workers() -> int:

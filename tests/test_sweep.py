@@ -540,3 +540,29 @@ def test_an_out_folder_whose_parts_are_of_the_wrong_kind_is_refused_before_routi
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and err.endswith("(nothing was written)"), err
     assert sorted(p.name for p in out.iterdir()) == before and not list(elsewhere.iterdir())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_a_killed_sweep_leaves_no_worker_holding_its_output(ensemble, tmp_path, sig) -> None:
+    """Issue 34: after SIGKILL or SIGTERM of a ``--engine processes`` sweep, its workers (and multiprocessing's
+    helpers) lived on holding stdout, so ``pyroute-rel sweep ... | cat`` never ended. Here the pipe reaches its end
+    within seconds of the kill: every process that held it is gone."""
+    import threading
+
+    spec_path = _spec(tmp_path, ensemble, BODY)
+    out = tmp_path / "killed"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--out", str(out), "--batch", "1",
+           "--engine", "processes", "--workers", "2", "--quiet"]  # fmt: skip
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    deadline = time.monotonic() + 90
+    while not _parts(out) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None and _parts(out), "the sweep should be running its pool"
+    proc.send_signal(sig)
+    ended = threading.Event()
+    threading.Thread(target=lambda: (proc.stdout.read(), ended.set()), daemon=True).start()
+    proc.wait(10)
+    assert ended.wait(30), "a process still holds the sweep's output 30 s after the kill"
+    proc.stdout.close()  # (only once read to its end: a reader blocked in it holds its lock)

@@ -358,6 +358,15 @@ def _worker_init(engines: Settings | None = None) -> None:
     _begin()
 
 
+def _pool_worker_init(engines: Settings | None, parent_pid: int) -> None:
+    """A local pool's worker: :func:`_worker_init`, and it ends with the ensemble that started it
+    (:func:`~pyroute_rel.resources.end_with_parent`; not a dask worker, which its user starts)."""
+    from pyroute_rel.resources import end_with_parent
+
+    end_with_parent(parent_pid)
+    _worker_init(engines)
+
+
 def _begin() -> None:
     """A process's set-up for one route_ensemble call: nothing kept from an earlier call (the files may have
     changed), the weather files kept open from one member to the next
@@ -412,7 +421,10 @@ class _Workers:
             forkserver.ensure_running()
             self.pools = [
                 ProcessPoolExecutor(
-                    max_workers=1, mp_context=context, initializer=_worker_init, initargs=(get_settings(),)
+                    max_workers=1,
+                    mp_context=context,
+                    initializer=_pool_worker_init,
+                    initargs=(get_settings(), os.getpid()),
                 )
                 for _ in range(n)
             ]
