@@ -372,7 +372,7 @@ def test_compiled_march_adds_each_runs_wind_error_as_the_perturbed_source(
 
 
 @pytest.mark.slow
-@settings(max_examples=10, derandomize=True, deadline=None, database=None)
+@settings(max_examples=4, derandomize=True, deadline=None, database=None)
 @given(st.integers(0, 2**31), st.integers(1, 3), st.sampled_from([None, "dickson2018"]))
 def test_compiled_march_applies_each_runs_speed_noise_as_the_numpy_march(
     seed: int, samples: int, model: str | None

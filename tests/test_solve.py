@@ -280,7 +280,7 @@ def test_time_expanded_dp_waits_out_a_storm_and_matches_brute_force() -> None:
     # without waiting at a node the storm band forbids every arc when the craft gets there: no route
     with pytest.raises(NoFeasibleRouteError):
         route_on_grid(grid, plain)
-    step, max_wait = 30.0, 150.0
+    step, max_wait = 30.0, 90.0  # (waits of 0-90 h a node, 4^3 per path: the brute force stays small)
     waiting = RoutingProblem(
         departure=DEP,
         weather=PassingStorm(),
