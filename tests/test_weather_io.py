@@ -11,6 +11,7 @@ import importlib.util
 import re
 import sys
 import tomllib
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import RegularGridInterpolator
 
-from pyroute_rel.errors import ScenarioError, WeatherCoverageError, WeatherError
+from pyroute_rel.errors import ScenarioError, WeatherCoverageError, WeatherError, WeatherWarning
+from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather import WeatherSource
 from pyroute_rel.weather.io.readers import open_weather, weather_from_dataset, weather_from_mapping
 
@@ -28,6 +30,9 @@ KN = 1852.0 / 3600.0  # [m/s] per knot, exact by definition (international nauti
 T0 = np.datetime64("2018-06-01T00:00", "ns")
 HOUR = np.timedelta64(3600, "s")
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+#: A wind component's units attribute (a file without one is read as m/s with a warning).
+MS = {"units": "m s**-1"}
 
 
 def era5(fields, lon, lat, time, *, time_name="time", attrs=None, coords=None):
@@ -490,7 +495,7 @@ def test_ensemble_member_must_be_chosen(tmp_path):
     lon, lat, time = np.array([-10.0, 0.0]), np.array([40.0, 50.0]), times(2)
     u = np.arange(3, dtype=np.float32)[:, None, None, None] + np.zeros((3, 2, 2, 2), dtype=np.float32)
     dims = ("number", "time", "latitude", "longitude")
-    ds = xr.Dataset({"u10": (dims, u), "v10": (dims, u * 0)},
+    ds = xr.Dataset({"u10": (dims, u, MS), "v10": (dims, u * 0, MS)},
                     coords={"number": [0, 1, 2], "time": time, "latitude": lat, "longitude": lon})  # fmt: skip
     ds.to_netcdf(tmp_path / "ens.nc")
     with pytest.raises(WeatherError, match=r"ens\.nc' variable 'u10' has 3 ensemble members.*member=<0\.\.2>"):
@@ -509,7 +514,7 @@ def test_era5_expver_dimension_is_merged(tmp_path):
     u = np.full((4, 2, 2, 2), np.nan, dtype=np.float32)
     u[:2, 0], u[2:, 1] = 1.0, 3.0  # first two times final ERA5, last two ERA5T
     dims = ("time", "expver", "latitude", "longitude")
-    ds = xr.Dataset({"u10": (dims, u), "v10": (dims, u * 0)},
+    ds = xr.Dataset({"u10": (dims, u, MS), "v10": (dims, u * 0, MS)},
                     coords={"time": time, "expver": [1, 5], "latitude": lat, "longitude": lon})  # fmt: skip
     ds.to_netcdf(tmp_path / "expver.nc")
     w = open_weather(tmp_path / "expver.nc")
@@ -744,3 +749,24 @@ def test_open_weather_refuses_what_is_not_a_path(paths: object) -> None:
     # 5 raised TypeError ("not iterable"), [None] TypeError from pathlib.
     with pytest.raises(WeatherError, match=r"weather files must be a path or a list of paths"):
         open_weather(paths)  # type: ignore[arg-type]
+
+
+def test_a_wind_file_without_units_is_read_as_m_per_s_with_a_warning(tmp_path: Path) -> None:
+    """Issue 34: a wind file in knots without a units attribute was read as m/s without a word (124.82 h against
+    133.06 h labelled). A file's speed without units warns which unit was taken; labelled, it does not."""
+    dims = ("latitude", "longitude")
+    coords = {"latitude": [30.0, 50.0], "longitude": [-40.0, -10.0]}
+    u = np.full((2, 2), 10.0, np.float32)
+    xr.Dataset({"u10": (dims, u), "v10": (dims, u * 0)}, coords=coords).to_netcdf(tmp_path / "bare.nc")
+    t = np.datetime64("2018-06-01")
+    with pytest.warns(WeatherWarning, match=r"bare\.nc' variable '[uv]10' has no units attribute: read as m/s") as seen:
+        bare = open_weather(tmp_path / "bare.nc")
+        bare_kn = float(bare.sample(-20.0, 40.0, t).tws_kn)
+    assert {str(w.message).split("variable ")[1][:5] for w in seen} == {"'u10'", "'v10'"}
+    knots = {"units": "knots"}
+    xr.Dataset({"u10": (dims, u, knots), "v10": (dims, u * 0, knots)}, coords=coords).to_netcdf(tmp_path / "kn.nc")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        labelled = open_weather(tmp_path / "kn.nc")
+    assert bare_kn == pytest.approx(10.0 * KN_PER_MS, rel=1e-6)
+    assert float(labelled.sample(-20.0, 40.0, t).tws_kn) == pytest.approx(10.0, rel=1e-6)

@@ -150,7 +150,10 @@ def test_one_single_time_field_beside_a_time_series_is_not_steady(tmp_path: Path
 def test_a_netcdf_file_with_one_time_is_steady_too(tmp_path: Path) -> None:
     dims = ("time", "latitude", "longitude")
     xr.Dataset(
-        {"u10": (dims, np.zeros((1, 2, 2), np.float32)), "v10": (dims, np.full((1, 2, 2), -8.0, np.float32))},
+        {
+            "u10": (dims, np.zeros((1, 2, 2), np.float32), {"units": "m s-1"}),
+            "v10": (dims, np.full((1, 2, 2), -8.0, np.float32), {"units": "m s-1"}),
+        },
         coords={"time": [np.datetime64("2018-05-01T00", "ns")], "latitude": [30.0, 50.0], "longitude": [-40.0, -10.0]},
     ).to_netcdf(tmp_path / "analysis.nc")
     # its time lies before the window asked for: a single time is kept whatever the window (it is steady weather)

@@ -1541,6 +1541,13 @@ def _convert_units(
     key = "".join(ch for ch in str(raw if raw is not None else "").strip().lower() if ch not in " *^_.")
     if key in _MISSING_UNITS:
         key = "".join(ch for ch in _DEFAULT_UNITS[kind].lower() if ch != " ")
+        if kind == "speed" and not where.startswith("weather file '<"):  # a file's (a dataset made in code, e.g.
+            # weather_from_dataset's "<dataset>", states its own): m/s and knots differ by half (issue 34: no word)
+            warnings.warn(
+                f'{where} has no units attribute: read as m/s; if it holds knots, give it units = "knots"',
+                WeatherWarning,
+                stacklevel=2,
+            )
     table = _UNITS[kind]
     if key not in table:
         accepted = (
