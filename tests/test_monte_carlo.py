@@ -145,3 +145,26 @@ def test_settings_take_zero_noise_and_any_positive_correlation_time():
         "polar_sd": 0.0, "tau_speed_h": 1e-300,
     }  # fmt: skip
     assert float(wind_errors(np.random.default_rng(1), 3, [1.0, 1.0], [0.0, 5.0], s.tau_h).std(axis=1).max()) == 0.0
+
+
+def test_more_runs_than_the_memory_budget_allows_are_refused_before_any_is_sailed(monkeypatch):
+    """Issue 34: ``--monte-carlo 10000000`` ignored the memory budget (about 1.2 GB a million runs) and ended in a
+    MemoryError. The estimate counts the arrays of :func:`run_estimate`; over the budget, one line names both."""
+    from pyroute_rel import resources
+    from pyroute_rel.analysis.monte_carlo import RUN_LEG_ARRAYS, run_estimate
+    from pyroute_rel.errors import MemoryBudgetError
+
+    est = run_estimate(1000, 4, 16)
+    assert est.total_bytes == 6 * 8 * 1000 * 4 + 8 * RUN_LEG_ARRAYS * 1000 * 16
+    sc = scenario_from_mapping(STEADY)
+    track = np.column_stack([np.linspace(-12.0, -20.0, 5), np.linspace(45.0, 40.0, 5)])
+    monkeypatch.setenv(resources.MEMORY_ENV, "200M")  # (above what the scenario's evaluation grid needs)
+    sailed = []
+    import pyroute_rel.analysis.monte_carlo as mc
+
+    real = mc.sail_tracks
+    monkeypatch.setattr(mc, "sail_tracks", lambda *a, **k: sailed.append(1) or real(*a, **k))
+    with pytest.raises(MemoryBudgetError, match=r"this Monte-Carlo evaluation needs about .* \(1000000 runs x 4 legs"):
+        monte_carlo(sc, track, runs=1_000_000, seed=1)
+    assert not sailed
+    assert monte_carlo(sc, track, runs=100, seed=1).voyage_time_h.size == 100  # within it
