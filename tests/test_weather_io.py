@@ -770,3 +770,23 @@ def test_a_wind_file_without_units_is_read_as_m_per_s_with_a_warning(tmp_path: P
         labelled = open_weather(tmp_path / "kn.nc")
     assert bare_kn == pytest.approx(10.0 * KN_PER_MS, rel=1e-6)
     assert float(labelled.sample(-20.0, 40.0, t).tws_kn) == pytest.approx(10.0, rel=1e-6)
+
+
+def test_a_corrupt_grib_file_is_one_line_without_cfgrib_s_traceback(tmp_path):
+    """Issue 34: cfgrib printed its traceback (through its logger) before the one-line error. In a fresh process (no
+    test harness catching the log): nothing on stderr but what the caller prints."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "bad.grib2"
+    path.write_bytes(b"GRIB" + bytes(range(256)) * 2)
+    code = (
+        "from pyroute_rel.errors import WeatherError\n"
+        "from pyroute_rel.weather.io.readers import open_weather\n"
+        "try:\n"
+        f"    open_weather({str(path)!r})\n"
+        "except WeatherError as exc:\n"
+        "    print(exc)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.stderr == "" and run.stdout.startswith(f"cannot read GRIB file '{path}'"), run.stderr

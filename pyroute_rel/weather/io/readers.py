@@ -27,10 +27,12 @@ https://doi.org/10.1002/qj.3803
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
 import warnings
-from collections.abc import Callable, Hashable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from importlib.util import find_spec
 from pathlib import Path
@@ -567,20 +569,48 @@ def _open_grib(path: Path) -> list[xr.Dataset]:
             f"reading GRIB file '{path}' needs cfgrib and eccodes: pip install 'pyroute_rel[grib]' ({exc})"
         ) from exc
     out = []
-    for keys in GRIB_FILTERS:
-        try:
-            ds = xr.open_dataset(
-                path, engine="cfgrib", decode_timedelta=True,
-                backend_kwargs={"filter_by_keys": dict(keys), "indexpath": ""},
-            )  # fmt: skip
-        except Exception as exc:
-            raise WeatherError(f"cannot read GRIB file '{path}': {type(exc).__name__}: {exc}") from exc
-        if ds.data_vars:
-            out.append(ds)
-        else:
-            ds.close()
+    with _cfgrib_quiet() as skipped:
+        for keys in GRIB_FILTERS:
+            try:
+                ds = xr.open_dataset(
+                    path, engine="cfgrib", decode_timedelta=True,
+                    backend_kwargs={"filter_by_keys": dict(keys), "indexpath": ""},
+                )  # fmt: skip
+            except Exception as exc:
+                raise WeatherError(f"cannot read GRIB file '{path}': {type(exc).__name__}: {exc}") from exc
+            if ds.data_vars:
+                out.append(ds)
+            else:
+                ds.close()
+    if skipped:
+        warnings.warn(
+            f"GRIB file '{path}': {len(skipped)} corrupted message(s) skipped by cfgrib ({skipped[0]})",
+            WeatherWarning,
+            stacklevel=3,
+        )
     _count_opened(_files(), path)
     return out
+
+
+@contextmanager
+def _cfgrib_quiet() -> Iterator[list[str]]:
+    """cfgrib's log while a file is opened, held back (issue 34: a corrupt file printed cfgrib's traceback through its
+    logger before the one-line error); yields the messages it logged, for one warning."""
+    logger = logging.getLogger("cfgrib")
+    seen: list[str] = []
+
+    class _Hold(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            seen.append(" ".join(record.getMessage().split())[:120])
+
+    hold, before = _Hold(), logger.propagate
+    logger.addHandler(hold)
+    logger.propagate = False
+    try:
+        yield seen
+    finally:
+        logger.removeHandler(hold)
+        logger.propagate = before
 
 
 def _count_opened(files: _OpenFiles, path: Path) -> None:
