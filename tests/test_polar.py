@@ -625,3 +625,20 @@ def test_a_polar_faster_than_any_sailing_craft_is_refused(tmp_path, fast) -> Non
     path.write_text(f"TWA\\TWS\t0\t10\n0\t0\t1\n90\t0\t{fast:g}\n180\t0\t4\n")
     with pytest.raises(PolarError, match="is the table in another unit"):
         read_polar(path)
+
+
+def test_an_empty_tws_column_is_dropped_with_a_warning_while_two_remain(tmp_path) -> None:
+    """Issue 34: 2 of the 714 polar files of OpenCPN's weather routing plugin were refused, one for a TWS column whose
+    every cell is empty (Example-24-60.pol); OpenCPN reads them. The column is dropped with a warning naming it, the
+    others read as written; a table left with one column is still refused."""
+    from pyroute_rel.boat.polar import read_polar
+    from pyroute_rel.errors import PolarError, PolarWarning
+
+    path = tmp_path / "gap.pol"
+    path.write_text("TWA\\TWS\t6\t10\t14\n0\t0\t\t0\n90\t4\t\t6\n180\t3\t\t4.5\n")
+    with pytest.warns(PolarWarning, match=r"TWS column\(s\) 10 kn have no boat speed in any row: dropped"):
+        p = read_polar(path)
+    assert p.tws_kn.tolist() == [6.0, 14.0] and p.speed_kn.tolist() == [[0.0, 0.0], [4.0, 6.0], [3.0, 4.5]]
+    path.write_text("TWA\\TWS\t6\t10\t14\n0\t0\t\t\n90\t4\t\t\n")
+    with pytest.raises(PolarError, match=r"column 3: no boat speed in any row"):
+        read_polar(path)

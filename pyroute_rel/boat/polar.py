@@ -691,9 +691,21 @@ def _parse_matrix(
     if len(twa) < 2:
         raise fail(header_no, f"expected at least 2 TWA rows after this header, found {len(twa)}")
     table = np.array(speed)
+    tws_kn = np.array(tws)
+    empty = ~np.isfinite(table).any(axis=0)
+    if empty.any() and int((~empty).sum()) >= 2:  # (OpenCPN reads such files: issue 34 found 2 of its 714 polars)
+        warnings.warn(
+            f"polar file '{show(path)}': TWS column(s) {', '.join(f'{v:g}' for v in tws_kn[empty])} kn have no boat "
+            "speed in any row: dropped",
+            PolarWarning,
+            stacklevel=3,
+        )
+        dropped = {int(j) + 2 for j in np.flatnonzero(empty)}  # (the file's column numbers)
+        gaps = [g for g in gaps if g[1] not in dropped]
+        table, tws_kn = table[:, ~empty], tws_kn[~empty]
     if gaps:
         table = _fill_gaps(np.array(twa), table, gaps, fail, header_no, path)
-    return Polar(name=name, twa_deg=np.array(twa), tws_kn=np.array(tws), speed_kn=table)
+    return Polar(name=name, twa_deg=np.array(twa), tws_kn=tws_kn, speed_kn=table)
 
 
 def _fill_gaps(
@@ -708,7 +720,7 @@ def _fill_gaps(
 
     Within a TWS column, a gap between two given speeds is interpolated linearly in TWA; a gap above the first or
     below the last given speed of its column is 0 kn (no speed: the boat is not rated there, so it never sails
-    there). A column with no speed at all is refused.
+    there). A column with no speed at all is refused (the reader drops such columns first while two others remain).
     """
     out = table.copy()
     for j in range(out.shape[1]):
