@@ -91,3 +91,21 @@ def test_member_files_on_different_grids_are_refused_naming_the_file(tmp_path: P
     with pytest.raises(ScenarioError, match="fewer.nc' holds variables"):
         mean_of_files([paths[0], missing], tmp_path / "mean2.nc")
     assert not (tmp_path / "mean.nc").exists() and not (tmp_path / "mean2.nc").exists()
+
+
+def test_a_member_file_that_is_a_fifo_or_missing_is_one_line_not_a_hang(tmp_path):
+    """Issue 34: a FIFO given as a member file hung the mean (the open waited for a writer)."""
+    import os
+    import time
+
+    from pyroute_rel.analysis.members import mean_of_files
+    from pyroute_rel.errors import ScenarioError
+
+    fifo = tmp_path / "fifo.nc"
+    os.mkfifo(fifo)
+    t0 = time.perf_counter()
+    with pytest.raises(ScenarioError, match=r"member file '.*fifo\.nc': not a regular file"):
+        mean_of_files([fifo], tmp_path / "mean.nc")
+    with pytest.raises(ScenarioError, match=r"member file '.*gone\.nc': not found"):
+        mean_of_files([tmp_path / "gone.nc"], tmp_path / "mean.nc")
+    assert time.perf_counter() - t0 < 5.0 and not (tmp_path / "mean.nc").exists()

@@ -238,6 +238,9 @@ def mean_of_files(member_files: Sequence[str | Path], out: str | Path) -> Path:
     sums: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
     ref: xr.Dataset | None = None
     for p in paths:
+        if not p.is_file():  # (a FIFO would block the open for ever: issue 34)
+            what = "not found" if not p.exists() else "not a regular file (a folder, device, pipe or socket)"
+            raise ScenarioError(f"member file '{brief_path(p)}': {what}")
         try:
             ds = xr.open_dataset(p, decode_timedelta=False)
         except Exception as exc:  # netCDF4/HDF5 raise many types for damaged files
