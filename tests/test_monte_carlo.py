@@ -158,13 +158,16 @@ def test_more_runs_than_the_memory_budget_allows_are_refused_before_any_is_saile
     assert est.total_bytes == 6 * 8 * 1000 * 4 + 8 * RUN_LEG_ARRAYS * 1000 * 16
     sc = scenario_from_mapping(STEADY)
     track = np.column_stack([np.linspace(-12.0, -20.0, 5), np.linspace(45.0, 40.0, 5)])
-    monkeypatch.setenv(resources.MEMORY_ENV, "200M")  # (above what the scenario's evaluation grid needs)
+    from pyroute_rel.analysis.evaluate import evaluation_problem
+
+    problem = evaluation_problem(sc)  # (made first: a route's own check counts what this process already holds)
+    monkeypatch.setenv(resources.MEMORY_ENV, "200M")
     sailed = []
     import pyroute_rel.analysis.monte_carlo as mc
 
     real = mc.sail_tracks
     monkeypatch.setattr(mc, "sail_tracks", lambda *a, **k: sailed.append(1) or real(*a, **k))
     with pytest.raises(MemoryBudgetError, match=r"this Monte-Carlo evaluation needs about .* \(1000000 runs x 4 legs"):
-        monte_carlo(sc, track, runs=1_000_000, seed=1)
+        monte_carlo(sc, track, runs=1_000_000, seed=1, problem=problem)
     assert not sailed
-    assert monte_carlo(sc, track, runs=100, seed=1).voyage_time_h.size == 100  # within it
+    assert monte_carlo(sc, track, runs=100, seed=1, problem=problem).voyage_time_h.size == 100  # within it

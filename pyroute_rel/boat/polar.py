@@ -690,22 +690,28 @@ def _parse_matrix(
         speed.append(row)
     if len(twa) < 2:
         raise fail(header_no, f"expected at least 2 TWA rows after this header, found {len(twa)}")
-    table = np.array(speed)
-    tws_kn = np.array(tws)
-    empty = ~np.isfinite(table).any(axis=0)
-    if empty.any() and int((~empty).sum()) >= 2:  # (OpenCPN reads such files: issue 34 found 2 of its 714 polars)
-        warnings.warn(
-            f"polar file '{show(path)}': TWS column(s) {', '.join(f'{v:g}' for v in tws_kn[empty])} kn have no boat "
-            "speed in any row: dropped",
-            PolarWarning,
-            stacklevel=3,
-        )
-        dropped = {int(j) + 2 for j in np.flatnonzero(empty)}  # (the file's column numbers)
-        gaps = [g for g in gaps if g[1] not in dropped]
-        table, tws_kn = table[:, ~empty], tws_kn[~empty]
+    table, tws_kn, gaps = _drop_empty_columns(np.array(speed), np.array(tws), gaps, path)
     if gaps:
         table = _fill_gaps(np.array(twa), table, gaps, fail, header_no, path)
     return Polar(name=name, twa_deg=np.array(twa), tws_kn=tws_kn, speed_kn=table)
+
+
+def _drop_empty_columns(
+    table: FloatArray, tws_kn: FloatArray, gaps: list[tuple[int, int]], path: Path
+) -> tuple[FloatArray, FloatArray, list[tuple[int, int]]]:
+    """The table without its TWS columns that have no speed in any row, while two columns remain (OpenCPN reads such
+    files: issue 34 found 2 of its 714 polars refused), with a warning naming them; else as it is."""
+    empty = ~np.isfinite(table).any(axis=0)
+    if not empty.any() or int((~empty).sum()) < 2:
+        return table, tws_kn, gaps
+    warnings.warn(
+        f"polar file '{show(path)}': TWS column(s) {', '.join(f'{v:g}' for v in tws_kn[empty])} kn have no boat "
+        "speed in any row: dropped",
+        PolarWarning,
+        stacklevel=4,
+    )
+    dropped = {int(j) + 2 for j in np.flatnonzero(empty)}  # (the file's column numbers)
+    return table[:, ~empty], tws_kn[~empty], [g for g in gaps if g[1] not in dropped]
 
 
 def _fill_gaps(
