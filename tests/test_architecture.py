@@ -268,6 +268,7 @@ def test_weather_capabilities_are_declared_not_probed():
     assert not found, found
 
 
+@pytest.mark.slow
 def test_compiled_code_lives_in_the_kernels():
     """Every numba-compiled function is in ``pyroute_rel._kernels`` (each kernel module names its numpy twin)."""
     outside = []

@@ -325,6 +325,7 @@ def test_a_malformed_scheduler_address_is_refused_at_once(address, expected) -> 
     assert expected in str(info.value) and time.perf_counter() - t0 < 1.0
 
 
+@pytest.mark.slow
 def test_a_peer_that_accepts_and_stays_silent_is_an_error_within_the_timeout() -> None:
     """Issue 34: an address that accepts and never answers (an HTTP server waiting for its request) hung the sweep."""
     import socket

@@ -53,6 +53,7 @@ def routed(tmp_path_factory):
     return sc, route, out
 
 
+@pytest.mark.slow
 def test_the_route_waits_out_the_storm_and_without_its_waits_sails_into_it(routed):
     sc, route, _ = routed
     assert route.legs.wait_h[0] >= STORM_CLEARS_H and route.legs.wait_h[1:].sum() == 0.0
@@ -61,6 +62,7 @@ def test_the_route_waits_out_the_storm_and_without_its_waits_sails_into_it(route
 
 
 @pytest.mark.parametrize("name", ["route.csv", "route.gpx", "route.geojson"])
+@pytest.mark.slow
 def test_a_routed_track_read_back_is_sailed_with_its_waits(routed, name):
     """Each file's track: the route's waits, its figures (feasible, the voyage time), and the march leaving each
     point when the route leaves it."""
@@ -76,6 +78,7 @@ def test_a_routed_track_read_back_is_sailed_with_its_waits(routed, name):
     assert_times(ev.elapsed_h, marched, rel=REL, lattice_h=1.0, what=name)
 
 
+@pytest.mark.slow
 def test_a_late_departure_re_times_the_same_from_every_file(tmp_path):
     """The route of a scenario departing a day later, evaluated in the original scenario: every file's first time is
     the departure (the GeoJSON's point times included)."""
@@ -97,6 +100,7 @@ def _csv(path: Path, rows: list[str]) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_a_repeated_point_is_one_point_and_a_wait(routed, tmp_path):
     """A CSV that stays at its first point from 00:00 to 21:00 (a GPS log's stay) is the route's track with its
     wait; without times a repeated point is dropped (no zero-length leg, which gave no voyage time)."""
@@ -133,6 +137,7 @@ def test_a_track_refuses_a_zero_length_leg_and_times_that_run_backwards(tmp_path
         read_track(bad)
 
 
+@pytest.mark.slow
 def test_a_track_starting_where_or_when_the_weather_has_no_data_is_an_error(tmp_path, capsys):
     """Issue 34: it evaluated to a null voyage time with exit 0. The weather covers 300 h from the departure over
     25 W to 17.5 W."""

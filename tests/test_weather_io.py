@@ -772,6 +772,7 @@ def test_a_wind_file_without_units_is_read_as_m_per_s_with_a_warning(tmp_path: P
     assert float(labelled.sample(-20.0, 40.0, t).tws_kn) == pytest.approx(10.0, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_a_corrupt_grib_file_is_one_line_without_cfgrib_s_traceback(tmp_path):
     """Issue 34: cfgrib printed its traceback (through its logger) before the one-line error. In a fresh process (no
     test harness catching the log): nothing on stderr but what the caller prints."""
