@@ -263,7 +263,9 @@ def test_dqn_model_file_stays_in_the_scenario_folder_and_is_never_another_file(t
     np.savez(folder / "theirs.npz", data=np.arange(5))
     (folder / "text.npz").write_text("not a model")
     np.savez(folder / "pickled.npz", settings=np.array([{"a": 1}], dtype=object))
-    for name in ("theirs.npz", "text.npz", "pickled.npz"):
+    np.save(folder / "one.npy", np.arange(3))
+    (folder / "one.npy").rename(folder / "one.npz")  # one array, not an archive
+    for name in ("theirs.npz", "text.npz", "pickled.npz", "one.npz"):
         before = (folder / name).read_bytes()
         with pytest.raises(ScenarioError, match=r"is not a DQN model this planner saved .*it is never replaced"):
             planned(name)

@@ -118,8 +118,11 @@ class QNetwork:
         another program's arrays) is a ScenarioError: it is never read as one, nor replaced."""
         where = f"[planner.dqn].model {brief_path(path)}"
         try:
-            with np.load(path, allow_pickle=False) as data:
-                if not isinstance(data, np.lib.npyio.NpzFile) or "settings" not in data.files:
+            data = np.load(path, allow_pickle=False)
+            if not isinstance(data, np.lib.npyio.NpzFile):  # (one array, .npy content, has no archive to close)
+                raise ValueError("one array, not an archive of a network's weights")
+            with data:
+                if "settings" not in data.files:
                     raise ValueError("no network saved by pyroute_rel in it")
                 key = str(data["settings"])
                 json.loads(key)
