@@ -173,3 +173,24 @@ def test_a_geojson_number_of_5000_digits_is_a_one_line_error(tmp_path):
     (tmp_path / "zone.geojson").write_text(zone)
     with pytest.raises(ScenarioError, match=r"zone\.geojson: not valid JSON \(Exceeds the limit"):
         load_zones([tmp_path / "zone.geojson"])
+
+
+def test_a_file_s_waits_and_times_are_checked_where_points_repeat(tmp_path):
+    """A repeated point whose times run backwards is named as such (not as a zero-length leg); a GeoJSON point's
+    wait that is not a number of hours >= 0 (a word, negative, beyond the floats) is refused naming the point."""
+    path = _csv(tmp_path / "back.csv", ["0,0,2018-06-01T05:00Z", "0,0,2018-06-01T04:00Z", "1,0,2018-06-01T06:00Z"])
+    with pytest.raises(TrackError, match=r"times must not run backwards: point 1 \(2018-06-01T04:00:00Z\)"):
+        read_track(path)
+    for bad in ('"x"', "-1", "1" + "0" * 400):
+        doc = (
+            '{"type": "FeatureCollection", "features": ['
+            '{"type": "Feature", "properties": {},'
+            ' "geometry": {"type": "LineString", "coordinates": [[0, 0], [1, 0]]}},'
+            '{"type": "Feature", "geometry": {"type": "Point", "coordinates": [0, 0]},'
+            f' "properties": {{"index": 0, "time": "2018-06-01T00:00Z", "leg_wait_h": {bad}}}}},'
+            '{"type": "Feature", "geometry": {"type": "Point", "coordinates": [1, 0]},'
+            ' "properties": {"index": 1, "time": "2018-06-01T05:00Z"}}]}'
+        )
+        (tmp_path / "w.geojson").write_text(doc)
+        with pytest.raises(TrackError, match=r"point 0's leg_wait_h: expected the wait before the leg as a number"):
+            read_track(tmp_path / "w.geojson")

@@ -129,12 +129,7 @@ class Track:
             t = _track_times(self.time)
             if t.shape != lon.shape or np.isnat(t).any():
                 raise TrackError(f"a track's times must be one UTC time per point ({lon.size}) (got {t.shape})")
-            back = np.flatnonzero(t[1:] < t[:-1])
-            if back.size:
-                i = int(back[0])
-                raise TrackError(f"a track's times must not run backwards: point {i + 1} ({t[i + 1]}Z) is before "
-                                 f"point {i} ({t[i]}Z)")  # fmt: skip
-            object.__setattr__(self, "time", t)
+            object.__setattr__(self, "time", _forward(t))
         if self.wait_h is not None:
             w = check_numbers(self.wait_h, "Track.wait_h", TrackError, missing=False, unit="h")
             if w.shape != (lon.size - 1,) or (w < 0.0).any():
@@ -152,6 +147,17 @@ class Track:
     def points(self) -> FloatArray:
         """The points as an (N, 2) array of lon, lat [deg]."""
         return np.column_stack([self.lon_deg, self.lat_deg])
+
+
+def _forward(t: npt.NDArray[np.datetime64]) -> npt.NDArray[np.datetime64]:
+    """A track's times, refused when they run backwards (the first point that does named)."""
+    back = np.flatnonzero(t[1:] < t[:-1])
+    if back.size:
+        i = int(back[0])
+        raise TrackError(
+            f"a track's times must not run backwards: point {i + 1} ({t[i + 1]}Z) is before point {i} ({t[i]}Z)"
+        )
+    return t
 
 
 def _track_times(value: Any) -> npt.NDArray[np.datetime64]:
@@ -227,9 +233,7 @@ def _read_points(
     if keep.all() or lon.size < 2:
         return Track(lon, lat, times, None if waits is None else w[:-1])
     if times is not None:
-        t = np.asarray(times, dtype="datetime64[s]")
-        if (t[1:] < t[:-1]).any():
-            return Track(lon, lat, t)  # refused, the point named
+        t = _forward(np.asarray(times, dtype="datetime64[s]"))
         stay_h = (t[1:] - t[:-1]).astype(float) / 3600.0
         w[:-1] += np.where(keep[1:], 0.0, stay_h)  # the time spent at a point before its repeat
     n = int(keep.sum())
@@ -323,12 +327,20 @@ def _point_times(doc: Any, n: int) -> tuple[npt.NDArray[np.datetime64] | None, F
     waits = np.zeros(n)
     for i in range(n - 1):
         w = found[i].get("leg_wait_h", 0.0)
-        if w is None:
-            continue
-        if isinstance(w, bool) or not isinstance(w, int | float) or not math.isfinite(w) or w < 0.0:
-            raise TrackError(f"point {i}'s leg_wait_h must be a number of hours >= 0 (got {brief(w)})")
-        waits[i] = float(w)
+        if w is not None:
+            try:
+                value = math.nan if isinstance(w, bool) or not isinstance(w, int | float) else float(w)
+            except OverflowError:  # (a whole number beyond the floats)
+                value = math.inf
+            waits[i] = _wait_h(value, w, f"point {i}'s leg_wait_h")
     return times, waits
+
+
+def _wait_h(value: float, given: Any, where: str) -> float:
+    """A wait read from a file [h]: a finite number >= 0, else a TrackError naming ``where`` and quoting ``given``."""
+    if not (math.isfinite(value) and value >= 0.0):
+        raise TrackError(f"{where}: expected the wait before the leg as a number of hours >= 0 (got {brief(given)})")
+    return value
 
 
 def _lines(doc: Any) -> list[tuple[dict[str, Any], Any]]:
@@ -415,9 +427,7 @@ def _wait_cell(cell: str, where: str) -> float:
         w = float(cell)
     except ValueError:
         w = math.nan
-    if not (math.isfinite(w) and w >= 0.0):
-        raise TrackError(f"{where}: expected the wait before the leg as a number of hours >= 0 (got {brief(cell)})")
-    return w
+    return _wait_h(w, cell, where)
 
 
 def _is_word(cell: str) -> bool:
