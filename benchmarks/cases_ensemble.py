@@ -105,7 +105,7 @@ CASES = {
         SHORT
         + """
 from pyroute_rel.analysis.members import member_scenario
-from pyroute_rel.monte_carlo import monte_carlo
+from pyroute_rel.analysis.monte_carlo import monte_carlo
 sc = member_scenario(path, 0)
 track = np.column_stack([np.linspace(-14.0, -26.0, 161), np.linspace(31.0, 22.0, 161)])
 monte_carlo(sc, track, runs=10, seed=0)  # warm: the compiled kernels

@@ -43,3 +43,26 @@ def test_quick_runs_a_case_once(tmp_path: Path) -> None:
     assert d["machine"]["cores"] >= 1
     bad = subprocess.run([sys.executable, str(RUN), "--only", "nope"], capture_output=True, text=True, env=env)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "unknown case 'nope'" in bad.stderr
+
+
+def test_every_case_names_modules_and_functions_that_exist() -> None:
+    """Each case's ``from pyroute_rel... import ...`` lines resolve: a module moved by a restructure (issue 33) broke
+    ``monte_carlo_1000_runs_160_legs`` once, unseen because CI does not run the benchmarks."""
+    import ast
+    import importlib
+
+    runner = _runner()
+    checked = 0
+    for name, (code, _target, _what) in runner.CASES.items():
+        for node in ast.walk(ast.parse(code)):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("pyroute_rel"):
+                module = importlib.import_module(node.module)
+                for alias in node.names:
+                    assert hasattr(module, alias.name), f"{name}: {node.module}.{alias.name}"
+                    checked += 1
+            elif isinstance(node, ast.Import):
+                for alias in node.names:
+                    if alias.name.startswith("pyroute_rel"):
+                        importlib.import_module(alias.name)
+                        checked += 1
+    assert checked > len(runner.CASES)
