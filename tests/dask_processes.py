@@ -6,8 +6,22 @@ from __future__ import annotations
 import socket
 import subprocess
 import sys
+import time
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+
+
+def _listening(port: int, proc: subprocess.Popen, timeout_s: float = 60.0) -> None:
+    """Wait until something listens on ``port`` of the loopback interface (the scheduler ``proc`` started)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=1.0).close()
+            return
+        except OSError:
+            if proc.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"the dask scheduler did not start on port {port}") from None
+            time.sleep(0.05)
 
 
 def free_port() -> int:
@@ -31,6 +45,7 @@ def dask_processes(env: Mapping[str, str], workers: int = 2) -> Iterator[tuple[s
                  "--dashboard-address", "127.0.0.1:0"]  # fmt: skip
     procs = [subprocess.Popen(scheduler, **quiet)]
     try:
+        _listening(port, procs[0])
         for _ in range(workers):
             worker = [*dask, "worker", address, "--nthreads", "1", "--no-nanny", "--no-dashboard"]
             procs.append(subprocess.Popen(worker, **quiet))

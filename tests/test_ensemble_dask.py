@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -43,6 +45,36 @@ def test_a_dask_cluster_gives_the_local_result(local) -> None:
         # a second call on the same workers (which dropped the first call's weather) gives it again
         again = subprocess.run([*cmd, "--scheduler", address, "--quiet"], env=env, capture_output=True, text=True)
         assert again.returncode == 0 and json.loads(again.stdout) == json.loads(run.stdout), again.stderr
+
+
+@pytest.mark.slow
+def test_a_dying_scheduler_is_one_line(local, tmp_path) -> None:
+    """Issue 34: the scheduler killed while the members are routed: exit 2 and one line naming it, not distributed's
+    traceback and an internal error; nothing written."""
+    path, _ = local
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_THREADS": "1"}
+    out = tmp_path / "out"
+    with dask_processes(env, workers=1) as (address, procs):
+        cmd = [sys.executable, "-m", "pyroute_rel.cli", "ensemble", str(path), "--out", str(out)]
+        run = subprocess.Popen([*cmd, "--scheduler", address, "--connect-timeout", "60", "--quiet"], env=env,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+        deadline = time.monotonic() + 60
+        while not _running_a_task(address) and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert run.poll() is None, run.communicate()
+        procs[0].send_signal(signal.SIGKILL)
+        _, stderr = run.communicate(timeout=120)
+    assert run.returncode == 2, stderr
+    assert stderr.count("\n") == 1 and stderr.startswith(f"pyroute-rel: error: the dask scheduler {address} went away")
+    assert not out.exists() or not any(out.iterdir())
+
+
+def _running_a_task(address: str) -> bool:
+    """Whether the scheduler at ``address`` has a task processing on a worker (asked from another client)."""
+    from distributed import Client
+
+    with Client(address, timeout="10s", set_as_default=False) as c:
+        return any(c.processing().values())
 
 
 @pytest.mark.slow

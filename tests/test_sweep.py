@@ -185,6 +185,39 @@ def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(
 
 
 @pytest.mark.slow
+def test_a_dying_scheduler_is_one_line_and_the_resume_completes(ensemble, uninterrupted, tmp_path) -> None:
+    """Issue 34: the dask scheduler killed mid-sweep was an internal error (exit 3) after distributed's logged
+    traceback. Now: exit 2 and one line naming the scheduler, every finished run kept (none an internal error), and
+    the same command on a new scheduler routes only the rest, to the uninterrupted table."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_THREADS": "1"}
+    spec_path = _spec(tmp_path, ensemble, BODY)
+    out = tmp_path / "dask"
+    cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--out", str(out), "--batch", "1"]
+    with dask_processes(env) as (address, procs):
+        sweep = subprocess.Popen(
+            [*cmd, "--scheduler", address, "--connect-timeout", "60", "--quiet"],
+            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        deadline = time.monotonic() + 90
+        while len(_parts(out)) < 2 and sweep.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert sweep.poll() is None and len(_parts(out)) < 12  # mid-sweep
+        procs[0].send_signal(signal.SIGKILL)
+        _, stderr = sweep.communicate(timeout=120)
+    assert sweep.returncode == 2, stderr
+    assert stderr.count("\n") == 1 and stderr.startswith(f"pyroute-rel: error: the dask scheduler {address} went away")
+    assert "the runs finished so far are kept" in stderr
+    kept = read_runs(out).to_pylist()
+    assert 2 <= len(kept) < 12 and {r["status"] for r in kept} <= {"ok", "no_route"}
+    with dask_processes(env) as (address, _):
+        again = subprocess.run([*cmd, "--scheduler", address, "--connect-timeout", "60"], env=env,
+                               capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert again.returncode == 0, again.stderr
+    assert f"{len(kept)} done, {12 - len(kept)} to run" in again.stderr
+    assert _comparable(read_runs(out)) == _comparable(uninterrupted[2])
+
+
+@pytest.mark.slow
 def test_a_killed_pool_worker_loses_no_run(ensemble, uninterrupted, tmp_path) -> None:
     """SIGKILL one process of the local pool mid-sweep: the pool is restarted, the unfinished batches run again, and
     the table equals the uninterrupted inline one, without an internal error."""

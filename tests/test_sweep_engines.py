@@ -14,6 +14,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import pytest
+from dask_processes import free_port
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -346,3 +347,37 @@ def test_a_peer_that_accepts_and_stays_silent_is_an_error_within_the_timeout() -
         for s in (*held, server):
             s.close()
     assert time.perf_counter() - t0 < 5.0
+
+
+def test_a_scheduler_that_starts_listening_late_is_reached_within_the_timeout() -> None:
+    """``--connect-timeout`` is how long to try reaching the scheduler: a refused connection is tried again until
+    then (a scheduler started beside the command may not listen yet; the tests' own clusters met this), and a port
+    that stays closed is one line after that time, not at once."""
+    import socket
+    import threading
+
+    from pyroute_rel.batch.cluster import _answers
+
+    port = free_port()
+    greeted: list[bool] = []
+
+    def late_greeter() -> None:
+        time.sleep(0.5)
+        with socket.create_server(("127.0.0.1", port)) as server:
+            peer, _ = server.accept()
+            with peer:
+                peer.sendall(b"\0")  # a dask scheduler greets a new connection at once
+                greeted.append(True)
+
+    thread = threading.Thread(target=late_greeter, daemon=True)
+    thread.start()
+    t0 = time.perf_counter()
+    _answers(f"tcp://127.0.0.1:{port}", 10.0, SweepError)
+    assert 0.4 < time.perf_counter() - t0 < 5.0
+    thread.join(5.0)
+    assert greeted == [True]
+    closed = free_port()
+    t0 = time.perf_counter()
+    with pytest.raises(SweepError, match=rf"tcp://127.0.0.1:{closed}: cannot reach the dask scheduler within 0.5 s"):
+        _answers(f"tcp://127.0.0.1:{closed}", 0.5, SweepError)
+    assert 0.4 < time.perf_counter() - t0 < 3.0

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import re
 import socket
+import time
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -24,6 +25,8 @@ __all__ = [
     "dask_client",
     "check_scheduler_address",
     "close_client",
+    "scheduler_lost",
+    "watching_scheduler",
     "synchronous_reads",
     "WorkersOption",
     "check_engine_name",
@@ -117,22 +120,34 @@ def check_scheduler_address(scheduler: Any, error: type[Exception] = ScenarioErr
 
 
 def _answers(scheduler: str, timeout_s: float, error: type[Exception]) -> None:
-    """Connect to ``tcp://HOST:PORT`` and wait up to ``timeout_s`` [s] for its first bytes: a dask scheduler greets a
-    new connection at once; a peer that accepts and stays silent (an HTTP server waits for a request) is an error
-    within the timeout, where dask's client would wait for ever (issue 34)."""
+    """Connect to ``tcp://HOST:PORT`` and wait for its first bytes, within ``timeout_s`` [s] in all: a dask scheduler
+    greets a new connection at once; a peer that accepts and stays silent (an HTTP server waits for a request) is an
+    error within the timeout, where dask's client would wait for ever (issue 34). A refused connection is tried again
+    until then, as dask's client does (a scheduler started beside the command may not listen yet)."""
     host, _, port = scheduler.removeprefix("tcp://").rpartition(":")
-    try:
-        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout_s) as sock:
-            sock.settimeout(timeout_s)
-            if not sock.recv(1):
-                raise ConnectionError("it closed the connection")
-    except TimeoutError:
-        raise error(
-            f"--scheduler {scheduler}: no dask scheduler answers there within {timeout_s:g} s (something accepts the "
-            "connection but says nothing; a dask scheduler greets at once)"
-        ) from None
-    except OSError as exc:
-        raise error(f"--scheduler {scheduler}: cannot reach the dask scheduler ({exc.strerror or exc})") from None
+    deadline = time.monotonic() + timeout_s
+    while True:
+        left = max(deadline - time.monotonic(), 0.01)
+        try:
+            with socket.create_connection((host.strip("[]"), int(port)), timeout=left) as sock:
+                sock.settimeout(max(deadline - time.monotonic(), 0.01))
+                if not sock.recv(1):
+                    raise ConnectionError("it closed the connection")
+            return
+        except ConnectionRefusedError as exc:
+            if time.monotonic() + 0.1 >= deadline:
+                raise error(
+                    f"--scheduler {scheduler}: cannot reach the dask scheduler within {timeout_s:g} s "
+                    f"({exc.strerror or exc})"
+                ) from None
+            time.sleep(0.1)
+        except TimeoutError:
+            raise error(
+                f"--scheduler {scheduler}: no dask scheduler answers there within {timeout_s:g} s (something accepts "
+                "the connection but says nothing, or nothing answers at all; a dask scheduler greets at once)"
+            ) from None
+        except OSError as exc:
+            raise error(f"--scheduler {scheduler}: cannot reach the dask scheduler ({exc.strerror or exc})") from None
 
 
 def close_client(client: Any) -> None:
@@ -141,6 +156,32 @@ def close_client(client: Any) -> None:
     client.close()
     if cluster is not None:
         cluster.close()
+
+
+def scheduler_lost(client: Any, exc: BaseException) -> bool:
+    """Whether ``exc``, raised by a future of ``client``, says the client lost its scheduler (the scheduler died or
+    its machine went away): distributed cancels every pending future then, with the reason
+    ``scheduler-connection-lost``, and the client stops running."""
+    return client.status != "running" or "scheduler-connection-lost" in str(exc)
+
+
+@contextmanager
+def watching_scheduler(client: Any, error: type[Exception], what: str) -> Iterator[None]:
+    """Inside the block, a scheduler that dies (:func:`scheduler_lost`) is ``error`` in one line saying ``what`` was
+    kept, not distributed's traceback: its client's reconnection errors are not logged (the line says what happened)
+    and a future cancelled by the loss ends the block. Other errors pass through as they are."""
+    address = getattr(client.scheduler, "address", None)
+    log = logging.getLogger("distributed.client")
+    level = log.level
+    log.setLevel(logging.CRITICAL)
+    try:
+        yield
+    except Exception as exc:
+        if not scheduler_lost(client, exc):
+            raise
+        raise error(f"the dask scheduler{f' {address}' if address else ''} went away mid-run: {what}") from None
+    finally:
+        log.setLevel(level)
 
 
 @contextmanager

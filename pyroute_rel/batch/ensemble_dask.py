@@ -17,11 +17,14 @@ results do not depend on where a task runs: they equal the local engine's.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
 from typing import Any
 
-from pyroute_rel.batch.cluster import close_client, dask_client, synchronous_reads
+from pyroute_rel.batch.cluster import close_client, dask_client, synchronous_reads, watching_scheduler
+from pyroute_rel.errors import ScenarioError
 
 __all__ = ["dask_client", "DaskWorkers"]
 
@@ -89,11 +92,12 @@ class DaskWorkers:
         }
         results: list[Any] = [None] * len(tasks)
         where = [0] * len(tasks)
-        for f in as_completed(futures, loop=self.client.loop):
-            i = futures[f]
-            results[i], address = f.result()
-            where[i] = self._index(address)
-            bar.update(1)
+        with self._watched():
+            for f in as_completed(futures, loop=self.client.loop):
+                i = futures[f]
+                results[i], address = f.result()
+                where[i] = self._index(address)
+                bar.update(1)
         return results, where
 
     def each(self, tasks: Sequence[tuple[Any, ...] | None], fn: Callable[..., Any]) -> list[Any]:
@@ -107,10 +111,20 @@ class DaskWorkers:
             )
             for w, t in enumerate(tasks)
         ]
-        return [None if f is None else f.result() for f in futures]
+        with self._watched():
+            return [None if f is None else f.result() for f in futures]
+
+    def _watched(self) -> AbstractContextManager[None]:
+        """A scheduler lost mid-call is one line (exit 2), not distributed's traceback
+        (:func:`~pyroute_rel.batch.cluster.watching_scheduler`)."""
+        return watching_scheduler(self.client, ScenarioError, "nothing was written; start a scheduler and run again")
 
     def close(self) -> None:
         """Drop what the workers keep (``teardown``), then close the client (and its ``LocalCluster``)."""
+        if self.client.status != "running":  # its scheduler went away (said by the call that found it)
+            with contextlib.suppress(Exception), self._watched():
+                close_client(self.client)
+            return
         try:
             self.client.run(self.teardown)
         except Exception:  # noqa: BLE001 - a worker gone or the cluster closing: nothing left to drop there

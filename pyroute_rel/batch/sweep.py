@@ -981,31 +981,37 @@ def _dask(
 ) -> Iterator[dict[str, Any]]:
     from distributed import as_completed
 
+    from pyroute_rel.batch.cluster import scheduler_lost, watching_scheduler
+
     if scheduler is None:  # a LocalCluster: never more processes than batches to run
         workers = min(workers or 1, len(task_batches(todo, workers or 1)))
     client = _dask_client(scheduler, workers, timeout_s)
-    try:
-        threads = client.nthreads()  # worker address -> threads
-        placed = place_batches(task_batches(todo, workers or max(1, sum(threads.values()))), threads)
-        rank: list[int] = []
-        seen: dict[str | None, int] = {}
-        for _, worker in placed:  # submitted in turns, each worker's first task first: none idle meanwhile
-            rank.append(seen.get(worker, 0))
-            seen[worker] = rank[-1] + 1
-        futures = {}
-        for i in sorted(range(len(placed)), key=lambda i: (rank[i], i)):  # run in the order given: priority -i
-            b, worker = placed[i]  # each member on one worker; another may take it (when idle, or that one died)
-            where = {"workers": [worker], "allow_other_workers": True} if worker is not None else {}
-            key = f"pyroute-rel-runs-{b[0][0]}-{len(b)}"
-            fut = client.submit(run_batch, b, retries, key=key, pure=False, retries=retries, priority=-i, **where)
-            futures[fut] = b
-        for fut in as_completed(futures, loop=client.loop):
-            try:
-                yield from fut.result()
-            except Exception as exc:  # failed retries + 1 times (or its workers died): recorded, not in the files
-                yield from (_internal_row(run, key, exc) for key, run in futures[fut])
-    finally:
-        close_client(client)
+    kept = "the runs finished so far are kept; start a scheduler and run the same command to route the rest"
+    with watching_scheduler(client, SweepError, kept):  # (closing the client too: it logs its lost connection)
+        try:
+            threads = client.nthreads()  # worker address -> threads
+            placed = place_batches(task_batches(todo, workers or max(1, sum(threads.values()))), threads)
+            rank: list[int] = []
+            seen: dict[str | None, int] = {}
+            for _, worker in placed:  # submitted in turns, each worker's first task first: none idle meanwhile
+                rank.append(seen.get(worker, 0))
+                seen[worker] = rank[-1] + 1
+            futures = {}
+            for i in sorted(range(len(placed)), key=lambda i: (rank[i], i)):  # run in the order given: priority -i
+                b, worker = placed[i]  # each member on one worker; another may take it (when idle, or that one died)
+                where = {"workers": [worker], "allow_other_workers": True} if worker is not None else {}
+                key = f"pyroute-rel-runs-{b[0][0]}-{len(b)}"
+                fut = client.submit(run_batch, b, retries, key=key, pure=False, retries=retries, priority=-i, **where)
+                futures[fut] = b
+            for fut in as_completed(futures, loop=client.loop):
+                try:
+                    yield from fut.result()
+                except Exception as exc:  # failed retries + 1 times (or its workers died): recorded, not in the files
+                    if scheduler_lost(client, exc):
+                        raise
+                    yield from (_internal_row(run, key, exc) for key, run in futures[fut])
+        finally:
+            close_client(client)
 
 
 #: With ``engine="auto"``: sweeps of fewer runs than this are routed in this process (starting worker processes,
