@@ -345,3 +345,60 @@ def test_the_search_sails_at_the_dp_polar_speeds(polar, beyond):
     np.testing.assert_array_equal(kernel, shared)
     np.testing.assert_array_equal(kernel, boat_speed_kn(polar, a, w, beyond=beyond))
     assert np.isnan(kernel).any() and (kernel == 0.0).any() and (kernel > 0.0).any()
+
+
+def test_a_search_in_chunks_is_the_search_in_one_and_reports_its_progress(monkeypatch):
+    """Issue 34: a decision of many iterations showed nothing until it ended. The search now runs in chunks and
+    reports each; the chunks change nothing (the same tree, the same random streams afterwards)."""
+    import pyroute_rel._kernels.mcts as kernel
+
+    hdg, w, okh, open_, tables, params, _ = toy_inputs(cp=1.0 / math.sqrt(2.0))
+    root = np.array([*TOY["start"], 0.0])
+    whole_rng = np.random.SeedSequence(5).generate_state(2, dtype=np.uint64)
+    whole = search(root, 1000, hdg, w, okh, open_, tables, params, whole_rng)
+    monkeypatch.setattr(kernel, "CHUNK", 300)
+    rng = np.random.SeedSequence(5).generate_state(2, dtype=np.uint64)
+    reported: list[int] = []
+    chunked = search(root, 1000, hdg, w, okh, open_, tables, params, rng, reported.append)
+    assert reported == [300, 300, 300, 100]
+    assert all(np.array_equal(x, y) for x, y in zip(whole, chunked, strict=True)) and np.array_equal(rng, whole_rng)
+
+
+@pytest.mark.parametrize("engine", ["lattice", "python"])
+def test_the_progress_bar_counts_iterations_within_each_decision(engine, monkeypatch):
+    """The bar moves during a decision, not only between decisions: its updates add up to iterations x decisions,
+    with more updates than decisions."""
+    import pyroute_rel._kernels.mcts as kernel
+    import pyroute_rel.planners.mcts as planner
+
+    updates: list[int] = []
+
+    class Bar:
+        def update(self, n: int = 1) -> None:
+            updates.append(n)
+
+        def close(self) -> None:
+            pass
+
+    monkeypatch.setattr(planner, "progress_bar", lambda *a, **k: Bar())
+    monkeypatch.setattr(kernel, "CHUNK", 25)
+    monkeypatch.setattr(planner, "PROGRESS_EVERY", 25)
+    track = plan(small(engine=engine), progress=True)
+    decisions = track.stats["decisions"]
+    assert decisions >= 1 and sum(updates) == FAST["iterations"] * decisions
+    assert len([n for n in updates if n]) == 3 * decisions  # 60 iterations: 25 + 25 + 10 each decision
+
+
+def test_a_search_tree_beyond_the_memory_budget_is_refused_before_any_work(monkeypatch):
+    """10^7 iterations a decision need about 1.7 GB of tree: refused in one line within the budget, before the
+    lattice is built."""
+    from pyroute_rel.errors import MemoryBudgetError
+    from pyroute_rel.planners.mcts import tree_estimate
+
+    need = tree_estimate(10_000_000, 16).total_bytes
+    assert 1.5e9 < need < 2e9  # 20 int64/float64 values a node, 10^7 + 2 nodes (and the path)
+    monkeypatch.setenv("PYROUTE_REL_MAX_MEMORY", "1G")
+    with pytest.raises(
+        MemoryBudgetError, match=r"this MCTS search needs about .* \(10000000 iterations, 16 headings\)"
+    ):
+        plan(small(iterations=10_000_000, headings=16))

@@ -392,8 +392,11 @@ def _iterate(root, hdg, W, okh, open_, polar, P, rng, tree, out, path, order):  
         best[v] = max(best[v], r)
 
 
-@numba.njit(**_JIT)
-def search(root, iterations, hdg, W, okh, open_, polar, P, rng):  # type: ignore[no-untyped-def]  # pragma: no cover
+#: Iterations run per compiled call of :func:`search` (between calls it reports its progress).
+CHUNK = 20_000
+
+
+def search(root, iterations, hdg, W, okh, open_, polar, P, rng, progress=None):  # type: ignore[no-untyped-def]
     """Run ``iterations`` UCT iterations from ``root = (lon [deg], lat [deg], t [h])``.
 
     Parameters
@@ -409,24 +412,49 @@ def search(root, iterations, hdg, W, okh, open_, polar, P, rng):  # type: ignore
     polar : The polar's tables, as :func:`pyroute_rel._kernels.polar.tables` gives them.
     P : The scalar parameters (:data:`PARAMS`), float64.
     rng : The two random streams, uint64[2] (advanced in place).
+    progress : Called with the number of iterations run, every :data:`CHUNK` of them and at the end (a long
+        decision shows its progress; the tree and the random streams are those of one call: chunks change nothing).
 
     Returns
     -------
     visits, wins, best : Of each root action (the headings, then the finish) [-]; 0 for those never tried.
     """
     n_a = hdg.size + 1
+    tree, scratch = _new_tree(int(iterations), n_a, hdg.size)
+    done = 0
+    while done < iterations:
+        n = min(CHUNK, int(iterations) - done)
+        _grow(root, n, hdg, W, okh, open_, polar, P, rng, tree, *scratch)
+        done += n
+        if progress is not None:
+            progress(n)
+    return _root_stats(tree[0], tree[1], tree[2], tree[3], n_a)
+
+
+@numba.njit(**_JIT)
+def _new_tree(iterations, n_a, n_h):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """A tree of room for ``iterations`` iterations (children, visits, wins, best, size) and the scratch of one
+    iteration (out, path, order)."""
     cap = iterations + 2
     children = np.full((cap, n_a), -1, dtype=np.int64)
     visits = np.zeros(cap, dtype=np.int64)
     wins = np.zeros(cap)
     best = np.zeros(cap)
     size = np.ones(1, dtype=np.int64)
-    out = np.zeros((n_a, 4))
-    path = np.zeros(cap + 1, dtype=np.int64)
-    order = np.zeros(hdg.size, dtype=np.int64)
-    tree = (children, visits, wins, best, size)
-    for _ in range(iterations):
+    return (children, visits, wins, best, size), (np.zeros((n_a, 4)), np.zeros(cap + 1, dtype=np.int64),
+                                                  np.zeros(n_h, dtype=np.int64))  # fmt: skip
+
+
+@numba.njit(**_JIT)
+def _grow(root, n, hdg, W, okh, open_, polar, P, rng, tree, out, path, order):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """``n`` more iterations of :func:`_iterate` on ``tree``."""
+    for _ in range(n):
         _iterate(root, hdg, W, okh, open_, polar, P, rng, tree, out, path, order)
+
+
+@numba.njit(**_JIT)
+def _root_stats(children, visits, wins, best, n_a):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """Visits, wins and best reward of each root action (0 for those never tried)."""
     v, w, b = np.zeros(n_a, dtype=np.int64), np.zeros(n_a), np.zeros(n_a)
     for a in range(n_a):
         c = children[0, a]

@@ -52,6 +52,7 @@ from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
 from pyroute_rel.planners.qlearning import TabularProblem, graph_states
 from pyroute_rel.planners.settings import MCTSSettings
 from pyroute_rel.progress import progress_bar
+from pyroute_rel.resources import MemoryEstimate, check_budget
 from pyroute_rel.units import KM_PER_NM
 
 __all__ = [
@@ -327,10 +328,13 @@ class MCTSPlanner:
         root = _Node(states=dict.fromkeys(range(n_members), state))
         track = [state]
         decisions = 0
-        bar = progress_bar(None, enabled=progress, desc="mcts", unit="decision")
+        bar = progress_bar(None, enabled=progress, desc="mcts", unit="iteration")
         while not state.done and state.t_h <= search.time_max:
-            for _ in range(s.iterations):
+            for i in range(s.iterations):
                 search.iterate(root)
+                if i % PROGRESS_EVERY == PROGRESS_EVERY - 1:
+                    bar.update(PROGRESS_EVERY)
+            bar.update(s.iterations % PROGRESS_EVERY)
             moves = sim.moves(state, None)  # the craft sails in the scenario's weather
             tried = [a for a in moves.actions if a in root.children]
             if not tried:
@@ -343,7 +347,6 @@ class MCTSPlanner:
             # the subtree is kept when the search sailed the scenario's weather itself; with members its states
             # were simulated from other positions, so the search starts afresh
             root = root.children[a] if n_members == 1 else _Node(states=dict.fromkeys(range(n_members), state))
-            bar.update(1)
         bar.close()
         runtime = _time.perf_counter() - t0
         lon = np.array([st.lon for st in track])
@@ -395,6 +398,22 @@ def kernel_inputs(problem: PlanningProblem, s: MCTSSettings, lattice: Any) -> tu
     return np.arange(s.headings) * (360.0 / s.headings), polar_tables(pol), params
 
 
+#: The Python engine updates its bar every so many iterations.
+PROGRESS_EVERY = 1000
+
+
+def tree_estimate(iterations: int, headings: int) -> MemoryEstimate:
+    """The memory of one decision's tree in the compiled search [bytes]: room for a node per iteration, each with its
+    children (one per heading and the finish, int64), visits, wins and best reward, and the path of one iteration
+    (:func:`pyroute_rel._kernels.mcts.search`)."""
+    nodes = iterations + 2
+    return MemoryEstimate(
+        parts={"search tree": nodes * 8 * (headings + 1 + 3) + 8 * (nodes + 1)},
+        what=f"{iterations} iterations, {headings} headings",
+        subject="this MCTS search",
+    )
+
+
 def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progress: bool = False) -> PlannedTrack:
     """The receding-horizon MCTS with the compiled search (``engine = "lattice"``): a new tree per decision over
     the problem on a lattice; the action sailed is the most visited (or best) among those that may be sailed
@@ -402,6 +421,7 @@ def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progre
     from pyroute_rel._kernels.mcts import search
     from pyroute_rel.planners.mcts_lattice import build_lattice
 
+    check_budget(tree_estimate(s.iterations, s.headings), knobs="use fewer iterations per decision")
     t0 = _time.perf_counter()
     mode = weather_mode(s, problem)
     _, _, t_max = time_limits(problem, s)
@@ -421,12 +441,13 @@ def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progre
     sim = _HeadingSim(problem, s)
     state = State(*problem.start, 0.0)
     track, decisions, blind, searched = [state], 0, 0, 0.0
-    bar = progress_bar(None, enabled=progress, desc="mcts", unit="decision")
+    # the bar counts iterations: a decision of many shows its progress (issue 34: 10^7 showed nothing for minutes)
+    bar = progress_bar(None, enabled=progress, desc="mcts", unit="iteration")
     while not state.done and state.t_h <= t_max:
         t1 = _time.perf_counter()
         root = np.array([state.lon, state.lat, state.t_h])
         visits, _, best = search(
-            root, s.iterations, headings, lattice.weather, lattice.okh, lattice.open, tables, params, rng
+            root, s.iterations, headings, lattice.weather, lattice.okh, lattice.open, tables, params, rng, bar.update
         )
         searched += _time.perf_counter() - t1
         score = dict(enumerate((best if s.final == "best" else visits).tolist()))
@@ -439,7 +460,6 @@ def plan_lattice(problem: PlanningProblem, s: MCTSSettings, seed: int, *, progre
         state = moves.get(a)  # type: ignore[assignment]
         track.append(state)
         decisions += 1
-        bar.update(1)
     bar.close()
     stats = {
         "iterations": s.iterations,
