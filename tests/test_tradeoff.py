@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 import subprocess
 import sys
 from dataclasses import dataclass, replace
@@ -336,8 +337,15 @@ def test_label_cap_is_refused_naming_the_knob() -> None:
     grid = sc.make_grid()
     problem = sc.problem(grid=grid)
     assert voyage_front(grid, problem).labels_max > 1  # type: ignore[operator]
-    with pytest.raises(LabelLimitError, match="--max-labels"):
+    with pytest.raises(LabelLimitError, match="--max-labels") as info:
         voyage_front(grid, problem, max_labels=1)
+    # how to choose the cap (issue 34): the labels held by then and their mean a node, for the user to scale from
+    m = re.search(
+        r"needs (\d+) non-dominated labels .* \(it held (\d+) labels by then, (\d+) a node on average", str(info.value)
+    )
+    assert m is not None, str(info.value)
+    need, held, mean = (int(g) for g in m.groups())
+    assert need > 1 and held >= need and 1 <= mean <= need
     with pytest.raises(ScenarioError, match="max_labels"):
         voyage_front(grid, problem, max_labels=0)
     with pytest.raises(ScenarioError, match="time_step_h"):

@@ -476,10 +476,13 @@ def _leg_labels(
         per_node = per_node[per_node > 0]
         if per_node.size and per_node.max() > max_labels:
             at = "the finish" if k == grid.n_ranks else f"rank {k + 1} of {grid.n_ranks}"
+            held = counts[0] + int(per_node.sum())
+            mean = held / (counts[1] + per_node.size)
             raise LabelLimitError(
                 f"the voyage front needs {int(per_node.max())} non-dominated labels at a node of {at}{where}, more "
-                f"than the cap of {max_labels} per node: raise --max-labels (max_labels), or use fewer nodes "
-                "(--n-ranks, --half-width-km, --aspect), or the bottleneck front (--front bottleneck)"
+                f"than the cap of {max_labels} per node (it held {held} labels by then, {mean:.0f} a node on "
+                "average; time and memory grow with them): raise --max-labels (max_labels) step by step, or use fewer "
+                "nodes (--n-ranks, --half-width-km, --aspect), or the bottleneck front (--front bottleneck)"
             )
         counts[0] += int(per_node.sum())
         counts[1] += per_node.size
