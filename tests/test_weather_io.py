@@ -751,12 +751,38 @@ def test_open_weather_refuses_what_is_not_a_path(paths: object) -> None:
         open_weather(paths)  # type: ignore[arg-type]
 
 
+def test_a_file_without_a_time_axis_is_steady_and_says_so(tmp_path: Path) -> None:
+    """Issue 34: a weather file without time is steady weather, said in one warning as for a file of a single time
+    (it was silent); a time dimension without dates that can be decoded is refused in one line naming the file."""
+    dims = ("latitude", "longitude")
+    coords = {"latitude": [30.0, 50.0], "longitude": [-40.0, -10.0]}
+    ms = {"units": "m s-1"}
+    u = np.full((2, 2), 10.0, np.float32)
+    xr.Dataset({"u10": (dims, u, ms), "v10": (dims, u * 0, ms)}, coords=coords).to_netcdf(tmp_path / "still.nc")
+    with pytest.warns(WeatherWarning, match=r"still\.nc' has no time axis: taken as steady weather") as seen:
+        w = open_weather(tmp_path / "still.nc")
+    assert len(seen) == 1 and w.steady
+    assert float(w.sample(-20.0, 40.0, np.datetime64("2030-01-01")).tws_kn) == pytest.approx(10.0 * KN_PER_MS, rel=1e-6)
+    timed = ("time", *dims)
+    for name, time_attrs in (("numbers", {}), ("hours_no_epoch", {"units": "hours"})):
+        ds = xr.Dataset(
+            {"u10": (timed, np.stack([u, u]), ms), "v10": (timed, np.stack([u, u]) * 0, ms)},
+            coords={**coords, "time": ("time", [0.0, 6.0], time_attrs)},
+        )
+        ds.to_netcdf(tmp_path / f"{name}.nc")
+        with pytest.raises(
+            WeatherError, match=rf"{name}\.nc' variable 'u10': time dimension 'time' has no decodable date"
+        ):
+            open_weather(tmp_path / f"{name}.nc")
+
+
 def test_a_wind_file_without_units_is_read_as_m_per_s_with_a_warning(tmp_path: Path) -> None:
     """Issue 34: a wind file in knots without a units attribute was read as m/s without a word (124.82 h against
     133.06 h labelled). A file's speed without units warns which unit was taken; labelled, it does not."""
-    dims = ("latitude", "longitude")
-    coords = {"latitude": [30.0, 50.0], "longitude": [-40.0, -10.0]}
-    u = np.full((2, 2), 10.0, np.float32)
+    dims = ("time", "latitude", "longitude")  # with times: a file without them is steady, which warns too
+    times = np.array(["2018-05-31T00", "2018-06-02T00"], dtype="datetime64[ns]")
+    coords = {"time": times, "latitude": [30.0, 50.0], "longitude": [-40.0, -10.0]}
+    u = np.full((2, 2, 2), 10.0, np.float32)
     xr.Dataset({"u10": (dims, u), "v10": (dims, u * 0)}, coords=coords).to_netcdf(tmp_path / "bare.nc")
     t = np.datetime64("2018-06-01")
     with pytest.warns(WeatherWarning, match=r"bare\.nc' variable '[uv]10' has no units attribute: read as m/s") as seen:

@@ -894,7 +894,17 @@ def _steady_if_single_time(fields: list[WeatherField]) -> list[WeatherField]:
     """Fields that each have a single time (an analysis; one forecast step) -> the same fields steady (no time),
     with a warning saying so once; any field with several times leaves them all as they are."""
     singles = [f for f in fields if f.time is not None]
-    if not singles or any(f.time.size != 1 for f in singles):  # type: ignore[union-attr]
+    if not singles:  # no field has a time axis: steady, said for files as for a single time (issue 34)
+        sources = sorted({f.source for f in fields if not f.source.startswith("<")})  # not a dataset made in code
+        if sources:
+            warnings.warn(
+                f"weather {', '.join(map(repr, sources))} has no time axis: taken as steady weather, used at all "
+                "times of the voyage",
+                WeatherWarning,
+                stacklevel=3,
+            )
+        return fields
+    if any(f.time.size != 1 for f in singles):  # type: ignore[union-attr]
         return fields
     times = sorted({iso_minute(f.time[0]) for f in singles})  # type: ignore[index]
     sources = sorted({f.source for f in singles})
