@@ -75,6 +75,18 @@ def test_a_short_row_and_empty_end_cells_are_no_speed(tmp_path) -> None:
     np.testing.assert_array_equal(polar.speed_kn, expected)
 
 
+def test_an_edge_gap_with_speeds_beside_it_in_its_row_is_interpolated_in_tws(tmp_path) -> None:
+    # OpenCPN's Figaro_1-1.pol lost one cell of its last row (TWA 180, TWS 10) between two 4.9 kn cells: nothing
+    # lies below it in its column, but its row is rated on both sides, so it is interpolated in TWS (was 0 kn); the
+    # last cell of the 180-deg row has nothing to its right: 0 kn
+    path = tmp_path / "figaro.pol"
+    path.write_text("TWA\\TWS\t6\t10\t14\t20\n0\t0\t0\t0\t0\n90\t5\t6\t7\t7.5\n180\t4.5\t\t5.3\t\n")
+    with pytest.warns(PolarWarning, match=r"2 empty .* 0 interpolated in TWA .* 1 in TWS .* 1 set to 0 kn"):
+        polar = read_pol(path)
+    assert polar.speed_kn[2, 1] == pytest.approx(4.5 + (5.3 - 4.5) * (10 - 6) / (14 - 6), rel=1e-15)  # 4.9 kn
+    assert polar.speed_kn[2, 3] == 0.0 and polar.speed_kn[1, 3] == 7.5
+
+
 def test_a_complete_file_gives_no_warning(tmp_path) -> None:
     path = tmp_path / "boat.pol"
     path.write_text(LAYOUTS["tab, TWA\\TWS"])

@@ -25,7 +25,8 @@ File formats
     of the polars shipped with OpenCPN's weather routing have) are filled, with a
     :class:`~pyroute_rel.errors.PolarWarning` saying how many and where: within a TWS column, a gap between two
     given speeds is interpolated linearly in TWA; a gap above the first or below the last given speed of its column
-    is 0 kn (no speed there, so a route never sails there). A TWS column with no speed at all is refused.
+    is interpolated linearly in TWS when its row gives speeds on both sides of it (as OpenCPN fills it), else it is
+    0 kn (no speed there, so a route never sails there). A TWS column with no speed at all is refused.
 ``.csv`` (:func:`read_polar_csv`, :func:`write_polar_csv`)
     The same matrix, comma-separated, with the header cell ``twa_deg\tws_kn`` (a literal backslash)::
 
@@ -692,7 +693,7 @@ def _parse_matrix(
         raise fail(header_no, f"expected at least 2 TWA rows after this header, found {len(twa)}")
     table, tws_kn, gaps = _drop_empty_columns(np.array(speed), np.array(tws), gaps, path)
     if gaps:
-        table = _fill_gaps(np.array(twa), table, gaps, fail, header_no, path)
+        table = _fill_gaps(np.array(twa), tws_kn, table, gaps, fail, header_no, path)
     return Polar(name=name, twa_deg=np.array(twa), tws_kn=tws_kn, speed_kn=table)
 
 
@@ -716,6 +717,7 @@ def _drop_empty_columns(
 
 def _fill_gaps(
     twa: FloatArray,
+    tws: FloatArray,
     table: FloatArray,
     gaps: list[tuple[int, int]],
     fail: Callable[[int, str], PolarError],
@@ -724,23 +726,33 @@ def _fill_gaps(
 ) -> FloatArray:
     """Fill the empty or missing speeds of a polar table (NaN) as the module notes say, warning once.
 
-    Within a TWS column, a gap between two given speeds is interpolated linearly in TWA; a gap above the first or
-    below the last given speed of its column is 0 kn (no speed: the boat is not rated there, so it never sails
-    there). A column with no speed at all is refused (the reader drops such columns first while two others remain).
+    Within a TWS column, a gap between two given speeds is interpolated linearly in TWA. A gap above the first or
+    below the last given speed of its column is interpolated linearly in TWS when its row gives speeds on both sides
+    of it (a rated angle missing one cell, as OpenCPN fills it: a lost 4.9 kn at TWA 180 between two 4.9 kn cells of
+    ``Figaro_1-1.pol`` was 0 kn), else it is 0 kn (no speed: the boat is not rated there, so it never sails there).
+    A column with no speed at all is refused (the reader drops such columns first while two others remain).
     """
     out = table.copy()
     for j in range(out.shape[1]):
-        known = np.isfinite(out[:, j])
+        known = np.isfinite(table[:, j])
         if not known.any():
             raise fail(header_no, f"column {j + 2}: no boat speed in any row (every cell of this TWS is empty)")
         missing = ~known
-        out[missing, j] = np.interp(twa[missing], twa[known], out[known, j], left=0.0, right=0.0)
-    n_zero = int(np.count_nonzero((out == 0.0) & np.isnan(table)))
+        out[missing, j] = np.interp(twa[missing], twa[known], table[known, j], left=np.nan, right=np.nan)
+    n_twa = int(np.count_nonzero(np.isfinite(out) & np.isnan(table)))
+    for i, j in zip(*np.nonzero(np.isnan(out)), strict=True):  # edge gaps of their column
+        given = np.flatnonzero(np.isfinite(table[i]))
+        if given.size and given[0] < j < given[-1]:
+            out[i, j] = np.interp(tws[j], tws[given], table[i, given])
+    n_tws = int(np.count_nonzero(np.isfinite(out) & np.isnan(table))) - n_twa
+    out[np.isnan(out)] = 0.0
+    n_zero = len(gaps) - n_twa - n_tws
     line, col = gaps[0]
     warnings.warn(
         f"polar file '{show(path)}': {len(gaps)} empty or missing speed cell(s) filled (first: line {line}, column "
-        f"{col}): {len(gaps) - n_zero} interpolated in TWA between the speeds above and below, {n_zero} set to 0 kn "
-        "(no speed given further up or down that TWS column)",
+        f"{col}): {n_twa} interpolated in TWA between the speeds above and below, {n_tws} in TWS between the speeds "
+        f"beside them in their row, {n_zero} set to 0 kn (no speed given further up or down that TWS column, nor "
+        "on both sides in its row)",
         PolarWarning,
         stacklevel=4,
     )
