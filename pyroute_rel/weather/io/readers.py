@@ -263,6 +263,7 @@ def open_weather(
                 member=member,
                 margin_deg=margin_deg,
                 out_of_range=out_of_range,
+                files_read=True,
             )
         )
     finally:
@@ -795,11 +796,13 @@ def read_fields(
     member: int | str | None = None,
     margin_deg: float | None = None,
     out_of_range: str = "error",
+    files_read: bool = False,
 ) -> list[WeatherField]:
     """Find, cut, convert, check and merge every field of opened files, ``[(name, [datasets]), ...]``.
 
     Options as for :func:`open_weather`; ``margin_deg`` defaults to :data:`BBOX_MARGIN_DEG`. Fields that each have
-    a single time come back without time (steady), with a :class:`~pyroute_rel.errors.WeatherWarning`.
+    a single time come back without time (steady), with a :class:`~pyroute_rel.errors.WeatherWarning`; so do
+    ``files_read`` (files, not datasets made in code) without any time.
     """
     variables, box, window, margin_deg = _check_options(
         files, variables, bbox, time_window, member, margin_deg, out_of_range
@@ -843,7 +846,7 @@ def read_fields(
                 f"weather file '{have.source}' variable '{have.variable}' gives one {what} component but the "
                 f"other ({v if u in merged else u}) was not found; name it with variables={{...}}"
             )
-    return _steady_if_single_time(list(merged.values()))
+    return _steady_if_single_time(list(merged.values()), files_read)
 
 
 def _check_options(
@@ -890,13 +893,14 @@ def _check_options(
     return variables, box, window, float(margin)
 
 
-def _steady_if_single_time(fields: list[WeatherField]) -> list[WeatherField]:
+def _steady_if_single_time(fields: list[WeatherField], files_read: bool) -> list[WeatherField]:
     """Fields that each have a single time (an analysis; one forecast step) -> the same fields steady (no time),
-    with a warning saying so once; any field with several times leaves them all as they are."""
+    with a warning saying so once; any field with several times leaves them all as they are. Files read
+    (``files_read``) without any time are steady too, which a warning says (a dataset made in code is quiet)."""
     singles = [f for f in fields if f.time is not None]
     if not singles:  # no field has a time axis: steady, said for files as for a single time (issue 34)
-        sources = sorted({f.source for f in fields if not f.source.startswith("<")})  # not a dataset made in code
-        if sources:
+        sources = sorted({f.source for f in fields})
+        if files_read and sources:
             warnings.warn(
                 f"weather {', '.join(map(repr, sources))} has no time axis: taken as steady weather, used at all "
                 "times of the voyage",
