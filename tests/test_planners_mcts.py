@@ -394,10 +394,12 @@ def test_a_search_tree_beyond_the_memory_budget_is_refused_before_any_work(monke
     lattice is built."""
     from pyroute_rel.errors import MemoryBudgetError
     from pyroute_rel.planners.mcts import tree_estimate
+    from pyroute_rel.resources import resident_bytes
 
-    need = tree_estimate(10_000_000, 16).total_bytes
+    need = tree_estimate(10_000_000, 16).parts["search tree"]
     assert 1.5e9 < need < 2e9  # 20 int64/float64 values a node, 10^7 + 2 nodes (and the path)
-    monkeypatch.setenv("PYROUTE_REL_MAX_MEMORY", "1G")
+    # 1 GiB beyond what the process holds (a route of the small grid fits; the tree does not)
+    monkeypatch.setenv("PYROUTE_REL_MAX_MEMORY", str(resident_bytes() + 1024**3))
     with pytest.raises(
         MemoryBudgetError, match=r"this MCTS search needs about .* \(10000000 iterations, 16 headings\)"
     ):

@@ -52,7 +52,7 @@ from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
 from pyroute_rel.planners.qlearning import TabularProblem, graph_states
 from pyroute_rel.planners.settings import MCTSSettings
 from pyroute_rel.progress import progress_bar
-from pyroute_rel.resources import MemoryEstimate, check_budget
+from pyroute_rel.resources import MemoryEstimate, check_budget, resident_bytes
 from pyroute_rel.units import KM_PER_NM
 
 __all__ = [
@@ -403,12 +403,12 @@ PROGRESS_EVERY = 1000
 
 
 def tree_estimate(iterations: int, headings: int) -> MemoryEstimate:
-    """The memory of one decision's tree in the compiled search [bytes]: room for a node per iteration, each with its
-    children (one per heading and the finish, int64), visits, wins and best reward, and the path of one iteration
-    (:func:`pyroute_rel._kernels.mcts.search`)."""
+    """The memory of one decision's tree in the compiled search, and what the process holds already [bytes]: room
+    for a node per iteration, each with its children (one per heading and the finish, int64), visits, wins and best
+    reward, and the path of one iteration (:func:`pyroute_rel._kernels.mcts.search`)."""
     nodes = iterations + 2
     return MemoryEstimate(
-        parts={"search tree": nodes * 8 * (headings + 1 + 3) + 8 * (nodes + 1)},
+        parts={"process": resident_bytes(), "search tree": nodes * 8 * (headings + 1 + 3) + 8 * (nodes + 1)},
         what=f"{iterations} iterations, {headings} headings",
         subject="this MCTS search",
     )
