@@ -103,6 +103,27 @@ def read_regular_bytes(
     return data
 
 
+def check_regular_file(
+    path: str | os.PathLike[str], *, error: type[Exception], label: str, folder_hint: str = ""
+) -> Path:
+    """``path`` if it names a regular file, checked without opening it (a FIFO would block an open for ever, a device
+    never end a read); else ``error`` in one line starting with ``label``: "not found", "is a folder" (then
+    ``folder_hint``), "is not a regular file (a FIFO)" (:func:`read_regular_bytes` says the same of the files it
+    reads whole; this is for files a library opens itself, e.g. weather files)."""
+    p = Path(path)
+    try:
+        mode = p.stat().st_mode
+    except FileNotFoundError:
+        raise error(f"{label}: not found") from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
+        raise error(f"{label}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
+    if stat.S_ISDIR(mode):
+        raise error(f"{label}: is a folder{folder_hint}")
+    if not stat.S_ISREG(mode):
+        raise error(f"{label}: not a regular file ({_KINDS.get(stat.S_IFMT(mode), 'a special file')})")
+    return p
+
+
 _KINDS = {
     stat.S_IFDIR: "a folder",
     stat.S_IFIFO: "a FIFO",

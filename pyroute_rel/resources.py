@@ -65,6 +65,7 @@ from pyroute_rel.store import current_store
 __all__ = [
     "default_workers",
     "end_with_parent",
+    "pool_worker_init",
     "thread_map",
     "row_blocks",
     "MEMORY_ENV",
@@ -83,6 +84,7 @@ __all__ = [
 
 T = TypeVar("T")
 R = TypeVar("R")
+A = TypeVar("A")
 
 
 class _Threads:
@@ -155,6 +157,14 @@ def end_with_parent(parent_pid: int, poll_s: float = 0.5) -> None:
         os._exit(1)
 
     threading.Thread(target=watch, name="pyroute-rel-end-with-parent", daemon=True).start()
+
+
+def pool_worker_init(parent_pid: int, setup: Callable[[A], object], arg: A) -> None:
+    """A local process pool's initializer: the worker ends with the process that made the pool
+    (:func:`end_with_parent`; a dask worker, which its user starts, does not), then ``setup(arg)`` (the sweep's and
+    the ensemble's set-up of a worker process)."""
+    end_with_parent(parent_pid)
+    setup(arg)
 
 
 def default_workers() -> int:

@@ -566,7 +566,7 @@ MISTAKES = {
     ),
     "weather file missing": (
         lambda t: _route(_scenario(t, BASE.split("[weather]")[0] + '[weather]\nkind = "file"\npaths = ["no.nc"]\n')),
-        "no.nc' does not exist",
+        "no.nc': not found",
     ),
 }
 

@@ -62,6 +62,7 @@ from pyroute_rel.errors import (
     check_path,
 )
 from pyroute_rel.progress import progress_bar
+from pyroute_rel.resources import pool_worker_init
 from pyroute_rel.scenario import Scenario
 from pyroute_rel.settings import Settings, get_settings, set_settings
 from pyroute_rel.store import Shelf, current_store
@@ -358,15 +359,6 @@ def _worker_init(engines: Settings | None = None) -> None:
     _begin()
 
 
-def _pool_worker_init(engines: Settings | None, parent_pid: int) -> None:
-    """A local pool's worker: :func:`_worker_init`, and it ends with the ensemble that started it
-    (:func:`~pyroute_rel.resources.end_with_parent`; not a dask worker, which its user starts)."""
-    from pyroute_rel.resources import end_with_parent
-
-    end_with_parent(parent_pid)
-    _worker_init(engines)
-
-
 def _begin() -> None:
     """A process's set-up for one route_ensemble call: nothing kept from an earlier call (the files may have
     changed), the weather files kept open from one member to the next
@@ -423,8 +415,8 @@ class _Workers:
                 ProcessPoolExecutor(
                     max_workers=1,
                     mp_context=context,
-                    initializer=_pool_worker_init,
-                    initargs=(get_settings(), os.getpid()),
+                    initializer=pool_worker_init,
+                    initargs=(os.getpid(), _worker_init, get_settings()),
                 )
                 for _ in range(n)
             ]

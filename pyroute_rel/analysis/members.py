@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from pyroute_rel.errors import PyrouteError, ScenarioError, brief
-from pyroute_rel.files import brief_path, read_regular_bytes
+from pyroute_rel.files import brief_path, check_regular_file, read_regular_bytes
 from pyroute_rel.scenario import SCENARIO_MAX_BYTES, Scenario, scenario_from_mapping
 from pyroute_rel.store import Shelf, current_store
 
@@ -238,9 +238,7 @@ def mean_of_files(member_files: Sequence[str | Path], out: str | Path) -> Path:
     sums: dict[Any, tuple[np.ndarray, np.ndarray]] = {}
     ref: xr.Dataset | None = None
     for p in paths:
-        if not p.is_file():  # (a FIFO would block the open for ever: issue 34)
-            what = "not found" if not p.exists() else "not a regular file (a folder, device, pipe or socket)"
-            raise ScenarioError(f"member file '{brief_path(p)}': {what}")
+        check_regular_file(p, error=ScenarioError, label=f"member file '{brief_path(p)}'")  # (a FIFO: issue 34)
         try:
             ds = xr.open_dataset(p, decode_timedelta=False)
         except Exception as exc:  # netCDF4/HDF5 raise many types for damaged files

@@ -80,6 +80,7 @@ from pyroute_rel.errors import (
     show,
 )
 from pyroute_rel.files import atomic_write, atomic_write_text, brief_path
+from pyroute_rel.resources import pool_worker_init
 from pyroute_rel.settings import Settings, get_settings, set_settings
 from pyroute_rel.store import current_store, kept_call
 from pyroute_rel.times import iso_utc
@@ -761,15 +762,6 @@ def _pin_threads(engines: Settings | None = None) -> None:
     _limit_pools()
 
 
-def _pool_worker(engines: Settings | None, parent_pid: int) -> None:
-    """A local pool's worker: :func:`_pin_threads`, and it ends with the sweep that started it
-    (:func:`~pyroute_rel.resources.end_with_parent`)."""
-    from pyroute_rel.resources import end_with_parent
-
-    end_with_parent(parent_pid)
-    _pin_threads(engines)
-
-
 def _limit_pools() -> None:
     """:data:`WORKER_ENV` in this process's environment and its BLAS/OpenMP pools limited to one thread (once: a
     process already so is left alone; the pools read the environment when they load)."""
@@ -943,7 +935,10 @@ def _processes(todo: Sequence[tuple[str, Run]], workers: int, retries: int) -> I
         if i is not None:
             if w not in pools:
                 pools[w] = ProcessPoolExecutor(
-                    max_workers=1, mp_context=ctx, initializer=_pool_worker, initargs=(get_settings(), os.getpid())
+                    max_workers=1,
+                    mp_context=ctx,
+                    initializer=pool_worker_init,
+                    initargs=(os.getpid(), _pin_threads, get_settings()),
                 )
             running[pools[w].submit(run_batch, batches[i], retries)] = (w, i)
 

@@ -52,6 +52,7 @@ from pyroute_rel.errors import (
     check_instance,
     check_numbers,
 )
+from pyroute_rel.files import check_regular_file
 from pyroute_rel.store import current_store
 from pyroute_rel.times import iso_minute, to_datetime64
 from pyroute_rel.units import KN_PER_MS
@@ -511,14 +512,8 @@ def _open_file(path: Path, *, lazy: bool = False) -> list[xr.Dataset]:
     """The file's datasets, its variables dask arrays (``lazy``: xarray's lazily indexed arrays, nothing cached:
     a selection reads that selection; a netCDF4 file's stored values are read and decoded here, :class:`_RawFile`).
     Close them with :func:`_close`."""
-    if path.is_dir():
-        raise WeatherError(
-            f"weather file '{path}' is a folder: list the NetCDF or GRIB files in it under [weather].paths"
-        )
-    if not path.exists():
-        raise WeatherError(f"weather file '{path}' does not exist")
-    if not path.is_file():  # a device, FIFO or socket: never read (it may not end, or block)
-        raise WeatherError(f"weather file '{path}' is not a regular file (a device, pipe or socket)")
+    hint = ": list the NetCDF or GRIB files in it under [weather].paths"  # (a device or FIFO is never read)
+    check_regular_file(path, error=WeatherError, label=f"weather file '{path}'", folder_hint=hint)
     try:
         with open(path, "rb") as fh:
             head = fh.read(8)
