@@ -161,21 +161,28 @@ def test_a_killed_sweep_resumes_to_the_uninterrupted_table(ensemble, uninterrupt
     assert "12 done, 0 to run" in captured.err and len(json.loads(captured.out)["runs"]) == 12
 
 
+def _midway_on_dask(cmd: list[str], address: str, env: dict, out: Path) -> subprocess.Popen:
+    """The sweep ``cmd`` started on the scheduler at ``address``, returned once it has written two of its twelve
+    runs' parts (mid-sweep)."""
+    sweep = subprocess.Popen(
+        [*cmd, "--scheduler", address, "--connect-timeout", "60", "--quiet"],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 90
+    while len(_parts(out)) < 2 and sweep.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert sweep.poll() is None and len(_parts(out)) < 12  # mid-sweep
+    return sweep
+
+
 @pytest.mark.slow
 def test_a_dask_cluster_gives_the_inline_table_and_a_killed_worker_loses_no_run(ensemble, uninterrupted, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT), "PYROUTE_REL_THREADS": "1"}
     with dask_processes(env) as (address, procs):
         spec_path = _spec(tmp_path, ensemble, BODY)
         out = tmp_path / "dask"
-        cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--scheduler", address]
-        sweep = subprocess.Popen(
-            [*cmd, "--out", str(out), "--batch", "1", "--connect-timeout", "60", "--quiet", "--json"],
-            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        )  # fmt: skip
-        deadline = time.monotonic() + 90
-        while len(_parts(out)) < 2 and sweep.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert sweep.poll() is None and len(_parts(out)) < 12  # mid-sweep
+        cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--out", str(out), "--batch", "1"]
+        sweep = _midway_on_dask([*cmd, "--json"], address, env, out)
         procs[1].send_signal(signal.SIGKILL)  # a worker dies mid-sweep: its runs go to the other one
         stdout, stderr = sweep.communicate(timeout=120)
         assert sweep.returncode == 0, stderr
@@ -194,14 +201,7 @@ def test_a_dying_scheduler_is_one_line_and_the_resume_completes(ensemble, uninte
     out = tmp_path / "dask"
     cmd = [sys.executable, "-m", "pyroute_rel.cli", "sweep", str(spec_path), "--out", str(out), "--batch", "1"]
     with dask_processes(env) as (address, procs):
-        sweep = subprocess.Popen(
-            [*cmd, "--scheduler", address, "--connect-timeout", "60", "--quiet"],
-            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        )  # fmt: skip
-        deadline = time.monotonic() + 90
-        while len(_parts(out)) < 2 and sweep.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert sweep.poll() is None and len(_parts(out)) < 12  # mid-sweep
+        sweep = _midway_on_dask(cmd, address, env, out)
         procs[0].send_signal(signal.SIGKILL)
         _, stderr = sweep.communicate(timeout=120)
     assert sweep.returncode == 2, stderr
