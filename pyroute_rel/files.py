@@ -107,8 +107,8 @@ def check_regular_file(
     path: str | os.PathLike[str], *, error: type[Exception], label: str, folder_hint: str = ""
 ) -> Path:
     """``path`` if it names a regular file, checked without opening it (a FIFO would block an open for ever, a device
-    never end a read); else ``error`` in one line starting with ``label``: "not found", "is a folder" (then
-    ``folder_hint``), "is not a regular file (a FIFO)" (:func:`read_regular_bytes` says the same of the files it
+    never end a read); else ``error`` in one line starting with ``label``: ": not found", ": is a folder" (then
+    ``folder_hint``), ": not a regular file (a FIFO)" (:func:`read_regular_bytes` refuses the same for the files it
     reads whole; this is for files a library opens itself, e.g. weather files)."""
     p = Path(path)
     try:
