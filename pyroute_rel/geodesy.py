@@ -41,6 +41,7 @@ __all__ = [
     "bearing_deg",
     "geodesic_distance_km",
     "crossing_fraction",
+    "distance_to_segment_nm",
 ]
 
 
@@ -417,6 +418,28 @@ def geodesic_distance_km(
     )
     _, _, dist_m = Geod(ellps="WGS84").inv(lon1, lat1, lon2, lat2)
     return np.asarray(dist_m, dtype=float) / 1000.0
+
+
+def distance_to_segment_nm(
+    lon_deg: float, lat_deg: float, a: tuple[float, float], b: tuple[float, float] | None = None
+) -> float:
+    """Distance [nm] from a point to the great-circle segment from ``a`` to ``b`` (``(lon, lat)`` [deg]): to its
+    nearest point, the foot of the perpendicular where that lies on the segment, else the nearer end. ``b`` None: to
+    the point ``a``.
+
+    >>> round(distance_to_segment_nm(1.0, 1.0, (0.0, 0.0), (2.0, 0.0)), 2)  # one degree north of the middle
+    60.04
+    >>> round(distance_to_segment_nm(3.0, 0.0, (0.0, 0.0), (2.0, 0.0)), 2)  # beyond the end (2, 0)
+    60.04
+    """
+    ends = float(distance_nm(lon_deg, lat_deg, *a))
+    if b is None:
+        return ends
+    ends = min(ends, float(distance_nm(lon_deg, lat_deg, *b)))
+    along = float(along_track_km(*a, *b, lon_deg, lat_deg))
+    if 0.0 <= along <= float(distance_km(*a, *b)):
+        return min(ends, abs(float(cross_track_km(*a, *b, lon_deg, lat_deg))) / KM_PER_NM)
+    return ends
 
 
 def crossing_fraction(

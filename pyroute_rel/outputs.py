@@ -74,7 +74,9 @@ def to_geojson(route: Route) -> dict[str, Any]:
             "voyage_time_h": route.voyage_time_h,
             "distance_nm": route.distance_nm,
             "departure": iso_utc(times[0]),
-            "arrival": iso_utc(times[-1]),
+            "arrival": iso_utc(times[-1]) if route.arrived else None,
+            "arrived": route.arrived,
+            **({} if route.arrived else {"track_end": iso_utc(times[-1])}),
             "max_failure_probability": route.max_failure_probability,
             "voyage_failure_probability": route.voyage_failure_probability,
             "exposure_by_criterion_h": dict(route.exposure_by_criterion_h),
@@ -226,7 +228,7 @@ def _gpx_route(route: Route, turns: npt.NDArray[np.intp], times: list[_dt.dateti
     rte.extensions.append(_text_element(f"{{{_OPENCPN_NS}}}planned_speed", f"{dist.sum() / sail_h.sum():.4f}"))
     last = len(route.lon_deg) - 1
     for j, i in enumerate(turns):
-        name = "start" if i == 0 else "finish" if i == last else f"T{i}"
+        name = "start" if i == 0 else ("finish" if route.arrived else "end") if i == last else f"T{i}"
         point = gpxpy.gpx.GPXRoutePoint(
             round(float(route.lat_deg[i]), 6), round(float(route.lon_deg[i]), 6), time=times[i], name=name
         )

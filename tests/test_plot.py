@@ -273,7 +273,7 @@ def test_the_shading_is_the_failure_model_for_the_routes_own_headings() -> None:
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     assert "forbidden: p_f 1 > apf 0.95" in legend
     assert "criteria fire, allowed: p_f 0.9 <= apf 0.95" in legend
-    assert "apf 0.95" in ax.get_title() and f"max p_f {route.max_failure_probability:g}" in ax.get_title()
+    assert "apf 0.95" in ax.get_title() and f"largest leg p_f {route.max_failure_probability:g})" in ax.get_title()
 
 
 def _time_varying_weather(tmp_path=None):
@@ -456,8 +456,8 @@ def test_a_small_probability_keeps_its_digits_on_the_map(tmp_path) -> None:
     route = straight(write_model(tmp_path, p=0.001), 20, patch_lon=[-12.0, -8.0])
     assert route.max_failure_probability == pytest.approx(0.001, rel=1e-12)
     ax = plot_route(route).axes[0]
-    assert "max p_f 0.001," in ax.get_title()  # was "max p_f 0.00"
-    voyage = float(ax.get_title().split("voyage p_f ")[1])
+    assert "largest leg p_f 0.001)" in ax.get_title()  # was "max p_f 0.00"
+    voyage = float(ax.get_title().split("voyage p_f ")[1].split(":")[0])
     assert voyage == pytest.approx(route.voyage_failure_probability, rel=0.05) and voyage > 0.0
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     assert "criteria fire, allowed: p_f 0.001 <= apf 1" in legend

@@ -1168,6 +1168,10 @@ class Evaluation:
     meta : Settings for the summary (apf, failure model, polar, samples per leg, scenario).
     manoeuvres : Side of the wind of each leg and the tack or gybe at its start, with the time it cost
         (:class:`~pyroute_rel.boat.manoeuvre.TrackManoeuvres`; penalties zero unless the boat has them), as a route's.
+    distance_to_finish_nm : How far the track's last point is from the scenario's finish (its finish line when it
+        has one) [nm]; None when not known (a track sailed without its scenario's course).
+    leg_criteria : For each leg with ``p_f > apf``, the failure model's criteria that fire along it as sailed and for
+        how long (e.g. ``"WH: hs_m >= 4 m for 0.83 h"``, joined by ``"; "``); ``""`` for the other legs.
 
     The voyage figures (``voyage_time_h``, ``distance_nm``, ``arrival``, ``max_failure_probability``,
     ``voyage_failure_probability``) are properties, documented below.
@@ -1185,6 +1189,47 @@ class Evaluation:
     exposure_by_criterion_h: dict[str, float] = field(default_factory=dict)
     meta: dict[str, Any] = field(default_factory=dict)
     manoeuvres: TrackManoeuvres | None = None
+    distance_to_finish_nm: float | None = None
+    leg_criteria: tuple[str, ...] = ()
+
+    @property
+    def arrived(self) -> bool:
+        """True when every leg was sailed and the track ends at the finish (within :data:`ARRIVAL_TOLERANCE_NM`;
+        a track whose finish is not known ends at its own last point)."""
+        near = self.distance_to_finish_nm is None or self.distance_to_finish_nm <= ARRIVAL_TOLERANCE_NM
+        return math.isfinite(self.voyage_time_h) and near
+
+    def why(self) -> str | None:
+        """One line on what stops the track being a route -- the first blocked leg, why, and the conditions met on
+        it, or how far short of the finish it ends -- or None when it is feasible and arrives."""
+        if self.feasible and self.arrived:
+            return None
+        if self.feasible:
+            end = self.track[-1]
+            return (
+                f"the track ends {self.distance_to_finish_nm:.1f} nm short of the scenario's finish (at lon "
+                f"{end[0]:.2f}, lat {end[1]:.2f}; a route ends within {ARRIVAL_TOLERANCE_NM:g} nm of it)"
+            )
+        i = int(self.blocked_leg)  # type: ignore[arg-type]  # not feasible: a leg is blocked
+        legs = self.legs
+        lon, lat = self.track[i]
+        n_blocked = sum(1 for r in self.leg_reasons if r)
+        more = f" ({n_blocked - 1} more leg{'s' if n_blocked > 2 else ''} blocked after it)" if n_blocked > 1 else ""
+        met = ", ".join(
+            f"{label} {legs[key][i]:.{digits}f}{unit}"
+            for key, label, unit, digits in (
+                ("tws_kn", "TWS", " kn", 1),
+                ("twa_deg", "TWA", " deg", 0),
+                ("hs_m", "Hs", " m", 2),
+            )  # fmt: skip
+            if math.isfinite(legs[key][i])
+        )
+        why = ", ".join(_LEG_BLOCKS[r](self, i) for r in self.leg_reasons[i])
+        return (
+            f"leg {i} (from track point {i} at lon {lon:.2f}, lat {lat:.2f}) is blocked: {why}"
+            + (f" (conditions at its middle: {met})" if met else "")
+            + more
+        )
 
     @property
     def voyage_time_h(self) -> float:
@@ -1222,7 +1267,9 @@ class Evaluation:
             "voyage_time_h": _finite(self.voyage_time_h),
             "distance_nm": self.distance_nm,
             "departure": iso_utc(self.departure),
-            "arrival": None if np.isnat(self.arrival) else iso_utc(self.arrival),
+            "arrival": None if np.isnat(self.arrival) or not self.arrived else iso_utc(self.arrival),
+            "arrived": self.arrived,
+            "distance_to_finish_nm": self.distance_to_finish_nm,
             "feasible": self.feasible,
             "reason": self.reason,
             "blocked_leg": self.blocked_leg,
@@ -1244,6 +1291,24 @@ class Evaluation:
                 for lo, la, t, p, r in zip(self.track[:, 0], self.track[:, 1], self.time, p_point, reasons, strict=True)
             ],
         }
+
+
+#: How close to the finish a track must end to arrive [nm] (a route's own track ends on it; a GPS log or a
+#: hand-drawn track may stop a little short).
+ARRIVAL_TOLERANCE_NM = 1.0
+
+#: What each of :data:`BLOCK_REASONS` says about leg ``i`` of an evaluation.
+_LEG_BLOCKS = {
+    "no_speed": lambda ev, i: "the polar gives no boat speed there",
+    "current": lambda ev, i: "the current is too strong to hold the course",
+    "weather": lambda ev, i: "the weather has no data there",
+    "land": lambda ev, i: "it crosses land",
+    "zone": lambda ev, i: "it enters an exclusion zone",
+    "p_f": lambda ev, i: (
+        f"p_f {ev.legs.p_f[i]:.3f} > apf {ev.meta.get('apf', float('nan')):g}"
+        + (f", meeting {ev.leg_criteria[i]}" if i < len(ev.leg_criteria) and ev.leg_criteria[i] else "")
+    ),
+}
 
 
 def _finite(x: float) -> float | None:
@@ -1306,7 +1371,10 @@ def evaluate_track(
     # a track that starts where or when the weather has no data is an error, not a voyage of no time (issue 34)
     problem.weather.check_coverage((lon0, lon0), (lat0, lat0), (problem.departure, problem.departure))
     sailed = sail_tracks(problem, [trk], avoid=scenario.avoid, manoeuvres=True)[0]
-    return describe(problem, sailed, meta={"scenario": scenario.source, "land": scenario.avoid.land})
+    ev = describe(problem, sailed, meta={"scenario": scenario.source, "land": scenario.avoid.land})
+    end = float(trk.lon_deg[-1]), float(trk.lat_deg[-1])
+    mark = scenario.finish_line or (scenario.finish,)
+    return replace(ev, distance_to_finish_nm=geodesy.distance_to_segment_nm(*end, *mark))
 
 
 def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | None = None) -> Evaluation:
@@ -1321,6 +1389,7 @@ def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | 
     waits = np.zeros(n) if sailed.wait_h is None else sailed.wait_h
     cols["wait_h"] = waits.copy()
     exposure: dict[str, float] = {}
+    criteria_h: dict[str, FloatArray] = {}  # hours each criterion fires on each leg sailed
     if k > 0:
         c = sailed.costs
         marks = None if c.marks_h is None else c.marks_h[:k]
@@ -1329,11 +1398,16 @@ def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | 
         for name in cols:
             cols[name][:k] = legs[name]
         exposure = {c: float(v.sum()) for c, v in exp.criterion_h.items()}
+        criteria_h = {c: np.asarray(v, dtype=float) for c, v in exp.criterion_h.items()}
     if k < n:  # the leg that cannot be sailed
         cols["time_h"][k] = np.inf
         cols["p_f"][k] = sailed.costs.p_f[k]
     reasons = sailed.leg_reasons()
     blocked = next((i for i, r in enumerate(reasons) if r), None)
+    leg_criteria = tuple(
+        "; ".join(f"{c} for {h[i]:.2f} h" for c, h in criteria_h.items() if i < k and h[i] > 0.0) if "p_f" in r else ""
+        for i, r in enumerate(reasons)
+    )
     start = np.datetime64(problem.departure, "s")  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
     seconds = np.round(np.where(finite, e, 0.0) * 3600.0).astype("timedelta64[s]")
     times = np.where(finite, start + seconds, np.datetime64("NaT", "s"))
@@ -1349,6 +1423,7 @@ def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | 
         leg_reasons=tuple(reasons),
         exposure_by_criterion_h=exposure,
         manoeuvres=sailed.manoeuvres,
+        leg_criteria=leg_criteria,
         meta={
             "apf": float(problem.apf),
             "failure_model": None if problem.failure is None else problem.failure.name,

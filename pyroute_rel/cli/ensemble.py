@@ -141,16 +141,33 @@ def _text(s: dict[str, Any]) -> str:
             f"{c['infeasible_members']:>8.2f}"
         )
     ch = s["chosen"]
+    if any(_h(v) == "-" for c in s["candidates"] for v in (*c["arrival_h"].values(), c["risk_h"])):
+        lines.append("                 (-: infinite, the candidate does not arrive in the members that figure needs)")
+    lines.append(
+        f"choice           feasibility first: of the candidates infeasible in the fewest members, the least "
+        f"{ch['risk']} [h]"
+    )
     line = (
         f"chosen           {ch['name']}: {ch['risk']} {_h(ch['value_h'])} h, infeasible in "
-        f"{ch['infeasible_members']:.0%}"
+        f"{ch['infeasible_members']:.0%} of the members"
     )
     if ch.get("mean_field_value_h") is not None or ch.get("mean_field_infeasible_members") is not None:
-        beats = ch["beats_mean_field_by_h"]
         line += (
-            f" of the members; the mean-field route: {_h(ch['mean_field_value_h'])} h, infeasible in "
-            f"{ch['mean_field_infeasible_members']:.0%}"
-            + ("" if beats is None else f" ({'beaten' if beats >= 0 else 'faster'} by {abs(beats):.1f} h)")
+            f"; the mean-field route: {_h(ch['mean_field_value_h'])} h, infeasible in "
+            f"{ch['mean_field_infeasible_members']:.0%}" + _against_mean(ch)
         )
     lines.append(line)
     return "\n".join(lines)
+
+
+def _against_mean(ch: dict[str, Any]) -> str:
+    """How the chosen route compares with the mean-field route, signed right: ``beats_mean_field_by_h`` is the
+    mean-field route's risk minus the chosen one's [h]."""
+    beats = ch["beats_mean_field_by_h"]
+    if beats is None:
+        return ""
+    if beats >= 0.0:
+        return f" (the chosen route's {ch['risk']} is {beats:.1f} h less)"
+    return (
+        f" (its {ch['risk']} is {-beats:.1f} h less, but it is infeasible in more members: feasibility decides first)"
+    )

@@ -12,6 +12,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from pyroute_rel.cli._help import APF_HELP
+
 __all__ = ["add_evaluate_parser", "EVALUATE_FILES"]
 
 EXIT_OK = 0
@@ -39,7 +41,7 @@ def add_evaluate_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         type=_member,
         help="sail in this ensemble member's weather ([weather] member = k), or 'mean' for the ensemble mean",
     )
-    e.add_argument("--apf", type=float, help="acceptable probability of failure the legs are held to")
+    e.add_argument("--apf", type=float, help=f"{APF_HELP} (overrides [failure].apf)")
     e.add_argument(
         "--monte-carlo",
         type=int,
@@ -92,6 +94,11 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         print(_text(ev, summary))
+    why = ev.why()
+    if why is not None:  # the figures are printed and written; the exit code says the track is not a route
+        from pyroute_rel.errors import NoFeasibleRouteError
+
+        raise NoFeasibleRouteError(f"the track is not a feasible route: {why}")
     return EXIT_OK
 
 
@@ -211,18 +218,25 @@ def _text(ev: Any, s: dict[str, Any]) -> str:
         voyage = f"{ev.voyage_time_h:.2f} h ({int(days)} d {hours:.1f} h)"
     else:
         voyage = f"cannot be sailed beyond leg {ev.blocked_leg} ({ev.reason})"
-    verdict = "feasible" if ev.feasible else f"not feasible: leg {ev.blocked_leg} blocked by {ev.reason}"
     blocked = sum(1 for r in ev.leg_reasons if r)
+    if not ev.feasible:  # the error line after the figures says why in full
+        verdict = f"not feasible: leg {ev.blocked_leg} blocked by {ev.reason}" + (
+            f" ({blocked} legs blocked)" if blocked > 1 else ""
+        )
+    elif not ev.arrived:
+        verdict = f"does not arrive: ends {ev.distance_to_finish_nm:.1f} nm short of the finish"
+    else:
+        verdict = "feasible"
     return "\n".join(
         [
             f"track            {s['track_file']} ({ev.track.shape[0]} points, {ev.legs.n_legs} legs)",
             f"voyage time      {voyage}",
             f"distance         {ev.distance_nm:.1f} nm",
             f"departure        {s['departure']}",
-            f"arrival          {s['arrival'] or '-'}",
+            f"arrival          {s['arrival'] or 'none'}",
             f"failure model    {s.get('failure_model') or 'none'} (apf {s.get('apf', 1.0):g}): max leg p_f "
             f"{ev.max_failure_probability:.3f}, voyage p_f {ev.voyage_failure_probability:.3f}",
-            f"verdict          {verdict}" + (f" ({blocked} legs blocked)" if blocked > 1 else ""),
+            f"verdict          {verdict}",
             *_mc_lines(s.get("monte_carlo")),
         ]
     )

@@ -11,6 +11,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from pyroute_rel.cli._help import APF_HELP
+
 __all__ = ["add_gci_parser"]
 
 EXIT_OK, EXIT_GATE = 0, 1
@@ -93,7 +95,7 @@ def add_gci_parser(
         help=f"angular: rank/lateral spacing of the coarsest grid, doubled with every doubling of ranks "
         f"(default {_ANGULAR_DEFAULTS['aspect0']:g}; the route's fixed aspect is 6, see above)",
     )
-    s.add_argument("--apf", type=float, help="acceptable probability of failure")
+    s.add_argument("--apf", type=float, help=f"{APF_HELP} (overrides [failure].apf)")
     s.add_argument("--failure-model", help="failure model name or file ('none' for no model)")
     s.add_argument("--no-land", action="store_true", help="do not avoid land (overrides [avoid].land)")
     _gate_args(s)

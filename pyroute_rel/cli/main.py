@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from pyroute_rel import __version__
+from pyroute_rel.cli._help import APF_HELP
 from pyroute_rel.cli.ensemble import add_ensemble_parser
 from pyroute_rel.cli.evaluate import add_evaluate_parser
 from pyroute_rel.cli.gci import NEGATIVE_NUMBERS, add_gci_parser
@@ -29,6 +30,7 @@ from pyroute_rel.errors import PyrouteError, PyrouteWarning, ScenarioError
 __all__ = ["main", "build_parser", "one_line", "MESSAGE_MAX_CHARS"]
 
 EXIT_OK, EXIT_GATE, EXIT_USER, EXIT_INTERNAL = 0, 1, 2, 3
+
 
 #: Longest message line printed [characters]: a user value echoed in a message (a 10 MB polar name, a key) is cut
 #: in the middle beyond this, so that an error stays one readable line.
@@ -160,7 +162,7 @@ def _add_route_parser(sub: Any) -> None:
     r.add_argument("scenario", help="scenario TOML file")
     r._negative_number_matcher = NEGATIVE_NUMBERS  # "--time-step -inf" is a (bad) value, not an option
     _add_grid_options(r)
-    r.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1]")
+    r.add_argument("--apf", type=float, help=f"{APF_HELP} (overrides [failure].apf)")
     r.add_argument(
         "--max-memory",
         metavar="SIZE",
@@ -284,11 +286,7 @@ def _route(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     if route.touches_edge:
-        print(
-            "pyroute-rel: warning: the route uses the outermost nodes of the grid; widen it (more nodes or a "
-            "larger spacing_km) to check that a wider detour is not faster",
-            file=sys.stderr,
-        )
+        print(f"pyroute-rel: warning: {widen_advice(scenario.layout, route.grid)}", file=sys.stderr)
     for note in scenario.notes:  # how the file was read (a time without a zone): with the result, even if --quiet
         print(f"pyroute-rel: note: {one_line(note)}", file=sys.stderr)
     if args.json:
@@ -296,6 +294,19 @@ def _route(args: argparse.Namespace) -> int:
     else:
         print(_route_text(route, elapsed, args.out, scenario.marks()))
     return EXIT_OK
+
+
+def widen_advice(layout: str, grid: Any) -> str:
+    """The grid-edge warning: the route uses the outermost nodes, and the option that widens the grid in use (the
+    angular layout's width is its half-width; the square layout's, its nodes times their spacing)."""
+    head = "the route uses the outermost nodes of the grid, so a wider detour may be faster: widen the grid with "
+    if layout == "angular":
+        hw = grid.half_width_km
+        return f"{head}--half-width-km (now {hw:.0f} km, [grid].half_width_km), e.g. --half-width-km {2 * hw:.0f}"
+    return (
+        f"{head}--n-nodes (now {grid.n_nodes}, [grid].n_nodes) or --spacing-km (now {grid.spacing_km:.3g} km, "
+        f"[grid].spacing_km), e.g. --n-nodes {2 * grid.n_nodes - 1}"
+    )
 
 
 def _departure_sweep(args: argparse.Namespace, options: dict[str, Any]) -> int:

@@ -16,7 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_compare_parser", "route_with_planner", "PLANNER_FILES"]
+__all__ = ["add_compare_parser", "route_with_planner", "why_not_arrived", "PLANNER_FILES"]
 
 #: Files ``route --planner ... --out DIR`` writes: those of a DP route (``pyroute_rel.outputs``) but
 #: ``forbidden.geojson`` (the arcs the DP found forbidden); only ``summary.json`` when a leg cannot be sailed.
@@ -41,7 +41,33 @@ def _planner_summary(scenario: Any, kind: str, progress: bool) -> tuple[Any, Any
     if not planned.reached:
         summary["feasible"] = False
         summary["reason"] = summary.get("reason") or "not_reached"
+        summary["arrival"] = None  # the track's end is not an arrival
+        end = float(planned.lon_deg[-1]), float(planned.lat_deg[-1])
+        summary["distance_to_finish_nm"] = problem.grid.distance_to_finish_nm(*end)
     return planned, ev, track_route(problem, planned, ev), summary
+
+
+#: The setting that gives each planner more search when it did not reach the finish.
+_MORE_SEARCH = {"mcts": "iterations", "qlearning": "episodes", "dqn": "episodes"}
+
+
+def why_not_arrived(kind: str, scenario: Any, planned: Any, summary: dict[str, Any]) -> str:
+    """One line on why a planner's track is not a route: it stopped short of the finish (how far, where, after how
+    long, and which setting searches more), or a leg cannot be sailed as the router would (the evaluator's reason)."""
+    if not planned.reached:
+        setting = _MORE_SEARCH.get(kind)
+        more = ""
+        if setting is not None:
+            now = getattr(getattr(scenario.planner, kind), setting)
+            more = f"; search more with [planner.{kind}] {setting} (now {now}), or plan with --planner dp"
+        return (
+            f"the {kind} planner did not reach the finish: its track ends {summary['distance_to_finish_nm']:.0f} nm "
+            f"short of it, at lon {planned.lon_deg[-1]:.2f}, lat {planned.lat_deg[-1]:.2f}, after "
+            f"{planned.voyage_time_h:.1f} h{more}"
+        )
+    return f"the {kind} planner's track is not feasible as the router would sail it: {summary['reason']}" + (
+        f" on leg {summary['blocked_leg']}" if summary.get("blocked_leg") is not None else ""
+    )
 
 
 def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
@@ -55,7 +81,12 @@ def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
         "summary.json": lambda p: Path(p).write_text(text, encoding="utf-8")
     }
     if route is not None:
-        title = f"{summary['planner']}: {route.voyage_time_h:.1f} h (re-timed by the evaluator)"
+        title = (
+            f"{summary['planner']}: {route.voyage_time_h:.1f} h (re-timed by the evaluator)"
+            if route.arrived
+            else f"{summary['planner']}: did NOT reach the finish (ends {summary['distance_to_finish_nm']:.0f} nm "
+            f"short after {route.voyage_time_h:.1f} h)"
+        )
         writers.update(
             {
                 "route.geojson": lambda p: Path(p).write_text(json.dumps(to_geojson(route), indent=1), "utf-8"),
@@ -99,12 +130,14 @@ def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> in
         print(f"pyroute-rel: note: {' '.join(note.split())}", file=sys.stderr)
     if args.json:
         print(json.dumps(summary))
-        return 0
+        return _arrived_or_raise(kind, scenario, planned, summary)
     st = planned.stats
     voyage = summary["voyage_time_h"]
     lines = [
         f"planner          {kind} ({'reached the finish' if planned.reached else 'did NOT reach the finish'})",
         f"voyage time      {voyage:.2f} h (re-timed by the evaluator; the planner's own: {planned.voyage_time_h:.2f} h)"
+        if voyage is not None and planned.reached
+        else f"time sailed      {voyage:.2f} h, ending {summary['distance_to_finish_nm']:.0f} nm short of the finish"
         if voyage is not None
         else "voyage time      none (a leg cannot be sailed)",
         f"distance         {ev.distance_nm:.1f} nm",
@@ -117,7 +150,17 @@ def route_with_planner(scenario: Any, args: argparse.Namespace, t0: float) -> in
     if args.out is not None:
         lines.append(f"outputs          {Path(args.out)}/ ({', '.join(written)})")
     print("\n".join(lines))
-    return 0
+    return _arrived_or_raise(kind, scenario, planned, summary)
+
+
+def _arrived_or_raise(kind: str, scenario: Any, planned: Any, summary: dict[str, Any]) -> int:
+    """0 for a feasible track that reached the finish; else the no-route error (its one line, exit 2), after the
+    figures were printed and the files written."""
+    from pyroute_rel.errors import NoFeasibleRouteError
+
+    if planned.reached and summary["feasible"]:
+        return 0
+    raise NoFeasibleRouteError(why_not_arrived(kind, scenario, planned, summary))
 
 
 def _work(stats: dict[str, Any]) -> str:

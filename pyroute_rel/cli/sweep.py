@@ -9,6 +9,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from pyroute_rel.cli._help import APF_HELP
+
 __all__ = ["add_sweep_parser", "departures_option"]
 
 
@@ -56,7 +58,7 @@ def add_sweep_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser], N
         help="START,END,STEP_H (ISO 8601 times, hours) or comma-separated ISO 8601 departure times",
     )
     s.add_argument("--members", type=_members_option, help="ensemble members: 'all' or comma-separated numbers")
-    s.add_argument("--apf", type=csv_floats, help="acceptable probabilities of failure, comma-separated")
+    s.add_argument("--apf", type=csv_floats, help=f"comma-separated values, each an {APF_HELP}")
     s.add_argument("--out", help="folder for runs.parquet/ (one part per finished batch), tracks/ and sweep.png")
     s.add_argument("--plot", help="PNG to write the plot to (default: sweep.png in --out; none without --out)")
     s.add_argument(
@@ -182,9 +184,9 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _exit_code(rows: list[dict[str, Any]]) -> int:
-    """3 when a run hit an internal error; 2 when every run was a user error; else 0 (runs without a route are
-    results)."""
-    from pyroute_rel.errors import ScenarioError
+    """3 when a run hit an internal error; 2 when every run was a user error, or no run has a route (the table is
+    printed and written first); else 0 (some runs without a route are results: the table says why for each)."""
+    from pyroute_rel.errors import NoFeasibleRouteError, ScenarioError
 
     if any(str(r["message"]).startswith("internal error") for r in rows):
         first = next(r for r in rows if str(r["message"]).startswith("internal error"))
@@ -192,6 +194,9 @@ def _exit_code(rows: list[dict[str, Any]]) -> int:
         return 3
     if rows and all(r["status"] == "error" for r in rows):
         raise ScenarioError(f"no run could be routed: {rows[0]['message']}")
+    if rows and not any(r["status"] == "ok" for r in rows):
+        first = next(r for r in rows if r["status"] == "no_route")
+        raise NoFeasibleRouteError(f"no run has a route; the first (run {first['key']}): {first['message']}")
     return 0
 
 

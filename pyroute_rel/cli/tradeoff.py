@@ -10,6 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from pyroute_rel.cli._help import APF_HELP
 from pyroute_rel.errors import ScenarioError
 
 __all__ = ["add_tradeoff_parser", "OUTPUT_FILES"]
@@ -52,7 +53,7 @@ def add_tradeoff_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         "leg p_f: corridor grids around it), keeping the non-dominated results (default 0: the routes on the grid; "
         "[grid].refine is not applied)",
     )
-    t.add_argument("--apf", type=float, help="acceptable probability of failure in [0, 1] (overrides [failure].apf)")
+    t.add_argument("--apf", type=float, help=f"{APF_HELP} (overrides [failure].apf)")
     t.add_argument("--n-ranks", type=int, help="number of ranks (overrides [grid].n_ranks)")
     t.add_argument("--json", action="store_true", help="print the result as one JSON object")
     t.add_argument("--out", help="folder for " + ", ".join(OUTPUT_FILES))

@@ -83,7 +83,7 @@ def track_route(problem: PlanningProblem, planned: PlannedTrack, evaluation: Eva
     legs and exposure, on the scenario's grid and problem; None when a leg cannot be sailed (no times after it).
 
     The route's ``dp`` is empty (no arc was costed by the DP: every node unreached) and its ``nodes`` are the
-    planner's nodes on the grid (Q-learning on the graph) or none.
+    planner's nodes on the grid (Q-learning on the graph) or none; it ``arrived`` when the planner reached the finish.
     """
     from pyroute_rel.routing.route import Route
     from pyroute_rel.routing.solve import DPResult
@@ -116,4 +116,5 @@ def track_route(problem: PlanningProblem, planned: PlannedTrack, evaluation: Eva
         meta=dict(evaluation.meta),
         zones=tuple(problem.scenario.avoid.zones),
         exposure_by_criterion_h=dict(evaluation.exposure_by_criterion_h),
+        arrived=bool(planned.reached),
     )

@@ -226,6 +226,18 @@ class Grid:
             return self.start_valid[:, None]
         return np.ones((self.n_nodes, n_start), dtype=bool)
 
+    def distance_to_finish_nm(self, lon_deg: float, lat_deg: float) -> float:
+        """How far a point is from the finish [nm]: from the finish line (the nearest point of its great-circle
+        segment) when the grid has one, else from the finish point.
+
+        >>> g = make_grid((0.0, 0.0), (2.0, 0.0), n_ranks=4, n_nodes=3, spacing_km=10.0)
+        >>> round(g.distance_to_finish_nm(1.0, 0.0), 3)  # one degree of the equator: 60 nm
+        60.04
+        """
+        if self.finish_line is None:
+            return geodesy.distance_to_segment_nm(lon_deg, lat_deg, self.finish)
+        return geodesy.distance_to_segment_nm(lon_deg, lat_deg, *self.finish_line)
+
     def describe(self) -> dict[str, Any]:
         """JSON-ready summary of the grid's geometry."""
         return {

@@ -237,6 +237,9 @@ class Route:
         departure], shape (legs, samples + 1): the times the legs were sailed at (:mod:`pyroute_rel.boat.march`; the
         time along a sub-segment is linear between its marks, :func:`~pyroute_rel.boat.march.time_along`); None with
         steady weather (a leg's time is then shared along it by distance).
+    arrived : False for a track that stops short of the finish (a planner's that did not reach it): the outputs
+        never name its last point the finish (:mod:`pyroute_rel.outputs` names it ``end``), and the map marks the
+        finish and where the track ends (:func:`~pyroute_rel.viz.maps.plot_route`). A DP route always arrives.
     """
 
     lon_deg: FloatArray
@@ -255,6 +258,7 @@ class Route:
     exposure_by_criterion_h: dict[str, float] = field(default_factory=dict)
     manoeuvres: TrackManoeuvres | None = None
     leg_marks_h: FloatArray | None = None
+    arrived: bool = True
 
     @property
     def weather(self) -> WeatherSource:

@@ -327,7 +327,8 @@ def _draw_tracks(ax: Axes, routes: Sequence[Route], labels: Sequence[str], view:
             color=_COLOURS[i % len(_COLOURS)],
             lw=1.6,
             zorder=3,
-            label=f"{label}{' (refined)' if before is not None else ''}: {route.voyage_time_h:.1f} h",
+            label=f"{label}{' (refined)' if before is not None else ''}: {route.voyage_time_h:.1f} h"
+            + ("" if route.arrived else " sailed, does not arrive"),
         )
 
 
@@ -369,7 +370,13 @@ def _draw_marks(ax: Axes, routes: Sequence[Route], grids: Sequence[Grid], view: 
         ax.plot(view(f_lon), f_lat, color="w", lw=1.6, ls=(0, (2, 2)), zorder=4, label="_")
     track = routes[0]
     ax.plot(view(track.lon_deg[0]), track.lat_deg[0], "^", color="tab:green", mec="k", ms=8, zorder=5, label="start")
-    ax.plot(view(track.lon_deg[-1]), track.lat_deg[-1], "s", color="k", ms=7, zorder=5, label="finish")
+    if track.arrived:
+        ax.plot(view(track.lon_deg[-1]), track.lat_deg[-1], "s", color="k", ms=7, zorder=5, label="finish")
+    else:  # the real finish, and where the track stops short of it
+        ax.plot(view(last.finish[0]), last.finish[1], "s", color="k", ms=7, zorder=5, gid="finish", label="finish")
+        short = last.distance_to_finish_nm(float(track.lon_deg[-1]), float(track.lat_deg[-1]))
+        ax.plot(view(track.lon_deg[-1]), track.lat_deg[-1], "X", color="tab:red", mec="k", ms=9, zorder=6,
+                gid="track end", label=f"track ends {short:.0f} nm short of the finish")  # fmt: skip
     marks = np.array([g.finish for g in grids[:-1]], dtype=float).reshape(-1, 2)
     if marks.size:
         ax.plot(
@@ -526,8 +533,9 @@ def plot_route(route: Route, *, path: str | os.PathLike[str] | None = None, titl
     """Map of one route: the failure model's classes for its headings and times, its weather, the zones it avoided,
     each leg's grid (see the module notes)."""
     t = title or (
-        f"{route.voyage_time_h:.1f} h, apf {format_probability(route.problem.apf)}, "
-        f"max p_f {format_probability(route.max_failure_probability)}, "
-        f"voyage p_f {format_probability(route.voyage_failure_probability)}"
+        f"{route.voyage_time_h:.1f} h; each leg held to p_f <= apf {format_probability(route.problem.apf)} "
+        f"(largest leg p_f {format_probability(route.max_failure_probability)})\n"
+        f"voyage p_f {format_probability(route.voyage_failure_probability)}: the chance of at least one failure "
+        "over the voyage (reported, not bounded)"
     )
     return plot_routes([route], labels=["route"], title=t, path=path, zones=route.zones)
