@@ -12,6 +12,7 @@ A scenario has these tables (unknown tables or keys are refused with the file an
                kind = "file"    (paths = [...], see pyroute_rel.weather.io.readers)
                (more kinds: :func:`register_weather_kind`)
     [failure]  model = "dickson2018" | "path/to/model.toml" | "none"   apf = 1.0
+               (or limits = { tws_kn_max = 35, hs_m_max = 5, twa_deg_min = 40 }: apf defaults to 0)
     [avoid]    land = true  margin_km = 0  resolution = "intermediate"  zones = ["zones.geojson"]
     [planner]  kind = "dp" | "mcts" | "qlearning" | "dqn"  seed = 0  and [planner.mcts], ... (see
                pyroute_rel.planners.settings)
@@ -245,6 +246,16 @@ class Key:
     default: Any = None
 
 
+def _limits(value: Any, where: str) -> tuple[tuple[str, float], ...]:
+    from pyroute_rel.errors import FailureModelError
+    from pyroute_rel.reliability.limits import check_limits
+
+    try:
+        return check_limits(value, where)
+    except FailureModelError as exc:
+        raise ScenarioError(str(exc)) from None
+
+
 #: The keys of every table: what each holds and how it is checked. ``[weather]`` is checked by its kind's builder.
 SCHEMA: dict[str, dict[str, Key]] = {
     "route": {
@@ -312,6 +323,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "failure": {
         "model": Key("model name, model file, or 'none'", _model_name),
         "apf": Key("probability in [0, 1]", probability, 1.0),
+        "limits": Key(
+            "{ tws_kn_max = 35, hs_m_max = 5, twa_deg_min = 40, ... }: plain limits, compiled to a failure model "
+            "(instead of 'model')",
+            _limits,
+        ),
     },
     "avoid": {
         "land": Key("true (default) or false: forbid arcs over land (offline GSHHG shoreline)", true_or_false, True),
@@ -506,9 +522,17 @@ def parse_boat(raw: Mapping[str, Any], base_dir: Path) -> dict[str, Any]:
 
 
 def parse_failure(raw: Mapping[str, Any]) -> dict[str, Any]:
-    """``[failure]``: the model's name or file (None for ``"none"``) and the acceptable probability of failure."""
+    """``[failure]``: the model's name or file (None for ``"none"``), or plain limits
+    (:mod:`pyroute_rel.reliability.limits`), and the acceptable probability of failure (default 1; 0 with limits, so
+    that they hold)."""
     values = _read("failure", raw)
-    return {"failure_model": values["model"], "apf": values["apf"]}
+    limits = values["limits"] or ()
+    if limits and "model" in raw:
+        raise ScenarioError(
+            "[failure]: give either 'model' (a network) or 'limits' (plain limits compiled to one), not both"
+        )
+    apf = values["apf"] if "apf" in raw or not limits else 0.0
+    return {"failure_model": values["model"], "apf": apf, "failure_limits": limits}
 
 
 def parse_avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:

@@ -79,6 +79,8 @@ class Scenario:
         zero: free, the route of the plain DP).
     weather : The weather source.
     failure_model, apf : The failure model's name or file (None: none) and the acceptable probability of failure.
+    failure_limits : Plain limits instead of a model (``[failure].limits``: ``(key, value)`` pairs of
+        :data:`~pyroute_rel.reliability.limits.LIMIT_KEYS`), compiled to one by :meth:`load_failure`; empty: none.
     base_dir : Folder that relative paths start from.
     time_step_h, max_wait_h : Time lattice [h] and longest wait at a node [h] of the time-expanded DP.
     prune : Cost only the arcs that can still win.
@@ -123,6 +125,7 @@ class Scenario:
     notes: tuple[str, ...] = ()
     manoeuvres: ManoeuvrePenalties | None = None
     planner: PlannerSettings = field(default_factory=PlannerSettings)
+    failure_limits: tuple[tuple[str, float], ...] = ()
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's, with the command-line option named).
@@ -131,7 +134,10 @@ class Scenario:
         to None here: build the scenario from a mapping without it (:func:`scenario_from_mapping`) instead. The
         options and their checks: :data:`pyroute_rel.config.OPTIONS`.
         """
-        return replace(self, **parse_options(changes, avoid=self.avoid))
+        checked = parse_options(changes, avoid=self.avoid)
+        if "failure_model" in checked:  # a model given (or 'none') replaces the file's limits
+            checked["failure_limits"] = ()
+        return replace(self, **checked)
 
     def marks(self) -> list[tuple[str, tuple[float, float]]]:
         """The course's marks in order, named by their scenario field: start, waypoints, finish."""
@@ -175,7 +181,13 @@ class Scenario:
         return grids
 
     def load_failure(self) -> FailureModel | None:
-        """The compiled failure model, or None. Refuses a model that needs fields the weather lacks."""
+        """The compiled failure model (or plain limits compiled to one), or None. Refuses a model that needs fields
+        the weather lacks."""
+        if self.failure_limits:
+            from pyroute_rel.reliability.limits import limits_model
+
+            model = limits_model(self.failure_limits, where=f"{self.source}: [failure].limits")
+            return self._weather_has(model)
         if self.failure_model is None:
             return None
         from pyroute_rel.reliability.failure import load_failure_model
@@ -188,6 +200,10 @@ class Scenario:
             model = load_failure_model(name)
         except FailureModelError as exc:
             raise FailureModelError(f"{self.source}: [failure].model {self.failure_model!r}: {exc}") from None
+        return self._weather_has(model)
+
+    def _weather_has(self, model: FailureModel) -> FailureModel:
+        """``model``, refused when it needs weather fields the scenario's weather lacks."""
         have = self.weather.fields
         missing = sorted(model.weather_fields - have)
         if missing:

@@ -66,6 +66,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "QUANTITIES",
+    "QUANTITY_RANGES",
+    "QUANTITY_UNITS",
+    "model_from_bytes",
+    "parse_model_toml",
     "QUANTITY_FIELDS",
     "OPERATORS",
     "CLOSED_SIDES",
@@ -100,15 +104,16 @@ QUANTITY_FIELDS: dict[str, tuple[str, bool]] = {
     "twa_deg": ("twd_deg", True),
     "wave_period_s": ("wave_period_s", False),
 }
-#: Physical range of each quantity (angles folded to [0, 180] as the cost module computes them).
-_QUANTITY_RANGES = {
+#: Physical range of each quantity [its unit] (angles folded to [0, 180] as the cost module computes them).
+QUANTITY_RANGES = {
     "hs_m": (0.0, math.inf),
     "awd_deg": (0.0, 180.0),
     "tws_kn": (0.0, math.inf),
     "twa_deg": (0.0, 180.0),
     "wave_period_s": (0.0, math.inf),
 }
-_UNITS = {"hs_m": "m", "awd_deg": "deg", "tws_kn": "kn", "twa_deg": "deg", "wave_period_s": "s"}
+#: The unit of each quantity, as messages and descriptions write it.
+QUANTITY_UNITS = {"hs_m": "m", "awd_deg": "deg", "tws_kn": "kn", "twa_deg": "deg", "wave_period_s": "s"}
 
 #: Comparison operators of a two-state (threshold) criterion.
 OPERATORS = (">=", ">", "<=", "<")
@@ -234,7 +239,7 @@ class Criterion:
         ...           operator=">=", threshold=4.0).describe()
         'WH: hs_m >= 4 m'
         """
-        unit = _UNITS[self.quantity]
+        unit = QUANTITY_UNITS[self.quantity]
         if self.operator is not None:
             fired = [s for s in self.bin_states if s not in self.nominal]
             tail = "" if fired == ["true"] else f" -> {fired[0]}"
@@ -363,7 +368,7 @@ class FailureModel:
             shapes = {k: a.shape for k, a in arrays.items()}
             raise FailureModelError(f"p_fail: the quantities must broadcast together (got shapes {shapes})") from None
         quantities = arrays
-        for name, (lo, hi) in _QUANTITY_RANGES.items():
+        for name, (lo, hi) in QUANTITY_RANGES.items():
             if name in quantities:
                 v = quantities[name]
                 bad = np.isfinite(v) & ((v < lo) | (v > hi))
@@ -645,14 +650,30 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     toml_file = _resolve(name_or_path)
     label = brief_path(str(toml_file))  # for messages: control characters escaped, a long path cut in the middle
     toml_bytes = _read(toml_file, label)
+    spec = parse_model_toml(toml_bytes, label, default_name=toml_file.name.removesuffix(".toml"))
+    net_file = _sibling(toml_file, spec["network"])
+    net_label = str(net_file)
+    net_bytes = _read(net_file, f"{label}: network file {spec['network']!r} ({net_label})")
+    return model_from_bytes(toml_bytes, net_bytes, spec, path=str(toml_file), net_label=net_label, cache=cache)
+
+
+def parse_model_toml(toml_bytes: bytes, label: str, *, default_name: str) -> dict[str, Any]:
+    """A model's TOML text parsed and checked on its own (:func:`_parse_spec`)."""
     try:
         doc = tomllib.loads(toml_bytes.decode("utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise FailureModelError(f"{label}: TOML syntax error: {exc}") from None
-    spec = _parse_spec(doc, label, default_name=toml_file.name.removesuffix(".toml"))
-    net_file = _sibling(toml_file, spec["network"])
-    net_label = str(net_file)
-    net_bytes = _read(net_file, f"{label}: network file {spec['network']!r} ({net_label})")
+    return _parse_spec(doc, label, default_name=default_name)
+
+
+def model_from_bytes(
+    toml_bytes: bytes, net_bytes: bytes, spec: dict[str, Any], *, path: str, net_label: str, cache: bool = True
+) -> FailureModel:
+    """The compiled :class:`FailureModel` of a model's TOML and network bytes (``spec``: the TOML parsed by
+    :func:`parse_model_toml`), its table from the caches (keyed by both files' bytes) or compiled with pgmpy.
+    ``path`` and ``net_label`` name the two in messages and in the model (``net_label`` ends with the network
+    format's extension)."""
+    label = brief_path(path)
     key = _cache_key(toml_bytes, net_bytes)
     compiled = _compiled_tables().get(key) if cache else None
     if compiled is None and cache:
@@ -673,7 +694,7 @@ def load_failure_model(name_or_path: str | os.PathLike[str], *, cache: bool = Tr
     full.setflags(write=False)
     return FailureModel(
         name=spec["name"],
-        path=str(toml_file),
+        path=path,
         description=spec["description"],
         network_path=net_label,
         target=spec["target"]["node"],
