@@ -112,8 +112,16 @@ class NoFeasibleRouteError(PyrouteError, RuntimeError):
     """No route on the graph reaches the finish: every path has a forbidden arc.
 
     The message says at which rank the front of reachable nodes died and which criteria (failure
-    criteria, polar limits, land, zones, missing weather) forbade the arcs there.
+    criteria, polar limits, land, zones, missing weather) forbade the arcs there. Raised by a route, it also carries
+    ``result`` (the DP's :class:`~pyroute_rel.routing.solve.DPResult`) and, from
+    :meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>`, ``relaxation``: what would make it route
+    (:class:`~pyroute_rel.routing.relax.Relaxation`); both None otherwise.
     """
+
+    result: Any = None
+    relaxation: Any = None
+    cause: str | None = None
+    hint: str = ""
 
 
 class OutputError(PyrouteError, OSError):

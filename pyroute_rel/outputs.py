@@ -40,6 +40,7 @@ __all__ = [
     "to_csv",
     "turning_points",
     "write_outputs",
+    "write_no_route",
     "finite_or_null",
     "MANOEUVRE_FIELDS",
     "manoeuvre_cells",
@@ -380,6 +381,43 @@ def write_outputs(
     for name in set(OUTPUT_FILES) - set(writers):  # e.g. a route.png from an earlier run with a plot: stale now
         (Path(out_dir) / name).unlink(missing_ok=True)
     return written
+
+
+def write_no_route(scenario: Any, relaxation: Any, summary: Mapping[str, Any], out_dir: str | os.PathLike[str]) -> None:
+    """``route --out`` when no route exists: ``summary.json`` (``summary``: the error and the relaxation) and, when
+    the DP reached some node, the best partial route (:class:`~pyroute_rel.routing.relax.PartialRoute`) sailed by the
+    evaluator as ``route.geojson``, ``route.gpx``, ``route.csv`` and ``route.png`` (its last point named ``end``; the
+    map marks the finish and where the track stops). Other files of an earlier run are removed."""
+    text = json.dumps(finite_or_null(dict(summary)), indent=1, allow_nan=False)
+    writers: dict[str, Callable[[Path], object]] = {"summary.json": lambda p: p.write_text(text, encoding="utf-8")}
+    partial = None if relaxation is None else relaxation.partial
+    if partial is not None and partial.lon_deg.size > 1:
+        from pyroute_rel.analysis.evaluate import evaluate_track, evaluation_route
+        from pyroute_rel.viz.maps import plot_route
+
+        grid = scenario.leg_grids()[relaxation.leg]
+        points = np.column_stack([partial.lon_deg, partial.lat_deg])
+        ev = evaluate_track(scenario, points, departure=partial.departure)
+        route = evaluation_route(
+            ev, grid, scenario.problem(grid=grid), arrived=False, zones=tuple(scenario.avoid.zones)
+        )
+        if route is not None:
+            title = (
+                f"no route: the closest one gets is {partial.distance_to_finish_nm:.0f} nm from the "
+                f"{'finish' if relaxation.leg == relaxation.n_legs - 1 else 'next mark'}"
+                + (f"; it routes with apf {relaxation.apf:g}" if relaxation.apf is not None else "")
+            )
+            writers.update(
+                {
+                    "route.geojson": lambda p: p.write_text(json.dumps(to_geojson(route), indent=1), encoding="utf-8"),
+                    "route.gpx": lambda p: p.write_text(to_gpx(route), encoding="utf-8"),
+                    "route.csv": lambda p: p.write_text(to_csv(route), encoding="utf-8"),
+                    "route.png": lambda p: plot_route(route, path=p, title=title),
+                }
+            )
+    write_together(out_dir, writers)
+    for name in set(OUTPUT_FILES) - set(writers):
+        (Path(out_dir) / name).unlink(missing_ok=True)
 
 
 def _json_value(value: Any, where: str) -> Any:

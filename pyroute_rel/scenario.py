@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import tomllib
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -19,9 +19,11 @@ from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
 from pyroute_rel.config import parse_departure, parse_options, parse_tables
 from pyroute_rel.errors import (
     FailureModelError,
+    NoFeasibleRouteError,
     PyrouteError,
     PyrouteWarning,
     ScenarioError,
+    WeatherCoverageError,
     brief,
     check_flag,
     check_instance,
@@ -40,6 +42,7 @@ if TYPE_CHECKING:
     from pyroute_rel.boat.polar import Polar
     from pyroute_rel.reliability.failure import FailureModel
     from pyroute_rel.routing.cost import WaveLoss
+    from pyroute_rel.routing.relax import Relaxation
     from pyroute_rel.weather import WeatherSource
 
 #: Largest scenario file read [bytes]: 10 MB, a thousand times the largest example (a scenario holds settings
@@ -265,7 +268,14 @@ class Scenario:
             manoeuvres=self.manoeuvres,
         )
 
-    def route(self, *, progress: bool = False, grids: list[Grid] | None = None) -> Route:
+    def route(
+        self,
+        *,
+        progress: bool = False,
+        grids: list[Grid] | None = None,
+        relax: bool = True,
+        departures: Sequence[np.datetime64] = (),
+    ) -> Route:
         """Route the scenario: the library's entry point.
 
         The minimum-time route that respects the failure model (no arc with ``p_f > apf``), land and zones, found
@@ -279,6 +289,11 @@ class Scenario:
         progress : Show a progress bar (on stderr).
         grids : The legs' grids from an earlier :meth:`leg_grids` of this course, to reuse what is cached on them
             (arc geometry, obstacle masks) when routing it again, e.g. for another departure.
+        relax : When no route exists, find what would make one (:func:`pyroute_rel.routing.relax.relax`: the smallest
+            apf that routes, the best partial route, the failing leg), said in the error's message and given as its
+            ``relaxation``; False: the DP's explanation alone (no second routing).
+        departures : With ``relax``, departure times to try, in order, when no route exists: the earliest that
+            routes is part of the relaxation (``route --departure-window``).
 
         Returns
         -------
@@ -290,7 +305,8 @@ class Scenario:
         Raises
         ------
         NoFeasibleRouteError
-            When every path has a forbidden arc (the message says where the front died and why).
+            When every path has a forbidden arc (the message says where the front died, why, and what would make it
+            route; its ``relaxation`` holds the figures).
         WeatherCoverageError
             When the weather does not cover a leg's end points or its departure.
         ScenarioError
@@ -317,7 +333,7 @@ class Scenario:
         departure = self.departure
         grids = self.leg_grids() if grids is None else self._checked_grids(grids)
         self._warn_zones_outside(grids)
-        for grid in grids:
+        for i, grid in enumerate(grids):
             # the weather must cover the leg's end points and its departure; cells missing elsewhere in the
             # (wider) grid are NaN and forbid the arcs through them
             s_lon, s_lat = grid.start_points
@@ -328,7 +344,12 @@ class Scenario:
             last = routes[-1].manoeuvres if routes else None
             if last is not None and last.side.size and leg_problem.sides:  # a leg starts on the side the last ended on
                 leg_problem = replace(leg_problem, initial_side=int(last.side[-1]))
-            leg = route_on_grid(grid, leg_problem, progress=progress)
+            try:
+                leg = route_on_grid(grid, leg_problem, progress=progress)
+            except NoFeasibleRouteError as exc:
+                if not relax:
+                    raise
+                raise self._relaxed(exc, grids, i, leg_problem, departures) from None
             if self.refine:
                 leg = self._refined(leg, leg_problem)
             routes.append(leg)
@@ -337,6 +358,52 @@ class Scenario:
         return replace(
             route, meta={**route.meta, "scenario": self.source, "land": self.avoid.land}, zones=self.avoid.zones
         )
+
+    def _relaxed(
+        self,
+        error: NoFeasibleRouteError,
+        grids: list[Grid],
+        failed: int,
+        failed_problem: RoutingProblem,
+        departures: Sequence[np.datetime64],
+    ) -> NoFeasibleRouteError:
+        """The error of a course that does not route (leg ``failed``, routed as ``failed_problem``), with what would
+        make it route (:func:`pyroute_rel.routing.relax.relax`) in its message and as its ``relaxation``."""
+        from pyroute_rel.routing.relax import relax
+
+        failure = failed_problem.failure
+        legs = [
+            (
+                g,
+                failed_problem
+                if i == failed
+                else replace(self.problem(failure=failure, grid=g), departure=self.departure),
+            )
+            for i, g in enumerate(grids)
+        ]
+        relaxation = relax(legs, failed, error, departures=departures)
+        result = error.result
+        if result is not None and any(result.forbidden_by_reason.get(r, 0) for r in ("failure", "obstacle")):
+            relaxation = self._wider(relaxation, grids[failed])
+        out = NoFeasibleRouteError(relaxation.message())
+        out.result, out.relaxation = error.result, relaxation
+        return out
+
+    def _wider(self, relaxation: Relaxation, grid: Grid) -> Relaxation:
+        """``relaxation`` with the course routed on grids twice as wide, when that routes: the angular layout's
+        half-width doubled, or the square layout's nodes (``2 n - 1``, the same spacing)."""
+        if self.layout == "angular":
+            option, change = (
+                f"--half-width-km {2.0 * grid.half_width_km:.0f}",
+                {"half_width_km": 2.0 * grid.half_width_km},
+            )
+        else:
+            option, change = f"--n-nodes {2 * grid.n_nodes - 1}", {"n_nodes": 2 * grid.n_nodes - 1}
+        try:
+            route = self.with_options(**change).route(relax=False)
+        except (NoFeasibleRouteError, WeatherCoverageError, ScenarioError):
+            return relaxation
+        return replace(relaxation, wider=option, wider_voyage_time_h=route.voyage_time_h)
 
     def _checked_grids(self, grids: Any) -> list[Grid]:
         """``grids`` given to :meth:`route`: one :class:`Grid` per leg (a shorter list routed only the first legs)."""

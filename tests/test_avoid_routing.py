@@ -157,10 +157,14 @@ def test_grid_too_narrow_to_go_around_is_explained() -> None:
     assert -61.9 < lon < -60.9
 
 
-def test_grid_too_narrow_message_suggests_widening() -> None:
+def test_grid_too_narrow_message_says_how_wide_a_grid_routes() -> None:
+    """The relaxation tries a grid twice as wide; routing with the option it names gives the time it states."""
     with pytest.raises(NoFeasibleRouteError) as info:
         guadeloupe(half_width_km=20.0).route()
-    assert "widen the grid" in str(info.value)
+    rel = info.value.relaxation
+    assert rel.wider.startswith("--half-width-km ") and f"it routes on a wider grid, {rel.wider}" in str(info.value)
+    wider = guadeloupe(half_width_km=float(rel.wider.split()[1])).route()
+    assert wider.voyage_time_h == rel.wider_voyage_time_h
 
 
 # --------------------------------------------------------------------------------------------------

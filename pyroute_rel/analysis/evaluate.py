@@ -46,13 +46,15 @@ from pyroute_rel.errors import ScenarioError, TrackError, brief, check_numbers, 
 from pyroute_rel.files import brief_path, read_regular_bytes
 from pyroute_rel.reliability.exposure import combined_failure_probability
 from pyroute_rel.routing.cost import REASONS, ArcCosts, ArcGeometry, arc_geometry, geometry_costs
-from pyroute_rel.routing.route import Legs, track_legs
+from pyroute_rel.routing.route import Legs, Route, track_legs
 from pyroute_rel.routing.solve import first_sample_wind
 from pyroute_rel.times import iso_utc
 from pyroute_rel.weather.base import Conditions, WeatherBase
 
 if TYPE_CHECKING:
+    from pyroute_rel.obstacles.zones import Zone
     from pyroute_rel.reliability.crossings import ArcPieces
+    from pyroute_rel.routing.grid import Grid
     from pyroute_rel.routing.solve import RoutingProblem
     from pyroute_rel.scenario import Scenario
     from pyroute_rel.weather import WeatherSource
@@ -64,6 +66,7 @@ __all__ = [
     "read_track",
     "as_track",
     "evaluate_track",
+    "evaluation_route",
     "evaluation_problem",
     "sail_tracks",
     "sail_in_members",
@@ -1375,6 +1378,55 @@ def evaluate_track(
     end = float(trk.lon_deg[-1]), float(trk.lat_deg[-1])
     mark = scenario.finish_line or (scenario.finish,)
     return replace(ev, distance_to_finish_nm=geodesy.distance_to_segment_nm(*end, *mark))
+
+
+def evaluation_route(
+    evaluation: Evaluation,
+    grid: Grid,
+    problem: RoutingProblem,
+    *,
+    arrived: bool,
+    nodes: Sequence[int] = (),
+    zones: tuple[Zone, ...] = (),
+) -> Route | None:
+    """A sailed track as a :class:`~pyroute_rel.routing.route.Route`, so the DP's outputs (map, GPX, CSV, GeoJSON)
+    write it: the evaluation's track, times, legs and exposure on ``grid`` and ``problem``; None when a leg cannot be
+    sailed (no times after it).
+
+    The route's ``dp`` is empty (no arc was costed by the DP: every node unreached); ``nodes`` are its nodes on the
+    grid, if any; ``arrived`` False for a track that stops short of the finish (a planner's that did not reach it, the
+    best partial route of a course that does not route).
+    """
+    from pyroute_rel.routing.solve import DPResult
+
+    if not np.all(np.isfinite(evaluation.elapsed_h)):
+        return None
+    shape = (grid.n_ranks, grid.n_nodes)
+    empty = DPResult(
+        arrival_h=np.full(shape, np.inf),
+        back=np.full(shape, -1, dtype=np.intp),
+        finish_h=float(evaluation.voyage_time_h),
+        finish_back=-1,
+        arcs_evaluated=0,
+        arcs_forbidden=0,
+        forbidden_by_reason={},
+        dead_rank=None,
+    )
+    return Route(
+        lon_deg=np.asarray(evaluation.track[:, 0], dtype=float),
+        lat_deg=np.asarray(evaluation.track[:, 1], dtype=float),
+        elapsed_h=np.asarray(evaluation.elapsed_h, dtype=float),
+        departure=evaluation.departure,
+        legs=evaluation.legs,
+        nodes=np.asarray(nodes, dtype=np.intp),
+        grid=grid,
+        dp=empty,
+        problem=problem,
+        meta=dict(evaluation.meta),
+        zones=zones,
+        exposure_by_criterion_h=dict(evaluation.exposure_by_criterion_h),
+        arrived=arrived,
+    )
 
 
 def describe(problem: RoutingProblem, sailed: Sailed, *, meta: dict[str, Any] | None = None) -> Evaluation:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -185,6 +186,13 @@ def _add_route_parser(sub: Any) -> None:
         help="cost only the arcs that can still win (default): the same route, fewer arcs costed; "
         "--no-prune costs every arc, e.g. to count all forbidden arcs ([route].prune)",
     )
+    r.add_argument("--departure", help="departure time, ISO 8601 UTC (overrides [route].departure)")
+    r.add_argument(
+        "--departure-window",
+        metavar="START,END,STEP_H",
+        help="when no route exists, also look for the earliest departure from START to END (ISO 8601 UTC) every "
+        "STEP_H hours that routes, and say it (each is a route of the course: the window's size is the cost)",
+    )
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument(
         "--planner",
@@ -251,8 +259,10 @@ def _route(args: argparse.Namespace) -> int:
         prune=args.prune,
         refine=args.refine,
         sample_km=args.sample_km,
+        departure=args.departure,
     )
     scenario = load_scenario(args.scenario).with_options(**options)
+    window = _departure_window(args.departure_window)
     if (args.planner or scenario.planner.kind) != "dp":
         from pyroute_rel.cli.planners import route_with_planner
 
@@ -269,7 +279,13 @@ def _route(args: argparse.Namespace) -> int:
                 "route each departure on its own"
             )
         return _departure_sweep(args, {k: v for k, v in options.items() if v is not None})
-    route = scenario.route(progress=not args.quiet)
+    from pyroute_rel.errors import NoFeasibleRouteError
+
+    try:
+        route = scenario.route(progress=not args.quiet, departures=window)
+    except NoFeasibleRouteError as exc:  # the figures of what would route, then the one-line error
+        _no_route(exc, scenario, args, time.perf_counter() - t0)
+        raise
     elapsed = time.perf_counter() - t0
     summary = route.summary()
     summary["runtime_s"] = elapsed
@@ -294,6 +310,55 @@ def _route(args: argparse.Namespace) -> int:
     else:
         print(_route_text(route, elapsed, args.out, scenario.marks()))
     return EXIT_OK
+
+
+def _departure_window(text: str | None) -> list[Any]:
+    """``--departure-window START,END,STEP_H`` as the departures it tries (none without it)."""
+    if text is None:
+        return []
+    from pyroute_rel.routing.relax import departure_window
+    from pyroute_rel.scenario import parse_departure
+
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        step = float(parts[2]) if len(parts) == 3 else math.nan
+    except ValueError:
+        step = math.nan
+    if len(parts) != 3 or not math.isfinite(step) or step <= 0.0:
+        raise ScenarioError(
+            f"--departure-window needs START,END,STEP_H: two ISO 8601 UTC times and a step > 0 [h] (got {text!r})"
+        )
+    first, last = (parse_departure(p, "--departure-window") for p in parts[:2])
+    if last < first:
+        raise ScenarioError(f"--departure-window: END {parts[1]} is before START {parts[0]}")
+    times = departure_window(first, last, step)
+    if len(times) > MAX_WINDOW:
+        raise ScenarioError(
+            f"--departure-window tries {len(times)} departures, more than {MAX_WINDOW}: use a larger STEP_H"
+        )
+    return times
+
+
+#: Most departures ``--departure-window`` tries (each is a route of the course).
+MAX_WINDOW = 1000
+
+
+def _no_route(error: Any, scenario: Any, args: argparse.Namespace, elapsed: float) -> None:
+    """``route --json`` / ``--out`` when no route exists: the relaxation as JSON (printed, ``summary.json``) and the
+    best partial route as a track (``route.*``: its map marks the finish and where the track stops)."""
+    relaxation = getattr(error, "relaxation", None)
+    summary = {
+        "feasible": False,
+        "error": str(error),
+        "relaxation": None if relaxation is None else relaxation.summary(),
+        "runtime_s": elapsed,
+    }
+    if args.out is not None:
+        from pyroute_rel.outputs import write_no_route
+
+        write_no_route(scenario, relaxation, summary, args.out)
+    if args.json:
+        print(json.dumps(summary))
 
 
 def widen_advice(layout: str, grid: Any) -> str:

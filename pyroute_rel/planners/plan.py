@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from pyroute_rel.errors import ScenarioError, brief, check_flag, check_instance
 from pyroute_rel.planners.base import PlannedTrack, Planner, PlanningProblem
 from pyroute_rel.planners.settings import PLANNERS
@@ -79,42 +77,17 @@ def plan(
 
 def track_route(problem: PlanningProblem, planned: PlannedTrack, evaluation: Evaluation) -> Route | None:
     """A planner's track as a :class:`~pyroute_rel.routing.route.Route`, so the DP's outputs (map, GPX, CSV, GeoJSON:
-    :mod:`pyroute_rel.outputs`, :func:`pyroute_rel.viz.maps.plot_route`) write it: the evaluator's re-timed track, its
-    legs and exposure, on the scenario's grid and problem; None when a leg cannot be sailed (no times after it).
+    :mod:`pyroute_rel.outputs`, :func:`pyroute_rel.viz.maps.plot_route`) write it: the evaluator's re-timed track
+    (:func:`~pyroute_rel.analysis.evaluate.evaluation_route`) on the scenario's grid and problem, with the planner's
+    nodes on the grid (Q-learning on the graph) or none; it ``arrived`` when the planner reached the finish. None when
+    a leg cannot be sailed (no times after it)."""
+    from pyroute_rel.analysis.evaluate import evaluation_route
 
-    The route's ``dp`` is empty (no arc was costed by the DP: every node unreached) and its ``nodes`` are the
-    planner's nodes on the grid (Q-learning on the graph) or none; it ``arrived`` when the planner reached the finish.
-    """
-    from pyroute_rel.routing.route import Route
-    from pyroute_rel.routing.solve import DPResult
-
-    if not np.all(np.isfinite(evaluation.elapsed_h)):
-        return None
-    grid = problem.grid
-    shape = (grid.n_ranks, grid.n_nodes)
-    empty = DPResult(
-        arrival_h=np.full(shape, np.inf),
-        back=np.full(shape, -1, dtype=np.intp),
-        finish_h=float(evaluation.voyage_time_h),
-        finish_back=-1,
-        arcs_evaluated=0,
-        arcs_forbidden=0,
-        forbidden_by_reason={},
-        dead_rank=None,
-    )
-    nodes = planned.stats.get("nodes") or []
-    return Route(
-        lon_deg=np.asarray(evaluation.track[:, 0], dtype=float),
-        lat_deg=np.asarray(evaluation.track[:, 1], dtype=float),
-        elapsed_h=np.asarray(evaluation.elapsed_h, dtype=float),
-        departure=np.datetime64(evaluation.departure, "s"),  # type: ignore[call-overload]  # numpy's stubs have no datetime64(datetime64, unit) overload
-        legs=evaluation.legs,
-        nodes=np.asarray(nodes, dtype=np.intp),
-        grid=grid,
-        dp=empty,
-        problem=problem.problem,
-        meta=dict(evaluation.meta),
-        zones=tuple(problem.scenario.avoid.zones),
-        exposure_by_criterion_h=dict(evaluation.exposure_by_criterion_h),
+    return evaluation_route(
+        evaluation,
+        problem.grid,
+        problem.problem,
         arrived=bool(planned.reached),
+        nodes=planned.stats.get("nodes") or (),
+        zones=tuple(problem.scenario.avoid.zones),
     )

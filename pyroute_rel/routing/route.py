@@ -30,7 +30,7 @@ from pyroute_rel.routing.cost import REASONS, ArcCosts
 from pyroute_rel.routing.solve import (
     DPResult,
     RoutingProblem,
-    explain_infeasible,
+    explain_cause,
     forward_dp,
     grid_geometry,
     leg_manoeuvres,
@@ -429,7 +429,10 @@ def route_on_grid(
     progress = check_flag(progress, "progress", ScenarioError)
     result = forward_dp(grid, problem, progress=progress)
     if result.dead_rank is not None or not np.isfinite(result.finish_h):
-        raise NoFeasibleRouteError(explain_infeasible(grid, problem, result))
+        cause, hint = explain_cause(grid, problem, result)
+        error = NoFeasibleRouteError(cause + hint)
+        error.result, error.cause, error.hint = result, cause, hint  # for pyroute_rel.routing.relax
+        raise error
     return build_route(grid, problem, result)
 
 

@@ -72,6 +72,7 @@ __all__ = [
     "DPResult",
     "forward_dp",
     "RoutingProblem",
+    "explain_cause",
     "explain_infeasible",
     "leg_costs",
     "leg_manoeuvres",
@@ -1493,6 +1494,13 @@ def _lazy_obstacles(blocked: Any, k: int, total: FloatArray, times: npt.NDArray[
 
 def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) -> str:
     """One-line explanation of why no route exists: where the front died and what forbade the arcs."""
+    cause, hint = explain_cause(grid, problem, result)
+    return cause + hint
+
+
+def explain_cause(grid: Grid, problem: RoutingProblem, result: DPResult) -> tuple[str, str]:
+    """:func:`explain_infeasible`'s line in two parts: the cause (where the front died, what forbade the arcs there,
+    the conditions met) and the hint that follows it (" (raise --apf, ...)", or "")."""
     k = result.dead_rank if result.dead_rank is not None else grid.n_ranks
     lon0, lat0, lon1, lat1, src, valid = grid.arcs(k)
     t_prev = np.zeros(grid.start_points[0].size) if k == 0 else result.arrival_h[k - 1]
@@ -1535,7 +1543,8 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
     for name, label in labels.items():
         n = int(np.count_nonzero(live & (reason & REASONS[name] != 0)))
         if n:
-            parts.append(f"{label} on {n} arcs")
+            met = _polar_met(problem, grid, k, t0, live & (reason & REASONS[name] != 0)) if name == "polar" else ""
+            parts.append(f"{label} on {n} arcs{met}")
     if n_live == 0:
         detail = "no arc into it starts from a reachable node"
         earlier = [
@@ -1558,7 +1567,33 @@ def explain_infeasible(grid: Grid, problem: RoutingProblem, result: DPResult) ->
         hint = " (raise --apf, or widen the grid to go around)"
     elif np.any(live & (reason & REASONS["obstacle"] != 0)):
         hint = " (widen the grid: [grid].half_width_km / --half-width-km, to go around)"
-    return f"no feasible route: the front died at {where} ({along:.0f} km along the route, {pos}); {detail}{hint}"
+    return f"no feasible route: the front died at {where} ({along:.0f} km along the route, {pos}); {detail}", hint
+
+
+def _polar_met(problem: RoutingProblem, grid: Grid, k: int, t0: FloatArray, arcs: BoolArray) -> str:
+    """The wind met on arcs the polar gives no speed on (at their middles, when they leave), and the polar's columns
+    that have no speed at all: " (wind there TWS 30.1-33.8 kn, TWA 40-95 deg; the polar's TWS 28 kn column has no
+    speed, and winds above 28 kn use it)"."""
+    lon0, lat0, lon1, lat1, src, _ = grid.arcs(k)
+    ends = [np.broadcast_to(a, src.shape)[arcs] for a in (lon0, lat0, lon1, lat1)]
+    mid_lon, mid_lat = geodesy.intermediate_point(ends[0], ends[1], ends[2], ends[3], 0.5)
+    cond = problem.weather_at(mid_lon, mid_lat, np.broadcast_to(t0, src.shape)[arcs])
+    course = geodesy.initial_bearing_deg(mid_lon, mid_lat, ends[2], ends[3])
+    twa = geodesy.angle_diff_deg(cond.twd_deg, course)
+    tws = np.asarray(cond.tws_kn, dtype=float)
+    polar = problem.polar
+    empty = [float(w) for w, col in zip(polar.tws_kn, np.asarray(polar.speed_kn).T, strict=True) if not np.any(col > 0)]
+    text = (
+        f" (wind there TWS {np.nanmin(tws):.1f}-{np.nanmax(tws):.1f} kn, "
+        f"TWA {np.nanmin(twa):.0f}-{np.nanmax(twa):.0f} deg"
+    )
+    if empty:
+        cols = ", ".join(f"{w:g}" for w in empty)
+        text += f"; the polar {polar.name!r} has no speed in its TWS {cols} kn column{'s' if len(empty) > 1 else ''}"
+        top = float(polar.tws_kn[-1])
+        if empty[-1] == top and np.nanmax(tws) > top and problem.beyond == "clamp":
+            text += f", and winds above {top:g} kn use that column"
+    return text + ")"
 
 
 def _coverage_short(grid: Grid, problem: RoutingProblem, k: int, t0: FloatArray, arcs: BoolArray) -> str | None:
