@@ -378,7 +378,7 @@ def parse_departure(value: Any, where: str = "departure", *, notes: list[str] | 
 
     Parameters
     ----------
-    value : An ISO 8601 string, a ``datetime`` or a ``date`` (midnight).
+    value : An ISO 8601 string, a ``datetime``, a ``date`` (midnight) or a ``numpy.datetime64`` (UTC).
     where : Named in messages (e.g. ``[route].departure``).
     notes : When given, a time without a zone (read as UTC) appends a note saying so.
 
@@ -391,7 +391,9 @@ def parse_departure(value: Any, where: str = "departure", *, notes: list[str] | 
     ScenarioError
         For anything but a time between the years 1900 and 2200.
     """
-    if isinstance(value, dt.datetime):
+    if isinstance(value, np.datetime64) and not np.isnat(value):  # UTC, as the library's own times are
+        t = value.astype("datetime64[us]").item()
+    elif isinstance(value, dt.datetime):
         t = value
     elif isinstance(value, dt.date):  # a TOML date literal (departure = 2018-06-01): midnight UTC
         t = dt.datetime(value.year, value.month, value.day)
@@ -718,7 +720,7 @@ def _failure_option(value: Any, where: str) -> str | None:
 
 
 def _departure_option(value: Any, where: str) -> np.datetime64:
-    return parse_departure(value, "--departures")
+    return parse_departure(value, where)
 
 
 def _layout_option(value: Any, where: str) -> str:

@@ -162,7 +162,11 @@ def test_start_on_land_and_everything_forbidden_are_explained(
     # --out holds what would route, and no partial route: the front died before reaching any node
     assert sorted(p.name for p in out.iterdir()) == ["summary.json"]
     written = json.loads((out / "summary.json").read_text())
-    assert written["feasible"] is False and written["relaxation"]["apf"] == 0.9 and written["relaxation"]["partial"] is None
+    assert (
+        written["feasible"] is False
+        and written["relaxation"]["apf"] == 0.9
+        and written["relaxation"]["partial"] is None
+    )
 
 
 def test_failure_command(capsys: pytest.CaptureFixture[str]) -> None:

@@ -310,8 +310,7 @@ def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, floa
         waits = np.asarray(route.legs.wait_h, dtype=float)
         return route.lon_deg, route.lat_deg, route.voyage_time_h, waits if waits.any() else None
     from pyroute_rel.obstacles.mask import check_points
-    from pyroute_rel.routing.solve import explain_infeasible
-    from pyroute_rel.routing.solve import forward_dp
+    from pyroute_rel.routing.solve import explain_infeasible, forward_dp
 
     check_points(sc.marks(), sc.avoid)
     grid = grids[0]
