@@ -328,6 +328,7 @@ class MonteCarloResult:
             "arrival_h": {k: _num(v) for k, v in arrival_stats(t, 0.9).items()},
             "sd_h": _num(float(np.std(t, ddof=1))) if self.n_runs > 1 and np.isfinite(t).all() else None,
             "completed": float(np.isfinite(t).mean()),
+            "arrived_h": _of_arrived(t),
             "apf": self.apf,
             "p_fail_conditions": self.p_fail_fraction,
             "p_fail_conditions_ci95": [lo, hi],
@@ -336,6 +337,21 @@ class MonteCarloResult:
 
 def _num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
+
+
+def _of_arrived(t: FloatArray) -> dict[str, Any]:
+    """The arrival distribution of the runs that arrive [h] (a run that meets a leg it cannot sail, below
+    :data:`~pyroute_rel.boat.polar.MIN_SPEED_KN`, never arrives): their count, mean, standard deviation, P5, P50, P95,
+    CVaR 0.9 and worst (None without two runs)."""
+    from pyroute_rel.analysis.ensemble import arrival_stats
+
+    done = t[np.isfinite(t)]
+    out: dict[str, Any] = {"runs": int(done.size)}
+    if done.size < 2:
+        return {**out, **dict.fromkeys(("mean", "sd", "p5", "p50", "p95", "cvar", "worst"))}
+    stats = {k: _num(v) for k, v in arrival_stats(done, 0.9).items()}
+    return {**out, "mean": stats["mean"], "sd": float(np.std(done, ddof=1)),
+            **{k: stats[k] for k in ("p5", "p50", "p95", "cvar", "worst")}}  # fmt: skip
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:

@@ -251,10 +251,18 @@ def _mc_lines(mc: dict[str, Any] | None) -> list[str]:
         return "-" if x is None else f"{x:.1f}"
 
     lo, hi = mc["p_fail_conditions_ci95"]
+    d = mc["arrived_h"]
+    lost = mc["runs"] - d["runs"]
     return [
-        f"monte carlo      {mc['runs']} runs (seed {mc['seed']}): voyage time mean {h(a['mean'])} h, P5 {h(a['p5'])}, "
-        f"P50 {h(a['p50'])}, P95 {h(a['p95'])}, worst {h(a['worst'])} (deterministic {h(mc['deterministic_h'])} h); "
-        f"{mc['completed']:.0%} completed",
+        f"monte carlo      {mc['runs']} runs (seed {mc['seed']}): {d['runs']} arrive ({mc['completed']:.0%}); their "
+        f"voyage time mean {h(d['mean'])} h, SD {h(d['sd'])}, P5 {h(d['p5'])}, P50 {h(d['p50'])}, P95 {h(d['p95'])}, "
+        f"worst {h(d['worst'])} (deterministic {h(mc['deterministic_h'])} h)"
+        + (
+            f"; {lost} never arrive (a leg they cannot sail: below 0.01 kn, or no weather; over all runs P50 "
+            f"{h(a['p50'])}, P95 {h(a['p95'])})"
+            if lost
+            else ""
+        ),
         f"                 P(p_f > apf {mc['apf']:g}) = {mc['p_fail_conditions']:.3f} (95% interval {lo:.3f} to "
         f"{hi:.3f})",
     ]
