@@ -27,7 +27,14 @@ from pyroute_rel.planners.base import PlannedTrack, Planner, PlanningProblem
 from pyroute_rel.planners.mcts import MCTSPlanner
 from pyroute_rel.planners.plan import get_planner, plan
 from pyroute_rel.planners.qlearning import QLearningPlanner, cell_states, graph_states, shortest_time
-from pyroute_rel.planners.settings import PLANNERS, DQNSettings, MCTSSettings, QLearningSettings, parse_planner
+from pyroute_rel.planners.settings import (
+    PLANNERS,
+    DQNSettings,
+    MCTSSettings,
+    QLearningSettings,
+    episodes_for,
+    parse_planner,
+)
 
 sklearn = pytest.importorskip("sklearn")
 evaluate = pytest.importorskip("pyroute_rel.analysis.evaluate")
@@ -67,7 +74,8 @@ def test_published_defaults_and_refusals():
     )
     assert m.exploration == pytest.approx(1.0 / np.sqrt(2.0), rel=1e-15)
     q = s.qlearning  # Jing et al. (2021)
-    assert (q.alpha, q.gamma, q.epsilon, q.episodes, q.cell_nm, q.cells_across) == (0.6, 0.9, 0.2, 3000, 10.0, 10)
+    assert (q.alpha, q.gamma, q.epsilon, q.cell_nm, q.cells_across) == (0.6, 0.9, 0.2, 10.0, 10)
+    assert q.episodes == 0 and episodes_for(q, 100) == 3000  # sized from the graph, at least the published 3000
     assert s.dqn.turn_deg == 22.5 and s.dqn.nogo_min_deg == 45.0  # Mannocci & Bologna: pi/8, 45 deg
     for raw, words in (
         ({"kind": "astar"}, "[planner].kind must be one of"),
@@ -507,3 +515,17 @@ def _arc_ends(problem: PlanningProblem, tab: object, acts: np.ndarray) -> tuple[
     src = np.repeat(np.arange(tab.n_states), np.diff(tab.ptr))[acts]  # type: ignore[attr-defined]
     dst = tab.target[acts]  # type: ignore[attr-defined]
     return tab.lon_deg[src], tab.lat_deg[src], tab.lon_deg[dst], tab.lat_deg[dst]  # type: ignore[attr-defined]
+
+
+@pytest.mark.slow
+def test_qlearnings_default_reaches_the_finish_on_the_control_course():
+    """The published 3000 episodes leave the greedy route 413 nm short on the control course's default graph; the
+    default (two episodes per state) reaches the finish, and no faster than the DP (exact on the same graph)."""
+    from pathlib import Path
+
+    from pyroute_rel.scenario import load_scenario
+
+    sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml")
+    track = plan(sc, kind="qlearning")
+    assert track.reached and track.stats["episodes"] == 2 * track.stats["states"]
+    assert track.voyage_time_h >= sc.route().voyage_time_h - 1e-9  # the DP is exact on the same graph

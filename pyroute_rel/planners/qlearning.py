@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 import time as _time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -57,7 +57,7 @@ import numpy.typing as npt
 from pyroute_rel import geodesy
 from pyroute_rel._kernels import qlearning as kernels
 from pyroute_rel.planners.base import PlannedTrack, PlanningProblem
-from pyroute_rel.planners.settings import QLearningSettings
+from pyroute_rel.planners.settings import QLearningSettings, episodes_for
 from pyroute_rel.progress import progress_bar
 from pyroute_rel.routing.grid import plan_grid
 from pyroute_rel.times import hours_after
@@ -365,7 +365,7 @@ def train_q(
     """
     lat = lattice or CostLattice(tab, settings.time_bucket_h, settings.max_voyage_h or DEFAULT_HORIZON_H)
     q = np.zeros(tab.target.size) if q0 is None else np.array(q0, dtype=float)
-    n_ep = settings.episodes
+    n_ep = episodes_for(settings, tab.n_states)
     marks = sorted(set(np.linspace(1, n_ep, checkpoints).round().astype(int).tolist())) if checkpoints else []
     stops = sorted(set(marks) | set(np.linspace(0, n_ep, 101).round().astype(int).tolist()[1:]))
     st = np.array([0, tab.start, 0, 0, 0, 0], dtype=np.int64)
@@ -531,6 +531,7 @@ class QLearningPlanner:
         seed = problem.settings.seed if self.seed is None else self.seed
         t0 = _time.perf_counter()
         tab = graph_states(problem) if s.space == "graph" else cell_states(problem, s)
+        s = replace(s, episodes=episodes_for(s, tab.n_states))  # 0: sized from the graph
         tabled = _time.perf_counter() - t0
         rng = np.random.default_rng(seed)
         passes: list[float] = []
