@@ -143,7 +143,7 @@ def test_a_course_names_the_leg_that_fails():
     assert error.relaxation.apf == 0.9 and _routes(sc.with_options(apf=0.9))
 
 
-def test_sweep_runs_and_json_carry_the_relaxation(tmp_path, capsys):
+def test_sweep_runs_route_json_and_tradeoff_carry_the_relaxation(tmp_path, capsys):
     path = tmp_path / "rough.toml"
     path.write_text(
         '[route]\nstart = [-12.0, 45.0]\nfinish = [-14.0, 43.0]\ndeparture = "2018-06-01T00:00:00Z"\n'
@@ -159,3 +159,6 @@ def test_sweep_runs_and_json_carry_the_relaxation(tmp_path, capsys):
     assert main(["route", str(path), "--quiet", "--json"]) == 2
     printed = json.loads(capsys.readouterr().out)
     assert printed["feasible"] is False and printed["relaxation"]["apf"] == 0.9
+    assert main(["tradeoff", str(path), "--quiet"]) == 2  # the fronts: the same relaxation
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "To route: it routes with --apf 0.9" in line

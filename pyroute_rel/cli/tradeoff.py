@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from pyroute_rel.cli._help import APF_HELP
-from pyroute_rel.errors import ScenarioError
+from pyroute_rel.errors import NoFeasibleRouteError, ScenarioError
 
 __all__ = ["add_tradeoff_parser", "OUTPUT_FILES"]
 
@@ -117,7 +117,11 @@ def _compute(scenario: Any, args: argparse.Namespace) -> dict[str, Any]:
     grids = scenario.leg_grids()
     legs = [(g, scenario.problem(failure=failure, grid=g)) for g in grids]
     progress = not args.quiet
-    bottleneck = course_bottleneck_front(legs, progress=progress)
+    try:
+        bottleneck = course_bottleneck_front(legs, progress=progress)
+    except NoFeasibleRouteError:  # no route at the apf: the scenario's own error says what would make one
+        scenario.route(grids=grids)
+        raise
     if args.refine:
         refined = scenario.with_options(refine=args.refine)
 
