@@ -199,16 +199,17 @@ def partial_route(grid: Grid, result: DPResult, departure: np.datetime64) -> Par
 
 
 def route_course(
-    legs: Sequence[tuple[Grid, RoutingProblem]], *, apf: float | None = None, departure: np.datetime64 | None = None
+    legs: Sequence[tuple[Grid, RoutingProblem]], *, departure: np.datetime64 | None = None, **changes: Any
 ) -> Route:
-    """The course's route on its legs' grids, each leg departing when the previous one arrives, with every leg's
-    ``apf`` and the first leg's departure changed (None: as they are)."""
+    """The course's route on its legs' grids, each leg departing when the previous one arrives (on the side of the
+    wind it ended on), with ``changes`` made to every leg's problem (e.g. ``apf``, ``failure``) and the first leg's
+    departure changed (None: as it is)."""
     routes: list[Route] = []
     t = legs[0][1].departure if departure is None else departure
     for grid, problem in legs:
-        leg_problem = replace(problem, departure=t) if apf is None else replace(problem, departure=t, apf=apf)
+        leg_problem = replace(problem, departure=t, **changes)
         last = routes[-1].manoeuvres if routes else None
-        if last is not None and last.side.size and leg_problem.sides:
+        if last is not None and last.side.size and leg_problem.sides:  # a leg starts on the side the last ended on
             leg_problem = replace(leg_problem, initial_side=int(last.side[-1]))
         routes.append(route_on_grid(grid, leg_problem))
         t = routes[-1].arrival

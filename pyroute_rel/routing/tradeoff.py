@@ -88,6 +88,7 @@ from pyroute_rel.reliability.crossings import needs_pieces
 from pyroute_rel.reliability.exposure import arc_exposure, hazard, leg_exposure
 from pyroute_rel.routing.cost import ArcGeometry, geometry_costs
 from pyroute_rel.routing.grid import Grid
+from pyroute_rel.routing.relax import route_course
 from pyroute_rel.routing.route import Route, build_route, join_routes, route_on_grid
 from pyroute_rel.routing.solve import DPResult, RoutingProblem, grid_geometry
 from pyroute_rel.times import iso_utc
@@ -341,16 +342,7 @@ def course_route(legs: Sequence[tuple[Grid, RoutingProblem]]) -> Route:
 
 def _course_route(legs: list[tuple[Grid, RoutingProblem]], **changes: Any) -> Route:
     """:func:`course_route` with ``changes`` made to every leg's problem (e.g. ``apf``, ``failure``)."""
-    routes: list[Route] = []
-    departure = legs[0][1].departure
-    for grid, problem in legs:
-        leg_problem = replace(problem, departure=departure, **changes)
-        last = routes[-1].manoeuvres if routes else None
-        if last is not None and last.side.size and leg_problem.sides:  # a leg starts on the side the last ended on
-            leg_problem = replace(leg_problem, initial_side=int(last.side[-1]))
-        routes.append(route_on_grid(grid, leg_problem))
-        departure = routes[-1].arrival
-    return routes[0] if len(routes) == 1 else join_routes(routes)
+    return route_course(legs, **changes)
 
 
 @dataclass(frozen=True)
