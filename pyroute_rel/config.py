@@ -534,7 +534,12 @@ def parse_failure(raw: Mapping[str, Any]) -> dict[str, Any]:
             "[failure]: give either 'model' (a network) or 'limits' (plain limits compiled to one), not both"
         )
     apf = values["apf"] if "apf" in raw or not limits else 0.0
-    return {"failure_model": values["model"], "apf": apf, "failure_limits": limits}
+    return {
+        "failure_model": values["model"],
+        "apf": apf,
+        "failure_limits": limits,
+        "apf_from_limits": bool(limits) and "apf" not in raw,
+    }
 
 
 def parse_avoid(raw: Mapping[str, Any], base_dir: Path) -> Avoid:
@@ -696,6 +701,11 @@ def parse_tables(table: Mapping[str, Any], base_dir: Path) -> dict[str, Any]:
     bbox = _course_bbox(route, grid)
     weather = parse_weather(table.get("weather"), base_dir, bbox=bbox, departure=route["departure"])
     failure = parse_failure(table.get("failure", {}))
+    if failure["failure_limits"] and failure["apf"] >= 1.0:
+        notes.append(
+            "[failure].limits with apf 1 are reported (the exposure, the voyage p_f) but never enforced: "
+            "leave apf out (0) or set it below 1 to keep the route within them"
+        )
     planner = parse_planner(table.get("planner", {}))
     return {
         **route,

@@ -393,6 +393,7 @@ def write_no_route(scenario: Any, relaxation: Any, summary: Mapping[str, Any], o
     partial = None if relaxation is None else relaxation.partial
     if partial is not None and partial.lon_deg.size > 1:
         from pyroute_rel.analysis.evaluate import evaluate_track, evaluation_route
+        from pyroute_rel.routing.relax import apf_text
         from pyroute_rel.viz.maps import plot_route
 
         grid = scenario.leg_grids()[relaxation.leg]
@@ -405,7 +406,7 @@ def write_no_route(scenario: Any, relaxation: Any, summary: Mapping[str, Any], o
             title = (
                 f"no route: the closest one gets is {partial.distance_to_finish_nm:.0f} nm from the "
                 f"{'finish' if relaxation.leg == relaxation.n_legs - 1 else 'next mark'}"
-                + (f"; it routes with apf {relaxation.apf:g}" if relaxation.apf is not None else "")
+                + (f"; it routes with apf {apf_text(relaxation.apf)}" if relaxation.apf is not None else "")
             )
             writers.update(
                 {

@@ -23,7 +23,6 @@ from pyroute_rel.errors import (
     PyrouteError,
     PyrouteWarning,
     ScenarioError,
-    WeatherCoverageError,
     brief,
     check_flag,
     check_instance,
@@ -84,6 +83,8 @@ class Scenario:
     failure_model, apf : The failure model's name or file (None: none) and the acceptable probability of failure.
     failure_limits : Plain limits instead of a model (``[failure].limits``: ``(key, value)`` pairs of
         :data:`~pyroute_rel.reliability.limits.LIMIT_KEYS`), compiled to one by :meth:`load_failure`; empty: none.
+    apf_from_limits : True when ``apf`` is the limits' default (0), not written: a model given in their place
+        (:meth:`with_options`) then routes at the file's default apf, 1.
     base_dir : Folder that relative paths start from.
     time_step_h, max_wait_h : Time lattice [h] and longest wait at a node [h] of the time-expanded DP.
     prune : Cost only the arcs that can still win.
@@ -129,6 +130,7 @@ class Scenario:
     manoeuvres: ManoeuvrePenalties | None = None
     planner: PlannerSettings = field(default_factory=PlannerSettings)
     failure_limits: tuple[tuple[str, float], ...] = ()
+    apf_from_limits: bool = False
 
     def with_options(self, **changes: Any) -> Scenario:
         """A copy with some settings changed (validated like the file's, with the command-line option named).
@@ -138,8 +140,11 @@ class Scenario:
         options and their checks: :data:`pyroute_rel.config.OPTIONS`.
         """
         checked = parse_options(changes, avoid=self.avoid)
-        if "failure_model" in checked:  # a model given (or 'none') replaces the file's limits
+        if "failure_model" in checked and self.failure_limits:  # a model given (or 'none') replaces the limits
             checked["failure_limits"] = ()
+            if self.apf_from_limits and "apf" not in checked:  # and their default apf, 0: the file's default is 1
+                checked["apf"] = 1.0
+            checked["apf_from_limits"] = False
         return replace(self, **checked)
 
     def marks(self) -> list[tuple[str, tuple[float, float]]]:
@@ -385,6 +390,9 @@ class Scenario:
         result = error.result
         if result is not None and any(result.forbidden_by_reason.get(r, 0) for r in ("failure", "obstacle")):
             relaxation = self._wider(relaxation, grids[failed])
+        if self.refine and relaxation.apf is not None:  # the time at that apf as this scenario routes it: refined
+            refined = self.with_options(apf=relaxation.apf).route(relax=False)
+            relaxation = replace(relaxation, apf_voyage_time_h=refined.voyage_time_h)
         out = NoFeasibleRouteError(relaxation.message())
         out.result, out.relaxation = error.result, relaxation
         return out
@@ -401,9 +409,9 @@ class Scenario:
             option, change = f"--n-nodes {2 * grid.n_nodes - 1}", {"n_nodes": 2 * grid.n_nodes - 1}
         try:
             route = self.with_options(**change).route(relax=False)
-        except (NoFeasibleRouteError, WeatherCoverageError, ScenarioError):
-            return relaxation
-        return replace(relaxation, wider=option, wider_voyage_time_h=route.voyage_time_h)
+        except PyrouteError:  # no route there either, or a grid too wide or too big for the budget: no advice
+            return replace(relaxation, wider_tried=True)
+        return replace(relaxation, wider=option, wider_voyage_time_h=route.voyage_time_h, wider_tried=True)
 
     def _checked_grids(self, grids: Any) -> list[Grid]:
         """``grids`` given to :meth:`route`: one :class:`Grid` per leg (a shorter list routed only the first legs)."""

@@ -155,3 +155,23 @@ def test_changed_limits_give_the_fresh_route_in_one_process(tmp_path, capsys):
     # --failure-model none drops the file's limits
     assert main(["route", str(path), "--quiet", "--json", "--failure-model", "none"]) == 0
     assert json.loads(capsys.readouterr().out)["voyage_time_h"] == loose["voyage_time_h"]
+
+
+def test_a_model_in_place_of_the_limits_routes_at_the_files_default_apf(tmp_path, capsys):
+    """The limits' default apf (0) goes with them: ``--failure-model`` and a sweep's model route at apf 1, as the
+    same file with the model written in would (a review found apf 0 kept, and the sweep refusing model + limits)."""
+    from pyroute_rel.batch.sweep import Run, run_sweep
+
+    path = tmp_path / "s.toml"
+    path.write_text(
+        '[route]\nstart = [-12.0, 45.0]\nfinish = [-14.0, 43.0]\n[grid]\nn_ranks = 10\n[weather]\nkind = "uniform"\n'
+        "tws_kn = 15.0\ntwd_deg = 0.0\nhs_m = 4.5\n[failure]\nlimits = { tws_kn_max = 35 }\n[avoid]\nland = false\n",
+        encoding="utf-8",
+    )
+    assert main(["route", str(path), "--quiet", "--json", "--failure-model", "dickson2018"]) == 0
+    assert json.loads(capsys.readouterr().out)["apf"] == 1.0
+    rows = run_sweep([Run(str(path), failure_model="dickson2018"), Run(str(path), failure_model="none")]).to_pylist()
+    assert [r["status"] for r in rows] == ["ok", "ok"] and rows[0]["max_failure_probability"] == 0.9
+    path.write_text(path.read_text().replace("[failure]\n", "[failure]\napf = 1.0\n"), encoding="utf-8")
+    assert main(["route", str(path), "--quiet", "--json"]) == 0  # limits at apf 1 written: a note says so
+    assert "reported (the exposure, the voyage p_f) but never enforced" in capsys.readouterr().err

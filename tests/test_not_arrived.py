@@ -48,7 +48,7 @@ def test_a_planner_that_stops_short_exits_with_the_no_route_code(tmp_path, capsy
     captured = capsys.readouterr()
     errors = _errors(captured.err)
     assert len(errors) == 1 and "the qlearning planner did not reach the finish" in errors[0]
-    assert "[planner.qlearning] episodes (now 1)" in errors[0]
+    assert "[planner.qlearning] episodes (it ran 1)" in errors[0]
     assert "did NOT reach the finish" in captured.out and "short of the finish" in captured.out
 
     with open(out / "route.csv", encoding="utf-8") as fh:
@@ -123,7 +123,7 @@ def test_evaluate_exits_with_the_no_route_code_for_a_track_that_is_not_a_route(t
     assert printed["feasible"] and not printed["arrived"] and printed["arrival"] is None
     assert printed["distance_to_finish_nm"] == pytest.approx(short, rel=1e-9)
     (error,) = _errors(captured.err)
-    assert f"ends {short:.1f} nm short" in error
+    assert f"ends {short:.1f} nm from the scenario's finish" in error
 
     out = tmp_path / "dp"
     assert main(["route", str(scenario), "--quiet", "--out", str(out)]) == 0

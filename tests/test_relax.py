@@ -18,6 +18,7 @@ from pyroute_rel import scenario_from_mapping
 from pyroute_rel.analysis.evaluate import evaluate_track
 from pyroute_rel.cli import main
 from pyroute_rel.errors import NoFeasibleRouteError
+from pyroute_rel.routing.relax import apf_text
 
 #: A short course in steady wind with 4.5 m waves everywhere: WH fires on every arc.
 ROUGH = {
@@ -53,7 +54,11 @@ def test_the_smallest_apf_is_the_first_table_value_that_routes(model, apf):
     first = next(float(v) for v in [*table[table > apf], 1.0] if _routes(sc.with_options(apf=float(v))))
     assert rel.apf == first
     assert sc.with_options(apf=first).route().voyage_time_h == rel.apf_voyage_time_h
-    assert f"it routes with --apf {first:g} ({rel.apf_voyage_time_h:.2f} h)" in rel.message()
+    written = apf_text(first)  # rounded up: never below the level, so that applying it routes
+    assert (
+        float(written) >= first and f"it routes with --apf {written} ({rel.apf_voyage_time_h:.2f} h)" in rel.message()
+    )
+    assert sc.with_options(apf=float(written)).route().voyage_time_h == rel.apf_voyage_time_h
 
 
 def test_the_earliest_departure_of_the_window_routes_and_none_before_it():
@@ -162,3 +167,28 @@ def test_sweep_runs_route_json_and_tradeoff_carry_the_relaxation(tmp_path, capsy
     assert main(["tradeoff", str(path), "--quiet"]) == 2  # the fronts: the same relaxation
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "To route: it routes with --apf 0.9" in line
+
+
+def test_a_wider_grid_that_cannot_be_built_leaves_the_no_route_error(tmp_path):
+    """The finish inside 4 m waves at apf 0.5 on a grid already 3000 km wide: doubling it is refused as a grid (too
+    wide), which must not replace the no-route error (a review found the grid's error shown instead)."""
+    from pathlib import Path
+
+    from pyroute_rel.scenario import load_scenario
+
+    control = Path(__file__).resolve().parents[1] / "examples" / "microtransat_control.toml"
+    sc = replace(load_scenario(control), finish=(-40.0, 33.0)).with_options(apf=0.5, half_width_km=3000.0, n_ranks=40)
+    error = _no_route(sc)
+    assert error.relaxation.wider is None and error.relaxation.wider_tried
+    assert "a grid twice as wide does not route it either" in str(error)
+
+
+def test_departure_options_that_do_not_go_together_are_refused(tmp_path, capsys):
+    path = tmp_path / "rough.toml"
+    path.write_text('[route]\nstart = [-12.0, 45.0]\nfinish = [-14.0, 43.0]\n[weather]\nkind = "uniform"\n'
+                    "tws_kn = 15.0\ntwd_deg = 0.0\n[avoid]\nland = false\n", encoding="utf-8")  # fmt: skip
+    for extra in (["--departure", "2018-06-03"], ["--departure-window", "2018-06-01,2018-06-02,6"]):
+        assert main(["route", str(path), "--departures", "2018-06-01,2018-06-02", *extra]) == 2
+        assert "do not go together" in capsys.readouterr().err
+    assert main(["route", str(path), "--departure-window", "2018-06-01,2018-07-01,1e-5"]) == 2  # counted first
+    assert "more than 1000: use a larger STEP_H" in capsys.readouterr().err

@@ -319,6 +319,7 @@ def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, floa
     sc.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)), (sc.departure, sc.departure))
     result = forward_dp(grid, problem)
     if result.dead_rank is not None or not np.isfinite(result.finish_h):
+        sc.route(grids=grids)  # raises the scenario's error, with what would make it route
         raise NoFeasibleRouteError(explain_infeasible(grid, problem, result))
     lon, lat = result.points(grid)
     return lon, lat, float(result.finish_h), None

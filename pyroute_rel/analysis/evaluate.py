@@ -1197,8 +1197,8 @@ class Evaluation:
 
     @property
     def arrived(self) -> bool:
-        """True when every leg was sailed and the track ends at the finish (within :data:`ARRIVAL_TOLERANCE_NM`;
-        a track whose finish is not known ends at its own last point)."""
+        """True when every leg was sailed and the track ends at the finish (within :data:`ARRIVAL_TOLERANCE_NM`) or
+        crosses its finish line; a track whose finish is not known ends at its own last point."""
         near = self.distance_to_finish_nm is None or self.distance_to_finish_nm <= ARRIVAL_TOLERANCE_NM
         return math.isfinite(self.voyage_time_h) and near
 
@@ -1210,8 +1210,9 @@ class Evaluation:
         if self.feasible:
             end = self.track[-1]
             return (
-                f"the track ends {self.distance_to_finish_nm:.1f} nm short of the scenario's finish (at lon "
-                f"{end[0]:.2f}, lat {end[1]:.2f}; a route ends within {ARRIVAL_TOLERANCE_NM:g} nm of it)"
+                f"the track ends {self.distance_to_finish_nm:.1f} nm from the scenario's finish (at lon "
+                f"{end[0]:.2f}, lat {end[1]:.2f}; a route ends within {ARRIVAL_TOLERANCE_NM:g} nm of it, or crosses "
+                "its finish line)"
             )
         i = int(self.blocked_leg)  # type: ignore[arg-type]  # not feasible: a leg is blocked
         legs = self.legs
@@ -1377,7 +1378,13 @@ def evaluate_track(
     ev = describe(problem, sailed, meta={"scenario": scenario.source, "land": scenario.avoid.land})
     end = float(trk.lon_deg[-1]), float(trk.lat_deg[-1])
     mark = scenario.finish_line or (scenario.finish,)
-    return replace(ev, distance_to_finish_nm=geodesy.distance_to_segment_nm(*end, *mark))
+    distance = geodesy.distance_to_segment_nm(*end, *mark)
+    if scenario.finish_line is not None:  # a track that crosses the finish line has arrived, wherever it ends
+        (c_lon, c_lat), (d_lon, d_lat) = scenario.finish_line
+        lon, lat = trk.lon_deg, trk.lat_deg
+        crossed = geodesy.crossing_fraction(lon[:-1], lat[:-1], lon[1:], lat[1:], c_lon, c_lat, d_lon, d_lat)
+        distance = 0.0 if np.isfinite(crossed).any() else distance
+    return replace(ev, distance_to_finish_nm=distance)
 
 
 def evaluation_route(

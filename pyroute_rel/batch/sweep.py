@@ -525,8 +525,10 @@ def _edited_table(run: Run) -> dict[str, Any]:
         put("weather", "member", run.member)
     if run.apf is not None:
         put("failure", "apf", run.apf)
-    if run.failure_model is not None:
+    if run.failure_model is not None:  # a model replaces plain limits (and their default apf), as --failure-model does
         put("failure", "model", run.failure_model)
+        if table["failure"].pop("limits", None) is not None and run.apf is None and "apf" not in table["failure"]:
+            table["failure"]["apf"] = 1.0
     if run.polar is not None:
         put("boat", "polar", run.polar)
     for k, v in run.grid:

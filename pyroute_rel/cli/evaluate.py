@@ -29,8 +29,9 @@ def add_evaluate_parser(sub: Any, add_common: Callable[[argparse.ArgumentParser]
         help="sail a given track in a scenario's weather",
         description="Sail a track (GPX track or route, GeoJSON LineString, CSV of lon,lat[,time]) in a scenario's "
         "weather with its polar, failure model, land and zones, leg by leg as the router costs arcs: per-leg "
-        "conditions, times, p_f and the voyage figures. A leg the router would forbid is reported (reason), not "
-        "refused.",
+        "conditions, times, p_f and the voyage figures. A leg the router would forbid is sailed and reported "
+        "(reason); a track that is not a feasible route (a leg blocked, or an end away from the finish) exits 2 after "
+        "its figures, with one line saying why.",
     )
     e.add_argument("scenario", help="scenario TOML file")
     e.add_argument("track", help="track file: .gpx, .geojson/.json or .csv")
@@ -224,7 +225,7 @@ def _text(ev: Any, s: dict[str, Any]) -> str:
             f" ({blocked} legs blocked)" if blocked > 1 else ""
         )
     elif not ev.arrived:
-        verdict = f"does not arrive: ends {ev.distance_to_finish_nm:.1f} nm short of the finish"
+        verdict = f"does not arrive: ends {ev.distance_to_finish_nm:.1f} nm from the finish"
     else:
         verdict = "feasible"
     return "\n".join(
@@ -258,8 +259,8 @@ def _mc_lines(mc: dict[str, Any] | None) -> list[str]:
         f"voyage time mean {h(d['mean'])} h, SD {h(d['sd'])}, P5 {h(d['p5'])}, P50 {h(d['p50'])}, P95 {h(d['p95'])}, "
         f"worst {h(d['worst'])} (deterministic {h(mc['deterministic_h'])} h)"
         + (
-            f"; {lost} never arrive (a leg they cannot sail: below 0.01 kn, or no weather; over all runs P50 "
-            f"{h(a['p50'])}, P95 {h(a['p95'])})"
+            f"; {lost} never arrive{'s' if lost == 1 else ''} (a leg {'it' if lost == 1 else 'they'} cannot sail: "
+            f"below 0.01 kn, or no weather; over all runs P50 {h(a['p50'])}, P95 {h(a['p95'])})"
             if lost
             else ""
         ),

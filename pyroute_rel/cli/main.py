@@ -18,6 +18,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from pyroute_rel import __version__
 from pyroute_rel.cli._help import APF_HELP
 from pyroute_rel.cli.ensemble import add_ensemble_parser
@@ -193,6 +195,12 @@ def _add_route_parser(sub: Any) -> None:
         help="when no route exists, also look for the earliest departure from START to END (ISO 8601 UTC) every "
         "STEP_H hours that routes, and say it (each is a route of the course: the window's size is the cost)",
     )
+    r.add_argument(
+        "--no-relax",
+        action="store_true",
+        help="when no route exists, say where and why only: do not route again to find what would make one (the "
+        "smallest apf, a wider grid, a departure of --departure-window)",
+    )
     r.add_argument("--departures", help="comma-separated ISO 8601 departure times: route each and print a table")
     r.add_argument(
         "--planner",
@@ -261,6 +269,11 @@ def _route(args: argparse.Namespace) -> int:
         sample_km=args.sample_km,
         departure=args.departure,
     )
+    for given, other in (("--departure", "--departures"), ("--departure-window", "--departures")):
+        if getattr(args, given[2:].replace("-", "_")) is not None and args.departures is not None:
+            raise ScenarioError(f"{given} and {other} do not go together: {other} routes each of its departures")
+    if args.departure_window is not None and (args.planner or "dp") != "dp":
+        raise ScenarioError("--departure-window applies to the DP only (leave it out, or use --planner dp)")
     scenario = load_scenario(args.scenario).with_options(**options)
     window = _departure_window(args.departure_window)
     if (args.planner or scenario.planner.kind) != "dp":
@@ -282,7 +295,7 @@ def _route(args: argparse.Namespace) -> int:
     from pyroute_rel.errors import NoFeasibleRouteError
 
     try:
-        route = scenario.route(progress=not args.quiet, departures=window)
+        route = scenario.route(progress=not args.quiet, departures=window, relax=not args.no_relax)
     except NoFeasibleRouteError as exc:  # the figures of what would route, then the one-line error
         _no_route(exc, scenario, args, time.perf_counter() - t0)
         raise
@@ -331,12 +344,13 @@ def _departure_window(text: str | None) -> list[Any]:
     first, last = (parse_departure(p, "--departure-window") for p in parts[:2])
     if last < first:
         raise ScenarioError(f"--departure-window: END {parts[1]} is before START {parts[0]}")
-    times = departure_window(first, last, step)
-    if len(times) > MAX_WINDOW:
+    span_h = float((last - first) / np.timedelta64(1, "s")) / 3600.0
+    if span_h / step + 1 > MAX_WINDOW:  # counted before any time is made
         raise ScenarioError(
-            f"--departure-window tries {len(times)} departures, more than {MAX_WINDOW}: use a larger STEP_H"
+            f"--departure-window tries {math.floor(span_h / step) + 1} departures, more than {MAX_WINDOW}: use a "
+            "larger STEP_H"
         )
-    return times
+    return departure_window(first, last, step)
 
 
 #: Most departures ``--departure-window`` tries (each is a route of the course).

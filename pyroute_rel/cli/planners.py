@@ -58,8 +58,8 @@ def why_not_arrived(kind: str, scenario: Any, planned: Any, summary: dict[str, A
         setting = _MORE_SEARCH.get(kind)
         more = ""
         if setting is not None:
-            now = getattr(getattr(scenario.planner, kind), setting)
-            more = f"; search more with [planner.{kind}] {setting} (now {now}), or plan with --planner dp"
+            now = planned.stats.get(setting) or getattr(getattr(scenario.planner, kind), setting)
+            more = f"; search more with [planner.{kind}] {setting} (it ran {now}), or plan with --planner dp"
         return (
             f"the {kind} planner did not reach the finish: its track ends {summary['distance_to_finish_nm']:.0f} nm "
             f"short of it, at lon {planned.lon_deg[-1]:.2f}, lat {planned.lat_deg[-1]:.2f}, after "

@@ -51,7 +51,8 @@ _NAMES = {"tws_kn": "TWS", "twa_deg": "TWA", "hs_m": "Hs", "awd_deg": "AWD", "wa
 
 def check_limits(raw: Any, where: str) -> tuple[tuple[str, float], ...]:
     """``[failure].limits`` checked: a table of :data:`LIMIT_KEYS` to finite numbers within each quantity's range
-    (angles in [0, 180] deg), a quantity's ``_min`` below its ``_max``; returned as sorted ``(key, value)`` pairs.
+    (angles in [0, 180] deg), a quantity's ``_min`` below its ``_max``; returned as ``(key, value)`` pairs in the
+    table's order.
 
     >>> check_limits({"tws_kn_max": 35, "twa_deg_min": 40}, "[failure].limits")
     (('tws_kn_max', 35.0), ('twa_deg_min', 40.0))

@@ -26,6 +26,7 @@ wind met there, the weather's extent), is :func:`~pyroute_rel.routing.solve.expl
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any, cast
@@ -111,6 +112,8 @@ class Relaxation:
     wider : The option that widens the grid so that the course routes at its apf (e.g. ``"--half-width-km 200"``),
         or None (not tried, or the wider grid does not route either); ``wider_voyage_time_h`` its voyage [h].
     partial : The best partial route of the failing leg (None when the DP reached no node).
+    apf_tried, wider_tried : Whether a larger apf (up to 1) and a wider grid were tried (None above: neither routes).
+    window_beyond : Of the departures tried, how many the weather does not cover.
     """
 
     cause: str
@@ -125,19 +128,34 @@ class Relaxation:
     partial: PartialRoute | None = None
     wider: str | None = None
     wider_voyage_time_h: float | None = None
+    apf_tried: bool = False
+    wider_tried: bool = False
+    window_beyond: int = 0
 
-    def advice(self) -> str:
-        """What to change, on one line (the options of ``pyroute-rel route``)."""
+    def fixes(self) -> list[str]:
+        """What routes the course, each with its voyage time (the options of ``pyroute-rel route``)."""
         parts = []
         if self.wider is not None:
             parts.append(f"it routes on a wider grid, {self.wider} ({self.wider_voyage_time_h:.2f} h)")
         if self.apf is not None:
-            parts.append(f"it routes with --apf {self.apf:g} ({self.apf_voyage_time_h:.2f} h)")
+            parts.append(f"it routes with --apf {apf_text(self.apf)} ({self.apf_voyage_time_h:.2f} h)")
         if self.departure is not None:
             when = iso_utc(self.departure)
             parts.append(f"it routes leaving at {when} (--departure {when}; {self.departure_voyage_time_h:.2f} h)")
-        elif self.window is not None:
-            parts.append(f"no departure from {self.window[0]} to {self.window[1]} ({self.window[2]} tried) routes")
+        return parts
+
+    def facts(self) -> list[str]:
+        """What was tried and does not route, and the best partial route."""
+        parts = []
+        if self.apf_tried and self.apf is None:
+            parts.append("not even apf 1 routes it")
+        if self.wider_tried and self.wider is None:
+            parts.append("a grid twice as wide does not route it either")
+        if self.departure is None and self.window is not None:
+            beyond = f", {self.window_beyond} of them beyond the weather's times" if self.window_beyond else ""
+            parts.append(
+                f"no departure from {self.window[0]} to {self.window[1]} routes ({self.window[2]} tried{beyond})"
+            )
         if self.partial is not None:
             p = self.partial
             parts.append(
@@ -145,14 +163,27 @@ class Relaxation:
                 f"{'finish' if self.leg == self.n_legs - 1 else 'next mark'}, at lon {p.lon_deg[-1]:.2f}, lat "
                 f"{p.lat_deg[-1]:.2f} (rank {p.rank + 1} of {p.n_ranks})"
             )
-        return "; ".join(parts)
+        return parts
+
+    def advice(self) -> str:
+        """What routes the course and what does not, on one line."""
+        return "; ".join(self.fixes() + self.facts())
 
     def message(self) -> str:
-        """The one-line error: the leg (with waypoints), the cause and the advice."""
+        """The one-line error: the leg (with waypoints), the cause, what routes it and what does not. The DP's own
+        hint (raise apf, widen the grid) is left out where the relaxation tried it."""
         leg = f"leg {self.leg + 1} of {self.n_legs}: " if self.n_legs > 1 else ""
-        advice = self.advice()
-        hint = self.hint if self.apf is None and self.wider is None else ""
-        return f"{leg}{self.cause}{hint}" + (f". To route: {advice}" if advice else "")
+        tried = self.apf_tried or self.wider_tried
+        hint = "" if tried and not self.hint.startswith(" (the weather does not cover") else self.hint
+        text = f"{leg}{self.cause}{hint}"
+        fixes, facts = self.fixes(), self.facts()
+        if fixes:
+            text += ". To route: " + "; ".join(fixes)
+            return text + ("; " + "; ".join(facts) if facts else "")
+        if facts:
+            first = facts[0][0].upper() + facts[0][1:]
+            text += ". " + "; ".join([first, *facts[1:]])
+        return text
 
     def summary(self) -> dict[str, Any]:
         """The JSON of ``route --json`` when no route exists (under ``relaxation``)."""
@@ -170,7 +201,24 @@ class Relaxation:
             "partial": None if self.partial is None else self.partial.summary(),
             "wider": self.wider,
             "wider_voyage_time_h": self.wider_voyage_time_h,
+            "apf_tried": self.apf_tried,
+            "wider_tried": self.wider_tried,
+            "window_beyond_weather": self.window_beyond,
         }
+
+
+def apf_text(apf: float) -> str:
+    """``apf`` with at most 6 significant digits, rounded up so that the value written is never below it (an apf
+    just below a table value forbids the arcs at that value).
+
+    >>> apf_text(0.16605949999999997), apf_text(0.9), apf_text(1.0)
+    ('0.16606', '0.9', '1')
+    """
+    text = f"{apf:.6g}"
+    if float(text) < apf:
+        digits = 5 - math.floor(math.log10(apf))
+        text = f"{math.ceil(apf * 10**digits) / 10**digits:.{max(digits, 0)}f}".rstrip("0").rstrip(".")
+    return text
 
 
 def partial_route(grid: Grid, result: DPResult, departure: np.datetime64) -> PartialRoute | None:
@@ -255,14 +303,19 @@ def smallest_apf(legs: Sequence[tuple[Grid, RoutingProblem]]) -> tuple[float, Ro
 
 def earliest_departure(
     legs: Sequence[tuple[Grid, RoutingProblem]], departures: Sequence[np.datetime64]
-) -> tuple[np.datetime64, Route] | None:
-    """The first of ``departures`` (in order) at which the course routes, and its route (None: none does)."""
+) -> tuple[tuple[np.datetime64, Route] | None, int]:
+    """The first of ``departures`` (in order) at which the course routes, and its route (None: none does), and how
+    many of those tried before it the weather does not cover."""
+    beyond = 0
     for t in departures:
         when = _seconds(t)
-        route = _routes(legs, departure=when)
-        if route is not None:
-            return when, route
-    return None
+        try:
+            return (when, route_course(legs, departure=when)), beyond
+        except WeatherCoverageError:
+            beyond += 1
+        except NoFeasibleRouteError:
+            pass
+    return None, beyond
 
 
 def relax(
@@ -287,8 +340,11 @@ def relax(
     cause = getattr(error, "cause", None) or str(error)
     hint = getattr(error, "hint", "") if getattr(error, "cause", None) else ""
     blocked_by_model = result is None or result.forbidden_by_reason.get("failure", 0) > 0
-    at = smallest_apf(legs) if blocked_by_model and problem.apf < 1.0 else None
-    when = earliest_departure(legs, departures) if len(departures) else None
+    p = np.array([]) if problem.failure is None else problem.failure.p_flat
+    hard = bool(np.all((p[np.isfinite(p)] == 0.0) | (p[np.isfinite(p)] == 1.0)))  # limits: apf 1 ignores them
+    apf_tried = blocked_by_model and problem.apf < 1.0 and problem.failure is not None and not hard
+    at = smallest_apf(legs) if apf_tried else None
+    when, beyond = earliest_departure(legs, departures) if len(departures) else (None, 0)
     window = None
     if len(departures):
         window = (iso_utc(departures[0]), iso_utc(departures[-1]), len(departures))
@@ -302,6 +358,8 @@ def relax(
         departure=None if when is None else when[0],
         departure_voyage_time_h=None if when is None else when[1].voyage_time_h,
         window=window,
+        window_beyond=beyond,
+        apf_tried=apf_tried,
         partial=None if result is None else partial_route(grid, result, problem.departure),
     )
 

@@ -1582,7 +1582,11 @@ def _polar_met(problem: RoutingProblem, grid: Grid, k: int, t0: FloatArray, arcs
     twa = geodesy.angle_diff_deg(cond.twd_deg, course)
     tws = np.asarray(cond.tws_kn, dtype=float)
     polar = problem.polar
-    empty = [float(w) for w, col in zip(polar.tws_kn, np.asarray(polar.speed_kn).T, strict=True) if not np.any(col > 0)]
+    empty = [  # a column of no wind has no speed by nature: not named
+        float(w)
+        for w, col in zip(polar.tws_kn, np.asarray(polar.speed_kn).T, strict=True)
+        if w > 0 and not np.any(col > 0)
+    ]
     text = (
         f" (wind there TWS {np.nanmin(tws):.1f}-{np.nanmax(tws):.1f} kn, "
         f"TWA {np.nanmin(twa):.0f}-{np.nanmax(twa):.0f} deg"
