@@ -200,3 +200,23 @@ def test_the_grid_edge_advice_names_the_option_and_following_it_routes_faster(la
     assert main(["route", str(path), "--quiet", "--json", option, value]) == 0
     after = json.loads(capsys.readouterr().out)["voyage_time_h"]
     assert after < before
+
+
+def test_a_track_that_crosses_the_finish_line_arrives(tmp_path, capsys):
+    """A GPS log that keeps recording after crossing the finish line ends beyond it: it arrived (exit 0); one that
+    stops before the line does not (a review found the first called "short")."""
+    path = tmp_path / "line.toml"
+    path.write_text(
+        "[route]\nstart = [-12.0, 45.0]\nfinish_line = [[-14.0, 42.0], [-14.0, 44.0]]\n"
+        'departure = "2018-06-01T00:00:00Z"\n[grid]\nn_ranks = 5\n'
+        '[weather]\nkind = "uniform"\ntws_kn = 15.0\ntwd_deg = 0.0\n[avoid]\nland = false\n',
+        encoding="utf-8",
+    )
+    beyond, before = tmp_path / "beyond.csv", tmp_path / "before.csv"
+    beyond.write_text("lon,lat\n-12,45\n-13,44.2\n-14.5,43\n", encoding="utf-8")
+    before.write_text("lon,lat\n-12,45\n-13,44.2\n-13.5,43.6\n", encoding="utf-8")
+    assert main(["evaluate", str(path), str(beyond), "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["arrived"] and printed["distance_to_finish_nm"] == 0.0
+    assert main(["evaluate", str(path), str(before), "--json"]) == 2
+    assert not json.loads(capsys.readouterr().out)["arrived"]
