@@ -25,7 +25,14 @@ Five ways through a rank share the per-arc arithmetic:
   :func:`~pyroute_rel.reliability.crossings.arc_extremes`), the next best tried while the best is forbidden: the numpy
   path's lazy judgement (:func:`~pyroute_rel.routing.solve._lazy_pieces`), one arc at a time. Arrival times,
   back-pointers and the arcs costed are the numpy path's; the arcs counted as forbidden by the failure model are at most
-  the eager count (only the arcs judged are counted, as in the numpy path's lazy judgement, which judges in batches);
+  the eager count (only the arcs judged are counted, as in the numpy path's lazy judgement, which judges in batches).
+  In steady weather what an arc meets does not depend on when it is sailed, so its judgements (at its samples: reason
+  flags, criteria fired, whether it may wait for its pieces; on its pieces: over apf or not, criteria fired) are kept
+  for the next DPs on the same grid, samples per arc, weather, model and apf (:class:`Judged`, one byte of state and
+  the criteria fired per arc: 5 bytes, 20 MB on the square 160 x 160 grid), recorded where the kernel makes them and
+  taken where it would make them again, with the same effects in the same order: a DP taking them finds what a DP
+  judging afresh finds, its counts included (:func:`~pyroute_rel.routing.solve.forward_dp` keeps them in the current
+  store, :mod:`pyroute_rel.store`; ``kept(False)`` keeps none);
 - with side labels on uniform weather, the whole rank is one compiled call too, :func:`_boxed_sides_rank`: per node
   the side of each arc (the wind at its first sample), and with pruning each side's four arcs of smallest bound
   costed, then the arcs whose bound does not exceed their side's best (each label pruned against its own best), the
@@ -40,11 +47,14 @@ path serves.
 
 Numpy twin: the numpy rank of :func:`pyroute_rel.routing.solve.forward_dp`
 (:attr:`~pyroute_rel.settings.Settings.compiled_rank_step` False); pinned by
-``tests/test_dp_compiled.py::test_compiled_rank_step_equals_numpy`` and ``tests/test_dp_compiled_failure.py``.
+``tests/test_dp_compiled.py::test_compiled_rank_step_equals_numpy`` and ``tests/test_dp_compiled_failure.py``; the
+judgements kept (a DP taking them equals one judging afresh, each kept input changed gets a fresh judgement) by
+``tests/test_dp_judged.py``.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -59,7 +69,7 @@ from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
 from pyroute_rel.boat.polar import MIN_SPEED_KN, Polar
 from pyroute_rel.store import kept_by
 
-__all__ = ["BoxWind", "FailureJudge", "RankStep", "rank_step"]
+__all__ = ["BoxWind", "FailureJudge", "Judged", "RankStep", "rank_step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -112,13 +122,60 @@ class RankStep(NamedTuple):
 
 class FailureJudge(NamedTuple):
     """A failure model on uniform weather with patches, as :func:`rank_step` judges arcs with it: the fields and
-    classifier (:func:`~pyroute_rel._kernels.crossings.box_fields`) and each arc's ends as unit vectors."""
+    classifier (:func:`~pyroute_rel._kernels.crossings.box_fields`), each arc's ends as unit vectors, and the
+    judgements of the rank's arcs kept from earlier DPs, if any (:meth:`Judged.rank`)."""
 
     #: :func:`~pyroute_rel._kernels.crossings.box_fields` of the weather, model and apf.
     fields: BoxFields
     #: Each arc's start, shape (nodes, arcs, 3), and each node's position, shape (nodes, 3) (unit vectors).
     a_xyz: FloatArray
     b_xyz: FloatArray
+    #: The rank's kept judgements (state, criteria fired), shape (nodes, arcs) each, read and filled by the kernel;
+    #: None: nothing kept (every arc is judged afresh).
+    judged: tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint32]] | None = None
+
+
+# The bits of an arc's kept judgement (:class:`Judged`). Its samples' (set together, the first time the arc is costed):
+_SAMPLED = 1  # judged at its samples (the next three bits hold)
+_LOST = 2  # a sample's evidence is unknown (the cost function's flag "missing weather")
+_OVER = 4  # a sample's p_f exceeds apf (the failure flag); the criteria it fires are in ``fired``
+_BELOW = 8  # the largest p_f at its samples is below the table's largest (it may wait for its pieces)
+# Its pieces' (set the first time it is its node's best, allowed, with its samples below the table's largest):
+_PIECED = 16  # judged on its pieces, or found not to need them
+_FORBID = 32  # p_f along it exceeds apf; the criteria fired along it are in ``fired``
+
+
+class Judged:
+    """The judgements :func:`rank_step` made of the arcs of one grid's ranks with one failure model, uniform weather
+    with patches and apf, kept for the next DPs on them: in steady weather what an arc meets does not depend on when
+    it is sailed, so its judgement at its samples (reason flags, criteria fired, whether it may wait for its pieces)
+    and on its pieces (over apf or not, criteria fired) are fixed. Each is recorded where the kernel makes it and,
+    once known, taken instead of made again, with the same effects in the same order: a DP with a warm
+    :class:`Judged` finds what it finds with a fresh one, counts included (the arcs judged on their pieces are those
+    the DP picks, whatever is kept).
+
+    Per rank, made on first use: one byte of state per arc (the bits ``_SAMPLED`` to ``_FORBID`` of this module) and
+    the criteria fired (uint32): :data:`BYTES_PER_ARC`. Owned by the caller
+    (:func:`~pyroute_rel.routing.solve.forward_dp` keeps one per grid, samples per arc and
+    :class:`~pyroute_rel._kernels.crossings.BoxFields` in the current store); a DP uses it while holding
+    :attr:`lock` (kernels write to it without the GIL)."""
+
+    #: Bytes kept per arc: a state byte and the criteria fired [bytes].
+    BYTES_PER_ARC = 5
+
+    def __init__(self, nbytes: int) -> None:
+        #: What it will hold once every rank is filled [bytes] (its size in the store).
+        self.nbytes = int(nbytes)
+        self.lock = threading.Lock()
+        self._ranks: dict[int, tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint32]]] = {}
+
+    def rank(self, k: int, shape: tuple[int, int]) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint32]]:
+        """Rank ``k``'s state and criteria fired, shape ``shape`` (nodes, arcs), made empty on first use."""
+        got = self._ranks.get(k)
+        if got is None:
+            got = self._ranks[k] = (np.zeros(shape, dtype=np.uint8), np.zeros(shape, dtype=np.uint32))
+        assert got[0].shape == shape  # (the key holds the grid's content: its ranks' shapes do not change)
+        return got
 
 
 def _c(a: npt.ArrayLike, dtype: type = np.float64) -> npt.NDArray:
@@ -215,11 +272,17 @@ def rank_step(
         by_criterion = np.zeros(f.base.size, dtype=np.int64)
         # at an apf no entry of the table exceeds, no arc waits for its pieces: nothing there can forbid it
         p_max = f.p_max if f.apf < f.p_max else -np.inf
+        if failure.judged is None:
+            m_state, m_fired = np.zeros((0, 0), dtype=np.uint8), np.zeros((0, 0), dtype=np.uint32)
+        else:
+            m_state, m_fired = failure.judged  # written to in place: as made by :meth:`Judged.rank`
+            assert m_state.shape == m_fired.shape == (n_dst, src.shape[1])
+            assert _c(m_state, np.uint8) is m_state and _c(m_fired, np.uint32) is m_fired
         _boxed_fail_rank(  # type: ignore[call-arg]
             tp, src, valid, seg, course, _c(wind.lon_deg), _c(wind.lat_deg), float(bound_kn), wind.tws_kn,
             wind.twd_deg, wind.boxes, wind.values, *tables, forbid, MIN_SPEED_KN, _c(failure.a_xyz),
-            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, p_max, t_best, j_best, counts,
-            by_criterion,
+            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, p_max, m_state, m_fired,
+            t_best, j_best, counts, by_criterion,
         )  # fmt: skip
         return RankStep(t_best, j_best, c_best, *_tallies(counts), by_criterion)
     if n_out == 1 and tp.shape[1] == 1 and bound_kn is not None and boxed:
@@ -456,8 +519,8 @@ def _best_picked(pick, n, t0s, times, flags, best, jb, tally):  # type: ignore[n
 @numba.njit(nogil=True, cache=True, error_model="numpy")
 def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     t_prev, src, valid, seg, course, lon, lat, bound, tws0, twd0, boxes, values, twa_tab, tws_tab, speed_tab, twa_inv,
-    tws_inv, forbid, min_speed, a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, p_max, t_best, j_best, counts,
-    crit_counts,
+    tws_inv, forbid, min_speed, a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, p_max, m_state, m_fired, t_best,
+    j_best, counts, crit_counts,
 ):  # fmt: skip
     """:func:`_boxed_rank` with a failure model on uniform weather with patches: each arc costed is also judged at its
     samples (:func:`~pyroute_rel._kernels.crossings.sample_evidence`: p_f over apf forbids it, as the cost function's
@@ -466,8 +529,10 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     arrival: among the first four before the rest are pruned against their best, then among all, until the best is
     allowed (the DP's lazy judgement, :func:`~pyroute_rel.routing.solve._lazy_pieces`: the same minimum as judging every
     arc). ``judge``: the fields and classifier (base, boxes, values, relative, edges, n_edges, right, contrib, fill,
-    p_flat, over, bits); ``pieces``: those :func:`arc_p_f` takes. ``counts``: live, costed, forbidden, no speed,
-    missing weather, failure arcs; ``crit_counts``: arcs forbidden for failure with each criterion fired (added to)."""
+    p_flat, over, bits); ``pieces``: those :func:`arc_p_f` takes. ``m_state``, ``m_fired``: the rank's judgements
+    kept from earlier DPs (:class:`Judged`), shape (nodes, arcs), read where known and written where made (shape
+    (0, 0): none kept). ``counts``: live, costed, forbidden, no speed, missing weather, failure arcs;
+    ``crit_counts``: arcs forbidden for failure with each criterion fired (added to)."""
     n_dst, width = seg.shape
     speeds, cols, ratio, amax = _columns(tws0, values, twa_tab, tws_tab, speed_tab, tws_inv, forbid)
     amin = twa_tab[0] if twa_tab[0] > 0.0 else -np.inf
@@ -492,19 +557,22 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
             lower[pick[q]] = np.nan
         _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
                     amin, amax, min_speed, times, flags)  # fmt: skip
-        _judge_samples(pick, 0, n, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend)
+        _judge_samples(pick, 0, n, d, course, lon, lat, judge, p_max, m_state, m_fired, work, times, flags, fired,
+                       pend)  # fmt: skip
         best = _settle_judged(pick, n, d, t0s, times, flags, fired, pend, lon, lat, course, seg, a_xyz, b_xyz, judge,
-                              pieces, lon_lines, lat_lines, apf, work, cuts, pwork, reach)[0]  # fmt: skip
+                              pieces, lon_lines, lat_lines, apf, m_state, m_fired, work, cuts, pwork,
+                              reach)[0]  # fmt: skip
         m = n
         for a in range(width):  # the rest are pruned against the best over the first four (judged) only
             pick[m] = a
             m += lower[a] <= best
         _cost_boxed(pick[n:], m - n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols,
                     ratio, amin, amax, min_speed, times[n:], flags[n:])  # fmt: skip
-        _judge_samples(pick, n, m, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend)
+        _judge_samples(pick, n, m, d, course, lon, lat, judge, p_max, m_state, m_fired, work, times, flags, fired,
+                       pend)  # fmt: skip
         t_best[d, 0], j_best[d, 0] = _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course, seg,
-                                                    a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, work,
-                                                    cuts, pwork, reach)  # fmt: skip
+                                                    a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state,
+                                                    m_fired, work, cuts, pwork, reach)  # fmt: skip
         failed = 0
         for q in range(m):
             f = flags[q]
@@ -522,44 +590,58 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
 
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
-def _judge_samples(pick, q0, q1, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _judge_samples(pick, q0, q1, d, course, lon, lat, judge, p_max, m_state, m_fired, work, times, flags, fired, pend):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
     """The arcs ``pick[q0:q1]`` into node ``d`` costed already (``times``, ``flags`` at the same positions) judged at
     their samples (:func:`~pyroute_rel._kernels.crossings.sample_evidence`): the cost function's reason flags and
     criteria fired (:func:`~pyroute_rel.routing.cost._sample_speeds`: an arc with a flag takes forever), and whether it
     waits to be judged on its pieces (allowed and below the table's largest p_f at its samples: whether its samples
-    cannot judge it alone is asked when it is its node's best)."""
+    cannot judge it alone is asked when it is its node's best). With ``m_state`` (not empty) an arc's judgement kept
+    there is taken as it is (it does not depend on time), and one made is kept (:class:`Judged`)."""
     fbase, fboxes, fvalues, relative, edges, n_edges, right, contrib, fill, p_flat, over, bits = judge
+    memo = m_state.shape[0] > 0
     for q in range(q0, q1):
         a = pick[q]
-        f = flags[q]
-        fb = np.uint32(0)
-        p_arc = 0.0
-        for s in range(course.shape[2]):
-            p, ov, b, lost = sample_evidence(lon[d, a, s], lat[d, a, s], course[d, a, s], fbase, fboxes, fvalues,
-                                             relative, edges, n_edges, right, contrib, fill, p_flat, over, bits,
-                                             work)  # fmt: skip
-            if s == 0 or p != p or (p_arc == p_arc and p > p_arc):  # numpy.maximum: a NaN stays
-                p_arc = p
-            if lost:
-                f |= 2
-            if ov:
-                f |= 4
-                fb |= b
+        st = m_state[d, a] if memo else np.uint8(0)
+        if st & _SAMPLED:
+            g = st & (_LOST | _OVER)
+            fb = m_fired[d, a] if st & _OVER else np.uint32(0)
+            below = (st & _BELOW) != 0
+        else:
+            g = np.uint8(0)
+            fb = np.uint32(0)
+            p_arc = 0.0
+            for s in range(course.shape[2]):
+                p, ov, b, lost = sample_evidence(lon[d, a, s], lat[d, a, s], course[d, a, s], fbase, fboxes, fvalues,
+                                                 relative, edges, n_edges, right, contrib, fill, p_flat, over, bits,
+                                                 work)  # fmt: skip
+                if s == 0 or p != p or (p_arc == p_arc and p > p_arc):  # numpy.maximum: a NaN stays
+                    p_arc = p
+                if lost:
+                    g |= _LOST
+                if ov:
+                    g |= _OVER
+                    fb |= b
+            below = p_arc < p_max
+            if memo:
+                m_fired[d, a] = fb
+                m_state[d, a] = _SAMPLED | g | (_BELOW if below else np.uint8(0))
+        f = flags[q] | g
         if f != 0:
             times[q] = np.inf
         flags[q] = f
         fired[q] = fb
-        pend[q] = f == 0 and p_arc < p_max
+        pend[q] = f == 0 and below
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
 def _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course, seg, a_xyz, b_xyz, judge, pieces,
-                   lon_lines, lat_lines, apf, work, cuts, pwork, reach):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+                   lon_lines, lat_lines, apf, m_state, m_fired, work, cuts, pwork, reach):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
     """Node ``d``'s earliest arrival over the arcs ``pick[:m]`` costed that can be sailed and its arc (first of equal
     ones: lowest index; inf and 0 where none), the best judged on its pieces until it is allowed where its samples
     cannot judge it alone (one found forbidden gets the failure flag and the criteria fired along it, and the next
     best is tried)."""
     fbase, fboxes, fvalues, relative, edges, n_edges = judge[0], judge[1], judge[2], judge[3], judge[4], judge[5]
+    memo = m_state.shape[0] > 0
     while True:
         best = np.inf
         jb = -1
@@ -575,14 +657,28 @@ def _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course,
         if not pend[qb]:
             return best, jb
         pend[qb] = False
+        st = m_state[d, jb] if memo else np.uint8(0)
+        if st & _PIECED:  # kept: what follows below, without the judging
+            if not st & _FORBID:
+                return best, jb
+            flags[qb] |= 4
+            fired[qb] |= m_fired[d, jb]
+            times[qb] = np.inf
+            continue
         if not needs_judging(lon[d, jb], lat[d, jb], course[d, jb], seg[d, jb], fboxes, fbase, fvalues, relative,
                              edges, n_edges, work):  # fmt: skip
+            if memo:
+                m_state[d, jb] = st | _PIECED
             return best, jb
         p, b = arc_p_f(a_xyz[d, jb], b_xyz[d], lon_lines, lat_lines, pieces, cuts, pwork, reach)
         if p > apf:
             flags[qb] |= 4
             fired[qb] |= b
             times[qb] = np.inf
+        if memo:  # (an arc waiting for its pieces fired nothing at its samples: ``m_fired`` is free for them)
+            if p > apf:
+                m_fired[d, jb] = b
+            m_state[d, jb] = st | _PIECED | (_FORBID if p > apf else np.uint8(0))
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
