@@ -144,6 +144,9 @@ _BELOW = 8  # the largest p_f at its samples is below the table's largest (it ma
 _PIECED = 16  # judged on its pieces, or found not to need them
 _FORBID = 32  # p_f along it exceeds apf; the criteria fired along it are in ``fired``
 
+#: How many next best arcs :func:`_settle_judged` lines up at once after a best found forbidden on its pieces.
+_NEXT = 16
+
 
 class Judged:
     """The judgements :func:`rank_step` made of the arcs of one grid's ranks with one failure model, uniform weather
@@ -532,7 +535,8 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     p_flat, over, bits); ``pieces``: those :func:`arc_p_f` takes. ``m_state``, ``m_fired``: the rank's judgements
     kept from earlier DPs (:class:`Judged`), shape (nodes, arcs), read where known and written where made (shape
     (0, 0): none kept). ``counts``: live, costed, forbidden, no speed, missing weather, failure arcs;
-    ``crit_counts``: arcs forbidden for failure with each criterion fired (added to)."""
+    ``crit_counts``: arcs forbidden for failure with each criterion fired (added to, as each arc is found
+    forbidden)."""
     n_dst, width = seg.shape
     speeds, cols, ratio, amax = _columns(tws0, values, twa_tab, tws_tab, speed_tab, tws_inv, forbid)
     amin = twa_tab[0] if twa_tab[0] > 0.0 else -np.inf
@@ -542,12 +546,14 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     pick = np.empty(width + 4, dtype=np.intp)  # the first four costed, then the rest
     times = np.empty(width + 4)
     flags = np.zeros(width + 4, dtype=np.uint8)
-    fired = np.zeros(width + 4, dtype=np.uint32)
     pend = np.zeros(width + 4, dtype=np.bool_)
+    nxt_t = np.empty(_NEXT)
+    nxt_q = np.empty(_NEXT, dtype=np.intp)
     work = np.empty(n_crit)
     pwork = np.empty((n_crit, 4))
     reach = np.zeros((n_crit, int(pieces[9].max())), dtype=np.bool_)
     cuts = np.empty(3 * lon_lines.size + 2 * lat_lines.size + 4)
+    scratch = (work, cuts, pwork, reach, nxt_t, nxt_q)
     tally = np.zeros(6, dtype=np.int64)
     for d in range(n_dst):
         live = _bounds(t_prev, src, valid, seg, course.shape[2], bound, d, lower, t0s, pick)
@@ -557,46 +563,38 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
             lower[pick[q]] = np.nan
         _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
                     amin, amax, min_speed, times, flags)  # fmt: skip
-        _judge_samples(pick, 0, n, d, course, lon, lat, judge, p_max, m_state, m_fired, work, times, flags, fired,
-                       pend)  # fmt: skip
-        best = _settle_judged(pick, n, d, t0s, times, flags, fired, pend, lon, lat, course, seg, a_xyz, b_xyz, judge,
-                              pieces, lon_lines, lat_lines, apf, m_state, m_fired, work, cuts, pwork,
-                              reach)[0]  # fmt: skip
+        best, jb, qb = _judge_samples(pick, 0, n, d, t0s, course, lon, lat, judge, p_max, m_state, m_fired, work,
+                                      times, flags, pend, np.inf, -1, -1, tally, crit_counts)  # fmt: skip
+        best, jb, qb = _settle_judged(pick, n, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz,
+                                      b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, m_fired, scratch,
+                                      tally, crit_counts)  # fmt: skip
         m = n
         for a in range(width):  # the rest are pruned against the best over the first four (judged) only
             pick[m] = a
             m += lower[a] <= best
         _cost_boxed(pick[n:], m - n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols,
                     ratio, amin, amax, min_speed, times[n:], flags[n:])  # fmt: skip
-        _judge_samples(pick, n, m, d, course, lon, lat, judge, p_max, m_state, m_fired, work, times, flags, fired,
-                       pend)  # fmt: skip
-        t_best[d, 0], j_best[d, 0] = _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course, seg,
-                                                    a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state,
-                                                    m_fired, work, cuts, pwork, reach)  # fmt: skip
-        failed = 0
-        for q in range(m):
-            f = flags[q]
-            if f != 0:
-                tally[2] += 1
-                tally[3] += f & 1
-                tally[4] += (f >> 1) & 1
-                if f & 4:
-                    failed += 1
-                    for c in range(crit_counts.size):
-                        crit_counts[c] += (fired[q] >> c) & 1
+        best, jb, qb = _judge_samples(pick, n, m, d, t0s, course, lon, lat, judge, p_max, m_state, m_fired, work,
+                                      times, flags, pend, best, jb, qb, tally, crit_counts)  # fmt: skip
+        best, jb, qb = _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz,
+                                      b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, m_fired, scratch,
+                                      tally, crit_counts)  # fmt: skip
+        t_best[d, 0], j_best[d, 0] = (best, jb) if jb >= 0 else (np.inf, 0)
         tally[1] += m
-        tally[5] += failed
     counts += tally
 
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
-def _judge_samples(pick, q0, q1, d, course, lon, lat, judge, p_max, m_state, m_fired, work, times, flags, fired, pend):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+def _judge_samples(pick, q0, q1, d, t0s, course, lon, lat, judge, p_max, m_state, m_fired, work, times, flags, pend,
+                   best, jb, qb, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
     """The arcs ``pick[q0:q1]`` into node ``d`` costed already (``times``, ``flags`` at the same positions) judged at
     their samples (:func:`~pyroute_rel._kernels.crossings.sample_evidence`): the cost function's reason flags and
     criteria fired (:func:`~pyroute_rel.routing.cost._sample_speeds`: an arc with a flag takes forever), and whether it
     waits to be judged on its pieces (allowed and below the table's largest p_f at its samples: whether its samples
     cannot judge it alone is asked when it is its node's best). With ``m_state`` (not empty) an arc's judgement kept
-    there is taken as it is (it does not depend on time), and one made is kept (:class:`Judged`)."""
+    there is taken as it is (it does not depend on time), and one made is kept (:class:`Judged`). An arc forbidden is
+    counted into ``tally[2:]`` and ``crit_counts``; returns the earliest arrival over the others and (``best``, arc
+    ``jb`` at ``pick[qb]``) so far (first of equal ones: lowest arc; -1 where none)."""
     fbase, fboxes, fvalues, relative, edges, n_edges, right, contrib, fill, p_flat, over, bits = judge
     memo = m_state.shape[0] > 0
     for q in range(q0, q1):
@@ -626,59 +624,100 @@ def _judge_samples(pick, q0, q1, d, course, lon, lat, judge, p_max, m_state, m_f
                 m_fired[d, a] = fb
                 m_state[d, a] = _SAMPLED | g | (_BELOW if below else np.uint8(0))
         f = flags[q] | g
+        flags[q] = f
+        pend[q] = f == 0 and below
         if f != 0:
             times[q] = np.inf
-        flags[q] = f
-        fired[q] = fb
-        pend[q] = f == 0 and below
+            tally[2] += 1
+            tally[3] += f & 1
+            tally[4] += (f >> 1) & 1
+            if f & 4:
+                tally[5] += 1
+                for c in range(crit_counts.size):
+                    crit_counts[c] += (fb >> c) & 1
+        else:
+            tot = t0s[a] + times[q]
+            if tot < best or (tot == best and a < jb):
+                best, jb, qb = tot, a, q
+    return best, jb, qb
 
 
-@numba.njit(nogil=True, cache=True, error_model="numpy")
-def _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course, seg, a_xyz, b_xyz, judge, pieces,
-                   lon_lines, lat_lines, apf, m_state, m_fired, work, cuts, pwork, reach):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
-    """Node ``d``'s earliest arrival over the arcs ``pick[:m]`` costed that can be sailed and its arc (first of equal
-    ones: lowest index; inf and 0 where none), the best judged on its pieces until it is allowed where its samples
-    cannot judge it alone (one found forbidden gets the failure flag and the criteria fired along it, and the next
-    best is tried)."""
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz, b_xyz, judge,
+                   pieces, lon_lines, lat_lines, apf, m_state, m_fired, scratch, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+    """Node ``d``'s earliest arrival over the arcs ``pick[:m]`` costed that can be sailed, from the earliest
+    (``best``, arc ``jb`` at ``pick[qb]``; -1 where none: :func:`_judge_samples`): while it waits for its pieces
+    (where its samples cannot judge it alone), judged on them (or its judgement kept in ``m_state`` taken); one found
+    forbidden gets the failure flag, is counted (``tally``, ``crit_counts``) and the next best is tried, in the order
+    of arrival then arc (the next :data:`_NEXT` lined up at once: the order in which rescans for the earliest would
+    find them). ``scratch``: ``work``, ``cuts``, ``pwork``, ``reach`` (:func:`arc_p_f`'s) and the line-up's arrivals
+    and positions. Returns the arrival, arc and position (-1 where none)."""
     fbase, fboxes, fvalues, relative, edges, n_edges = judge[0], judge[1], judge[2], judge[3], judge[4], judge[5]
+    work, cuts, pwork, reach, nxt_t, nxt_q = scratch
     memo = m_state.shape[0] > 0
-    while True:
-        best = np.inf
-        jb = -1
-        qb = -1
-        for q in range(m):
-            if flags[q] == 0:
-                a = pick[q]
-                tot = t0s[a] + times[q]
-                if tot < best or (tot == best and a < jb):
-                    best, jb, qb = tot, a, q
-        if jb < 0:
-            return np.inf, 0
-        if not pend[qb]:
-            return best, jb
+    n_next = 0
+    r = 0
+    while jb >= 0 and pend[qb]:
         pend[qb] = False
         st = m_state[d, jb] if memo else np.uint8(0)
-        if st & _PIECED:  # kept: what follows below, without the judging
+        if st & _PIECED:  # kept: what follows, without the judging
             if not st & _FORBID:
-                return best, jb
-            flags[qb] |= 4
-            fired[qb] |= m_fired[d, jb]
-            times[qb] = np.inf
+                break
+            b = m_fired[d, jb]
+        else:
+            if not needs_judging(lon[d, jb], lat[d, jb], course[d, jb], seg[d, jb], fboxes, fbase, fvalues, relative,
+                                 edges, n_edges, work):  # fmt: skip
+                if memo:
+                    m_state[d, jb] = st | _PIECED
+                break
+            p, b = arc_p_f(a_xyz[d, jb], b_xyz[d], lon_lines, lat_lines, pieces, cuts, pwork, reach)
+            if memo:  # (an arc waiting for its pieces fired nothing at its samples: ``m_fired`` is free for them)
+                if p > apf:
+                    m_fired[d, jb] = b
+                m_state[d, jb] = st | _PIECED | (_FORBID if p > apf else np.uint8(0))
+            if not p > apf:
+                break
+        flags[qb] |= 4
+        times[qb] = np.inf
+        tally[2] += 1
+        tally[5] += 1
+        for c in range(crit_counts.size):
+            crit_counts[c] += (b >> c) & 1
+        if r == n_next:
+            n_next = _line_up(pick, m, t0s, times, flags, nxt_t, nxt_q)
+            r = 0
+        if r == n_next:  # none left
+            return np.inf, -1, -1
+        best, qb = nxt_t[r], nxt_q[r]
+        jb = pick[qb]
+        r += 1
+    return best, jb, qb
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _line_up(pick, m, t0s, times, flags, nxt_t, nxt_q):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The earliest arrivals ``nxt_t`` over the arcs ``pick[:m]`` that can be sailed, in order (of arrival, then arc),
+    and their positions ``nxt_q``, as many as they hold; returns how many (arrivals that are not finite never come)."""
+    k = nxt_q.size
+    n = 0
+    for q in range(m):
+        if flags[q] != 0:
             continue
-        if not needs_judging(lon[d, jb], lat[d, jb], course[d, jb], seg[d, jb], fboxes, fbase, fvalues, relative,
-                             edges, n_edges, work):  # fmt: skip
-            if memo:
-                m_state[d, jb] = st | _PIECED
-            return best, jb
-        p, b = arc_p_f(a_xyz[d, jb], b_xyz[d], lon_lines, lat_lines, pieces, cuts, pwork, reach)
-        if p > apf:
-            flags[qb] |= 4
-            fired[qb] |= b
-            times[qb] = np.inf
-        if memo:  # (an arc waiting for its pieces fired nothing at its samples: ``m_fired`` is free for them)
-            if p > apf:
-                m_fired[d, jb] = b
-            m_state[d, jb] = st | _PIECED | (_FORBID if p > apf else np.uint8(0))
+        a = pick[q]
+        tot = t0s[a] + times[q]
+        if not tot < np.inf:
+            continue
+        if n == k and not (tot < nxt_t[k - 1] or (tot == nxt_t[k - 1] and a < pick[nxt_q[k - 1]])):
+            continue
+        i = min(n, k - 1)  # after the ones it does not beat
+        while i > 0 and (tot < nxt_t[i - 1] or (tot == nxt_t[i - 1] and a < pick[nxt_q[i - 1]])):
+            nxt_t[i] = nxt_t[i - 1]
+            nxt_q[i] = nxt_q[i - 1]
+            i -= 1
+        nxt_t[i] = tot
+        nxt_q[i] = q
+        n = min(n + 1, k)
+    return n
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
