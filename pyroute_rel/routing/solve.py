@@ -750,6 +750,8 @@ class _Pricing:
     #: With ``fail_fields``: the judgements of the grid's arcs kept from earlier DPs (a
     #: :class:`~pyroute_rel._kernels.dp.Judged` this DP holds, :func:`_kept_judgements`), None: judged afresh.
     judged: Any = None
+    #: With ``fail_fields``: the failure model's criteria as the tally names them (``describe()``, in order).
+    fail_names: tuple[str, ...] = ()
 
     @classmethod
     def of(
@@ -806,6 +808,11 @@ class _Pricing:
         judged = None
         if fail_fields is not None and grid is not None:
             judged = _kept_judgements(grid, problem, fail_fields, need_bytes)
+        names = (
+            ()
+            if fail_fields is None or problem.failure is None
+            else tuple(c.describe() for c in problem.failure.criteria)
+        )
         return cls(
             problem=problem,
             bound_kn=bound if prune else None,
@@ -816,6 +823,7 @@ class _Pricing:
             wind_boxes=boxes,
             fail_fields=fail_fields,
             judged=judged,
+            fail_names=names,
         )
 
     def release(self) -> None:
@@ -1250,7 +1258,8 @@ def _compiled_step(
             return None  # a narrow rank (the first, from the start): the numpy path judges it
         xyz = valid.shape + (3,)
         a_xyz = geom.a_xyz if geom.a_xyz.shape == xyz else np.array(np.broadcast_to(geom.a_xyz, xyz), order="C")
-        b_xyz = np.array(np.broadcast_to(geom.b_xyz, xyz)[:, 0, :], order="C")  # a node's arcs end at it
+        b = geom.b_xyz[:, 0, :]  # a node's arcs end at it
+        b_xyz = np.array(b if b.shape[0] == xyz[0] else np.broadcast_to(b, xyz[::2]), order="C")
         judged = None if pricing.judged is None else pricing.judged.rank(k, valid.shape)
         failure = FailureJudge(pricing.fail_fields, a_xyz, b_xyz, judged)
     step = rank_step(
@@ -1263,8 +1272,8 @@ def _compiled_step(
     if step.by_criterion is not None and step.failed:
         assert problem.failure is not None
         tally.by_reason["failure"] += step.failed
-        for c, n in zip(problem.failure.criteria, step.by_criterion.tolist(), strict=True):
-            tally.by_criterion[c.describe()] = tally.by_criterion.get(c.describe(), 0) + n
+        for name, n in zip(pricing.fail_names, step.by_criterion.tolist(), strict=True):
+            tally.by_criterion[name] = tally.by_criterion.get(name, 0) + n
     tally.evaluated += step.costed
     tally.pruned += step.live - step.costed
     tally.forbidden += step.forbidden
