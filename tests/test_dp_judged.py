@@ -134,7 +134,7 @@ def test_a_warm_dp_equals_a_cold_one_rank_by_rank() -> None:
     with kept() as store:
         first_steps = rank_steps(grid, problem)
         (judged,) = judged_in(store)
-        states = np.concatenate([judged.rank(k, s.shape)[0].ravel() for k, (s, _) in judged._ranks.items()])
+        states = np.concatenate([s.ravel() for s in judged._ranks.values()])
         assert (states & dp_compiled._FORBID).any() and (states & dp_compiled._OVER).any()  # both kinds forbid
         warm_steps = rank_steps(grid, problem)
         warm = forward_dp(grid, problem)
@@ -212,11 +212,16 @@ def test_nothing_is_kept_when_the_store_keeps_nothing() -> None:
 
 
 def test_judgements_too_big_for_the_memory_are_not_kept(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Beyond the shelf's bound, or beside the DP's peak beyond the memory budget, nothing is kept (and the DP finds
-    what it finds)."""
+    """Beyond the shelf's bound, beside the DP's peak beyond the memory budget, or for a model of more criteria than a
+    judgement holds, nothing is kept (and the DP finds what it finds)."""
     grid, problem = example()
     want = cold(grid, problem)
     monkeypatch.setattr(solve, "JUDGED_MAX_BYTES", 1000)
+    with kept() as store:
+        assert_same(forward_dp(grid, problem), want)
+        assert judged_in(store) == []
+    monkeypatch.undo()
+    monkeypatch.setattr(dp_compiled.Judged, "MAX_CRITERIA", 1)  # (dickson2018 has two)
     with kept() as store:
         assert_same(forward_dp(grid, problem), want)
         assert judged_in(store) == []
@@ -227,10 +232,10 @@ def test_judgements_too_big_for_the_memory_are_not_kept(monkeypatch: pytest.Monk
         assert judged_in(store) == []
     monkeypatch.undo()
     n = grid.n_nodes
-    assert dp_compiled.Judged.BYTES_PER_ARC == 5  # (the figure of the docs: 5 bytes per arc of the compiled ranks)
+    assert dp_compiled.Judged.BYTES_PER_ARC == 2  # (the figure of the docs: 2 bytes per arc of the compiled ranks)
     with kept() as store:
         forward_dp(grid, problem)
-        assert judged_in(store)[0].nbytes == 5 * ((n - 1) * n * grid.width + n)
+        assert judged_in(store)[0].nbytes == 2 * ((n - 1) * n * grid.width + n)
 
 
 def test_a_dp_in_another_thread_judges_afresh_while_one_holds_them() -> None:
@@ -241,7 +246,7 @@ def test_a_dp_in_another_thread_judges_afresh_while_one_holds_them() -> None:
     with kept() as store:
         forward_dp(grid, problem)
         (judged,) = judged_in(store)
-        before = {k: (s.copy(), f.copy()) for k, (s, f) in judged._ranks.items()}
+        before = {k: s.copy() for k, s in judged._ranks.items()}
         assert judged.lock.acquire(blocking=False)  # held by another DP
         try:
             got: list[DPResult] = []
@@ -251,9 +256,8 @@ def test_a_dp_in_another_thread_judges_afresh_while_one_holds_them() -> None:
         finally:
             judged.lock.release()
         assert_same(got[0], want)
-        for k, (s, f) in judged._ranks.items():
-            np.testing.assert_array_equal(s, before[k][0])
-            np.testing.assert_array_equal(f, before[k][1])
+        for k, s in judged._ranks.items():
+            np.testing.assert_array_equal(s, before[k])
     assert current_store() is not store
 
 

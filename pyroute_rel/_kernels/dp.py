@@ -28,8 +28,8 @@ Five ways through a rank share the per-arc arithmetic:
   the eager count (only the arcs judged are counted, as in the numpy path's lazy judgement, which judges in batches).
   In steady weather what an arc meets does not depend on when it is sailed, so its judgements (at its samples: reason
   flags, criteria fired, whether it may wait for its pieces; on its pieces: over apf or not, criteria fired) are kept
-  for the next DPs on the same grid, samples per arc, weather, model and apf (:class:`Judged`, one byte of state and
-  the criteria fired per arc: 5 bytes, 20 MB on the square 160 x 160 grid), recorded where the kernel makes them and
+  for the next DPs on the same grid, samples per arc, weather, model and apf (:class:`Judged`, their state and the
+  criteria fired in a uint16 per arc: 8 MB on the square 160 x 160 grid), recorded where the kernel makes them and
   taken where it would make them again, with the same effects in the same order: a DP taking them finds what a DP
   judging afresh finds, its counts included (:func:`~pyroute_rel.routing.solve.forward_dp` keeps them in the current
   store, :mod:`pyroute_rel.store`; ``kept(False)`` keeps none);
@@ -130,19 +130,22 @@ class FailureJudge(NamedTuple):
     #: Each arc's start, shape (nodes, arcs, 3), and each node's position, shape (nodes, 3) (unit vectors).
     a_xyz: FloatArray
     b_xyz: FloatArray
-    #: The rank's kept judgements (state, criteria fired), shape (nodes, arcs) each, read and filled by the kernel;
+    #: The rank's kept judgements, one per arc (:class:`Judged`), shape (nodes, arcs), read and filled by the kernel;
     #: None: nothing kept (every arc is judged afresh).
-    judged: tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint32]] | None = None
+    judged: npt.NDArray[np.uint16] | None = None
 
 
 # The bits of an arc's kept judgement (:class:`Judged`). Its samples' (set together, the first time the arc is costed):
 _SAMPLED = 1  # judged at its samples (the next three bits hold)
 _LOST = 2  # a sample's evidence is unknown (the cost function's flag "missing weather")
-_OVER = 4  # a sample's p_f exceeds apf (the failure flag); the criteria it fires are in ``fired``
+_OVER = 4  # a sample's p_f exceeds apf (the failure flag); the criteria it fires are in the bits from ``_FIRED``
 _BELOW = 8  # the largest p_f at its samples is below the table's largest (it may wait for its pieces)
 # Its pieces' (set the first time it is its node's best, allowed, with its samples below the table's largest):
 _PIECED = 16  # judged on its pieces, or found not to need them
-_FORBID = 32  # p_f along it exceeds apf; the criteria fired along it are in ``fired``
+_FORBID = 32  # p_f along it exceeds apf; the criteria fired along it are in the bits from ``_FIRED``
+# The criteria fired (bit c: criterion c), at the samples (``_OVER``) or on the pieces (``_FORBID``; never both: an
+# arc waits for its pieces only when its samples forbid nothing), from this bit on.
+_FIRED = 6
 
 #: How many next best arcs :func:`_settle_judged` lines up at once after a best found forbidden on its pieces.
 _NEXT = 16
@@ -157,27 +160,29 @@ class Judged:
     :class:`Judged` finds what it finds with a fresh one, counts included (the arcs judged on their pieces are those
     the DP picks, whatever is kept).
 
-    Per rank, made on first use: one byte of state per arc (the bits ``_SAMPLED`` to ``_FORBID`` of this module) and
-    the criteria fired (uint32): :data:`BYTES_PER_ARC`. Owned by the caller
+    Per rank, made on first use: a uint16 per arc, the bits ``_SAMPLED`` to ``_FORBID`` of this module and the criteria
+    fired (:data:`BYTES_PER_ARC`; models of at most :data:`MAX_CRITERIA` criteria). Owned by the caller
     (:func:`~pyroute_rel.routing.solve.forward_dp` keeps one per grid, samples per arc and
     :class:`~pyroute_rel._kernels.crossings.BoxFields` in the current store); a DP uses it while holding
     :attr:`lock` (kernels write to it without the GIL)."""
 
-    #: Bytes kept per arc: a state byte and the criteria fired [bytes].
-    BYTES_PER_ARC = 5
+    #: Bytes kept per arc [bytes].
+    BYTES_PER_ARC = 2
+    #: The most criteria a model may have for its judgements to be kept (their bits share the arc's uint16).
+    MAX_CRITERIA = 16 - _FIRED
 
     def __init__(self, nbytes: int) -> None:
         #: What it will hold once every rank is filled [bytes] (its size in the store).
         self.nbytes = int(nbytes)
         self.lock = threading.Lock()
-        self._ranks: dict[int, tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint32]]] = {}
+        self._ranks: dict[int, npt.NDArray[np.uint16]] = {}
 
-    def rank(self, k: int, shape: tuple[int, int]) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint32]]:
-        """Rank ``k``'s state and criteria fired, shape ``shape`` (nodes, arcs), made empty on first use."""
+    def rank(self, k: int, shape: tuple[int, int]) -> npt.NDArray[np.uint16]:
+        """Rank ``k``'s judgements, shape ``shape`` (nodes, arcs), made empty (nothing judged) on first use."""
         got = self._ranks.get(k)
         if got is None:
-            got = self._ranks[k] = (np.zeros(shape, dtype=np.uint8), np.zeros(shape, dtype=np.uint32))
-        assert got[0].shape == shape  # (the key holds the grid's content: its ranks' shapes do not change)
+            got = self._ranks[k] = np.zeros(shape, dtype=np.uint16)
+        assert got.shape == shape  # (the key holds the grid's content: its ranks' shapes do not change)
         return got
 
 
@@ -276,16 +281,15 @@ def rank_step(
         # at an apf no entry of the table exceeds, no arc waits for its pieces: nothing there can forbid it
         p_max = f.p_max if f.apf < f.p_max else -np.inf
         if failure.judged is None:
-            m_state, m_fired = np.zeros((0, 0), dtype=np.uint8), np.zeros((0, 0), dtype=np.uint32)
+            m_state = np.zeros((0, 0), dtype=np.uint16)
         else:
-            m_state, m_fired = failure.judged  # written to in place: as made by :meth:`Judged.rank`
-            assert m_state.shape == m_fired.shape == (n_dst, src.shape[1])
-            assert _c(m_state, np.uint8) is m_state and _c(m_fired, np.uint32) is m_fired
+            m_state = failure.judged  # written to in place: as made by :meth:`Judged.rank`
+            assert m_state.shape == (n_dst, src.shape[1]) and f.base.size <= Judged.MAX_CRITERIA
         _boxed_fail_rank(  # type: ignore[call-arg]
             tp, src, valid, seg, course, _c(wind.lon_deg), _c(wind.lat_deg), float(bound_kn), wind.tws_kn,
             wind.twd_deg, wind.boxes, wind.values, *tables, forbid, MIN_SPEED_KN, _c(failure.a_xyz),
-            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, p_max, m_state, m_fired,
-            t_best, j_best, counts, by_criterion,
+            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, p_max, m_state, t_best,
+            j_best, counts, by_criterion,
         )  # fmt: skip
         return RankStep(t_best, j_best, c_best, *_tallies(counts), by_criterion)
     if n_out == 1 and tp.shape[1] == 1 and bound_kn is not None and boxed:
@@ -522,8 +526,8 @@ def _best_picked(pick, n, t0s, times, flags, best, jb, tally):  # type: ignore[n
 @numba.njit(nogil=True, cache=True, error_model="numpy")
 def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     t_prev, src, valid, seg, course, lon, lat, bound, tws0, twd0, boxes, values, twa_tab, tws_tab, speed_tab, twa_inv,
-    tws_inv, forbid, min_speed, a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, p_max, m_state, m_fired, t_best,
-    j_best, counts, crit_counts,
+    tws_inv, forbid, min_speed, a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, p_max, m_state, t_best, j_best,
+    counts, crit_counts,
 ):  # fmt: skip
     """:func:`_boxed_rank` with a failure model on uniform weather with patches: each arc costed is also judged at its
     samples (:func:`~pyroute_rel._kernels.crossings.sample_evidence`: p_f over apf forbids it, as the cost function's
@@ -532,9 +536,9 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     arrival: among the first four before the rest are pruned against their best, then among all, until the best is
     allowed (the DP's lazy judgement, :func:`~pyroute_rel.routing.solve._lazy_pieces`: the same minimum as judging every
     arc). ``judge``: the fields and classifier (base, boxes, values, relative, edges, n_edges, right, contrib, fill,
-    p_flat, over, bits); ``pieces``: those :func:`arc_p_f` takes. ``m_state``, ``m_fired``: the rank's judgements
-    kept from earlier DPs (:class:`Judged`), shape (nodes, arcs), read where known and written where made (shape
-    (0, 0): none kept). ``counts``: live, costed, forbidden, no speed, missing weather, failure arcs;
+    p_flat, over, bits); ``pieces``: those :func:`arc_p_f` takes. ``m_state``: the rank's judgements kept from
+    earlier DPs (:class:`Judged`), shape (nodes, arcs), read where known and written where made (shape (0, 0): none
+    kept). ``counts``: live, costed, forbidden, no speed, missing weather, failure arcs;
     ``crit_counts``: arcs forbidden for failure with each criterion fired (added to, as each arc is found
     forbidden)."""
     n_dst, width = seg.shape
@@ -563,10 +567,10 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
             lower[pick[q]] = np.nan
         _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
                     amin, amax, min_speed, times, flags)  # fmt: skip
-        best, jb, qb = _judge_samples(pick, 0, n, d, t0s, course, lon, lat, judge, p_max, m_state, m_fired, work,
+        best, jb, qb = _judge_samples(pick, 0, n, d, t0s, course, lon, lat, judge, p_max, m_state, work,
                                       times, flags, pend, np.inf, -1, -1, tally, crit_counts)  # fmt: skip
         best, jb, qb = _settle_judged(pick, n, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz,
-                                      b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, m_fired, scratch,
+                                      b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, scratch,
                                       tally, crit_counts)  # fmt: skip
         m = n
         for a in range(width):  # the rest are pruned against the best over the first four (judged) only
@@ -574,10 +578,10 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
             m += lower[a] <= best
         _cost_boxed(pick[n:], m - n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols,
                     ratio, amin, amax, min_speed, times[n:], flags[n:])  # fmt: skip
-        best, jb, qb = _judge_samples(pick, n, m, d, t0s, course, lon, lat, judge, p_max, m_state, m_fired, work,
+        best, jb, qb = _judge_samples(pick, n, m, d, t0s, course, lon, lat, judge, p_max, m_state, work,
                                       times, flags, pend, best, jb, qb, tally, crit_counts)  # fmt: skip
         best, jb, qb = _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz,
-                                      b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, m_fired, scratch,
+                                      b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, scratch,
                                       tally, crit_counts)  # fmt: skip
         t_best[d, 0], j_best[d, 0] = (best, jb) if jb >= 0 else (np.inf, 0)
         tally[1] += m
@@ -585,8 +589,8 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
 
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
-def _judge_samples(pick, q0, q1, d, t0s, course, lon, lat, judge, p_max, m_state, m_fired, work, times, flags, pend,
-                   best, jb, qb, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+def _judge_samples(pick, q0, q1, d, t0s, course, lon, lat, judge, p_max, m_state, work, times, flags, pend, best, jb,
+                   qb, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
     """The arcs ``pick[q0:q1]`` into node ``d`` costed already (``times``, ``flags`` at the same positions) judged at
     their samples (:func:`~pyroute_rel._kernels.crossings.sample_evidence`): the cost function's reason flags and
     criteria fired (:func:`~pyroute_rel.routing.cost._sample_speeds`: an arc with a flag takes forever), and whether it
@@ -599,10 +603,10 @@ def _judge_samples(pick, q0, q1, d, t0s, course, lon, lat, judge, p_max, m_state
     memo = m_state.shape[0] > 0
     for q in range(q0, q1):
         a = pick[q]
-        st = m_state[d, a] if memo else np.uint8(0)
+        st = m_state[d, a] if memo else np.uint16(0)
         if st & _SAMPLED:
             g = st & (_LOST | _OVER)
-            fb = m_fired[d, a] if st & _OVER else np.uint32(0)
+            fb = np.uint32(st >> _FIRED) if st & _OVER else np.uint32(0)
             below = (st & _BELOW) != 0
         else:
             g = np.uint8(0)
@@ -621,8 +625,7 @@ def _judge_samples(pick, q0, q1, d, t0s, course, lon, lat, judge, p_max, m_state
                     fb |= b
             below = p_arc < p_max
             if memo:
-                m_fired[d, a] = fb
-                m_state[d, a] = _SAMPLED | g | (_BELOW if below else np.uint8(0))
+                m_state[d, a] = _SAMPLED | g | (_BELOW if below else 0) | (fb << _FIRED)
         f = flags[q] | g
         flags[q] = f
         pend[q] = f == 0 and below
@@ -644,7 +647,7 @@ def _judge_samples(pick, q0, q1, d, t0s, course, lon, lat, judge, p_max, m_state
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
 def _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz, b_xyz, judge,
-                   pieces, lon_lines, lat_lines, apf, m_state, m_fired, scratch, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+                   pieces, lon_lines, lat_lines, apf, m_state, scratch, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
     """Node ``d``'s earliest arrival over the arcs ``pick[:m]`` costed that can be sailed, from the earliest
     (``best``, arc ``jb`` at ``pick[qb]``; -1 where none: :func:`_judge_samples`): while it waits for its pieces
     (where its samples cannot judge it alone), judged on them (or its judgement kept in ``m_state`` taken); one found
@@ -659,11 +662,11 @@ def _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, 
     r = 0
     while jb >= 0 and pend[qb]:
         pend[qb] = False
-        st = m_state[d, jb] if memo else np.uint8(0)
+        st = m_state[d, jb] if memo else np.uint16(0)
         if st & _PIECED:  # kept: what follows, without the judging
             if not st & _FORBID:
                 break
-            b = m_fired[d, jb]
+            b = np.uint32(st >> _FIRED)
         else:
             if not needs_judging(lon[d, jb], lat[d, jb], course[d, jb], seg[d, jb], fboxes, fbase, fvalues, relative,
                                  edges, n_edges, work):  # fmt: skip
@@ -671,10 +674,8 @@ def _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, 
                     m_state[d, jb] = st | _PIECED
                 break
             p, b = arc_p_f(a_xyz[d, jb], b_xyz[d], lon_lines, lat_lines, pieces, cuts, pwork, reach)
-            if memo:  # (an arc waiting for its pieces fired nothing at its samples: ``m_fired`` is free for them)
-                if p > apf:
-                    m_fired[d, jb] = b
-                m_state[d, jb] = st | _PIECED | (_FORBID if p > apf else np.uint8(0))
+            if memo:  # (an arc waiting for its pieces fired nothing at its samples: the bits of ``_FIRED`` are free)
+                m_state[d, jb] = st | _PIECED | ((_FORBID | (b << _FIRED)) if p > apf else 0)
             if not p > apf:
                 break
         flags[qb] |= 4

@@ -950,7 +950,8 @@ JUDGED_MAX_BYTES = 512 * 1024**2
 def _kept_judgements(grid: Grid, problem: RoutingProblem, fields: Any, need_bytes: int) -> Any:
     """The judgements of the grid's arcs kept for this failure model, weather and apf (a
     :class:`~pyroute_rel._kernels.dp.Judged`, held by the caller until :meth:`_Pricing.release`), made empty on first
-    use; None where nothing is to be kept: the store keeps nothing (``kept(False)``), they would not fit in
+    use; None where nothing is to be kept: the store keeps nothing (``kept(False)``), the model has more criteria than
+    a judgement holds (:attr:`~pyroute_rel._kernels.dp.Judged.MAX_CRITERIA`), they would not fit in
     :data:`JUDGED_MAX_BYTES` or beside the DP's peak ``need_bytes`` [bytes] in the memory budget
     (:func:`~pyroute_rel.resources.budget_bytes`), or another DP holds them (it runs in another thread).
 
@@ -965,7 +966,9 @@ def _kept_judgements(grid: Grid, problem: RoutingProblem, fields: Any, need_byte
 
     arcs = (grid.n_ranks - 1) * grid.n_nodes * grid.width + grid.n_nodes  # the compiled ranks: inner, and the finish
     nbytes = Judged.BYTES_PER_ARC * arcs
-    if nbytes > JUDGED_MAX_BYTES or need_bytes + nbytes > budget_bytes(problem.max_memory)[0]:
+    if fields.base.size > Judged.MAX_CRITERIA or nbytes > JUDGED_MAX_BYTES:
+        return None
+    if need_bytes + nbytes > budget_bytes(problem.max_memory)[0]:
         return None
     shelf = store.shelf("dp.judged", limit=JUDGED_KEPT, max_bytes=JUDGED_MAX_BYTES, nbytes=lambda j: j.nbytes)
     judged = shelf.get_or_make((_grid_key(grid), problem.samples, fields.key()), lambda: Judged(nbytes))
