@@ -235,7 +235,7 @@ def test_judgements_too_big_for_the_memory_are_not_kept(monkeypatch: pytest.Monk
     assert dp_compiled.Judged.BYTES_PER_ARC == 2  # (the figure of the docs: 2 bytes per arc of the compiled ranks)
     with kept() as store:
         forward_dp(grid, problem)
-        assert judged_in(store)[0].nbytes == 2 * ((n - 1) * n * grid.width + n)
+        assert judged_in(store)[0].nbytes == 2 * (n + (n - 1) * n * grid.width + n)  # (from the start, inner, finish)
 
 
 def test_a_dp_in_another_thread_judges_afresh_while_one_holds_them() -> None:

@@ -964,14 +964,17 @@ def _kept_judgements(grid: Grid, problem: RoutingProblem, fields: Any, need_byte
         return None
     from pyroute_rel._kernels.dp import Judged
 
-    arcs = (grid.n_ranks - 1) * grid.n_nodes * grid.width + grid.n_nodes  # the compiled ranks: inner, and the finish
-    nbytes = Judged.BYTES_PER_ARC * arcs
-    if fields.base.size > Judged.MAX_CRITERIA or nbytes > JUDGED_MAX_BYTES:
-        return None
-    if need_bytes + nbytes > budget_bytes(problem.max_memory)[0]:
-        return None
     shelf = store.shelf("dp.judged", limit=JUDGED_KEPT, max_bytes=JUDGED_MAX_BYTES, nbytes=lambda j: j.nbytes)
-    judged = shelf.get_or_make((_grid_key(grid), problem.samples, fields.key()), lambda: Judged(nbytes))
+    key = (_grid_key(grid), problem.samples, fields.key())
+    judged = shelf.get(key)
+    if judged is None:
+        arcs = grid.start_pattern.size + (grid.n_ranks - 1) * grid.n_nodes * grid.width + grid.n_nodes  # every rank's
+        nbytes = Judged.BYTES_PER_ARC * arcs
+        if fields.base.size > Judged.MAX_CRITERIA or nbytes > JUDGED_MAX_BYTES:
+            return None
+        if need_bytes + nbytes > budget_bytes(problem.max_memory)[0]:
+            return None
+        judged = shelf.put(key, Judged(nbytes), replace=False)
     return judged if judged.lock.acquire(blocking=False) else None
 
 
@@ -1257,12 +1260,11 @@ def _compiled_step(
     prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
     failure = None
     if pricing.fail_fields is not None:
+        if prune is None and bound_kn is not None and valid.shape[1] <= 4:
+            prune = bound_kn  # (the kernel costs each node's first four live arcs: here all of them, as unpruned)
         if prune is None or geom.a_xyz is None or geom.b_xyz is None:
-            return None  # a narrow rank (the first, from the start): the numpy path judges it
-        xyz = valid.shape + (3,)
-        a_xyz = geom.a_xyz if geom.a_xyz.shape == xyz else np.array(np.broadcast_to(geom.a_xyz, xyz), order="C")
-        b = geom.b_xyz[:, 0, :]  # a node's arcs end at it
-        b_xyz = np.array(b if b.shape[0] == xyz[0] else np.broadcast_to(b, xyz[::2]), order="C")
+            return None  # a narrow rank that pruning would thin: the numpy path judges it
+        a_xyz, b_xyz = _arc_ends(geom, valid.shape)
         judged = None if pricing.judged is None else pricing.judged.rank(k, valid.shape)
         failure = FailureJudge(pricing.fail_fields, a_xyz, b_xyz, judged)
     step = rank_step(
@@ -1284,6 +1286,20 @@ def _compiled_step(
     tally.by_reason["weather"] += step.no_wind
     src_best = np.take_along_axis(src, step.j_best, axis=1)
     return step.t_best, src_best, np.asarray(prev_sides, dtype=np.intp)[step.c_best], None
+
+
+def _arc_ends(geom: ArcGeometry, shape: tuple[int, ...]) -> tuple[FloatArray, FloatArray]:
+    """The arcs' starts, shape ``shape + (3,)``, and each node's position (where its arcs end), shape (nodes, 3), as
+    unit vectors in contiguous arrays, for the compiled failure step; kept by the geometry (:func:`kept_by`)."""
+
+    def make() -> tuple[FloatArray, FloatArray]:
+        assert geom.a_xyz is not None and geom.b_xyz is not None
+        xyz = shape + (3,)
+        a = geom.a_xyz if geom.a_xyz.shape == xyz else np.array(np.broadcast_to(geom.a_xyz, xyz), order="C")
+        b = geom.b_xyz[:, 0, :]  # a node's arcs end at it
+        return a, np.array(b if b.shape[0] == xyz[0] else np.broadcast_to(b, xyz[::2]), order="C")
+
+    return kept_by(geom, f"_arc_ends{shape}", make)  # type: ignore[no-any-return]
 
 
 def _sampler(
