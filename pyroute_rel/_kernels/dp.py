@@ -569,9 +569,12 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
                     amin, amax, min_speed, times, flags)  # fmt: skip
         best, jb, qb = _judge_samples(pick, 0, n, d, t0s, course, lon, lat, judge, p_max, m_state, work,
                                       times, flags, pend, np.inf, -1, -1, tally, crit_counts)  # fmt: skip
-        best, jb, qb = _settle_judged(pick, n, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz,
-                                      b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, scratch,
-                                      tally, crit_counts)  # fmt: skip
+        best, jb, qb, known = _settle_kept(pick, n, d, best, jb, qb, t0s, times, flags, pend, m_state, nxt_t, nxt_q,
+                                           tally, crit_counts)  # fmt: skip
+        if not known:  # (the judging itself out of line: inlined, it slowed the loops around it by a fifth)
+            best, jb, qb = _settle_judged(pick, n, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg,
+                                          a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, scratch,
+                                          tally, crit_counts)  # fmt: skip
         m = n
         for a in range(width):  # the rest are pruned against the best over the first four (judged) only
             pick[m] = a
@@ -580,9 +583,12 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
                     ratio, amin, amax, min_speed, times[n:], flags[n:])  # fmt: skip
         best, jb, qb = _judge_samples(pick, n, m, d, t0s, course, lon, lat, judge, p_max, m_state, work,
                                       times, flags, pend, best, jb, qb, tally, crit_counts)  # fmt: skip
-        best, jb, qb = _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz,
-                                      b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, scratch,
-                                      tally, crit_counts)  # fmt: skip
+        best, jb, qb, known = _settle_kept(pick, m, d, best, jb, qb, t0s, times, flags, pend, m_state, nxt_t, nxt_q,
+                                           tally, crit_counts)  # fmt: skip
+        if not known:  # (the judging itself out of line: inlined, it slowed the loops around it by a fifth)
+            best, jb, qb = _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg,
+                                          a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, scratch,
+                                          tally, crit_counts)  # fmt: skip
         t_best[d, 0], j_best[d, 0] = (best, jb) if jb >= 0 else (np.inf, 0)
         tally[1] += m
     counts += tally
@@ -646,6 +652,45 @@ def _judge_samples(pick, q0, q1, d, t0s, course, lon, lat, judge, p_max, m_state
 
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _settle_kept(pick, m, d, best, jb, qb, t0s, times, flags, pend, m_state, nxt_t, nxt_q, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+    """:func:`_settle_judged` as far as the judgements kept in ``m_state`` take it: while the best waits for its
+    pieces and its judgement on them is kept, that judgement is taken (allowed: done; forbidden: flagged, counted,
+    the next best tried). Returns the arrival, arc and position, and False where the best waits for a judgement not
+    kept (the caller then calls :func:`_settle_judged` from there)."""
+    n_next = 0
+    r = 0
+    while jb >= 0 and pend[qb]:
+        st = m_state[d, jb] if m_state.shape[0] > 0 else np.uint16(0)
+        if not st & _PIECED:
+            return best, jb, qb, False
+        pend[qb] = False
+        if not st & _FORBID:
+            break
+        _forbidden(qb, np.uint32(st >> _FIRED), times, flags, tally, crit_counts)
+        if r == n_next:
+            n_next = _line_up(pick, m, t0s, times, flags, nxt_t, nxt_q)
+            r = 0
+        if r == n_next:  # none left
+            return np.inf, -1, -1, True
+        best, qb = nxt_t[r], nxt_q[r]
+        jb = pick[qb]
+        r += 1
+    return best, jb, qb, True
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _forbidden(q, b, times, flags, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The arc at position ``q`` found forbidden on its pieces, which fire the criteria of bits ``b``: its failure
+    flag, and counted (``tally``: forbidden, failed; ``crit_counts``)."""
+    flags[q] |= 4
+    times[q] = np.inf
+    tally[2] += 1
+    tally[5] += 1
+    for c in range(crit_counts.size):
+        crit_counts[c] += (b >> c) & 1
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
 def _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz, b_xyz, judge,
                    pieces, lon_lines, lat_lines, apf, m_state, scratch, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
     """Node ``d``'s earliest arrival over the arcs ``pick[:m]`` costed that can be sailed, from the earliest
@@ -678,12 +723,7 @@ def _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, 
                 m_state[d, jb] = st | _PIECED | ((_FORBID | (b << _FIRED)) if p > apf else 0)
             if not p > apf:
                 break
-        flags[qb] |= 4
-        times[qb] = np.inf
-        tally[2] += 1
-        tally[5] += 1
-        for c in range(crit_counts.size):
-            crit_counts[c] += (b >> c) & 1
+        _forbidden(qb, b, times, flags, tally, crit_counts)
         if r == n_next:
             n_next = _line_up(pick, m, t0s, times, flags, nxt_t, nxt_q)
             r = 0
