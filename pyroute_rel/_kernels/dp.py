@@ -23,7 +23,8 @@ Five ways through a rank share the per-arc arithmetic:
   judged at its samples as the cost function judges it, and each node's best arc, where its samples cannot judge it
   alone, on every piece it crosses (:mod:`pyroute_rel._kernels.crossings`, the numbers of
   :func:`~pyroute_rel.reliability.crossings.arc_extremes`), the next best tried while the best is forbidden: the numpy
-  path's lazy judgement (:func:`~pyroute_rel.routing.solve._lazy_pieces`), one arc at a time. Arrival times,
+  path's lazy judgement (:func:`~pyroute_rel.routing.solve._lazy_pieces`), one arc at a time (also on ranks of at most
+  four arcs per node, such as the first from one start point, where the first four are every arc). Arrival times,
   back-pointers and the arcs costed are the numpy path's; the arcs counted as forbidden by the failure model are at most
   the eager count (only the arcs judged are counted, as in the numpy path's lazy judgement, which judges in batches).
   In steady weather what an arc meets does not depend on when it is sailed, so its judgements (at its samples: reason

@@ -1242,8 +1242,8 @@ def _compiled_step(
     compiled code (:func:`pyroute_rel._kernels.dp.rank_step`): the weather sampled here, at the arcs the step asks
     for (with pruning, only those it costs), the rest there; a failure model's judgements of the arcs into rank
     ``k`` kept from earlier DPs where ``pricing`` holds them. None when the weather turns out to have a current there
-    (NaN included), or a failure model's rank is too narrow to prune (the first): the numpy path then costs the
-    rank."""
+    (NaN included), or a failure model's rank is too narrow to prune and has nodes of more than four arcs (the
+    kernel, which prunes, would cost fewer arcs than the numpy path): the numpy path then costs the rank."""
     from pyroute_rel._kernels.dp import BoxWind, FailureJudge, rank_step
 
     shape = valid.shape + (geom.samples,)
