@@ -36,6 +36,10 @@ What the arrays are (``A`` = candidate arcs of the whole grid, ``a`` = of the wi
 - **DP state**: arrival time, back-pointer and wait per node: ``24 n_ranks n_nodes`` bytes.
 - **failure table**: the criteria-fired bits the cost kernel gathers next to the compiled table (uint32 per entry).
 
+Not in the estimate, because they are kept only where they fit: the judgements of a failure model the compiled DP
+step keeps between DPs on uniform weather (:class:`pyroute_rel._kernels.dp.Judged`, 2 bytes per arc of the grid,
+at most 512 MiB in all), kept only when the estimate plus their size is within the budget.
+
 Waiting (``max_wait_h`` on a time lattice) repeats the work of a rank once per wait step but keeps only the best so
 far: it multiplies the time a route takes, not its memory.
 

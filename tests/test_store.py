@@ -3,7 +3,7 @@ and each kept input changed between calls giving the fresh answer (in this proce
 
 Other tests change kept inputs too: zones on a reused grid (test_avoid_routing), a scenario or weather file under
 ``route_member`` (test_ensemble), a weather file kept open (test_ensemble_reading), a failure network
-(test_failure)."""
+(test_failure), a failure model's judgements kept for the compiled DP step (test_dp_judged)."""
 
 from __future__ import annotations
 

@@ -24,6 +24,7 @@ Numpy twin: :func:`pyroute_rel.reliability.crossings.arc_extremes` and
 
 from __future__ import annotations
 
+import hashlib
 import math
 from typing import Any, NamedTuple
 
@@ -84,6 +85,16 @@ class BoxFields(NamedTuple):
     #: bin, the contribution of a NaN), for the samples (:func:`sample_evidence`).
     contrib: npt.NDArray[np.intp]
     fill: npt.NDArray[np.intp]
+
+    def key(self) -> str:
+        """A digest of every field (name, dtype, shape and bytes, in order): equal for fields that judge every arc
+        alike, bit for bit (the key of what is kept of a judgement, :class:`~pyroute_rel._kernels.dp.Judged`)."""
+        digest = hashlib.blake2b(digest_size=16)
+        for name, value in zip(self._fields, self, strict=True):
+            a = np.ascontiguousarray(value)
+            digest.update(f"{name}:{a.dtype.str}:{a.shape}:".encode())
+            digest.update(a.tobytes())
+        return digest.hexdigest()
 
 
 def box_fields(weather: Any, model: FailureModel, apf: float) -> BoxFields | None:

@@ -23,9 +23,17 @@ Five ways through a rank share the per-arc arithmetic:
   judged at its samples as the cost function judges it, and each node's best arc, where its samples cannot judge it
   alone, on every piece it crosses (:mod:`pyroute_rel._kernels.crossings`, the numbers of
   :func:`~pyroute_rel.reliability.crossings.arc_extremes`), the next best tried while the best is forbidden: the numpy
-  path's lazy judgement (:func:`~pyroute_rel.routing.solve._lazy_pieces`), one arc at a time. Arrival times,
+  path's lazy judgement (:func:`~pyroute_rel.routing.solve._lazy_pieces`), one arc at a time (also on ranks of at most
+  four arcs per node, such as the first from one start point, where the first four are every arc). Arrival times,
   back-pointers and the arcs costed are the numpy path's; the arcs counted as forbidden by the failure model are at most
-  the eager count (only the arcs judged are counted, as in the numpy path's lazy judgement, which judges in batches);
+  the eager count (only the arcs judged are counted, as in the numpy path's lazy judgement, which judges in batches).
+  In steady weather what an arc meets does not depend on when it is sailed, so its judgements (at its samples: reason
+  flags, criteria fired, whether it may wait for its pieces; on its pieces: over apf or not, criteria fired) are kept
+  for the next DPs on the same grid, samples per arc, weather, model and apf (:class:`Judged`, their state and the
+  criteria fired in a uint16 per arc: 8 MB on the square 160 x 160 grid), recorded where the kernel makes them and
+  taken where it would make them again, with the same effects in the same order: a DP taking them finds what a DP
+  judging afresh finds, its counts included (:func:`~pyroute_rel.routing.solve.forward_dp` keeps them in the current
+  store, :mod:`pyroute_rel.store`; ``kept(False)`` keeps none);
 - with side labels on uniform weather, the whole rank is one compiled call too, :func:`_boxed_sides_rank`: per node
   the side of each arc (the wind at its first sample), and with pruning each side's four arcs of smallest bound
   costed, then the arcs whose bound does not exceed their side's best (each label pruned against its own best), the
@@ -40,11 +48,14 @@ path serves.
 
 Numpy twin: the numpy rank of :func:`pyroute_rel.routing.solve.forward_dp`
 (:attr:`~pyroute_rel.settings.Settings.compiled_rank_step` False); pinned by
-``tests/test_dp_compiled.py::test_compiled_rank_step_equals_numpy`` and ``tests/test_dp_compiled_failure.py``.
+``tests/test_dp_compiled.py::test_compiled_rank_step_equals_numpy`` and ``tests/test_dp_compiled_failure.py``; the
+judgements kept (a DP taking them equals one judging afresh, each kept input changed gets a fresh judgement) by
+``tests/test_dp_judged.py``.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -59,7 +70,7 @@ from pyroute_rel.boat.manoeuvre import ManoeuvrePenalties
 from pyroute_rel.boat.polar import MIN_SPEED_KN, Polar
 from pyroute_rel.store import kept_by
 
-__all__ = ["BoxWind", "FailureJudge", "RankStep", "rank_step"]
+__all__ = ["BoxWind", "FailureJudge", "Judged", "RankStep", "rank_step"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -112,13 +123,68 @@ class RankStep(NamedTuple):
 
 class FailureJudge(NamedTuple):
     """A failure model on uniform weather with patches, as :func:`rank_step` judges arcs with it: the fields and
-    classifier (:func:`~pyroute_rel._kernels.crossings.box_fields`) and each arc's ends as unit vectors."""
+    classifier (:func:`~pyroute_rel._kernels.crossings.box_fields`), each arc's ends as unit vectors, and the
+    judgements of the rank's arcs kept from earlier DPs, if any (:meth:`Judged.rank`)."""
 
     #: :func:`~pyroute_rel._kernels.crossings.box_fields` of the weather, model and apf.
     fields: BoxFields
     #: Each arc's start, shape (nodes, arcs, 3), and each node's position, shape (nodes, 3) (unit vectors).
     a_xyz: FloatArray
     b_xyz: FloatArray
+    #: The rank's kept judgements, one per arc (:class:`Judged`), shape (nodes, arcs), read and filled by the kernel;
+    #: None: nothing kept (every arc is judged afresh).
+    judged: npt.NDArray[np.uint16] | None = None
+
+
+# The bits of an arc's kept judgement (:class:`Judged`). Its samples' (set together, the first time the arc is costed):
+_SAMPLED = 1  # judged at its samples (the next three bits hold)
+_LOST = 2  # a sample's evidence is unknown (the cost function's flag "missing weather")
+_OVER = 4  # a sample's p_f exceeds apf (the failure flag); the criteria it fires are in the bits from ``_FIRED``
+_BELOW = 8  # the largest p_f at its samples is below the table's largest (it may wait for its pieces)
+# Its pieces' (set the first time it is its node's best, allowed, with its samples below the table's largest):
+_PIECED = 16  # judged on its pieces, or found not to need them
+_FORBID = 32  # p_f along it exceeds apf; the criteria fired along it are in the bits from ``_FIRED``
+# The criteria fired (bit c: criterion c), at the samples (``_OVER``) or on the pieces (``_FORBID``; never both: an
+# arc waits for its pieces only when its samples forbid nothing), from this bit on.
+_FIRED = 6
+
+#: How many next best arcs :func:`_settle_judged` lines up at once after a best found forbidden on its pieces.
+_NEXT = 16
+
+
+class Judged:
+    """The judgements :func:`rank_step` made of the arcs of one grid's ranks with one failure model, uniform weather
+    with patches and apf, kept for the next DPs on them: in steady weather what an arc meets does not depend on when
+    it is sailed, so its judgement at its samples (reason flags, criteria fired, whether it may wait for its pieces)
+    and on its pieces (over apf or not, criteria fired) are fixed. Each is recorded where the kernel makes it and,
+    once known, taken instead of made again, with the same effects in the same order: a DP with a warm
+    :class:`Judged` finds what it finds with a fresh one, counts included (the arcs judged on their pieces are those
+    the DP picks, whatever is kept).
+
+    Per rank, made on first use: a uint16 per arc, the bits ``_SAMPLED`` to ``_FORBID`` of this module and the criteria
+    fired (:data:`BYTES_PER_ARC`; models of at most :data:`MAX_CRITERIA` criteria). Owned by the caller
+    (:func:`~pyroute_rel.routing.solve.forward_dp` keeps one per grid, samples per arc and
+    :class:`~pyroute_rel._kernels.crossings.BoxFields` in the current store); a DP uses it while holding
+    :attr:`lock` (kernels write to it without the GIL)."""
+
+    #: Bytes kept per arc [bytes].
+    BYTES_PER_ARC = 2
+    #: The most criteria a model may have for its judgements to be kept (their bits share the arc's uint16).
+    MAX_CRITERIA = 16 - _FIRED
+
+    def __init__(self, nbytes: int) -> None:
+        #: What it will hold once every rank is filled [bytes] (its size in the store).
+        self.nbytes = int(nbytes)
+        self.lock = threading.Lock()
+        self._ranks: dict[int, npt.NDArray[np.uint16]] = {}
+
+    def rank(self, k: int, shape: tuple[int, int]) -> npt.NDArray[np.uint16]:
+        """Rank ``k``'s judgements, shape ``shape`` (nodes, arcs), made empty (nothing judged) on first use."""
+        got = self._ranks.get(k)
+        if got is None:
+            got = self._ranks[k] = np.zeros(shape, dtype=np.uint16)
+        assert got.shape == shape  # (the key holds the grid's content: its ranks' shapes do not change)
+        return got
 
 
 def _c(a: npt.ArrayLike, dtype: type = np.float64) -> npt.NDArray:
@@ -215,11 +281,16 @@ def rank_step(
         by_criterion = np.zeros(f.base.size, dtype=np.int64)
         # at an apf no entry of the table exceeds, no arc waits for its pieces: nothing there can forbid it
         p_max = f.p_max if f.apf < f.p_max else -np.inf
+        if failure.judged is None:
+            m_state = np.zeros((0, 0), dtype=np.uint16)
+        else:
+            m_state = failure.judged  # written to in place: as made by :meth:`Judged.rank`
+            assert m_state.shape == (n_dst, src.shape[1]) and f.base.size <= Judged.MAX_CRITERIA
         _boxed_fail_rank(  # type: ignore[call-arg]
             tp, src, valid, seg, course, _c(wind.lon_deg), _c(wind.lat_deg), float(bound_kn), wind.tws_kn,
             wind.twd_deg, wind.boxes, wind.values, *tables, forbid, MIN_SPEED_KN, _c(failure.a_xyz),
-            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, p_max, t_best, j_best, counts,
-            by_criterion,
+            _c(failure.b_xyz), judge, pieces, f.lon_lines, f.lat_lines, f.apf, p_max, m_state, t_best,
+            j_best, counts, by_criterion,
         )  # fmt: skip
         return RankStep(t_best, j_best, c_best, *_tallies(counts), by_criterion)
     if n_out == 1 and tp.shape[1] == 1 and bound_kn is not None and boxed:
@@ -456,8 +527,8 @@ def _best_picked(pick, n, t0s, times, flags, best, jb, tally):  # type: ignore[n
 @numba.njit(nogil=True, cache=True, error_model="numpy")
 def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     t_prev, src, valid, seg, course, lon, lat, bound, tws0, twd0, boxes, values, twa_tab, tws_tab, speed_tab, twa_inv,
-    tws_inv, forbid, min_speed, a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, p_max, t_best, j_best, counts,
-    crit_counts,
+    tws_inv, forbid, min_speed, a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, p_max, m_state, t_best, j_best,
+    counts, crit_counts,
 ):  # fmt: skip
     """:func:`_boxed_rank` with a failure model on uniform weather with patches: each arc costed is also judged at its
     samples (:func:`~pyroute_rel._kernels.crossings.sample_evidence`: p_f over apf forbids it, as the cost function's
@@ -466,8 +537,11 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     arrival: among the first four before the rest are pruned against their best, then among all, until the best is
     allowed (the DP's lazy judgement, :func:`~pyroute_rel.routing.solve._lazy_pieces`: the same minimum as judging every
     arc). ``judge``: the fields and classifier (base, boxes, values, relative, edges, n_edges, right, contrib, fill,
-    p_flat, over, bits); ``pieces``: those :func:`arc_p_f` takes. ``counts``: live, costed, forbidden, no speed,
-    missing weather, failure arcs; ``crit_counts``: arcs forbidden for failure with each criterion fired (added to)."""
+    p_flat, over, bits); ``pieces``: those :func:`arc_p_f` takes. ``m_state``: the rank's judgements kept from
+    earlier DPs (:class:`Judged`), shape (nodes, arcs), read where known and written where made (shape (0, 0): none
+    kept). ``counts``: live, costed, forbidden, no speed, missing weather, failure arcs;
+    ``crit_counts``: arcs forbidden for failure with each criterion fired (added to, as each arc is found
+    forbidden)."""
     n_dst, width = seg.shape
     speeds, cols, ratio, amax = _columns(tws0, values, twa_tab, tws_tab, speed_tab, tws_inv, forbid)
     amin = twa_tab[0] if twa_tab[0] > 0.0 else -np.inf
@@ -477,12 +551,14 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
     pick = np.empty(width + 4, dtype=np.intp)  # the first four costed, then the rest
     times = np.empty(width + 4)
     flags = np.zeros(width + 4, dtype=np.uint8)
-    fired = np.zeros(width + 4, dtype=np.uint32)
     pend = np.zeros(width + 4, dtype=np.bool_)
+    nxt_t = np.empty(_NEXT)
+    nxt_q = np.empty(_NEXT, dtype=np.intp)
     work = np.empty(n_crit)
     pwork = np.empty((n_crit, 4))
     reach = np.zeros((n_crit, int(pieces[9].max())), dtype=np.bool_)
     cuts = np.empty(3 * lon_lines.size + 2 * lat_lines.size + 4)
+    scratch = (work, cuts, pwork, reach, nxt_t, nxt_q)
     tally = np.zeros(6, dtype=np.int64)
     for d in range(n_dst):
         live = _bounds(t_prev, src, valid, seg, course.shape[2], bound, d, lower, t0s, pick)
@@ -492,97 +568,198 @@ def _boxed_fail_rank(  # type: ignore[no-untyped-def]  # pragma: no cover
             lower[pick[q]] = np.nan
         _cost_boxed(pick, n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols, ratio,
                     amin, amax, min_speed, times, flags)  # fmt: skip
-        _judge_samples(pick, 0, n, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend)
-        best = _settle_judged(pick, n, d, t0s, times, flags, fired, pend, lon, lat, course, seg, a_xyz, b_xyz, judge,
-                              pieces, lon_lines, lat_lines, apf, work, cuts, pwork, reach)[0]  # fmt: skip
+        best, jb, qb = _judge_samples(pick, 0, n, d, t0s, course, lon, lat, judge, p_max, m_state, work,
+                                      times, flags, pend, np.inf, -1, -1, tally, crit_counts)  # fmt: skip
+        best, jb, qb, known = _settle_kept(pick, n, d, best, jb, qb, t0s, times, flags, pend, m_state, nxt_t, nxt_q,
+                                           tally, crit_counts)  # fmt: skip
+        if not known:  # (the judging itself out of line: inlined, it slowed the loops around it by a fifth)
+            best, jb, qb = _settle_judged(pick, n, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg,
+                                          a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, scratch,
+                                          tally, crit_counts)  # fmt: skip
         m = n
         for a in range(width):  # the rest are pruned against the best over the first four (judged) only
             pick[m] = a
             m += lower[a] <= best
         _cost_boxed(pick[n:], m - n, d, course, lon, lat, seg, twd0, boxes, values, twa_tab, twa_inv, speeds, cols,
                     ratio, amin, amax, min_speed, times[n:], flags[n:])  # fmt: skip
-        _judge_samples(pick, n, m, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend)
-        t_best[d, 0], j_best[d, 0] = _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course, seg,
-                                                    a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, work,
-                                                    cuts, pwork, reach)  # fmt: skip
-        failed = 0
-        for q in range(m):
-            f = flags[q]
-            if f != 0:
-                tally[2] += 1
-                tally[3] += f & 1
-                tally[4] += (f >> 1) & 1
-                if f & 4:
-                    failed += 1
-                    for c in range(crit_counts.size):
-                        crit_counts[c] += (fired[q] >> c) & 1
+        best, jb, qb = _judge_samples(pick, n, m, d, t0s, course, lon, lat, judge, p_max, m_state, work,
+                                      times, flags, pend, best, jb, qb, tally, crit_counts)  # fmt: skip
+        best, jb, qb, known = _settle_kept(pick, m, d, best, jb, qb, t0s, times, flags, pend, m_state, nxt_t, nxt_q,
+                                           tally, crit_counts)  # fmt: skip
+        if not known:  # (the judging itself out of line: inlined, it slowed the loops around it by a fifth)
+            best, jb, qb = _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg,
+                                          a_xyz, b_xyz, judge, pieces, lon_lines, lat_lines, apf, m_state, scratch,
+                                          tally, crit_counts)  # fmt: skip
+        t_best[d, 0], j_best[d, 0] = (best, jb) if jb >= 0 else (np.inf, 0)
         tally[1] += m
-        tally[5] += failed
     counts += tally
 
 
 @numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
-def _judge_samples(pick, q0, q1, d, course, lon, lat, judge, p_max, work, times, flags, fired, pend):  # type: ignore[no-untyped-def]  # pragma: no cover
+def _judge_samples(pick, q0, q1, d, t0s, course, lon, lat, judge, p_max, m_state, work, times, flags, pend, best, jb,
+                   qb, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
     """The arcs ``pick[q0:q1]`` into node ``d`` costed already (``times``, ``flags`` at the same positions) judged at
     their samples (:func:`~pyroute_rel._kernels.crossings.sample_evidence`): the cost function's reason flags and
     criteria fired (:func:`~pyroute_rel.routing.cost._sample_speeds`: an arc with a flag takes forever), and whether it
     waits to be judged on its pieces (allowed and below the table's largest p_f at its samples: whether its samples
-    cannot judge it alone is asked when it is its node's best)."""
+    cannot judge it alone is asked when it is its node's best). With ``m_state`` (not empty) an arc's judgement kept
+    there is taken as it is (it does not depend on time), and one made is kept (:class:`Judged`). An arc forbidden is
+    counted into ``tally[2:]`` and ``crit_counts``; returns the earliest arrival over the others and (``best``, arc
+    ``jb`` at ``pick[qb]``) so far (first of equal ones: lowest arc; -1 where none)."""
     fbase, fboxes, fvalues, relative, edges, n_edges, right, contrib, fill, p_flat, over, bits = judge
+    memo = m_state.shape[0] > 0
     for q in range(q0, q1):
         a = pick[q]
-        f = flags[q]
-        fb = np.uint32(0)
-        p_arc = 0.0
-        for s in range(course.shape[2]):
-            p, ov, b, lost = sample_evidence(lon[d, a, s], lat[d, a, s], course[d, a, s], fbase, fboxes, fvalues,
-                                             relative, edges, n_edges, right, contrib, fill, p_flat, over, bits,
-                                             work)  # fmt: skip
-            if s == 0 or p != p or (p_arc == p_arc and p > p_arc):  # numpy.maximum: a NaN stays
-                p_arc = p
-            if lost:
-                f |= 2
-            if ov:
-                f |= 4
-                fb |= b
+        st = m_state[d, a] if memo else np.uint16(0)
+        if st & _SAMPLED:
+            g = st & (_LOST | _OVER)
+            fb = np.uint32(st >> _FIRED) if st & _OVER else np.uint32(0)
+            below = (st & _BELOW) != 0
+        else:
+            g = np.uint8(0)
+            fb = np.uint32(0)
+            p_arc = 0.0
+            for s in range(course.shape[2]):
+                p, ov, b, lost = sample_evidence(lon[d, a, s], lat[d, a, s], course[d, a, s], fbase, fboxes, fvalues,
+                                                 relative, edges, n_edges, right, contrib, fill, p_flat, over, bits,
+                                                 work)  # fmt: skip
+                if s == 0 or p != p or (p_arc == p_arc and p > p_arc):  # numpy.maximum: a NaN stays
+                    p_arc = p
+                if lost:
+                    g |= _LOST
+                if ov:
+                    g |= _OVER
+                    fb |= b
+            below = p_arc < p_max
+            if memo:
+                m_state[d, a] = _SAMPLED | g | (_BELOW if below else 0) | (fb << _FIRED)
+        f = flags[q] | g
+        flags[q] = f
+        pend[q] = f == 0 and below
         if f != 0:
             times[q] = np.inf
-        flags[q] = f
-        fired[q] = fb
-        pend[q] = f == 0 and p_arc < p_max
+            tally[2] += 1
+            tally[3] += f & 1
+            tally[4] += (f >> 1) & 1
+            if f & 4:
+                tally[5] += 1
+                for c in range(crit_counts.size):
+                    crit_counts[c] += (fb >> c) & 1
+        else:
+            tot = t0s[a] + times[q]
+            if tot < best or (tot == best and a < jb):
+                best, jb, qb = tot, a, q
+    return best, jb, qb
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _settle_kept(pick, m, d, best, jb, qb, t0s, times, flags, pend, m_state, nxt_t, nxt_q, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+    """:func:`_settle_judged` as far as the judgements kept in ``m_state`` take it: while the best waits for its
+    pieces and its judgement on them is kept, that judgement is taken (allowed: done; forbidden: flagged, counted,
+    the next best tried). Returns the arrival, arc and position, and False where the best waits for a judgement not
+    kept (the caller then calls :func:`_settle_judged` from there)."""
+    n_next = 0
+    r = 0
+    while jb >= 0 and pend[qb]:
+        st = m_state[d, jb] if m_state.shape[0] > 0 else np.uint16(0)
+        if not st & _PIECED:
+            return best, jb, qb, False
+        pend[qb] = False
+        if not st & _FORBID:
+            break
+        _forbidden(qb, np.uint32(st >> _FIRED), times, flags, tally, crit_counts)
+        if r == n_next:
+            n_next = _line_up(pick, m, t0s, times, flags, nxt_t, nxt_q)
+            r = 0
+        if r == n_next:  # none left
+            return np.inf, -1, -1, True
+        best, qb = nxt_t[r], nxt_q[r]
+        jb = pick[qb]
+        r += 1
+    return best, jb, qb, True
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _forbidden(q, b, times, flags, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The arc at position ``q`` found forbidden on its pieces, which fire the criteria of bits ``b``: its failure
+    flag, and counted (``tally``: forbidden, failed; ``crit_counts``)."""
+    flags[q] |= 4
+    times[q] = np.inf
+    tally[2] += 1
+    tally[5] += 1
+    for c in range(crit_counts.size):
+        crit_counts[c] += (b >> c) & 1
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def _settle_judged(pick, m, d, t0s, times, flags, fired, pend, lon, lat, course, seg, a_xyz, b_xyz, judge, pieces,
-                   lon_lines, lat_lines, apf, work, cuts, pwork, reach):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
-    """Node ``d``'s earliest arrival over the arcs ``pick[:m]`` costed that can be sailed and its arc (first of equal
-    ones: lowest index; inf and 0 where none), the best judged on its pieces until it is allowed where its samples
-    cannot judge it alone (one found forbidden gets the failure flag and the criteria fired along it, and the next
-    best is tried)."""
+def _settle_judged(pick, m, d, best, jb, qb, t0s, times, flags, pend, lon, lat, course, seg, a_xyz, b_xyz, judge,
+                   pieces, lon_lines, lat_lines, apf, m_state, scratch, tally, crit_counts):  # type: ignore[no-untyped-def]  # pragma: no cover  # fmt: skip
+    """Node ``d``'s earliest arrival over the arcs ``pick[:m]`` costed that can be sailed, from the earliest
+    (``best``, arc ``jb`` at ``pick[qb]``; -1 where none: :func:`_judge_samples`): while it waits for its pieces
+    (where its samples cannot judge it alone), judged on them (or its judgement kept in ``m_state`` taken); one found
+    forbidden gets the failure flag, is counted (``tally``, ``crit_counts``) and the next best is tried, in the order
+    of arrival then arc (the next :data:`_NEXT` lined up at once: the order in which rescans for the earliest would
+    find them). ``scratch``: ``work``, ``cuts``, ``pwork``, ``reach`` (:func:`arc_p_f`'s) and the line-up's arrivals
+    and positions. Returns the arrival, arc and position (-1 where none)."""
     fbase, fboxes, fvalues, relative, edges, n_edges = judge[0], judge[1], judge[2], judge[3], judge[4], judge[5]
-    while True:
-        best = np.inf
-        jb = -1
-        qb = -1
-        for q in range(m):
-            if flags[q] == 0:
-                a = pick[q]
-                tot = t0s[a] + times[q]
-                if tot < best or (tot == best and a < jb):
-                    best, jb, qb = tot, a, q
-        if jb < 0:
-            return np.inf, 0
-        if not pend[qb]:
-            return best, jb
+    work, cuts, pwork, reach, nxt_t, nxt_q = scratch
+    memo = m_state.shape[0] > 0
+    n_next = 0
+    r = 0
+    while jb >= 0 and pend[qb]:
         pend[qb] = False
-        if not needs_judging(lon[d, jb], lat[d, jb], course[d, jb], seg[d, jb], fboxes, fbase, fvalues, relative,
-                             edges, n_edges, work):  # fmt: skip
-            return best, jb
-        p, b = arc_p_f(a_xyz[d, jb], b_xyz[d], lon_lines, lat_lines, pieces, cuts, pwork, reach)
-        if p > apf:
-            flags[qb] |= 4
-            fired[qb] |= b
-            times[qb] = np.inf
+        st = m_state[d, jb] if memo else np.uint16(0)
+        if st & _PIECED:  # kept: what follows, without the judging
+            if not st & _FORBID:
+                break
+            b = np.uint32(st >> _FIRED)
+        else:
+            if not needs_judging(lon[d, jb], lat[d, jb], course[d, jb], seg[d, jb], fboxes, fbase, fvalues, relative,
+                                 edges, n_edges, work):  # fmt: skip
+                if memo:
+                    m_state[d, jb] = st | _PIECED
+                break
+            p, b = arc_p_f(a_xyz[d, jb], b_xyz[d], lon_lines, lat_lines, pieces, cuts, pwork, reach)
+            if memo:  # (an arc waiting for its pieces fired nothing at its samples: the bits of ``_FIRED`` are free)
+                m_state[d, jb] = st | _PIECED | ((_FORBID | (b << _FIRED)) if p > apf else 0)
+            if not p > apf:
+                break
+        _forbidden(qb, b, times, flags, tally, crit_counts)
+        if r == n_next:
+            n_next = _line_up(pick, m, t0s, times, flags, nxt_t, nxt_q)
+            r = 0
+        if r == n_next:  # none left
+            return np.inf, -1, -1
+        best, qb = nxt_t[r], nxt_q[r]
+        jb = pick[qb]
+        r += 1
+    return best, jb, qb
+
+
+@numba.njit(nogil=True, cache=True, inline="always", error_model="numpy")
+def _line_up(pick, m, t0s, times, flags, nxt_t, nxt_q):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The earliest arrivals ``nxt_t`` over the arcs ``pick[:m]`` that can be sailed, in order (of arrival, then arc),
+    and their positions ``nxt_q``, as many as they hold; returns how many (arrivals that are not finite never come)."""
+    k = nxt_q.size
+    n = 0
+    for q in range(m):
+        if flags[q] != 0:
+            continue
+        a = pick[q]
+        tot = t0s[a] + times[q]
+        if not tot < np.inf:
+            continue
+        if n == k and not (tot < nxt_t[k - 1] or (tot == nxt_t[k - 1] and a < pick[nxt_q[k - 1]])):
+            continue
+        i = min(n, k - 1)  # after the ones it does not beat
+        while i > 0 and (tot < nxt_t[i - 1] or (tot == nxt_t[i - 1] and a < pick[nxt_q[i - 1]])):
+            nxt_t[i] = nxt_t[i - 1]
+            nxt_q[i] = nxt_q[i - 1]
+            i -= 1
+        nxt_t[i] = tot
+        nxt_q[i] = q
+        n = min(n + 1, k)
+    return n
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")

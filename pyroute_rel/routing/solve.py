@@ -26,6 +26,8 @@ Dickson, T., Blake, J. and Sear, D. (2018). Reliability informed routing for Aut
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -48,7 +50,7 @@ from pyroute_rel.boat.polar import MIN_SPEED_KN, Polar, check_beyond
 from pyroute_rel.errors import ScenarioError, brief, check_callable, check_flag, check_instance, check_numbers
 from pyroute_rel.progress import progress_bar
 from pyroute_rel.reliability.failure import FailureModel
-from pyroute_rel.resources import MemoryEstimate, check_budget, parse_bytes, route_estimate
+from pyroute_rel.resources import MemoryEstimate, budget_bytes, check_budget, parse_bytes, route_estimate
 from pyroute_rel.routing.cost import (
     REASONS,
     ArcCosts,
@@ -63,6 +65,7 @@ from pyroute_rel.routing.cost import (
 )
 from pyroute_rel.routing.grid import Grid
 from pyroute_rel.settings import get_settings
+from pyroute_rel.store import current_store, kept_by
 from pyroute_rel.times import hours_after
 from pyroute_rel.units import KN_PER_MS
 from pyroute_rel.weather import Conditions, UniformWeather, WeatherSource
@@ -556,7 +559,8 @@ def forward_dp(
     """
     progress = _check_dp_args(grid, problem, progress, cost_hook)
     n_ranks, n_nodes = grid.n_ranks, grid.n_nodes
-    check_budget(route_memory(grid, problem), max_memory=problem.max_memory, knobs=_memory_knobs(grid, problem))
+    estimate = route_memory(grid, problem)
+    check_budget(estimate, max_memory=problem.max_memory, knobs=_memory_knobs(grid, problem))
     n_lab = 2 if problem.sides else 1
     arrival = np.full((n_ranks, n_nodes, n_lab), np.inf)
     back = np.full((n_ranks, n_nodes, n_lab), -1, dtype=np.intp)
@@ -568,7 +572,7 @@ def forward_dp(
     prev_sides: tuple[int, ...] = (-1,) if problem.initial_side is None else (problem.initial_side,)
     wait_into = np.zeros((n_ranks + 1, n_nodes, n_lab)) if problem.n_wait else None
     line = _FinishLine(grid, problem) if grid.finish_line is not None else None
-    pricing = _Pricing.of(problem, cost_hook, finish_line=line is not None)
+    pricing = _Pricing.of(problem, cost_hook, finish_line=line is not None, grid=grid, need_bytes=estimate.total_bytes)
     tally = _Tally()
     bar = progress_bar(n_ranks + 1, enabled=progress)
     try:
@@ -595,6 +599,7 @@ def forward_dp(
             if line is not None and k < n_ranks and np.all(t_new >= line.best_h):
                 break  # every node of this rank is reached after the line was crossed: nothing can beat it
     finally:
+        pricing.release()
         bar.close()
     return _result(arrival, back, from_side, wait_into, finish, line, tally, dead)
 
@@ -743,13 +748,26 @@ class _Pricing:
     #: With the compiled step and a failure model (uniform weather with patches): the fields and classifier it judges
     #: arcs with (:func:`~pyroute_rel._kernels.crossings.box_fields`).
     fail_fields: Any = None
+    #: With ``fail_fields``: the judgements of the grid's arcs kept from earlier DPs (a
+    #: :class:`~pyroute_rel._kernels.dp.Judged` this DP holds, :func:`_kept_judgements`), None: judged afresh.
+    judged: Any = None
+    #: With ``fail_fields``: the failure model's criteria as the tally names them (``describe()``, in order).
+    fail_names: tuple[str, ...] = ()
 
     @classmethod
     def of(
-        cls, problem: RoutingProblem, cost_hook: Callable[[int, ArcCosts], None] | None, *, finish_line: bool
+        cls,
+        problem: RoutingProblem,
+        cost_hook: Callable[[int, ArcCosts], None] | None,
+        *,
+        finish_line: bool,
+        grid: Grid | None = None,
+        need_bytes: int = 0,
     ) -> _Pricing:
         """The strategies that apply: pruning needs a positive speed bound, and no waiting, finish line, hook or side
-        labels (it bounds each node's best arc, not each label's)."""
+        labels (it bounds each node's best arc, not each label's). With ``grid``, a failure model's judgements kept
+        for it are taken (:func:`_kept_judgements`; ``need_bytes``: the DP's estimated peak [bytes],
+        :func:`route_memory`, which they must fit beside); the caller then calls :meth:`release`."""
         bound = problem.speed_bound_kn() if problem.prune else None
         prune = (
             bound is not None
@@ -787,6 +805,15 @@ class _Pricing:
         if compiled:  # the compiled step prunes side labels too (each label against its own best)
             prune = bound is not None and bound > 0.0
         boxes = problem.weather.wind_boxes() if compiled and type(problem.weather) is UniformWeather else None
+        fail_fields = fail_fields if compiled else None
+        judged = None
+        if fail_fields is not None and grid is not None:
+            judged = _kept_judgements(grid, problem, fail_fields, need_bytes)
+        names = (
+            ()
+            if fail_fields is None or problem.failure is None
+            else tuple(c.describe() for c in problem.failure.criteria)
+        )
         return cls(
             problem=problem,
             bound_kn=bound if prune else None,
@@ -795,8 +822,15 @@ class _Pricing:
             lazy_pieces=lazy_pieces,
             compiled=compiled,
             wind_boxes=boxes,
-            fail_fields=fail_fields if compiled else None,
+            fail_fields=fail_fields,
+            judged=judged,
+            fail_names=names,
         )
+
+    def release(self) -> None:
+        """The DP is done with its kept judgements (another may take them)."""
+        if self.judged is not None:
+            self.judged.lock.release()
 
     def price(self, arcs: _RankArcs, t0: FloatArray, *, first: bool, from_side: int = -1) -> _Priced:
         """Cost the arcs leaving at ``t0`` [h]; ``first``: the first departure tried (the hook sees only that);
@@ -906,6 +940,64 @@ class _Costed:
             fired.reshape(-1)[bad] |= bits[over]
             self.costs = ArcCosts(time_h=time_h, p_f=c.p_f, reason=reason, fired_bits=fired)
         return bad
+
+
+#: Judgements kept for the compiled failure step (:func:`_kept_judgements`): at most this many, of at most this many
+#: bytes in all [bytes] (the store's shelf ``dp.judged``; least recently used dropped first).
+JUDGED_KEPT = 4
+JUDGED_MAX_BYTES = 512 * 1024**2
+
+
+def _kept_judgements(grid: Grid, problem: RoutingProblem, fields: Any, need_bytes: int) -> Any:
+    """The judgements of the grid's arcs kept for this failure model, weather and apf (a
+    :class:`~pyroute_rel._kernels.dp.Judged`, held by the caller until :meth:`_Pricing.release`), made empty on first
+    use; None where nothing is to be kept: the store keeps nothing (``kept(False)``), the model has more criteria than
+    a judgement holds (:attr:`~pyroute_rel._kernels.dp.Judged.MAX_CRITERIA`), they would not fit in
+    :data:`JUDGED_MAX_BYTES` or beside the DP's peak ``need_bytes`` [bytes] in the memory budget
+    (:func:`~pyroute_rel.resources.budget_bytes`), or another DP holds them (it runs in another thread).
+
+    They live in the current store (:mod:`pyroute_rel.store`), keyed by content: the grid's (:func:`_grid_key`), the
+    samples per arc and the fields the arcs are judged with (:meth:`~pyroute_rel._kernels.crossings.BoxFields.key`:
+    weather, failure model, apf). What they hold does not depend on time (steady weather), so every DP on the same
+    grid, samples and fields may take them."""
+    store = current_store()
+    if not store.keep:
+        return None
+    from pyroute_rel._kernels.dp import Judged
+
+    shelf = store.shelf("dp.judged", limit=JUDGED_KEPT, max_bytes=JUDGED_MAX_BYTES, nbytes=lambda j: j.nbytes)
+    key = (_grid_key(grid), problem.samples, fields.key())
+    judged = shelf.get(key)
+    if judged is None:
+        arcs = grid.start_pattern.size + (grid.n_ranks - 1) * grid.n_nodes * grid.width + grid.n_nodes  # every rank's
+        nbytes = Judged.BYTES_PER_ARC * arcs
+        if fields.base.size > Judged.MAX_CRITERIA or nbytes > JUDGED_MAX_BYTES:
+            return None
+        if need_bytes + nbytes > budget_bytes(problem.max_memory)[0]:
+            return None
+        judged = shelf.put(key, Judged(nbytes), replace=False)
+    return judged if judged.lock.acquire(blocking=False) else None
+
+
+def _grid_key(grid: Grid) -> str:
+    """A digest of a grid's content (every field but its cache: name, and the dtype, shape and bytes of an array or
+    the repr of anything else), which its arcs' geometry follows from; kept by the grid (:func:`kept_by`)."""
+
+    def make() -> str:
+        digest = hashlib.blake2b(digest_size=16)
+        for f in dataclasses.fields(grid):
+            if f.name == "cache":
+                continue
+            value = getattr(grid, f.name)
+            if isinstance(value, np.ndarray):
+                a = np.ascontiguousarray(value)
+                digest.update(f"{f.name}:{a.dtype.str}:{a.shape}:".encode())
+                digest.update(a.tobytes())
+            else:
+                digest.update(f"{f.name}={value!r};".encode())
+        return digest.hexdigest()
+
+    return kept_by(grid, "_content_key", make)  # type: ignore[no-any-return]
 
 
 def _settle(
@@ -1115,7 +1207,7 @@ def _rank_step(
     src, valid = grid.pattern(k)
     geom = grid_geometry(grid, k, problem.samples)
     if pricing.compiled:
-        done = _compiled_step(problem, src, valid, geom, t_prev, prev_sides, pricing, tally)
+        done = _compiled_step(problem, k, src, valid, geom, t_prev, prev_sides, pricing, tally)
         if done is not None:
             return done
     cols = []
@@ -1138,6 +1230,7 @@ def _rank_step(
 
 def _compiled_step(
     problem: RoutingProblem,
+    k: int,
     src: npt.NDArray[np.intp],
     valid: BoolArray,
     geom: ArcGeometry,
@@ -1148,9 +1241,10 @@ def _compiled_step(
 ) -> tuple[FloatArray, npt.NDArray[np.intp], npt.NDArray[np.intp], None] | None:
     """:func:`_rank_step` of a steady wind-only problem, or of a failure model on uniform weather with patches, in
     compiled code (:func:`pyroute_rel._kernels.dp.rank_step`): the weather sampled here, at the arcs the step asks
-    for (with pruning, only those it costs), the rest there. None when the weather turns out to have a current there
-    (NaN included), or a failure model's rank is too narrow to prune (the first): the numpy path then costs the
-    rank."""
+    for (with pruning, only those it costs), the rest there; a failure model's judgements of the arcs into rank
+    ``k`` kept from earlier DPs where ``pricing`` holds them. None when the weather turns out to have a current there
+    (NaN included), or a failure model's rank is too narrow to prune and has nodes of more than four arcs (the
+    kernel, which prunes, would cost fewer arcs than the numpy path): the numpy path then costs the rank."""
     from pyroute_rel._kernels.dp import BoxWind, FailureJudge, rank_step
 
     shape = valid.shape + (geom.samples,)
@@ -1167,12 +1261,13 @@ def _compiled_step(
     prune = bound_kn if bound_kn is not None and valid.shape[1] > PRUNE_MIN_WIDTH else None
     failure = None
     if pricing.fail_fields is not None:
+        if prune is None and bound_kn is not None and valid.shape[1] <= 4:
+            prune = bound_kn  # (the kernel costs each node's first four live arcs: here all of them, as unpruned)
         if prune is None or geom.a_xyz is None or geom.b_xyz is None:
-            return None  # a narrow rank (the first, from the start): the numpy path judges it
-        xyz = valid.shape + (3,)
-        a_xyz = geom.a_xyz if geom.a_xyz.shape == xyz else np.array(np.broadcast_to(geom.a_xyz, xyz), order="C")
-        b_xyz = np.array(np.broadcast_to(geom.b_xyz, xyz)[:, 0, :], order="C")  # a node's arcs end at it
-        failure = FailureJudge(pricing.fail_fields, a_xyz, b_xyz)
+            return None  # a narrow rank that pruning would thin: the numpy path judges it
+        a_xyz, b_xyz = _arc_ends(geom, valid.shape)
+        judged = None if pricing.judged is None else pricing.judged.rank(k, valid.shape)
+        failure = FailureJudge(pricing.fail_fields, a_xyz, b_xyz, judged)
     step = rank_step(
         wind, full(geom.course_deg, shape), full(geom.seg_nm[..., 0], valid.shape), t_prev, full(src, valid.shape),
         valid, problem.polar, beyond=problem.beyond, bound_kn=prune, from_sides=prev_sides,
@@ -1183,8 +1278,8 @@ def _compiled_step(
     if step.by_criterion is not None and step.failed:
         assert problem.failure is not None
         tally.by_reason["failure"] += step.failed
-        for c, n in zip(problem.failure.criteria, step.by_criterion.tolist(), strict=True):
-            tally.by_criterion[c.describe()] = tally.by_criterion.get(c.describe(), 0) + n
+        for name, n in zip(pricing.fail_names, step.by_criterion.tolist(), strict=True):
+            tally.by_criterion[name] = tally.by_criterion.get(name, 0) + n
     tally.evaluated += step.costed
     tally.pruned += step.live - step.costed
     tally.forbidden += step.forbidden
@@ -1192,6 +1287,20 @@ def _compiled_step(
     tally.by_reason["weather"] += step.no_wind
     src_best = np.take_along_axis(src, step.j_best, axis=1)
     return step.t_best, src_best, np.asarray(prev_sides, dtype=np.intp)[step.c_best], None
+
+
+def _arc_ends(geom: ArcGeometry, shape: tuple[int, ...]) -> tuple[FloatArray, FloatArray]:
+    """The arcs' starts, shape ``shape + (3,)``, and each node's position (where its arcs end), shape (nodes, 3), as
+    unit vectors in contiguous arrays, for the compiled failure step; kept by the geometry (:func:`kept_by`)."""
+
+    def make() -> tuple[FloatArray, FloatArray]:
+        assert geom.a_xyz is not None and geom.b_xyz is not None
+        xyz = shape + (3,)
+        a = geom.a_xyz if geom.a_xyz.shape == xyz else np.array(np.broadcast_to(geom.a_xyz, xyz), order="C")
+        b = geom.b_xyz[:, 0, :]  # a node's arcs end at it
+        return a, np.array(b if b.shape[0] == xyz[0] else np.broadcast_to(b, xyz[::2]), order="C")
+
+    return kept_by(geom, f"_arc_ends{shape}", make)  # type: ignore[no-any-return]
 
 
 def _sampler(
