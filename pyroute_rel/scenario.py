@@ -280,6 +280,7 @@ class Scenario:
         grids: list[Grid] | None = None,
         relax: bool = True,
         departures: Sequence[np.datetime64] = (),
+        relax_wider: bool = True,
     ) -> Route:
         """Route the scenario: the library's entry point.
 
@@ -299,6 +300,9 @@ class Scenario:
             ``relaxation``; False: the DP's explanation alone (no second routing).
         departures : With ``relax``, departure times to try, in order, when no route exists: the earliest that
             routes is part of the relaxation (``route --departure-window``).
+        relax_wider : With ``relax``, also route the course on grids twice as wide (when the DP reached the grid's
+            outermost nodes): the costliest try, as much as the route itself and more. Ensembles and sweeps leave it
+            out (False), so that a member or run without a route costs about what one with a route does.
 
         Returns
         -------
@@ -354,7 +358,7 @@ class Scenario:
             except NoFeasibleRouteError as exc:
                 if not relax:
                     raise
-                raise self._relaxed(exc, grids, i, leg_problem, departures) from None
+                raise self._relaxed(exc, grids, i, leg_problem, departures, relax_wider) from None
             if self.refine:
                 leg = self._refined(leg, leg_problem)
             routes.append(leg)
@@ -371,6 +375,7 @@ class Scenario:
         failed: int,
         failed_problem: RoutingProblem,
         departures: Sequence[np.datetime64],
+        wider: bool = True,
     ) -> NoFeasibleRouteError:
         """The error of a course that does not route (leg ``failed``, routed as ``failed_problem``), with what would
         make it route (:func:`pyroute_rel.routing.relax.relax`) in its message and as its ``relaxation``."""
@@ -388,7 +393,10 @@ class Scenario:
         ]
         relaxation = relax(legs, failed, error, departures=departures)
         result = error.result
-        if result is not None and any(result.forbidden_by_reason.get(r, 0) for r in ("failure", "obstacle")):
+        reached = np.isfinite(result.arrival_h) if result is not None else None
+        at_edge = reached is not None and reached.shape[1] > 2 and bool(reached[:, [0, -1]].any())
+        if wider and at_edge and any(result.forbidden_by_reason.get(r, 0) for r in ("failure", "obstacle")):
+            # only a route that reached the grid's outermost nodes may go round on a wider one
             relaxation = self._wider(relaxation, grids[failed])
         if self.refine and relaxation.apf is not None:  # the time at that apf as this scenario routes it: refined
             refined = self.with_options(apf=relaxation.apf).route(relax=False)

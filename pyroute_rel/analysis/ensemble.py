@@ -306,7 +306,7 @@ def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, floa
     )
     problem = sc.problem(grid=grids[0]) if simple else None
     if problem is None or problem.sides:
-        route = sc.route(grids=grids)
+        route = sc.route(grids=grids, relax_wider=False)
         waits = np.asarray(route.legs.wait_h, dtype=float)
         return route.lon_deg, route.lat_deg, route.voyage_time_h, waits if waits.any() else None
     from pyroute_rel.obstacles.mask import check_points
@@ -319,7 +319,7 @@ def _track(sc: Scenario, grids: list[Any]) -> tuple[FloatArray, FloatArray, floa
     sc.weather.check_coverage((min(lons), max(lons)), (min(lats), max(lats)), (sc.departure, sc.departure))
     result = forward_dp(grid, problem)
     if result.dead_rank is not None or not np.isfinite(result.finish_h):
-        sc.route(grids=grids)  # raises the scenario's error, with what would make it route
+        sc.route(grids=grids, relax_wider=False)  # raises the scenario's error, with what would make it route
         raise NoFeasibleRouteError(explain_infeasible(grid, problem, result))
     lon, lat = result.points(grid)
     return lon, lat, float(result.finish_h), None

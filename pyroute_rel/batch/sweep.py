@@ -584,7 +584,7 @@ def run_one(run: Run, key: str = "") -> dict[str, Any]:
         with cache.caching():
             sc = _scenario(run)
             row["departure"] = iso_utc(sc.departure)
-            route = sc.route(grids=_grids(sc))
+            route = sc.route(grids=_grids(sc), relax_wider=False)
     except (NoFeasibleRouteError, WeatherCoverageError) as exc:
         row.update(status="no_route", message=_one_line(exc))
     except PyrouteError as exc:
