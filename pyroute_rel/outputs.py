@@ -14,7 +14,7 @@ import json
 import math
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +41,8 @@ __all__ = [
     "turning_points",
     "write_outputs",
     "write_no_route",
+    "track_writers",
+    "write_replacing",
     "finite_or_null",
     "MANOEUVRE_FIELDS",
     "manoeuvre_cells",
@@ -366,19 +368,39 @@ def write_outputs(
                 raise OutputError(f"extra: keys must be str (got {brief(key)}, a {type(key).__name__})")
             summary[key] = _json_value(value, f"extra[{brief(key)}]")
     text = json.dumps(summary, indent=1, allow_nan=False)
+    writers = track_writers(route, plot=plot)
+    writers["summary.json"] = lambda p: p.write_text(text, encoding="utf-8")
+    writers["forbidden.geojson"] = lambda p: p.write_text(_feature_lines(forbidden_geojson(route)), encoding="utf-8")
+    return write_replacing(out_dir, writers, OUTPUT_FILES)
+
+
+def track_writers(route: Route, *, title: str | None = None, plot: bool = True) -> dict[str, Callable[[Path], object]]:
+    """The writers of a track's files for :func:`~pyroute_rel.files.write_together`: ``route.geojson``,
+    ``route.gpx``, ``route.csv`` and, with ``plot``, ``route.png`` (:func:`~pyroute_rel.viz.maps.plot_route`, with
+    ``title`` or its own)."""
     writers: dict[str, Callable[[Path], object]] = {
-        "route.geojson": lambda p: p.write_text(json.dumps(to_geojson(route), indent=1), encoding="utf-8"),
-        "route.gpx": lambda p: p.write_text(to_gpx(route), encoding="utf-8"),
-        "route.csv": lambda p: p.write_text(to_csv(route), encoding="utf-8"),
-        "summary.json": lambda p: p.write_text(text, encoding="utf-8"),
-        "forbidden.geojson": lambda p: p.write_text(_feature_lines(forbidden_geojson(route)), encoding="utf-8"),
+        "route.geojson": lambda p: Path(p).write_text(json.dumps(to_geojson(route), indent=1), encoding="utf-8"),
+        "route.gpx": lambda p: Path(p).write_text(to_gpx(route), encoding="utf-8"),
+        "route.csv": lambda p: Path(p).write_text(to_csv(route), encoding="utf-8"),
     }
     if plot:
         from pyroute_rel.viz.maps import plot_route
 
-        writers["route.png"] = lambda p: plot_route(route, path=p)
-    written = write_together(out_dir, writers)
-    for name in set(OUTPUT_FILES) - set(writers):  # e.g. a route.png from an earlier run with a plot: stale now
+        writers["route.png"] = lambda p: plot_route(route, path=p, title=title)
+    return writers
+
+
+def write_replacing(
+    out_dir: str | os.PathLike[str],
+    writers: Mapping[str, Callable[[Path], object]],
+    known: Iterable[str],
+    *,
+    option: str = "output folder",
+) -> list[Path]:
+    """Write ``writers`` to the folder, all or none (:func:`~pyroute_rel.files.write_together`), then remove the files
+    of ``known`` it did not write: what an earlier run left there (a route.png, forbidden arcs) is stale now."""
+    written = write_together(out_dir, dict(writers), option=option)
+    for name in set(known) - set(writers):
         (Path(out_dir) / name).unlink(missing_ok=True)
     return written
 
@@ -394,7 +416,6 @@ def write_no_route(scenario: Any, relaxation: Any, summary: Mapping[str, Any], o
     if partial is not None and partial.lon_deg.size > 1:
         from pyroute_rel.analysis.evaluate import evaluate_track, evaluation_route
         from pyroute_rel.routing.relax import apf_text
-        from pyroute_rel.viz.maps import plot_route
 
         grid = scenario.leg_grids()[relaxation.leg]
         points = np.column_stack([partial.lon_deg, partial.lat_deg])
@@ -408,17 +429,8 @@ def write_no_route(scenario: Any, relaxation: Any, summary: Mapping[str, Any], o
                 f"{'finish' if relaxation.leg == relaxation.n_legs - 1 else 'next mark'}"
                 + (f"; it routes with apf {apf_text(relaxation.apf)}" if relaxation.apf is not None else "")
             )
-            writers.update(
-                {
-                    "route.geojson": lambda p: p.write_text(json.dumps(to_geojson(route), indent=1), encoding="utf-8"),
-                    "route.gpx": lambda p: p.write_text(to_gpx(route), encoding="utf-8"),
-                    "route.csv": lambda p: p.write_text(to_csv(route), encoding="utf-8"),
-                    "route.png": lambda p: plot_route(route, path=p, title=title),
-                }
-            )
-    write_together(out_dir, writers)
-    for name in set(OUTPUT_FILES) - set(writers):
-        (Path(out_dir) / name).unlink(missing_ok=True)
+            writers.update(track_writers(route, title=title))
+    write_replacing(out_dir, writers, OUTPUT_FILES)
 
 
 def _json_value(value: Any, where: str) -> Any:

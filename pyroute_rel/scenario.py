@@ -33,7 +33,7 @@ from pyroute_rel.geodesy import distance_km
 from pyroute_rel.obstacles.mask import Avoid, check_points, obstacle_mask
 from pyroute_rel.obstacles.zones import zones_outside
 from pyroute_rel.planners.settings import PlannerSettings
-from pyroute_rel.routing.grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid
+from pyroute_rel.routing.grid import DEFAULT_N_RANKS, DEFAULT_SAMPLE_KM, Grid, auto_samples, plan_grid, widened
 from pyroute_rel.routing.route import GridTrack, Route, build_route, join_routes, route_on_grid
 from pyroute_rel.routing.solve import ArcMask, RoutingProblem
 
@@ -408,13 +408,7 @@ class Scenario:
     def _wider(self, relaxation: Relaxation, grid: Grid) -> Relaxation:
         """``relaxation`` with the course routed on grids twice as wide, when that routes: the angular layout's
         half-width doubled, or the square layout's nodes (``2 n - 1``, the same spacing)."""
-        if self.layout == "angular":
-            option, change = (
-                f"--half-width-km {2.0 * grid.half_width_km:.0f}",
-                {"half_width_km": 2.0 * grid.half_width_km},
-            )
-        else:
-            option, change = f"--n-nodes {2 * grid.n_nodes - 1}", {"n_nodes": 2 * grid.n_nodes - 1}
+        option, change = widened(self.layout, grid)
         try:
             route = self.with_options(**change).route(relax=False)
         except PyrouteError:  # no route there either, or a grid too wide or too big for the budget: no advice

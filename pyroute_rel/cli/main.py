@@ -18,8 +18,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from pyroute_rel import __version__
 from pyroute_rel.cli._help import APF_HELP
 from pyroute_rel.cli.ensemble import add_ensemble_parser
@@ -329,7 +327,7 @@ def _departure_window(text: str | None) -> list[Any]:
     """``--departure-window START,END,STEP_H`` as the departures it tries (none without it)."""
     if text is None:
         return []
-    from pyroute_rel.routing.relax import departure_window
+    from pyroute_rel.routing.relax import departure_window, window_size
     from pyroute_rel.scenario import parse_departure
 
     parts = [p.strip() for p in text.split(",")]
@@ -344,12 +342,9 @@ def _departure_window(text: str | None) -> list[Any]:
     first, last = (parse_departure(p, "--departure-window") for p in parts[:2])
     if last < first:
         raise ScenarioError(f"--departure-window: END {parts[1]} is before START {parts[0]}")
-    span_h = float((last - first) / np.timedelta64(1, "s")) / 3600.0
-    if span_h / step + 1 > MAX_WINDOW:  # counted before any time is made
-        raise ScenarioError(
-            f"--departure-window tries {math.floor(span_h / step) + 1} departures, more than {MAX_WINDOW}: use a "
-            "larger STEP_H"
-        )
+    n = window_size(first, last, step)
+    if n > MAX_WINDOW:  # counted before any time is made
+        raise ScenarioError(f"--departure-window tries {n} departures, more than {MAX_WINDOW}: use a larger STEP_H")
     return departure_window(first, last, step)
 
 
@@ -378,13 +373,16 @@ def _no_route(error: Any, scenario: Any, args: argparse.Namespace, elapsed: floa
 def widen_advice(layout: str, grid: Any) -> str:
     """The grid-edge warning: the route uses the outermost nodes, and the option that widens the grid in use (the
     angular layout's width is its half-width; the square layout's, its nodes times their spacing)."""
+    from pyroute_rel.routing.grid import widened
+
     head = "the route uses the outermost nodes of the grid, so a wider detour may be faster: widen the grid with "
+    example = widened(layout, grid)[0]  # the grid twice as wide, as a failed route's relaxation tries it
     if layout == "angular":
         hw = grid.half_width_km
-        return f"{head}--half-width-km (now {hw:.0f} km, [grid].half_width_km), e.g. --half-width-km {2 * hw:.0f}"
+        return f"{head}--half-width-km (now {hw:.0f} km, [grid].half_width_km), e.g. {example}"
     return (
         f"{head}--n-nodes (now {grid.n_nodes}, [grid].n_nodes) or --spacing-km (now {grid.spacing_km:.3g} km, "
-        f"[grid].spacing_km), e.g. --n-nodes {2 * grid.n_nodes - 1}"
+        f"[grid].spacing_km), e.g. {example}"
     )
 
 

@@ -72,9 +72,7 @@ def why_not_arrived(kind: str, scenario: Any, planned: Any, summary: dict[str, A
 
 def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
     """Write the planner's files (all or none); the names written."""
-    from pyroute_rel.files import write_together
-    from pyroute_rel.outputs import OUTPUT_FILES, to_csv, to_geojson, to_gpx
-    from pyroute_rel.viz.maps import plot_route
+    from pyroute_rel.outputs import OUTPUT_FILES, track_writers, write_replacing
 
     text = json.dumps(summary, indent=1, allow_nan=False)
     writers: dict[str, Callable[[Path], object]] = {
@@ -87,18 +85,9 @@ def _write(out: str, route: Any, summary: dict[str, Any]) -> list[str]:
             else f"{summary['planner']}: did NOT reach the finish (ends {summary['distance_to_finish_nm']:.0f} nm "
             f"short after {route.voyage_time_h:.1f} h)"
         )
-        writers.update(
-            {
-                "route.geojson": lambda p: Path(p).write_text(json.dumps(to_geojson(route), indent=1), "utf-8"),
-                "route.gpx": lambda p: Path(p).write_text(to_gpx(route), encoding="utf-8"),
-                "route.csv": lambda p: Path(p).write_text(to_csv(route), encoding="utf-8"),
-                "route.png": lambda p: plot_route(route, path=p, title=title),
-            }
-        )
-    write_together(out, writers, option="--out")
-    # from an earlier run whose track could be sailed, or a DP route's forbidden arcs: stale now
-    for name in (set(PLANNER_FILES) | set(OUTPUT_FILES)) - set(writers):
-        (Path(out) / name).unlink(missing_ok=True)
+        writers.update(track_writers(route, title=title))
+    # an earlier run's track that could be sailed, or a DP route's forbidden arcs: stale now
+    write_replacing(out, writers, set(PLANNER_FILES) | set(OUTPUT_FILES), option="--out")
     return [n for n in PLANNER_FILES if n in writers]
 
 

@@ -54,6 +54,7 @@ __all__ = [
     "plan_grid",
     "rank_points",
     "auto_samples",
+    "widened",
     "LAYOUTS",
     "START",
     "FINISH",
@@ -345,6 +346,16 @@ class Grid:
                 elif np.isfinite(w[j, col]):
                     g.add_edge(u, v, weight=float(w[j, col]))
         return g
+
+
+def widened(layout: str, grid: Grid) -> tuple[str, dict[str, Any]]:
+    """The grid twice as wide as ``grid``: the command-line option that asks for it and the scenario settings
+    (:meth:`Scenario.with_options <pyroute_rel.scenario.Scenario.with_options>`) -- the angular layout's half-width
+    doubled, or the square layout's nodes (``2 n - 1`` at the same spacing)."""
+    if layout == "angular":
+        hw = 2.0 * grid.half_width_km
+        return f"--half-width-km {hw:.0f}", {"half_width_km": hw}
+    return f"--n-nodes {2 * grid.n_nodes - 1}", {"n_nodes": 2 * grid.n_nodes - 1}
 
 
 def make_grid(

@@ -15,9 +15,10 @@ where, not what to change. :func:`relax` answers with what routes:
   routed leaving at each time of the window in turn, the first that routes;
 - **the best partial route**: of the nodes the DP reached, the one closest to the finish (its finish line when it
   has one) and the DP's path to it: how close the craft can get, and where it stops;
-- **a wider grid**, when the front died on the failure model or an obstacle: the course routed at its own apf on a grid
-  twice as wide (:meth:`Scenario.route <pyroute_rel.scenario.Scenario.route>` tries it: the angular layout's
-  half-width doubled, the square layout's nodes);
+- **a wider grid**, when the front died on the failure model or an obstacle and the DP reached the grid's outermost
+  nodes: the course routed at its own apf on a grid twice as wide (:func:`~pyroute_rel.routing.grid.widened`: the
+  angular layout's half-width doubled, the square layout's nodes; :meth:`Scenario.route
+  <pyroute_rel.scenario.Scenario.route>` tries it, a single route only);
 - for a course through waypoints, **which leg** fails (the legs before it route).
 
 The cause itself, with the conditions met where the front dies (the criteria fired, the polar's empty columns and the
@@ -45,6 +46,7 @@ __all__ = [
     "PartialRoute",
     "Relaxation",
     "departure_window",
+    "window_size",
     "earliest_departure",
     "partial_route",
     "relax",
@@ -102,7 +104,7 @@ class Relaxation:
     ----------
     cause : Why it does not route: where the front died and what forbade the arcs there, with the conditions met.
     hint : What the DP's explanation suggests after it (" (raise --apf, or widen the grid ...)"; "" for none): said
-        only when no apf routes the course.
+        only when neither a larger apf nor a wider grid was tried (a weather-extent hint always).
     leg, n_legs : The leg that fails (0-based) and the course's legs (one without waypoints).
     apf : The smallest apf that routes, or None (no apf routes it, or the failure model is not what blocks it).
     apf_voyage_time_h : The voyage time at that apf [h].
@@ -336,9 +338,9 @@ def relax(
     departures : Departures to try, in order (none: the search is skipped).
     """
     grid, problem = legs[failed]
-    result: DPResult | None = getattr(error, "result", None)
-    cause = getattr(error, "cause", None) or str(error)
-    hint = getattr(error, "hint", "") if getattr(error, "cause", None) else ""
+    result: DPResult | None = error.result
+    cause = error.cause or str(error)
+    hint = error.hint if error.cause else ""
     blocked_by_model = result is None or result.forbidden_by_reason.get("failure", 0) > 0
     p = np.array([]) if problem.failure is None else problem.failure.p_flat
     hard = bool(np.all((p[np.isfinite(p)] == 0.0) | (p[np.isfinite(p)] == 1.0)))  # limits: apf 1 ignores them
@@ -369,9 +371,13 @@ def _seconds(t: Any) -> np.datetime64:
     return cast(np.datetime64, np.asarray(t).astype("datetime64[s]")[()])
 
 
+def window_size(first: np.datetime64, last: np.datetime64, step_h: float) -> int:
+    """How many departures :func:`departure_window` makes, counted without making them."""
+    span_h = float((_seconds(last) - _seconds(first)) / np.timedelta64(1, "s")) / 3600.0
+    return max(int(np.floor(span_h / step_h + 1e-9)) + 1, 0)
+
+
 def departure_window(first: np.datetime64, last: np.datetime64, step_h: float) -> list[np.datetime64]:
     """The departures from ``first`` to ``last`` (included when on the step) every ``step_h`` hours."""
-    t0, t1 = _seconds(first), _seconds(last)
-    span_h = float((t1 - t0) / np.timedelta64(1, "s")) / 3600.0
-    n = int(np.floor(span_h / step_h + 1e-9)) + 1
-    return [t0 + np.timedelta64(round(i * step_h * 3600.0), "s") for i in range(max(n, 0))]
+    t0 = _seconds(first)
+    return [t0 + np.timedelta64(round(i * step_h * 3600.0), "s") for i in range(window_size(first, last, step_h))]
